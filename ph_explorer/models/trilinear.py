@@ -1,0 +1,196 @@
+"""Trilinear interpolation + Monte Carlo, after Gaska, Gaska and Gruza 2016 (Appl. Sci. 6, 144).
+
+The paper's baseline (its reference [12]): two tables over the measured lattice of orientations
+and the points of the ring, (A, B, theta) -> the mean deviation of the repetitions and their
+standard deviation. A prediction at any orientation and any number of points is the trilinear
+interpolation of the mean table (B and theta periodic, A linear and clamped at the ends of the
+measured range); a simulated measurement adds a Gaussian draw with the interpolated spread.
+
+Lattice nodes without data (held out, or never measured) are filled before interpolating:
+first along B within their A row (periodic linear interpolation between the nearest measured
+B nodes of that row), then rows with no measured node at all along A (linear between the
+nearest measured rows, nearest row beyond the ends). Training orientations off the lattice do
+not enter the tables: the method is a lattice method.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Self
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer.campaign import Campaign, lattice_axes
+from ph_explorer.geometry import point_angles_deg, wrap_deg
+from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
+
+FILE_NAME = "trilinear.npz"
+
+
+def linear_weights(x: ArrayLike, nodes: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
+    """Bracketing node indices (i0, i1) and weight w of i1 for linear interpolation, clamped at the ends."""
+    x = np.asarray(x, dtype=float)
+    if nodes.size == 1:
+        zero = np.zeros(x.shape, dtype=int)
+        return zero, zero, np.zeros(x.shape)
+    xc = np.clip(x, nodes[0], nodes[-1])
+    i1 = np.clip(np.searchsorted(nodes, xc, side="right"), 1, nodes.size - 1)
+    i0 = i1 - 1
+    w = (xc - nodes[i0]) / (nodes[i1] - nodes[i0])
+    return i0, i1, w
+
+
+def periodic_weights(x: ArrayLike, nodes: NDArray[np.float64], period: float = 360.0) -> tuple[NDArray, NDArray, NDArray]:
+    """Like linear_weights on a circle: nodes sorted in [start, start + period), x any angle."""
+    x = np.asarray(x, dtype=float)
+    if nodes.size == 1:
+        zero = np.zeros(x.shape, dtype=int)
+        return zero, zero, np.zeros(x.shape)
+    # Map x into [nodes[0], nodes[0] + period); the last interval wraps to node 0.
+    xr = nodes[0] + np.mod(x - nodes[0], period)
+    extended = np.append(nodes, nodes[0] + period)
+    i1 = np.clip(np.searchsorted(extended, xr, side="right"), 1, nodes.size)
+    i0 = i1 - 1
+    w = (xr - extended[i0]) / (extended[i1] - extended[i0])
+    return i0, i1 % nodes.size, w
+
+
+def fill_missing_nodes(
+    table: NDArray[np.float64], measured: NDArray[np.bool_], a_axis: NDArray[np.float64], b_axis: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Fill lattice nodes without data: along B within each A row, then whole rows along A.
+
+    table (n_a, n_b, n_pt), measured (n_a, n_b). Loops run over the few A rows only.
+    """
+    filled = table.copy()
+    row_has_data = measured.any(axis=1)
+    if not row_has_data.any():
+        raise ValueError("no lattice node has data")
+    for i in np.flatnonzero(row_has_data):
+        known = np.flatnonzero(measured[i])
+        missing = np.flatnonzero(~measured[i])
+        if missing.size == 0:
+            continue
+        j0, j1, w = periodic_weights(b_axis[missing], b_axis[known])
+        filled[i, missing] = (1 - w)[:, None] * table[i, known[j0]] + w[:, None] * table[i, known[j1]]
+    rows = np.flatnonzero(row_has_data)
+    empty = np.flatnonzero(~row_has_data)
+    if empty.size:
+        i0, i1, w = linear_weights(a_axis[empty], a_axis[rows])
+        filled[empty] = (1 - w)[:, None, None] * filled[rows[i0]] + w[:, None, None] * filled[rows[i1]]
+    return filled
+
+
+class TrilinearModel(DeviationModel):
+    """Mean and spread tables over (A, B, theta), trilinearly interpolated (Gaska et al. 2016)."""
+
+    name = "trilinear"
+
+    def __init__(self) -> None:
+        self.a_axis: NDArray[np.float64] | None = None  # (n_a,) deg, ascending
+        self.b_axis: NDArray[np.float64] | None = None  # (n_b,) deg, ascending in [-180, 180)
+        self.mean_table: NDArray[np.float64] | None = None  # (n_a, n_b, n_pt) um, gaps filled
+        self.sigma_table: NDArray[np.float64] | None = None  # (n_a, n_b, n_pt) um, gaps filled
+        self.measured: NDArray[np.bool_] | None = None  # (n_a, n_b) node had training data
+        self.n_points = 64
+
+    # -- learning --------------------------------------------------------------------------------
+    def fit(self, campaign: Campaign, train: ArrayLike | None = None) -> Self:
+        mask = training_mask(campaign, train)
+        if not mask.any():
+            raise ValueError("the trilinear model needs at least one training orientation")
+        orientations = campaign.orientations[mask]
+        a_axis, b_values = lattice_axes(orientations)
+        b_axis = np.unique(np.round(wrap_deg(b_values), 6))
+        # Node index of each training orientation, or -1 off the lattice.
+        ia = _node_index(orientations[:, 0], a_axis)
+        ib = _node_index(wrap_deg(orientations[:, 1]), b_axis)
+        on = (ia >= 0) & (ib >= 0)
+        if not on.any():
+            raise ValueError("no training orientation lies on the campaign's lattice")
+        n_pt = campaign.n_points
+        total = np.zeros((a_axis.size, b_axis.size, n_pt))
+        total_sq = np.zeros_like(total)
+        count = np.zeros((a_axis.size, b_axis.size))
+        deviations = campaign.deviations[mask][on]  # (n_on, n_rep, n_pt)
+        # Pool the repetitions of every orientation on each node (a node measured twice pools both).
+        np.add.at(total, (ia[on], ib[on]), deviations.sum(axis=1))
+        np.add.at(total_sq, (ia[on], ib[on]), (deviations**2).sum(axis=1))
+        np.add.at(count, (ia[on], ib[on]), deviations.shape[1])
+        measured = count > 0
+        c = np.where(measured, count, 1.0)[..., None]
+        mean = total / c
+        # Repetition variance with ddof=1 (zero when a node has a single repetition).
+        variance = np.where(c > 1, (total_sq - c * mean**2) / np.maximum(c - 1, 1), 0.0)
+        self.a_axis, self.b_axis, self.measured = a_axis, b_axis, measured
+        self.mean_table = fill_missing_nodes(mean, measured, a_axis, b_axis)
+        self.sigma_table = fill_missing_nodes(np.sqrt(np.maximum(variance, 0.0)), measured, a_axis, b_axis)
+        self.n_points = n_pt
+        return self
+
+    # -- interpolation -------------------------------------------------------------------------
+    def _interpolate(self, table: NDArray[np.float64], orientations: ArrayLike, n_points: int | None) -> NDArray[np.float64]:
+        if table is None or self.a_axis is None or self.b_axis is None:
+            raise RuntimeError("the trilinear model is not fitted")
+        o = as_orientations(orientations)
+        ia0, ia1, wa = linear_weights(o[:, 0], self.a_axis)
+        ib0, ib1, wb = periodic_weights(o[:, 1], self.b_axis)
+        wa, wb = wa[:, None], wb[:, None]
+        curves = (
+            (1 - wa) * (1 - wb) * table[ia0, ib0]
+            + (1 - wa) * wb * table[ia0, ib1]
+            + wa * (1 - wb) * table[ia1, ib0]
+            + wa * wb * table[ia1, ib1]
+        )  # (m, n_pt_table)
+        n = self.n_points if n_points is None else int(n_points)
+        if n == self.n_points:
+            return curves
+        it0, it1, wt = periodic_weights(point_angles_deg(n), point_angles_deg(self.n_points))
+        return (1 - wt) * curves[:, it0] + wt * curves[:, it1]
+
+    def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
+        # The tables hold post-fit curves; interpolation in theta to another N can leak a little of
+        # harmonics 0 and 1 back in, so the circle fit is applied again.
+        return remove_size_and_centre(self._interpolate(self.mean_table, orientations, n_points))
+
+    def repetition_sigma(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
+        return self._interpolate(self.sigma_table, orientations, n_points)
+
+    # -- files ---------------------------------------------------------------------------------
+    def save(self, directory: str | Path) -> Path:
+        if self.mean_table is None:
+            raise RuntimeError("the trilinear model is not fitted")
+        path = Path(directory) / FILE_NAME
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "wb") as handle:
+            np.savez_compressed(
+                handle,
+                a_axis=self.a_axis,
+                b_axis=self.b_axis,
+                mean_table=self.mean_table,
+                sigma_table=self.sigma_table,
+                measured=self.measured,
+                n_points=np.array(self.n_points),
+            )
+        return path
+
+    @classmethod
+    def load(cls, directory: str | Path) -> Self:
+        path = Path(directory) / FILE_NAME
+        model = cls()
+        with np.load(path, allow_pickle=False) as data:
+            model.a_axis = data["a_axis"].astype(float)
+            model.b_axis = data["b_axis"].astype(float)
+            model.mean_table = data["mean_table"].astype(float)
+            model.sigma_table = data["sigma_table"].astype(float)
+            model.measured = data["measured"].astype(bool)
+            model.n_points = int(data["n_points"])
+        return model
+
+
+def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64], atol: float = 1e-6) -> NDArray[np.int64]:
+    """Index of each value on the axis, -1 when it is not a node."""
+    hit = np.isclose(values[:, None], axis[None, :], atol=atol)
+    return np.where(hit.any(axis=1), hit.argmax(axis=1), -1)

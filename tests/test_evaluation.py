@@ -1,0 +1,74 @@
+"""The paper's Tables 1-3 and the noise floors."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ph_explorer.evaluation import evaluation_report, format_report, mean_mae, noise_floor, orientation_tables
+from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.synthetic import lobing_campaign, systematic_curves
+from ph_explorer.models.trilinear import TrilinearModel
+
+
+class Oracle(DeviationModel):
+    """A perfect model: the campaign's true systematic curves."""
+
+    name = "oracle"
+
+    def fit(self, campaign, train=None):
+        return self
+
+    def predict(self, orientations, n_points=None):
+        return systematic_curves(orientations, n_points or 64)
+
+    def repetition_sigma(self, orientations, n_points=None):
+        return np.full((len(np.reshape(orientations, (-1, 2))), n_points or 64), 0.175)
+
+    def save(self, directory):
+        return Path(directory)
+
+    @classmethod
+    def load(cls, directory):
+        return cls()
+
+
+def test_noise_floor_values():
+    floor = noise_floor(0.175, 10)
+    assert floor["single"] == pytest.approx(0.175 * math.sqrt(2 / math.pi))
+    assert floor["single"] == pytest.approx(0.1396, abs=1e-4)  # physics.md: 0.80 sigma = 0.14 um
+    assert floor["mean"] == pytest.approx(floor["single"] / math.sqrt(10))
+
+
+def test_a_perfect_model_sits_on_the_noise_floor():
+    campaign = lobing_campaign(seed=3, n_repetitions=10)
+    everything = np.ones(campaign.n_orientations, bool)
+    report = evaluation_report(campaign, {"oracle": Oracle()}, everything)
+    average = mean_mae(report)["oracle"]
+    floor = report["noise_floor_um"]
+    # 127 orientations x 64 points x 10 repetitions: the averages are within a few percent of E|e|.
+    assert average["single"] == pytest.approx(floor["single"], rel=0.03)
+    assert average["mean"] == pytest.approx(floor["mean"], rel=0.05)
+
+
+def test_tables_at_the_default_holdout_follow_the_paper():
+    campaign = lobing_campaign(seed=4, extra_orientations=[(43, 91), (20, 50)])
+    model = TrilinearModel().fit(campaign, ~campaign.holdout_mask())
+    rows = orientation_tables(campaign, {"trilinear": model, "oracle": Oracle()})
+    assert [(r["A_deg"], r["B_deg"]) for r in rows] == [(43.0, 91.0), (20.0, 50.0)]
+    for row, index in zip(rows, [campaign.index_of(43, 91), campaign.index_of(20, 50)]):
+        mean = campaign.deviations[index].mean(axis=0)
+        assert row["range_um"]["measured"] == pytest.approx(np.ptp(mean), abs=1e-5)
+        assert row["max_abs_um"]["measured"] == pytest.approx(np.abs(mean).max(), abs=1e-5)
+        predicted = model.predict([[row["A_deg"], row["B_deg"]]])[0]
+        assert row["range_um"]["trilinear"] == pytest.approx(np.ptp(predicted), abs=1e-5)
+        eps = predicted[None, :] - campaign.deviations[index]
+        assert row["mae_um"]["trilinear"]["single"] == pytest.approx(np.abs(eps).mean(), abs=1e-5)
+        assert row["mae_um"]["trilinear"]["mean"] == pytest.approx(np.abs(predicted - mean).mean(), abs=1e-5)
+        # Against single repetitions a model always does worse than against their mean.
+        assert row["mae_um"]["trilinear"]["single"] > row["mae_um"]["trilinear"]["mean"]
+    text = format_report(evaluation_report(campaign, {"trilinear": model}))
+    assert "Table 1" in text and "Table 3" in text and "A 43 B 91" in text and "noise floor" in text

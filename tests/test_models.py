@@ -1,0 +1,114 @@
+"""The models' interface, the trilinear + Monte Carlo model and (below) the Fourier network."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ph_explorer.harmonics import fourier_basis
+from ph_explorer.models.synthetic import lobing_campaign, systematic_curves
+from ph_explorer.models.trilinear import TrilinearModel, periodic_weights
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return lobing_campaign(seed=1)
+
+
+def low_harmonics(curves: np.ndarray) -> np.ndarray:
+    """Amplitudes of harmonics 0 and 1 of curves (..., n_pt)."""
+    n = curves.shape[-1]
+    return np.abs(curves @ fourier_basis(n, 1)) / n
+
+
+# -- trilinear ---------------------------------------------------------------------------------
+def test_periodic_weights_wrap_between_last_and_first_node():
+    nodes = np.arange(-160.0, 181.0, 20.0)  # ..., 160, 180
+    i0, i1, w = periodic_weights(np.array([170.0, -170.0, 190.0, -160.0]), np.sort(((nodes + 180) % 360) - 180))
+    sorted_nodes = np.sort(((nodes + 180) % 360) - 180)  # -180, -160, ..., 160
+    assert sorted_nodes[i0[0]] == 160 and sorted_nodes[i1[0]] == -180 and w[0] == pytest.approx(0.5)
+    assert sorted_nodes[i0[1]] == -180 and sorted_nodes[i1[1]] == -160 and w[1] == pytest.approx(0.5)
+    assert sorted_nodes[i0[2]] == -180 and w[2] == pytest.approx(0.5)  # 190 = -170
+    assert sorted_nodes[i0[3]] == -160 and w[3] == pytest.approx(0.0)
+
+
+def test_trilinear_reproduces_measured_nodes_and_is_periodic_in_b(campaign):
+    model = TrilinearModel().fit(campaign)
+    grid = ~campaign.off_grid_mask()
+    predicted = model.predict(campaign.orientations[grid])
+    np.testing.assert_allclose(predicted, campaign.mean_curves()[grid], atol=1e-12)
+    np.testing.assert_allclose(model.predict([[30, 170]]), model.predict([[30, -190]]), atol=1e-12)
+    np.testing.assert_allclose(model.predict([[30, 180]]), model.predict([[30, -180]]), atol=1e-12)
+
+
+def test_trilinear_fills_a_held_out_node_from_its_b_neighbours(campaign):
+    held = campaign.index_of(15, -20)
+    train = np.ones(campaign.n_orientations, bool)
+    train[held] = False
+    model = TrilinearModel().fit(campaign, train)
+    assert not model.measured[np.searchsorted(model.a_axis, 15), np.searchsorted(model.b_axis, -20)]
+    neighbours = (campaign.mean_curves()[campaign.index_of(15, -40)] + campaign.mean_curves()[campaign.index_of(15, 0)]) / 2
+    np.testing.assert_allclose(model.predict([[15, -20]])[0], neighbours, atol=1e-12)
+
+
+def test_trilinear_fills_a_whole_missing_a_row_along_a(campaign):
+    train = campaign.orientations[:, 0] != 45
+    model = TrilinearModel().fit(campaign, train)
+    assert model.a_axis.tolist() == [0, 15, 30, 60, 75, 90]  # A 45 never seen: not a node
+    expected = (model.predict([[30, 40]]) + model.predict([[60, 40]])) / 2
+    np.testing.assert_allclose(model.predict([[45, 40]]), expected, atol=1e-12)
+
+
+def test_trilinear_interpolates_off_grid_close_to_the_truth(campaign):
+    model = TrilinearModel().fit(campaign, ~campaign.off_grid_mask())
+    truth = systematic_curves([[43, 91]])
+    error = np.abs(model.predict([[43, 91]]) - truth).mean()
+    # Node means carry sigma/sqrt(10) noise; the interpolation error of this smooth field is small.
+    assert error < 0.08
+    assert error < np.abs(truth).mean() / 3
+
+
+def test_trilinear_predictions_are_post_fit_curves_at_any_number_of_points(campaign):
+    model = TrilinearModel().fit(campaign)
+    curves64 = model.predict([[43, 91], [10, 5]])
+    curves128 = model.predict([[43, 91], [10, 5]], n_points=128)
+    assert curves128.shape == (2, 128)
+    assert low_harmonics(curves128).max() < 1e-12 and low_harmonics(curves64).max() < 1e-12
+    # Linear interpolation in theta: at the table's own angles the 128-point curve is the 64-point
+    # one up to the re-fit of harmonics 0 and 1.
+    np.testing.assert_allclose(curves128[:, ::2], curves64, atol=0.02)
+
+
+def test_trilinear_monte_carlo_has_the_measured_mean_and_spread(campaign):
+    model = TrilinearModel().fit(campaign)
+    rng = np.random.default_rng(5)
+    simulated = model.simulate([[43, 91], [60, -100]], n_repetitions=4000, rng=rng)
+    assert simulated.shape == (2, 4000, 64)
+    np.testing.assert_allclose(simulated.mean(axis=1), model.predict([[43, 91], [60, -100]]), atol=0.02)
+    spread = simulated.std(axis=1, ddof=1)
+    sigma = model.repetition_sigma([[43, 91], [60, -100]])
+    # The post-fit spread is reproduced on average (the circle fit of each draw is compensated).
+    assert spread.mean() == pytest.approx(sigma.mean(), rel=0.02)
+    assert 0.15 < sigma.mean() < 0.19  # the campaign's 0.175 um touch noise, after the circle fit
+    assert low_harmonics(simulated).max() < 1e-12
+
+
+def test_trilinear_save_load_round_trip(campaign, tmp_path):
+    held = ~campaign.off_grid_mask()
+    model = TrilinearModel().fit(campaign, held)
+    path = model.save(tmp_path)
+    assert path.name == "trilinear.npz"
+    loaded = TrilinearModel.load(tmp_path)
+    query = [[43, 91], [0, 0], [90, 179], [22, -33]]
+    np.testing.assert_array_equal(loaded.predict(query), model.predict(query))
+    np.testing.assert_array_equal(loaded.repetition_sigma(query), model.repetition_sigma(query))
+
+
+def test_predict_touches_broadcasts_over_repetitions(campaign):
+    from ph_explorer.kinematics import campaign_touches
+
+    model = TrilinearModel().fit(campaign)
+    touches = campaign_touches(campaign.subset(np.arange(5)))
+    out = model.predict_touches(touches)
+    assert out.shape == (5, campaign.n_repetitions, 64)
+    np.testing.assert_allclose(out[:, 3], model.predict(campaign.orientations[:5]))
