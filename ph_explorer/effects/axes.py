@@ -1,0 +1,107 @@
+"""Effects of the head's two rotary axes: cyclic angular errors and lost motion."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.effects.base import Effect, Parameter, full_shape, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.kinematics import Touches
+
+CYCLES_PER_REV = tuple(range(1, 41))
+
+
+class _AxisCyclic(Effect):
+    """eps(angle) = amplitude_arcsec * sin(m * angle + phase) at each touch's actual joint angle."""
+
+    axis = "A"
+    parameters = (
+        Parameter("amplitude_arcsec", "arcsec", 1.0, "amplitude of the angular error"),
+        Parameter("phase_deg", "deg", 0.0, "phase of the error at joint angle 0"),
+        Parameter("cycles_per_rev", "1/rev", 3.0, "cycles per revolution of the joint"),
+    )
+    structural = {"cycles_per_rev": CYCLES_PER_REV}
+
+    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+        m = float(structural.get("cycles_per_rev", self.params["cycles_per_rev"]))
+        angle = m * np.radians(joint_angle_deg(touches, self.axis))
+        lever = rotation_deviation_um_per_arcsec(touches, self.axis)
+        cols = np.stack([np.sin(angle) * lever, np.cos(angle) * lever], axis=-1)
+        tag = f"{self.id}_{m:g}"
+        return full_shape(cols, touches), [f"{tag}_sin", f"{tag}_cos"]
+
+    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+        amp, phase = self.params["amplitude_arcsec"], np.radians(self.params["phase_deg"])
+        # sin(m x + phi) = cos(phi) sin(m x) + sin(phi) cos(m x)
+        return np.array([amp * np.cos(phase), amp * np.sin(phase)])
+
+    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+        c_sin, c_cos = np.asarray(coef, dtype=float)[:2]
+        m = float(structural.get("cycles_per_rev", self.params["cycles_per_rev"]))
+        return {
+            "amplitude_arcsec": float(np.hypot(c_sin, c_cos)),
+            "phase_deg": float(np.degrees(np.arctan2(c_cos, c_sin)) % 360.0),
+            "cycles_per_rev": m,
+        }
+
+
+class AAxisCyclic(_AxisCyclic):
+    id = "a_axis_cyclic"
+    name = "A-axis cyclic angular error"
+    axis = "A"
+    teaching = (
+        "The A joint's true angle differs from its reading by eps(A) = sum_m a_m sin(m A + phi_m): encoder "
+        "eccentricity (1/rev), ovality (2/rev), mounting (3-8/rev), gear or motor-pole cycles at higher "
+        "orders; residuals after mapping 0.3-2 arcsec. It tilts the stylus about the head's x axis with the "
+        "full lever L: 1 arcsec moves the tip 0.39 um at 80 mm. Evaluated at each touch's actual A, which "
+        "sweeps +-6.5 deg around A0 during one ring: a constant error is a pure centre shift (removed by "
+        "the circle fit); what shows is how eps changes across that sweep. Only 7 A values on the paper's "
+        "grid: a short period in A (15-20 deg) is invisible to a model indexed by the nominal A0, and a "
+        "period that divides the 15-deg grid step looks the same at every grid ring (aliased)."
+    )
+
+
+class BAxisCyclic(_AxisCyclic):
+    id = "b_axis_cyclic"
+    name = "B-axis cyclic angular error"
+    axis = "B"
+    teaching = (
+        "The B joint's true angle differs from its reading by eps(B) = sum_m a_m sin(m B + phi_m) "
+        "(0.3-2 arcsec after mapping). B turns about the vertical, so the tip moves by eps times its "
+        "distance from that axis, ~ L sin A: nothing at A0 = 0 (the move is tangential to the ring), "
+        "growing with sin A0. During one ring B sweeps a full turn at A0 = 0, ~50 deg at A0 = 15, under "
+        "20 deg at A0 >= 45; evaluated at each touch's actual B. Linear interpolation on the 20-deg B grid "
+        "fails for periods under ~40 deg (100 % error), and a period that divides 20 deg is aliased "
+        "on the grid; yet every ring samples B continuously, so a term in the joint angles can learn it."
+    )
+
+
+class Direction(Effect):
+    id = "direction"
+    name = "Lost motion by direction of approach"
+    teaching = (
+        "Backlash or wind-up in a joint's drive: the joint settles a little short of its reading, on the "
+        "side it came from, an angular offset of +-lost_motion/2 by the sign of that joint's approach. "
+        "Converted to the tip through the same levers as the cyclic errors (B ~ L sin A, A ~ L). Small in "
+        "servo heads (<= 0.1 um, est). With the same touch order in every repetition it is a fixed part of "
+        "each ring's curve; it shows as a difference between repetitions only when the touch order "
+        "changes (for example the scan direction alternating), and no model indexed by orientation alone "
+        "can predict which way the next repetition goes."
+    )
+    parameters = (
+        Parameter("a_lost_motion_arcsec", "arcsec", 0.5, "A joint: difference between its two approach directions"),
+        Parameter("b_lost_motion_arcsec", "arcsec", 0.5, "B joint: difference between its two approach directions"),
+    )
+    structural: dict[str, tuple] = {}
+
+    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+        cols = np.stack(
+            [
+                0.5 * touches.a_approach * rotation_deviation_um_per_arcsec(touches, "A"),
+                0.5 * touches.b_approach * rotation_deviation_um_per_arcsec(touches, "B"),
+            ],
+            axis=-1,
+        )
+        return full_shape(cols, touches), ["direction_a", "direction_b"]

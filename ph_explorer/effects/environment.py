@@ -1,0 +1,117 @@
+"""Effects outside the head's kinematics: thermal drift with time, and the form of the ring."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.effects.base import Effect, Parameter, ball_centre_mm, full_shape, radial_unit
+from ph_explorer.errors import InputError
+from ph_explorer.kinematics import Touches
+
+SECONDS_PER_HOUR = 3600.0
+DRIFT_TIME_CONSTANTS_S = (300.0, 600.0, 1200.0, 1800.0, 3600.0, 7200.0)
+
+
+class Drift(Effect):
+    id = "drift"
+    name = "Thermal drift of the head with time"
+    teaching = (
+        "The stylus and the head body grow with temperature, alpha L dT: 1.15 um per kelvin for 50 mm of "
+        "aluminium. Growth of the stylus moves the ball along the stylus, whose radial share is only "
+        "rho / L (0.11 for a 9 mm contact radius at 80 mm); growth of the head body moves the pivot down "
+        "(-z), whose radial share is the ring's tilt (sin A0 at most). Temperature follows a steady ramp "
+        "(um per hour) and/or an exponential warm-up (step, time constant tau). The circle fit removes "
+        "whatever is constant during one ring: only the change within the ~2 minutes of a ring shows, as "
+        "a sawtooth-like pattern with all harmonics. Needs touch times t_s; a warm-up hits the first rings "
+        "measured, so it depends on the scan order, not on the orientation."
+    )
+    parameters = (
+        Parameter("stylus_rate_um_per_h", "um/h", 0.0, "steady growth of the stylus along its axis"),
+        Parameter("stylus_step_um", "um", 0.0, "total warm-up growth of the stylus along its axis"),
+        Parameter("head_rate_um_per_h", "um/h", 0.0, "steady growth of the head body, moving the pivot down"),
+        Parameter("head_step_um", "um", 0.0, "total warm-up growth of the head body, moving the pivot down"),
+        Parameter("tau_s", "s", 1200.0, "time constant of the warm-up"),
+    )
+    structural = {"tau_s": DRIFT_TIME_CONSTANTS_S}
+
+    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+        if touches.times_s is None:
+            raise InputError("the drift effect needs touch times (a t_s column)", column="t_s")
+        tau = float(structural.get("tau_s", self.params["tau_s"]))
+        if not tau > 0:
+            raise InputError("drift: tau_s must be positive", column="tau_s")
+        t = touches.times_s
+        ramp = t / SECONDS_PER_HOUR
+        warm = 1.0 - np.exp(-t / tau)
+        u = radial_unit(touches)
+        stylus = ball_centre_mm(touches) / touches.geometry.pivot_to_ball_mm  # unit stylus direction s_k
+        # A touch reads -d . u_k: stylus growth d = g s_k, head growth d = g (-z).
+        along_stylus = -np.einsum("...i,...i->...", stylus, u)
+        pivot_down = u[..., 2]
+        cols = np.stack([ramp * along_stylus, warm * along_stylus, ramp * pivot_down, warm * pivot_down], axis=-1)
+        names = ["drift_stylus_rate", "drift_stylus_step", "drift_head_rate", "drift_head_step"]
+        return full_shape(cols, touches), names
+
+    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+        out = super().from_coefficients(coef)
+        out["tau_s"] = float(structural.get("tau_s", self.params["tau_s"]))
+        return out
+
+
+class RingForm(Effect):
+    id = "ring_form"
+    name = "Form of the reference ring"
+    teaching = (
+        "The ring is not perfectly round: a grade-0 20 mm ring has ~0.2 um of form, a few harmonics from "
+        "2 to 15 UPR falling with order. The form is fixed in the ring's own frame, so it is identical at "
+        "every head orientation: the part of every curve that does not depend on the orientation. Any "
+        "model learns it; it is not an error of the head and should be subtracted before judging the head."
+    )
+    parameters = (
+        Parameter("form_um", "um", 0.2, "peak-to-valley form of the ring (harmonics upr_min..upr_max)"),
+        Parameter("shape_seed", "", 1.0, "seed of the (fixed) random phases and weights of the form's harmonics"),
+        Parameter("upr_min", "UPR", 2.0, "lowest harmonic of the form"),
+        Parameter("upr_max", "UPR", 15.0, "highest harmonic of the form"),
+    )
+    structural: dict[str, tuple] = {}
+
+    def _orders(self) -> NDArray[np.float64]:
+        lo, hi = int(self.params["upr_min"]), int(self.params["upr_max"])
+        if not 2 <= lo <= hi:
+            raise InputError("ring_form: need 2 <= upr_min <= upr_max", column="upr_min")
+        return np.arange(lo, hi + 1, dtype=float)
+
+    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+        n = self._orders()
+        theta = np.radians(touches.theta_deg)[:, None] * n  # (n_pt, n_h)
+        cols = np.empty((touches.theta_deg.size, 2 * n.size))
+        cols[:, 0::2] = np.cos(theta)
+        cols[:, 1::2] = np.sin(theta)
+        names = [f"ring_{trig}{k:g}theta" for k in n for trig in ("cos", "sin")]
+        return np.ascontiguousarray(np.broadcast_to(cols, touches.shape + cols.shape[-1:])), names
+
+    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+        n = self._orders()
+        rng = np.random.default_rng(int(self.params["shape_seed"]))
+        amplitude = rng.uniform(0.5, 1.0, n.size) / n  # falling with order
+        phase = rng.uniform(0.0, 2.0 * np.pi, n.size)
+        coef = np.empty(2 * n.size)
+        coef[0::2], coef[1::2] = amplitude * np.cos(phase), amplitude * np.sin(phase)
+        return coef * (self.params["form_um"] / _peak_to_valley(coef, n))
+
+    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+        n = self._orders()
+        coef = np.asarray(coef, dtype=float)
+        out = {"form_um": _peak_to_valley(coef, n)}
+        out.update({f"upr_{k:g}_um": float(a) for k, a in zip(n, np.hypot(coef[0::2], coef[1::2]))})
+        return out
+
+
+def _peak_to_valley(coef: NDArray[np.float64], orders: NDArray[np.float64], samples: int = 3600) -> float:
+    """Peak-to-valley of sum_n c_n cos(n theta) + s_n sin(n theta), on a dense circle."""
+    theta = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)[:, None] * orders
+    curve = np.cos(theta) @ coef[0::2] + np.sin(theta) @ coef[1::2]
+    return float(np.ptp(curve))
