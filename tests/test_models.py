@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -112,3 +114,89 @@ def test_predict_touches_broadcasts_over_repetitions(campaign):
     out = model.predict_touches(touches)
     assert out.shape == (5, campaign.n_repetitions, 64)
     np.testing.assert_allclose(out[:, 3], model.predict(campaign.orientations[:5]))
+
+
+# -- network -----------------------------------------------------------------------------------
+from ph_explorer.models.network import FourierNetwork, NetworkConfig  # noqa: E402
+
+QUICK = dict(max_epochs=40, early_stopping_patience=40)
+
+
+@pytest.fixture(scope="module")
+def quick_network(campaign):
+    train = ~campaign.off_grid_mask()
+    seen = []
+    model = FourierNetwork(progress=lambda *args: seen.append(args), **QUICK).fit(campaign, train)
+    return model, train, seen
+
+
+def test_network_output_is_a_fourier_curve_of_k_harmonics(quick_network):
+    model, _, _ = quick_network
+    assert model.config.k_max == 8
+    coef = model.coefficients([[43, 91], [0, 0]])
+    assert coef.shape == (2, 17)
+    curve = model.predict([[43, 91], [0, 0]], n_points=256)
+    spectrum = np.abs(np.fft.rfft(curve, axis=1))
+    assert spectrum[:, 9:].max() < 1e-9 * spectrum.max()  # nothing above K = 8
+    assert spectrum[:, :2].max() < 1e-9 * spectrum.max()  # harmonics 0 and 1: the circle fit's
+
+
+def test_network_learns_the_systematic_curves_beyond_zero(campaign, quick_network):
+    model, train, seen = quick_network
+    truth = systematic_curves(campaign.orientations)
+    error = np.abs(model.predict(campaign.orientations) - truth).mean()
+    assert error < 0.5 * np.abs(truth).mean()  # already after 40 epochs
+    assert len(seen) == model.log.epochs and all(np.isfinite(s[2]) for s in seen)
+    assert model.log.validation_mae_um[model.log.best_epoch - 1] == min(model.log.validation_mae_um)
+    # Validation orientations come from the training set only; the off-grid ring is never seen.
+    val = np.array(model.log.validation_orientations)
+    assert len(val) and not (np.isclose(val[:, 0], 43) & np.isclose(val[:, 1], 91)).any()
+    assert model.log.diagnostics["validation"]["mae_mean_um"] > 0
+
+
+def test_network_training_is_reproducible_and_saves_without_pickle(campaign, quick_network, tmp_path):
+    model, train, _ = quick_network
+    again = FourierNetwork(**QUICK).fit(campaign, train)
+    query = [[43, 91], [10, -170], [90, 0]]
+    np.testing.assert_array_equal(again.predict(query), model.predict(query))
+    path = model.save(tmp_path)
+    raw = path.read_bytes()
+    header = json.loads(raw[8 : 8 + int.from_bytes(raw[:8], "little")])  # safetensors: JSON header + raw tensors
+    assert "__metadata__" in header and "head.weight" in header
+    loaded = FourierNetwork.load(tmp_path)
+    np.testing.assert_array_equal(loaded.predict(query), model.predict(query))
+    assert loaded.config == model.config and loaded.sigma_um == model.sigma_um
+
+
+def test_network_monte_carlo_adds_the_pooled_spread(quick_network):
+    model, _, _ = quick_network
+    assert 0.15 < model.sigma_um < 0.19
+    sim = model.simulate([[43, 91]], n_repetitions=3000, rng=np.random.default_rng(0), n_points=32)
+    assert sim.shape == (1, 3000, 32)
+    assert sim.std(axis=1, ddof=1).mean() == pytest.approx(model.sigma_um, rel=0.03)
+    np.testing.assert_allclose(sim.mean(axis=1), model.predict([[43, 91]], n_points=32), atol=0.02)
+
+
+def test_network_repetition_target_trains_too(campaign):
+    model = FourierNetwork(target="repetitions", max_epochs=3, batch_size=128).fit(campaign, ~campaign.off_grid_mask())
+    assert model.log.epochs == 3 and np.isfinite(model.predict([[43, 91]])).all()
+    with pytest.raises(ValueError):
+        FourierNetwork(target="median").fit(campaign)
+
+
+@pytest.mark.slow
+def test_network_reaches_the_noise_floor_at_held_out_rings():
+    """Fully trained on the synthetic campaign: near the floor at held-out rings, like trilinear or better."""
+    from ph_explorer.evaluation import evaluation_report, mean_mae
+    from ph_explorer.models.trilinear import TrilinearModel
+
+    c = lobing_campaign(seed=1, check_orientations=[(15, -20), (75, 40), (45, -20), (43, 91)])
+    hold = c.holdout_mask()
+    models = {"network": FourierNetwork().fit(c, ~hold), "trilinear": TrilinearModel().fit(c, ~hold)}
+    report = evaluation_report(c, models, hold)
+    average = mean_mae(report)
+    floor = report["noise_floor_um"]
+    assert average["network"]["mean"] < 1.6 * floor["mean"]
+    assert average["network"]["mean"] <= average["trilinear"]["mean"] + 0.01
+    for row in report["orientations"]:
+        assert 0.08 < row["mae_um"]["network"]["single"] < 0.22

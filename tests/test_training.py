@@ -1,0 +1,126 @@
+"""`ph-explorer train` and `evaluate`: the model folder, its card, atomic writing, holdouts."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from ph_explorer.cli import app
+from ph_explorer.errors import InputError
+from ph_explorer.evaluation import evaluate_command
+from ph_explorer.io import read_campaign, sidecar_path, write_campaign
+from ph_explorer.models.network import FourierNetwork, NetworkConfig
+from ph_explorer.models.synthetic import lobing_campaign
+from ph_explorer.training import load_card, load_models, parse_holdout, train_command
+
+QUICK = NetworkConfig(max_epochs=8, early_stopping_patience=8)
+CHECKS = [(15.0, -20.0), (43.0, 91.0)]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("data")
+    return write_campaign(lobing_campaign(seed=2, check_orientations=CHECKS), folder / "lobing.csv")
+
+
+@pytest.fixture(scope="module")
+def trained(data, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("models") / "lobing"
+    assert train_command(data, out, network_config=QUICK, quiet=True) == 0
+    return out
+
+
+def test_train_writes_the_model_folder_and_card(data, trained):
+    assert sorted(p.name for p in trained.iterdir()) == ["card.json", "network.safetensors", "trilinear.npz"]
+    card = load_card(trained)
+    import hashlib
+
+    assert card["data"]["sha256"] == hashlib.sha256(data.read_bytes()).hexdigest()
+    assert card["holdout"] == [list(c) for c in CHECKS] and card["holdout_source"] == "sidecar check orientations"
+    assert card["network"]["K"] == 8 and card["network"]["epochs"] == 8
+    assert card["network"]["hyperparameters"]["hidden"] == [256, 256, 128]
+    assert card["training_seconds"]["total"] > 0 and card["geometry"]["pivot_to_ball_mm"] == 80.0
+    assert set(load_models(trained)) == {"network", "trilinear"}
+    # No held-out ring was seen by either model.
+    held = np.array(CHECKS)
+    assert not np.isin(card["network"]["validation_orientations"], held).all(axis=1).any()
+    assert card["trilinear"]["filled_nodes"] == 1  # A15 B-20 is a lattice node, held out
+
+
+def test_card_agrees_with_evaluate_json(data, trained, capsys):
+    card = load_card(trained)
+    assert evaluate_command(trained, data, json_output=True) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["noise_floor_um"] == card["metrics"]["noise_floor_um"]
+    assert report["orientations"] == card["metrics"]["orientations"]
+    row = report["orientations"][0]
+    assert set(row) == {"A_deg", "B_deg", "range_um", "max_abs_um", "mae_um"}
+    assert set(row["range_um"]) == {"measured", "network", "trilinear"}
+    assert set(row["mae_um"]["network"]) == {"mean", "single"}
+
+
+def test_evaluate_text_and_cli(data, trained):
+    result = CliRunner().invoke(app, ["evaluate", "--model", str(trained), "--data", str(data)])
+    assert result.exit_code == 0, result.output
+    assert "Table 3" in result.output and "A 43 B 91" in result.output and "noise floor" in result.output
+    missing = CliRunner().invoke(app, ["evaluate", "--model", str(trained.parent / "nope"), "--data", str(data)])
+    assert missing.exit_code == 2
+
+
+@pytest.mark.parametrize("text", ["15", "15:-20:3", "a:b", "15:-20,,x", "10:10", ":", "nan:3"])
+def test_bad_holdout_strings_are_input_errors(data, text):
+    campaign = read_campaign(data)
+    with pytest.raises(InputError):
+        parse_holdout(text, campaign)
+
+
+def test_holdout_option_selects_orientations(data):
+    campaign = read_campaign(data)
+    mask = parse_holdout("75:40, 0:180,0:-180", campaign)
+    assert mask.sum() == 2 and campaign.orientations[mask].tolist() == [[0.0, 180.0], [75.0, 40.0]]
+
+
+def test_interrupted_training_leaves_the_existing_folder_intact(data, trained, tmp_path, monkeypatch):
+    out = tmp_path / "model"
+    import shutil
+
+    shutil.copytree(trained, out)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+
+    def interrupted(self, campaign, train=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(FourierNetwork, "fit", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        train_command(data, out, network_config=QUICK, quiet=True)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["model"]  # no temporary folder left behind
+
+
+def test_retraining_replaces_the_folder(data, trained, tmp_path):
+    out = tmp_path / "model"
+    assert train_command(data, out, holdout="75:40", network_config=QUICK, quiet=True) == 0
+    assert train_command(data, out, holdout="45:-20", seed=1, network_config=QUICK, quiet=True) == 0
+    card = load_card(out)
+    assert card["holdout"] == [[45.0, -20.0]] and card["seed"] == 1 and card["holdout_source"] == "option"
+    assert [p.name for p in tmp_path.iterdir()] == ["model"]
+
+
+def test_a_campaign_without_sidecar_holds_out_the_off_grid_rings(tmp_path):
+    """A CSV written by another program (README format, no sidecar): holdout = the off-grid orientations."""
+    campaign = lobing_campaign(seed=5, n_repetitions=3, extra_orientations=[(43, 91), (20, 50)])
+    path = write_campaign(campaign, tmp_path / "other.csv")
+    sidecar_path(path).unlink()
+    out = tmp_path / "model"
+    assert train_command(path, out, network_config=QUICK, quiet=True) == 0
+    card = load_card(out)
+    assert card["holdout_source"] == "off-grid orientations"
+    assert sorted(map(tuple, card["holdout"])) == [(20.0, 50.0), (43.0, 91.0)]
+    result = CliRunner().invoke(app, ["evaluate", "--model", str(out), "--data", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert len(report["orientations"]) == 2 and report["noise_floor_um"]["mean"] > 0
