@@ -1,0 +1,345 @@
+"""What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
+
+This module only calls the core (io, twin, models, training, evaluation, harmonics); it holds no
+physics. Parts of the core that are not built yet are found at run time (`optional`), and the
+app says honestly what is missing instead of showing made-up figures.
+"""
+
+from __future__ import annotations
+
+import importlib
+import tempfile
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Mapping
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer import paths
+from ph_explorer.campaign import Campaign
+from ph_explorer.errors import InputError
+from ph_explorer.geometry import Geometry
+
+MODEL_ORDER = ("network", "trilinear", "hybrid")
+
+
+def optional(module: str) -> ModuleType | None:
+    """The core module when it exists in this build, else None (other parts are built in parallel)."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        return None
+
+
+def _paper_orientations_key(a_deg: float, b_deg: float) -> tuple[float, float]:
+    return (round(float(a_deg), 6), round(float(b_deg) % 360.0, 6))
+
+
+@dataclass
+class OrientationView:
+    """Everything drawn for one orientation: curves (um), tables, spectra."""
+
+    a_deg: float
+    b_deg: float
+    measured_index: int | None  # index in the campaign, None when it was not measured
+    held_out: bool  # measured but not used to train the models (a check ring)
+    curves: dict[str, NDArray[np.float64]]  # "measured" and model names -> (n_pt,) um
+    repetitions: NDArray[np.float64] | None  # (n_rep, n_pt) um when measured
+    tables: dict[str, Any]  # range_um, max_abs_um, mae_um like evaluation.orientation_tables rows
+    spectra: dict[str, NDArray[np.float64]]  # name -> amplitude per UPR (um), UPR 0..N//2
+
+    @property
+    def measured(self) -> bool:
+        return self.measured_index is not None
+
+
+@dataclass
+class Dataset:
+    """A campaign and its models; every derived figure is computed by the core and cached here."""
+
+    campaign: Campaign
+    models: dict[str, Any]
+    label: str
+    notes: list[str] = field(default_factory=list)
+    train_mask: NDArray[np.bool_] | None = None
+
+    def __post_init__(self) -> None:
+        if self.train_mask is None:
+            self.train_mask = ~self.campaign.holdout_mask()
+        self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
+        self._figures: dict[str, tuple[NDArray[np.float64], str]] = {}
+        self._lock = threading.Lock()
+        self.mean_curves = self.campaign.mean_curves()
+        self.sigma_um = self.campaign.noise_sigma_um()
+        evaluation = optional("ph_explorer.evaluation")
+        if evaluation is not None and np.isfinite(self.sigma_um):
+            self.noise_floor_um: dict[str, float] = evaluation.noise_floor(self.sigma_um, self.campaign.n_repetitions)
+        else:
+            self.noise_floor_um = {}
+
+    # -- models ----------------------------------------------------------------------------------
+    @property
+    def model_names(self) -> list[str]:
+        return [n for n in MODEL_ORDER if n in self.models] + [n for n in self.models if n not in MODEL_ORDER]
+
+    def with_model(self, name: str, model: Any) -> "Dataset":
+        """A copy holding one more (or a replaced) model; the views are recomputed."""
+        models = dict(self.models)
+        models[name] = model
+        return Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
+
+    # -- one orientation ---------------------------------------------------------------------------
+    def view(self, a_deg: float, b_deg: float) -> OrientationView:
+        key = _paper_orientations_key(a_deg, b_deg)
+        with self._lock:
+            hit = self._views.get(key)
+            if hit is not None:
+                self._views.move_to_end(key)
+                return hit
+        view = self._compute_view(float(a_deg), float(b_deg))
+        with self._lock:
+            self._views[key] = view
+            while len(self._views) > 512:
+                self._views.popitem(last=False)
+        return view
+
+    def _compute_view(self, a: float, b: float) -> OrientationView:
+        c = self.campaign
+        idx = c.index_of(a, b)
+        curves: dict[str, NDArray[np.float64]] = {}
+        reps = None
+        if idx is not None:
+            curves["measured"] = self.mean_curves[idx]
+            reps = c.deviations[idx]
+        for name in self.model_names:
+            curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
+        harmonics = importlib.import_module("ph_explorer.harmonics")
+        spectra = {k: harmonics.harmonic_spectrum(v)[0] for k, v in curves.items()}
+        tables = self._tables(idx, curves)
+        held_out = idx is not None and not bool(self.train_mask[idx])
+        return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
+
+    def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
+        """Tables 1-3 of the paper at this orientation: from ph_explorer.evaluation when measured."""
+        evaluation = optional("ph_explorer.evaluation")
+        models = {n: self.models[n] for n in self.model_names}
+        if idx is not None and evaluation is not None:
+            mask = np.zeros(self.campaign.n_orientations, dtype=bool)
+            mask[idx] = True
+            row = evaluation.orientation_tables(self.campaign, models, mask)[0]
+            return {"range_um": row["range_um"], "max_abs_um": row["max_abs_um"], "mae_um": row["mae_um"]}
+        # Not measured: there is nothing to compare with; range and max |dev| of each prediction only.
+        return {
+            "range_um": {k: float(np.ptp(v)) for k, v in curves.items()},
+            "max_abs_um": {k: float(np.abs(v).max()) for k, v in curves.items()},
+            "mae_um": {},
+        }
+
+    def monte_carlo_band(
+        self, model: str, a_deg: float, b_deg: float, n_draws: int = 200, coverage: float = 0.95, seed: int = 0
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Pointwise band (low, high) in um of the model's simulated measurements (its Monte Carlo)."""
+        sims = self.models[model].simulate([[a_deg, b_deg]], n_repetitions=n_draws, rng=np.random.default_rng(seed))[0]
+        tail = 50.0 * (1.0 - coverage)
+        return np.percentile(sims, tail, axis=0), np.percentile(sims, 100.0 - tail, axis=0)
+
+    # -- over all orientations (the error field) ---------------------------------------------------
+    def figure_names(self) -> list[str]:
+        names = ["measured RONt"]
+        for m in self.model_names:
+            if m == "trilinear":
+                names += ["trilinear MAE, leave-one-out", "trilinear MAE / noise floor, leave-one-out"]
+            else:
+                names += [f"{m} MAE", f"{m} MAE / noise floor"]
+        return names
+
+    def has_figure(self, name: str) -> bool:
+        with self._lock:
+            return name in self._figures
+
+    def figure(self, name: str) -> tuple[NDArray[np.float64], str]:
+        """Per-orientation values (n_o,) of a named figure and a note on what it is."""
+        with self._lock:
+            hit = self._figures.get(name)
+        if hit is not None:
+            return hit
+        result = self._compute_figure(name)
+        with self._lock:
+            self._figures[name] = result
+        return result
+
+    def _compute_figure(self, name: str) -> tuple[NDArray[np.float64], str]:
+        harmonics = importlib.import_module("ph_explorer.harmonics")
+        if name == "measured RONt":
+            return harmonics.ron_t(self.mean_curves), "um, peak to valley of the measured mean curve (ISO 12181)"
+        ratio = name.endswith("/ noise floor") or "/ noise floor," in name
+        floor = self.noise_floor_um.get("mean")
+        if name.startswith("trilinear MAE") and "leave-one-out" in name:
+            mae = self._trilinear_leave_one_out()
+            note = "um against the measured mean; each ring predicted by tables refitted without it (out of sample)"
+        else:
+            model = name.split(" ")[0]
+            if model not in self.models:
+                raise KeyError(name)
+            predicted = self.models[model].predict(self.campaign.orientations, n_points=self.campaign.n_points)
+            mae = np.abs(predicted - self.mean_curves).mean(axis=1)
+            note = (
+                "um against the measured mean: out of sample on the held-out rings, in sample on the training rings"
+            )
+        if ratio:
+            if not floor:
+                return np.full(self.campaign.n_orientations, np.nan), "noise floor unknown (a single repetition)"
+            return mae / floor, f"x the noise floor of the mean ({floor:.3f} um); " + note
+        return mae, note
+
+    def _trilinear_leave_one_out(self) -> NDArray[np.float64]:
+        """MAE of the trilinear model at each ring with that ring left out of its tables."""
+        from ph_explorer.models.trilinear import TrilinearModel
+
+        c = self.campaign
+        mae = np.empty(c.n_orientations)
+        base = np.asarray(self.train_mask, dtype=bool)
+        for i in range(c.n_orientations):  # one cheap table fit per ring (a loop over rings, not touches)
+            mask = base.copy()
+            mask[i] = False
+            predicted = TrilinearModel().fit(c, mask).predict(c.orientations[i : i + 1], n_points=c.n_points)[0]
+            mae[i] = np.abs(predicted - self.mean_curves[i]).mean()
+        return mae
+
+    def worst_orientations(self, name: str, count: int = 5) -> list[tuple[float, float, float]]:
+        values, _ = self.figure(name)
+        order = np.argsort(np.where(np.isfinite(values), values, -np.inf))[::-1][:count]
+        return [(float(self.campaign.orientations[i, 0]), float(self.campaign.orientations[i, 1]), float(values[i])) for i in order]
+
+
+# -- loading -----------------------------------------------------------------------------------------
+
+
+def fit_trilinear(campaign: Campaign, train_mask: NDArray[np.bool_]) -> Any | None:
+    models = optional("ph_explorer.models.trilinear")
+    if models is None:
+        return None
+    return models.TrilinearModel().fit(campaign, train_mask)
+
+
+def _loaded_models(directory: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Models and card from training.load_models (mapping, or an object with .models / .card)."""
+    training = optional("ph_explorer.training")
+    if training is None or not hasattr(training, "load_models"):
+        raise LookupError("ph_explorer.training.load_models is not available in this build")
+    loaded = training.load_models(directory)
+    if isinstance(loaded, tuple) and len(loaded) == 2 and isinstance(loaded[0], Mapping):
+        return dict(loaded[0]), dict(loaded[1] or {})
+    if isinstance(loaded, Mapping):
+        card = loaded.get("card", {}) if isinstance(loaded.get("card"), Mapping) else {}
+        return {k: v for k, v in loaded.items() if hasattr(v, "predict")}, dict(card)
+    models = getattr(loaded, "models", None)
+    if isinstance(models, Mapping):
+        return dict(models), dict(getattr(loaded, "card", {}) or {})
+    named = {n: getattr(loaded, n) for n in MODEL_ORDER if hasattr(getattr(loaded, n, None), "predict")}
+    return named, dict(getattr(loaded, "card", {}) or {})
+
+
+def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: list[str] | None = None) -> Dataset:
+    """A Dataset for a campaign: the models of model_dir when given, else the trilinear tables fitted now."""
+    notes = list(notes or [])
+    models: dict[str, Any] = {}
+    train = ~campaign.holdout_mask()
+    if model_dir is not None:
+        try:
+            models, card = _loaded_models(model_dir)
+            evaluation = optional("ph_explorer.evaluation")
+            if card and evaluation is not None and hasattr(evaluation, "holdout_from_card"):
+                train = ~np.asarray(evaluation.holdout_from_card(campaign, card), dtype=bool)
+            notes.append(f"models from {model_dir}")
+        except LookupError as error:
+            notes.append(f"{error}; the network is not shown")
+    if "trilinear" not in models and train.any():
+        trilinear = fit_trilinear(campaign, train)
+        if trilinear is not None:
+            models["trilinear"] = trilinear
+            notes.append("trilinear tables fitted at start-up on the training rings")
+    if "network" not in models:
+        notes.append("no trained network for this campaign (ph-explorer train makes one)")
+    return Dataset(campaign, models, label, notes, train)
+
+
+def read_uploaded_campaign(name: str, content: bytes, geometry: Mapping[str, float] | None = None) -> Campaign:
+    """Read an uploaded CSV with the core's reader; its InputError names the uploaded file, not a temp path."""
+    io = optional("ph_explorer.io")
+    if io is None:
+        raise InputError("reading campaign files is not available in this build (ph_explorer.io)", file=name)
+    safe = Path(name or "upload.csv").name or "upload.csv"
+    with tempfile.TemporaryDirectory(prefix="ph-explorer-upload-") as tmp:
+        path = Path(tmp) / safe
+        path.write_bytes(content)
+        try:
+            campaign = io.read_campaign(path, dict(geometry or {}))
+        except InputError as error:
+            if error.file is not None:
+                error.file = str(error.file).replace(str(path), safe)
+            raise InputError(error.message, file=error.file, row=error.row, column=error.column) from None
+    campaign.source = safe
+    return campaign
+
+
+def simulated_scenario(name: str) -> Campaign:
+    twin = optional("ph_explorer.twin")
+    if twin is None:
+        raise InputError("scenarios need the digital twin (ph_explorer.twin), which is not in this build yet")
+    scenario = twin.load_scenario(name)
+    return twin.simulate(scenario, getattr(scenario, "seed", 0))
+
+
+def list_scenarios() -> list[str]:
+    twin = optional("ph_explorer.twin")
+    if twin is None or not hasattr(twin, "list_scenarios"):
+        return []
+    found = twin.list_scenarios()
+    return [getattr(s, "name", s) if not isinstance(s, str) else s for s in found]
+
+
+def default_dataset(
+    scenario: str | None = None,
+    data: Path | None = None,
+    model: Path | None = None,
+    geometry: Mapping[str, float] | None = None,
+) -> Dataset:
+    """The session's starting data: --data, --scenario, or the shipped paper campaign with model/paper."""
+    geometry = dict(geometry or {})
+    model_dir = Path(model) if model is not None else None
+    if model_dir is not None and not model_dir.is_dir():
+        raise InputError("no such model folder", file=str(model_dir))
+    if data is not None:
+        io = optional("ph_explorer.io")
+        if io is None:
+            raise InputError("reading campaign files is not available in this build (ph_explorer.io)", file=str(data))
+        campaign = io.read_campaign(Path(data), geometry)
+        return dataset_for(campaign, f"campaign {Path(data).name}", model_dir)
+    if scenario is not None:
+        campaign = simulated_scenario(scenario)
+        return dataset_for(campaign, f"scenario {scenario} (simulated by the twin)", model_dir)
+    paper_csv = paths.assets_dir() / "data" / "paper.csv"
+    default_models = model_dir or paths.default_model_dir()
+    if not default_models.is_dir() or not any(default_models.iterdir()):
+        default_models = None
+    io = optional("ph_explorer.io")
+    if paper_csv.is_file() and io is not None:
+        return dataset_for(io.read_campaign(paper_csv, geometry), "the shipped paper campaign", default_models)
+    twin = optional("ph_explorer.twin")
+    if twin is not None and hasattr(twin, "simulate"):
+        campaign = simulated_scenario("paper")
+        return dataset_for(campaign, "the paper scenario, simulated at start-up", default_models)
+    synthetic = importlib.import_module("ph_explorer.models.synthetic")
+    campaign = synthetic.lobing_campaign()
+    if geometry:
+        campaign.geometry = Geometry(**{**campaign.geometry.as_dict(), **geometry})
+    return dataset_for(
+        campaign,
+        "a synthetic lobing campaign (the shipped paper campaign and the twin are not in this build yet)",
+        None,
+    )
