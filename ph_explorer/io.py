@@ -79,8 +79,10 @@ def _parse_rows(text: str, name: str) -> tuple[list[str], int, list[list[str]], 
     header_line = 1
     rows: list[list[str]] = []
     lines: list[int] = []
+    last_end = 0  # line where the previous record ended: a broken record starts on the next one
     try:
         for record in reader:
+            last_end = reader.line_num
             if len(record) <= 1 and not (record and record[0].strip()):
                 continue  # a blank line
             if header is None:
@@ -90,7 +92,7 @@ def _parse_rows(text: str, name: str) -> tuple[list[str], int, list[list[str]], 
             rows.append(record)
             lines.append(reader.line_num)
     except csv.Error as error:
-        raise InputError(f"not valid CSV text ({error})", file=name, row=reader.line_num) from None
+        raise InputError(f"not valid CSV text ({error})", file=name, row=last_end + 1) from None
     if header is None:
         raise InputError("empty file: no header and no rows", file=name, row=1)
     return header, header_line, rows, np.asarray(lines, dtype=np.int64)
