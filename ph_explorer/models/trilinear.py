@@ -150,6 +150,14 @@ class TrilinearModel(DeviationModel):
         it0, it1, wt = periodic_weights(point_angles_deg(n), point_angles_deg(self.n_points))
         return (1 - wt) * curves[:, it0] + wt * curves[:, it1]
 
+    def interpolate(self, orientations: ArrayLike) -> NDArray[np.float64]:
+        """The mean table interpolated at orientations, on the table's own points, with no circle fit.
+
+        Linear in the data the model was fitted on, whatever the last axis holds: the diagnosis
+        fits it on unit vectors to obtain its interpolation weights.
+        """
+        return self._interpolate(self.mean_table, orientations, None)
+
     def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
         # The tables hold post-fit curves; interpolation in theta to another N can leak a little of
         # harmonics 0 and 1 back in, so the circle fit is applied again.
