@@ -13,6 +13,7 @@ from ph_explorer.kinematics import Touches
 
 SECONDS_PER_HOUR = 3600.0
 DRIFT_TIME_CONSTANTS_S = (300.0, 600.0, 1200.0, 1800.0, 3600.0, 7200.0)
+DRIFT_CYCLE_PERIODS_S = (600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0)
 
 
 class Drift(Effect):
@@ -23,42 +24,76 @@ class Drift(Effect):
         "aluminium. Growth of the stylus moves the ball along the stylus, whose radial share is only "
         "rho / L (0.11 for a 9 mm contact radius at 80 mm); growth of the head body moves the pivot down "
         "(-z), whose radial share is the ring's tilt (sin A0 at most). Temperature follows a steady ramp "
-        "(um per hour) and/or an exponential warm-up (step, time constant tau). The circle fit removes "
+        "(um per hour), an exponential warm-up (step, time constant tau) and/or the room's air-conditioning "
+        "cycle (amplitude, period 15-60 min; +-0.3 K on 100 mm of aluminium is +-0.7 um). The circle fit removes "
         "whatever is constant during one ring: only the change within the ~2 minutes of a ring shows, as "
         "a sawtooth-like pattern with all harmonics. Needs touch times t_s; a warm-up hits the first rings "
-        "measured, so it depends on the scan order, not on the orientation."
+        "measured and a room cycle differs from one repetition to the next, so no model indexed by the "
+        "orientation can predict it: it raises the error against single repetitions."
     )
     parameters = (
         Parameter("stylus_rate_um_per_h", "um/h", 0.0, "steady growth of the stylus along its axis"),
         Parameter("stylus_step_um", "um", 0.0, "total warm-up growth of the stylus along its axis"),
+        Parameter("stylus_cycle_um", "um", 0.0, "amplitude of the stylus growth that follows the room's temperature cycle"),
         Parameter("head_rate_um_per_h", "um/h", 0.0, "steady growth of the head body, moving the pivot down"),
         Parameter("head_step_um", "um", 0.0, "total warm-up growth of the head body, moving the pivot down"),
+        Parameter("head_cycle_um", "um", 0.0, "amplitude of the head body growth that follows the room's temperature cycle"),
+        Parameter("cycle_phase_deg", "deg", 0.0, "phase of the temperature cycle at t = 0"),
         Parameter("tau_s", "s", 1200.0, "time constant of the warm-up"),
+        Parameter("cycle_period_s", "s", 1800.0, "period of the room's temperature cycle (air conditioning)"),
     )
-    structural = {"tau_s": DRIFT_TIME_CONSTANTS_S}
+    structural = {"tau_s": DRIFT_TIME_CONSTANTS_S, "cycle_period_s": DRIFT_CYCLE_PERIODS_S}
 
     def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
         if touches.times_s is None:
             raise InputError("the drift effect needs touch times (a t_s column)", column="t_s")
         tau = float(structural.get("tau_s", self.params["tau_s"]))
-        if not tau > 0:
-            raise InputError("drift: tau_s must be positive", column="tau_s")
+        period = float(structural.get("cycle_period_s", self.params["cycle_period_s"]))
+        if not (tau > 0 and period > 0):
+            raise InputError("drift: tau_s and cycle_period_s must be positive", column="tau_s")
         t = touches.times_s
-        ramp = t / SECONDS_PER_HOUR
-        warm = 1.0 - np.exp(-t / tau)
+        # Growth histories per unit coefficient: ramp (per hour), warm-up, and the two quadratures of the cycle.
+        histories = np.stack(
+            [t / SECONDS_PER_HOUR, 1.0 - np.exp(-t / tau), np.sin(2 * np.pi * t / period), np.cos(2 * np.pi * t / period)],
+            axis=-1,
+        )
         u = radial_unit(touches)
         stylus = ball_centre_mm(touches) / touches.geometry.pivot_to_ball_mm  # unit stylus direction s_k
         # A touch reads -d . u_k: stylus growth d = g s_k, head growth d = g (-z).
-        along_stylus = -np.einsum("...i,...i->...", stylus, u)
-        pivot_down = u[..., 2]
-        cols = np.stack([ramp * along_stylus, warm * along_stylus, ramp * pivot_down, warm * pivot_down], axis=-1)
-        names = ["drift_stylus_rate", "drift_stylus_step", "drift_head_rate", "drift_head_step"]
+        along_stylus = -np.einsum("...i,...i->...", stylus, u)[..., None]
+        pivot_down = u[..., 2][..., None]
+        cols = np.concatenate([histories * along_stylus, histories * pivot_down], axis=-1)
+        names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
         return full_shape(cols, touches), names
 
+    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+        p = self.params
+        phase = np.radians(p["cycle_phase_deg"])
+        # g sin(w t + phi) = g cos(phi) sin(w t) + g sin(phi) cos(w t)
+        return np.array(
+            [
+                p[f"{part}_{kind}"] * factor
+                for part in ("stylus", "head")
+                for kind, factor in (("rate_um_per_h", 1.0), ("step_um", 1.0), ("cycle_um", np.cos(phase)), ("cycle_um", np.sin(phase)))
+            ]
+        )
+
     def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
-        out = super().from_coefficients(coef)
-        out["tau_s"] = float(structural.get("tau_s", self.params["tau_s"]))
-        return out
+        c = np.asarray(coef, dtype=float)
+        stylus_cycle, head_cycle = np.hypot(c[2], c[3]), np.hypot(c[6], c[7])
+        # One phase for the room's cycle: from whichever part carries more of it.
+        s, k = (c[6], c[7]) if head_cycle >= stylus_cycle else (c[2], c[3])
+        return {
+            "stylus_rate_um_per_h": float(c[0]),
+            "stylus_step_um": float(c[1]),
+            "stylus_cycle_um": float(stylus_cycle),
+            "head_rate_um_per_h": float(c[4]),
+            "head_step_um": float(c[5]),
+            "head_cycle_um": float(head_cycle),
+            "cycle_phase_deg": float(np.degrees(np.arctan2(k, s)) % 360.0),
+            "tau_s": float(structural.get("tau_s", self.params["tau_s"])),
+            "cycle_period_s": float(structural.get("cycle_period_s", self.params["cycle_period_s"])),
+        }
 
 
 class RingForm(Effect):

@@ -153,8 +153,10 @@ class Gravity(Effect):
         "on A only: axial -cos A, lateral sin A. Its lateral part helps or opposes the probing force: the "
         "trigger comes earlier when the force on the ball pushes the way gravity already pulls, a "
         "pre-travel change directional_um * (g_lat . f_lat); and it unloads the seats unequally, deepening "
-        "the three-seat lobing in proportion to |g_lat| = sin A (lobing_um at A = 90). The directional "
-        "part is mostly one-fold (absorbed by the circle fit) but leaves 2 UPR where psi sweeps unevenly. "
+        "the three-seat lobing in proportion to |g_lat| = sin A (lobing_um at A = 90). In head touches the "
+        "directional part is exactly one-fold (g . f is linear in the ring's radial direction, and the probe "
+        "axis stays on a cone around the ring axis), so the circle fit absorbs it entirely: what shows is "
+        "the lobing growing with sin A. "
         "Smooth in A: data-driven models learn it where they have data, not beyond the measured A range."
     )
     parameters = (
