@@ -211,7 +211,8 @@ def _geometry(sidecar: dict[str, Any], overrides: dict[str, Any] | None, n_point
         return replace(DEFAULT_GEOMETRY, points_per_circle=n_points, **values)
     except ValueError as error:
         source = toml_name if given and not overrides else None
-        raise InputError(f"impossible geometry: {error}", file=source) from None
+        stated = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+        raise InputError(f"impossible geometry ({stated}): {error}", file=source) from None
 
 
 def read_campaign(path: str | os.PathLike[str], geometry_overrides: dict[str, Any] | None = None) -> Campaign:
