@@ -272,7 +272,16 @@ def test_bad_parameters_are_input_errors():
 
 
 # -- user effects ---------------------------------------------------------------------------------
-def test_user_effect_file_joins_the_catalog():
+@pytest.fixture
+def restore_catalog():
+    """Loading a user file changes the global catalog: put it back so other tests see the built-ins."""
+    saved = dict(CATALOG)
+    yield
+    CATALOG.clear()
+    CATALOG.update(saved)
+
+
+def test_user_effect_file_joins_the_catalog(restore_catalog):
     classes = load_user_effects(assets_dir() / "effects_example.py")
     assert [c.id for c in classes] == ["ball_form"] and CATALOG["ball_form"] is classes[0]
     effect = make_effect({"id": "ball_form", "amplitude_um": 0.1, "lobes": 2, "phase_deg": 30.0})
@@ -286,7 +295,7 @@ def test_user_effect_file_joins_the_catalog():
     assert effect.from_coefficients(coef)["amplitude_um"] == pytest.approx(0.1)
 
 
-def test_bad_user_effect_files_are_input_errors(tmp_path):
+def test_bad_user_effect_files_are_input_errors(tmp_path, restore_catalog):
     broken = tmp_path / "broken.py"
     broken.write_text("import numpy as np\ndef oops(:\n")
     with pytest.raises(InputError, match="cannot import"):

@@ -146,10 +146,19 @@ def test_scenario_errors_are_input_errors(tmp_path):
 
 
 def test_scenario_from_a_user_path_with_a_user_effect(tmp_path):
-    from ph_explorer.effects import load_user_effects
+    from ph_explorer.effects import CATALOG, load_user_effects
     from ph_explorer.paths import assets_dir
 
+    saved = dict(CATALOG)
     load_user_effects(assets_dir() / "effects_example.py")
+    try:
+        check_user_scenario(tmp_path)
+    finally:  # the catalog is global: leave only the built-ins for other tests
+        CATALOG.clear()
+        CATALOG.update(saved)
+
+
+def check_user_scenario(tmp_path):
     path = tmp_path / "mine.toml"
     path.write_text(
         'name = "mine"\ndescription = "ball form only"\nseed = 3\nrepetitions = 2\n'
