@@ -446,6 +446,12 @@ def _sidecar_text(campaign: Campaign) -> str:
     return tomli_w.dumps(doc)
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def _atomic_write(targets: list[tuple[Path, str]]) -> None:
     """Write every text to a temp file beside its target, then move them all into place."""
     temps: list[tuple[str, Path]] = []
@@ -454,6 +460,7 @@ def _atomic_write(targets: list[tuple[Path, str]]) -> None:
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
             temps.append((temp, target))
+            os.chmod(temp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual mode of a new file
             with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
                 handle.write(text)
         for temp, target in temps:
@@ -574,7 +581,11 @@ def summary_text(s: dict[str, Any]) -> str:
         ("unreachable touches", f"{s['unreachable_touches']} (A joint beyond +-{A_LIMIT_DEG:g} deg)"),
     ]
     if s["scenario"]:
-        rows.append(("scenario", ", ".join(f"{k} = {v}" for k, v in s["scenario"].items())))
+        scenario = dict(s["scenario"])
+        description = scenario.pop("description", None)
+        rows.append(("scenario", ", ".join(f"{k} = {v}" for k, v in scenario.items())))
+        if description:
+            rows.append(("", str(description)))
     width = max(len(label) for label, _ in rows)
     return "\n".join(f"{label:<{width}}  {value}" for label, value in rows)
 

@@ -64,6 +64,10 @@ def test_write_is_deterministic_and_stable(tmp_path: Path) -> None:
     header = (tmp_path / "a.csv").read_text().splitlines()[0]
     assert header == "A_deg,B_deg,rep,point,dev_um,t_s"
     assert "-0.00000" not in (tmp_path / "a.csv").read_text()
+    mask = os.umask(0)
+    os.umask(mask)
+    for name in ("a.csv", "a.toml"):
+        assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~mask  # a normal file, not mkstemp's 0600
 
 
 def test_write_without_times_has_no_t_s(tmp_path: Path) -> None:
