@@ -72,6 +72,7 @@ class Dataset:
             self.train_mask = ~self.campaign.holdout_mask()
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
         self._figures: dict[str, tuple[NDArray[np.float64], str]] = {}
+        self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
         self.sigma_um = self.campaign.noise_sigma_um()
@@ -90,7 +91,11 @@ class Dataset:
         """A copy holding one more (or a replaced) model; the views are recomputed."""
         models = dict(self.models)
         models[name] = model
-        return Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
+        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
+        with self._lock:
+            for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
+                copy.add_figure(extra, *self._figures[extra])
+        return copy
 
     # -- one orientation ---------------------------------------------------------------------------
     def view(self, a_deg: float, b_deg: float) -> OrientationView:
@@ -155,7 +160,14 @@ class Dataset:
                 names += ["trilinear MAE, leave-one-out", "trilinear MAE / noise floor, leave-one-out"]
             else:
                 names += [f"{m} MAE", f"{m} MAE / noise floor"]
-        return names
+        return names + list(self._extra_figures)
+
+    def add_figure(self, name: str, values: NDArray[np.float64], note: str) -> None:
+        """A per-orientation figure computed elsewhere in the core (e.g. by the diagnosis)."""
+        with self._lock:
+            self._figures[name] = (np.asarray(values, dtype=float), note)
+            if name not in self._extra_figures:
+                self._extra_figures.append(name)
 
     def has_figure(self, name: str) -> bool:
         with self._lock:
@@ -299,8 +311,15 @@ def list_scenarios() -> list[str]:
     twin = optional("ph_explorer.twin")
     if twin is None or not hasattr(twin, "list_scenarios"):
         return []
-    found = twin.list_scenarios()
-    return [getattr(s, "name", s) if not isinstance(s, str) else s for s in found]
+    names = []
+    for item in twin.list_scenarios():  # names, (name, description) pairs or Scenario objects
+        if isinstance(item, str):
+            names.append(item)
+        elif isinstance(item, (tuple, list)) and item:
+            names.append(str(item[0]))
+        else:
+            names.append(str(getattr(item, "name", item)))
+    return names
 
 
 def default_dataset(

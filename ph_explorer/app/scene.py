@@ -236,9 +236,11 @@ class RingScene:
                 anchor="center-center",
                 font_screen_scale=0.7,
             )
-            for k in range(0, geometry.points_per_circle, max(1, geometry.points_per_circle // 8))
+            for k in range(0, geometry.points_per_circle, max(1, geometry.points_per_circle // 4))
         ]
-        self.title = scene.add_label("/ring/title", "", position=(0.0, -(self.bore_radius + 17.0), 0.0), anchor="center-center")
+        self.title = scene.add_label(
+            "/ring/title", "", position=(0.0, -(self.bore_radius + 20.0), 0.0), anchor="center-center", font_screen_scale=0.8
+        )
         self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
 
     def place(self, a_deg: float, b_deg: float) -> None:
@@ -353,8 +355,9 @@ class ErrorField:
     current orientation is a highlighted marker where the stylus points.
     """
 
-    def __init__(self, scene: Any, radius_mm: float = 140.0) -> None:
+    def __init__(self, scene: Any, radius_mm: float = 140.0, opacity: float = 0.35) -> None:
         self.scene = scene
+        self.opacity = opacity
         self.radius = radius_mm
         self.vertices, self.faces = _hemisphere(radius_mm)
         self.vertex_dirs = self.vertices / np.linalg.norm(self.vertices, axis=1, keepdims=True)
@@ -384,7 +387,13 @@ class ErrorField:
         dirs = stylus_direction(self.orientations[:, 0], self.orientations[:, 1])
         nearest = np.argmax(self.vertex_dirs @ dirs.T, axis=1)
         colors = colormap(self.values[nearest], *self.range)
-        mesh = trimesh.Trimesh(self.vertices, self.faces, vertex_colors=np.column_stack([colors, np.full(len(colors), 255)]), process=False)
+        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
+        # Translucent and double-sided so the head and the ring stay visible through the field.
+        material = trimesh.visual.material.PBRMaterial(
+            baseColorFactor=[255, 255, 255, int(255 * self.opacity)], alphaMode="BLEND", doubleSided=True, roughnessFactor=0.9
+        )
+        mesh.visual = trimesh.visual.TextureVisuals(material=material)
+        mesh.visual.vertex_attributes["color"] = np.column_stack([colors, np.full(len(colors), 255)]).astype(np.uint8)
         if self.surface is not None:
             self.surface.remove()
         self.surface = self.scene.add_mesh_trimesh("/field/surface", mesh, visible=self.visible, cast_shadow=False, receive_shadow=False)

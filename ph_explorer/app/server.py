@@ -45,7 +45,8 @@ from ph_explorer.errors import InputError
 from ph_explorer.geometry import stylus_direction
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
-HEAD_VIEW = {"position": (230.0, -300.0, 140.0), "look_at": (0.0, 0.0, -35.0)}
+# Initial camera: the ring of the first orientation in front, the head above it, mm.
+HEAD_VIEW = {"position": (105.0, -125.0, -5.0), "look_at": (5.0, 12.0, -62.0)}
 
 
 def _effect_names() -> dict[str, str]:
@@ -54,7 +55,9 @@ def _effect_names() -> dict[str, str]:
     catalog = getattr(effects, "CATALOG", None) if effects is not None else None
     if not catalog:
         return {}
-    return {effect_id: getattr(cls, "name", effect_id) for effect_id, cls in catalog.items()}
+    diagnosis = optional("ph_explorer.diagnosis")
+    skip = getattr(diagnosis, "NOT_CANDIDATES", set()) if diagnosis is not None else set()
+    return {effect_id: getattr(cls, "name", effect_id) for effect_id, cls in catalog.items() if effect_id not in skip}
 
 
 class Session:
@@ -311,60 +314,102 @@ class Session:
         self.set_dataset(dataset_for(campaign, f"scenario {name} (simulated by the twin)", None))
 
     # -- physics (ph_explorer.diagnosis) -----------------------------------------------------------
+    def _progress(self, text: str, fraction: float | None = None) -> None:
+        p = self.physics
+        p.progress.visible = True
+        p.progress.animated = fraction is None
+        if fraction is not None:
+            p.progress.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+        p.status.content = f"_{text}_"
+
     def _diagnose(self) -> None:
+        """Where the trilinear baseline fails out of sample, and which effect is missing (no effect added)."""
         diagnosis = optional("ph_explorer.diagnosis")
         if diagnosis is None:
             return
-        p = self.physics
-        p.progress.visible, p.progress.animated, p.progress.value = True, True, 30.0
-        result = diagnosis.diagnose(self.dataset.campaign, baseline="trilinear")
+        p, ds = self.physics, self.dataset
+        self._progress("diagnosing: out-of-sample residuals, then every catalog effect against them…")
+        try:
+            result = diagnosis.diagnose(ds.campaign, add=[], progress=lambda text: self._progress(str(text)))
+        except InputError as error:
+            p.progress.visible = False
+            p.status.content = f"**Cannot diagnose** — {error.line()}"
+            return
         self.diagnosis = result
         p.progress.visible = False
+        floor, base = result.noise_floor_um, result.baseline_mae_um
         lines = [
-            f"Noise floor **{result.noise_floor_um:.3f} um**; trilinear out-of-sample MAE **{result.baseline_mae_um:.3f} um**.",
+            f"Check rings: {result.baseline_model} MAE **{base['mean']:.3f} um** vs mean "
+            f"(floor {floor['mean']:.3f}), **{base['single']:.3f} um** vs single (floor {floor['single']:.3f}).",
             "",
-            "| effect | explains | parameters |",
-            "|---|---|---|",
+            "| effect | explains | noise explains | parameters |",
+            "|---|---|---|---|",
         ]
         for cand in result.candidates:
             params = ", ".join(f"{k} = {v:.3g}" for k, v in dict(cand.params).items())
-            lines.append(f"| {cand.effect_id} | {100.0 * cand.explained_fraction:.0f} % | {params} |")
-        lines += ["", f"**Verdict:** {result.verdict}"]
-        if result.candidates:
-            lines += ["", f"_{result.candidates[0].teaching}_"]
+            mark = " **(significant)**" if cand.significant else ""
+            lines.append(
+                f"| {cand.name or cand.effect}{mark} | {100.0 * cand.explained_fraction:.1f} % | "
+                f"{100.0 * cand.noise_fraction:.1f} % | {params} |"
+            )
+        verdict = "an effect is missing" if result.verdict == "missing" else "no effect is missing"
+        lines += ["", f"**Verdict:** {verdict}."]
+        best = result.candidates[0] if result.candidates else None
+        if best is not None and best.significant:
+            lines += ["", f"**{best.name or best.effect}** — _{best.teaching}_", "", "Tick it below and refit."]
         p.result.content = "\n".join(lines)
         for cand in result.candidates:
-            box = p.effects.get(cand.effect_id)
+            box = p.effects.get(cand.effect)
             if box is not None:
-                box.label = f"{box.label.split(' — ')[0]} — explains {100.0 * cand.explained_fraction:.0f} %"
-        if not self.history:
-            self.history.append(("trilinear", float(result.baseline_mae_um)))
-            p.show_history(self.history, float(result.noise_floor_um))
+                box.label = f"{box.label.split(' — ')[0]} — {100.0 * cand.explained_fraction:.1f} %"
+        # The diagnosis' per-orientation out-of-sample error becomes a field figure.
+        ds.add_figure(
+            "diagnosis: out-of-sample MAE / its floor",
+            result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"],
+            "x the floor of each ring; training rings by leave-one-out, check rings by the baseline (ph_explorer.diagnosis)",
+        )
+        self.field_panel.set_names(ds.figure_names())
+        self.history = [(result.baseline_model, float(base["mean"]))]
+        p.show_history(self.history, float(floor["mean"]))
+        p.status.content = "Diagnosed."
 
     def _refit(self) -> None:
+        """The hybrid with the ticked effects, refitted on the training rings and measured on the check rings."""
         diagnosis = optional("ph_explorer.diagnosis")
-        evaluation = optional("ph_explorer.evaluation")
-        if diagnosis is None or evaluation is None:
+        effects_module = optional("ph_explorer.effects")
+        if diagnosis is None or effects_module is None:
             return
-        p = self.physics
-        effects = p.selected_effects()
-        base = self.dataset
-        p.progress.visible, p.progress.animated, p.progress.value = True, True, 10.0
-        hybrid = diagnosis.HybridModel(effects=effects, data_model="trilinear").fit(base.campaign, base.train_mask)
-        p.progress.value = 80.0
-        report = evaluation.evaluation_report(base.campaign, {"hybrid": hybrid}, ~np.asarray(base.train_mask, bool))
-        mae = evaluation.mean_mae(report).get("hybrid", {}).get("mean", float("nan"))
-        p.progress.value, p.progress.visible = 100.0, False
+        p, ds = self.physics, self.dataset
+        campaign = ds.campaign
+        held_out = campaign.holdout_mask()
+        train = ~held_out
+        if not held_out.any():
+            p.status.content = "**Cannot refit** — no held-out ring to measure the error on."
+            return
+        ids = p.selected_effects()
+        scanned = {c.effect: c for c in (self.diagnosis.candidates if self.diagnosis is not None else [])}
+        effects = [effects_module.CATALOG[i]() for i in ids]
+        structural = [dict(scanned[i].structural) if i in scanned and scanned[i].structural else e.structural_values() for i, e in zip(ids, effects)]
         if not self.history:
-            tri = evaluation.mean_mae(
-                evaluation.evaluation_report(base.campaign, {"trilinear": base.models["trilinear"]}, ~np.asarray(base.train_mask, bool))
-            )
-            self.history.append(("trilinear", tri["trilinear"]["mean"]))
-        self.history.append(("+" + "+".join(effects) if effects else "hybrid (no effect)", float(mae)))
-        floor = base.noise_floor_um.get("mean")
-        p.show_history(self.history, floor)
-        p.status.content = f"Hybrid with {', '.join(effects) or 'no effect'}: out-of-sample MAE {mae:.3f} um (held-out rings, vs the mean)."
-        self.set_dataset(base.with_model("hybrid", hybrid))
+            self._progress("fitting the trilinear baseline…", 0.05)
+            baseline = diagnosis.HybridModel([], "trilinear").fit(campaign, train)
+            self.history = [("trilinear", diagnosis.check_mae(baseline, campaign, held_out)["mean"])]
+        self._progress(f"refitting the hybrid with {', '.join(ids) or 'no effect'}…", 0.1)
+        hybrid = diagnosis.HybridModel(
+            effects, "trilinear", structural, progress=lambda text, fraction: self._progress(str(text), 0.1 + 0.8 * float(fraction))
+        ).fit(campaign, train)
+        mae = diagnosis.check_mae(hybrid, campaign, held_out)
+        p.progress.value, p.progress.visible = 100.0, False
+        self.history.append(("+" + "+".join(ids) if ids else "no effect", float(mae["mean"])))
+        p.show_history(self.history, ds.noise_floor_um.get("mean"))
+        fitted = "; ".join(
+            f"{e['effect']}: " + ", ".join(f"{k} = {v:.3g}" for k, v in e["params"].items()) for e in hybrid.effect_parameters()
+        )
+        p.status.content = (
+            f"Hybrid ({', '.join(ids) or 'no effect'}): check-ring MAE **{mae['mean']:.3f} um** vs mean, "
+            f"{mae['single']:.3f} um vs single. {fitted}"
+        )
+        self.set_dataset(ds.with_model("hybrid", hybrid))
 
     def _reveal(self) -> None:
         hidden = self.dataset.campaign.scenario.get("hidden") if self.dataset.campaign.scenario else None
