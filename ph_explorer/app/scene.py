@@ -189,7 +189,7 @@ class RingScene:
         # The gauge sits below the measuring plane (away from the head) so the curves stay visible.
         gauge.apply_translation((0.0, 0.0, -3.6))
         self.gauge = scene.add_mesh_simple(
-            "/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.55, side="double"
+            "/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.35, side="double"
         )
         self.theta = point_angles_deg(geometry.points_per_circle)
         fine = np.linspace(0.0, 360.0, 181)[:-1]
@@ -355,7 +355,7 @@ class ErrorField:
     current orientation is a highlighted marker where the stylus points.
     """
 
-    def __init__(self, scene: Any, radius_mm: float = 140.0, opacity: float = 0.35) -> None:
+    def __init__(self, scene: Any, radius_mm: float = 220.0, opacity: float = 0.35) -> None:
         self.scene = scene
         self.opacity = opacity
         self.radius = radius_mm
@@ -366,9 +366,9 @@ class ErrorField:
         self.orientations = np.zeros((0, 2))
         self.values = np.zeros(0)
         self.range = (0.0, 1.0)
-        marker = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        marker = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
         self._marker = marker
-        self.current = scene.add_icosphere("/field/current", radius=6.0, color=(220, 30, 30), subdivisions=3)
+        self.current = scene.add_icosphere("/field/current", radius=8.0, color=(220, 30, 30), subdivisions=3)
         self.current_line = scene.add_line_segments(
             "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen"
         )
@@ -398,7 +398,7 @@ class ErrorField:
             self.surface.remove()
         self.surface = self.scene.add_mesh_trimesh("/field/surface", mesh, visible=self.visible, cast_shadow=False, receive_shadow=False)
         positions = dirs * self.radius * 1.01
-        scales = np.where(np.asarray(held_out, dtype=bool), 4.5, 2.6)
+        scales = np.where(np.asarray(held_out, dtype=bool), 6.0, 3.5)
         if self.markers is not None:
             self.markers.remove()
         self.markers = self.scene.add_batched_meshes_simple(

@@ -46,7 +46,7 @@ from ph_explorer.geometry import stylus_direction
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
 # Initial camera: the ring of the first orientation in front, the head above it, mm.
-HEAD_VIEW = {"position": (105.0, -125.0, -5.0), "look_at": (5.0, 12.0, -62.0)}
+HEAD_VIEW = {"position": (40.0, -75.0, -150.0), "look_at": (4.0, 10.0, -60.0)}
 
 
 def _effect_names() -> dict[str, str]:

@@ -1,0 +1,104 @@
+"""End to end in a real headless Chromium (Debian's /usr/bin/chromium driven by Playwright).
+
+The page loads, the A slider is moved with the keyboard like a user would, and the server-side
+handles of that browser's session show the head turned and the curves changed. Screenshots go
+to the test's tmp folder (and $PH_EXPLORER_SCREENSHOTS when set) so a human can look at them.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader", "--disable-background-networking", "--disable-gpu"]
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
+    pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium", allow_module_level=True)
+
+
+def _rotation(wxyz: np.ndarray) -> np.ndarray:
+    w, x, y, z = wxyz
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _wait(condition, timeout: float = 20.0) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
+    assert Path(CHROMIUM).exists(), "CI must have Debian's chromium at /usr/bin/chromium"
+    from playwright.sync_api import sync_playwright
+
+    from ph_explorer.app.dataset import dataset_for
+    from ph_explorer.app.server import ExplorerApp
+    from ph_explorer.geometry import head_rotation
+    from ph_explorer.models.synthetic import lobing_campaign
+
+    campaign = lobing_campaign(seed=5, extra_orientations=((43.0, 90.0), (15.0, -20.0)))
+    app = ExplorerApp(dataset_for(campaign, "synthetic browser-test campaign", None), port=0)
+    shots = Path(os.environ.get("PH_EXPLORER_SCREENSHOTS", tmp_path))
+    shots.mkdir(parents=True, exist_ok=True)
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1200, "height": 800})
+            errors: list[str] = []
+            page.on("pageerror", lambda error: errors.append(str(error)))
+            t0 = time.monotonic()
+            page.goto(app.url)
+            session = app.session(timeout=60)
+            assert _wait(lambda: session.render_count >= 1)
+            page.get_by_text("Tables 1-3 (paper)").wait_for(timeout=30_000)
+            time.sleep(2.0)  # let the canvas draw
+            page.screenshot(path=str(shots / "explorer_initial.png"))
+            print(f"page ready and drawn after {time.monotonic() - t0:.1f} s")
+
+            a_before = session.orientation[0]
+            wxyz_before = np.array(session.head.a_frame.wxyz)
+            curve_before = np.asarray(session.ring.curves["trilinear"].points).copy()
+            renders = session.render_count
+
+            # Move the A slider like a user: focus its thumb, press the arrow key three times.
+            thumb = page.get_by_role("slider").first
+            thumb.focus()
+            for _ in range(3):
+                page.keyboard.press("ArrowRight")
+            assert _wait(lambda: session.orientation[0] == a_before + 3.0, timeout=90), session.orientation
+            print(f"slider moved after {time.monotonic() - t0:.1f} s")
+            assert _wait(lambda: session.view.a_deg == a_before + 3.0)
+            assert session.render_count > renders
+
+            a, b = session.orientation
+            np.testing.assert_allclose(
+                _rotation(session.head.b_frame.wxyz) @ _rotation(session.head.a_frame.wxyz), head_rotation(a, b), atol=1e-9
+            )
+            assert not np.allclose(session.head.a_frame.wxyz, wxyz_before)
+            assert not np.allclose(np.asarray(session.ring.curves["trilinear"].points), curve_before, atol=1e-4)
+            # The browser shows the new value in the slider's number box.
+            assert page.get_by_role("slider").first.get_attribute("aria-valuenow") == f"{a:g}"
+            time.sleep(1.5)
+            page.screenshot(path=str(shots / "explorer_after_a_slider.png"))
+            assert not [e for e in errors if "value property" in e or "TypeError" in e], errors
+            browser.close()
+    finally:
+        app.stop()
+    assert (shots / "explorer_after_a_slider.png").stat().st_size > 10_000
