@@ -8,6 +8,7 @@ app says honestly what is missing instead of showing made-up figures.
 from __future__ import annotations
 
 import importlib
+import json
 import tempfile
 import threading
 from collections import OrderedDict
@@ -264,6 +265,9 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     if model_dir is not None:
         try:
             models, card = _loaded_models(model_dir)
+            card_file = Path(model_dir) / "card.json"
+            if not card and card_file.is_file():
+                card = json.loads(card_file.read_text())
             evaluation = optional("ph_explorer.evaluation")
             if card and evaluation is not None and hasattr(evaluation, "holdout_from_card"):
                 train = ~np.asarray(evaluation.holdout_from_card(campaign, card), dtype=bool)
