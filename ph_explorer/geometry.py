@@ -109,7 +109,8 @@ def joint_angles(direction: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     """
     d = np.asarray(direction, dtype=float)
     d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    a = np.degrees(np.arccos(np.clip(-d[..., 2], -1.0, 1.0)))
+    # atan2 rather than arccos(-d_z): arccos loses precision for a stylus near vertical.
+    a = np.degrees(np.arctan2(np.hypot(d[..., 0], d[..., 1]), -d[..., 2]))
     b = np.degrees(np.arctan2(-d[..., 0], d[..., 1]))
     b = np.where(np.hypot(d[..., 0], d[..., 1]) < 1e-15, 0.0, b)
     b = np.where(b <= -180.0, b + 360.0, b)

@@ -93,3 +93,14 @@ def test_ball_centres_lie_on_the_ring_and_the_sphere(a: float, b: float) -> None
 
 def test_wrap() -> None:
     np.testing.assert_allclose(wrap_deg([180.0, -180.0, 190.0, -190.0, 360.0]), [-180, -180, -170, 170, 0])
+
+
+@pytest.mark.parametrize("tilt_rad", [1e-4, 1e-7, 1e-10])
+def test_joint_angles_keep_precision_near_vertical(tilt_rad: float) -> None:
+    """A stylus a hair off vertical (down or up) keeps its tilt: 80 mm x error stays under 1e-9 mm."""
+    for down in (True, False):
+        d = np.array([np.sin(tilt_rad), 0.0, -np.cos(tilt_rad) if down else np.cos(tilt_rad)])
+        a, b = joint_angles(d)
+        expected = np.degrees(tilt_rad) if down else 180.0 - np.degrees(tilt_rad)
+        assert a == pytest.approx(expected, rel=1e-9, abs=1e-12)
+        assert 80.0 * np.linalg.norm(stylus_direction(a, b) - d) < 1e-9
