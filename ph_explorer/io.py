@@ -60,6 +60,8 @@ def sidecar_path(csv_path: str | os.PathLike[str]) -> Path:
 
 def _decode(raw: bytes, name: str) -> str:
     """The file's text, or an InputError when it is not UTF-8 CSV text."""
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise InputError("not a UTF-8 CSV text file (UTF-16 text: save it as UTF-8 CSV)", file=name, row=1)
     if b"\x00" in raw:
         line = raw[: raw.index(b"\x00")].count(b"\n") + 1
         raise InputError("not a CSV text file (binary data: NUL byte)", file=name, row=line)
@@ -105,6 +107,8 @@ def _check_header(header: list[str], name: str, header_line: int = 1) -> None:
             hint = f"unknown column {column!r} (known: {', '.join(KNOWN_COLUMNS)})"
             if not column:
                 hint = "empty column name in the header"
+            elif any(sep in column for sep in ";\t|"):
+                hint = f"unknown column {column!r}: columns must be separated by commas"
             if any(ord(ch) < 32 and ch not in "\t" for ch in column) or "\ufffd" in column:
                 hint = "not a CSV text file (control characters in the header)"
             raise InputError(hint, file=name, row=header_line, column=column or None)

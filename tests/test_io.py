@@ -353,3 +353,18 @@ def test_paper_sized_campaign_round_trip(tmp_path: Path) -> None:
     a_grid, b_grid = back.grid()
     assert len(a_grid) == 7 and len(b_grid) == 18
     np.testing.assert_allclose(back.orientations[back.off_grid_mask()], [[43.0, 90.0]])
+
+
+def test_semicolon_separated_file_gets_a_hint(tmp_path: Path) -> None:
+    lines = [line.replace(",", ";") for line in good_lines()]
+    with pytest.raises(InputError, match="separated by commas") as info:
+        read_campaign(write_lines(tmp_path, lines))
+    assert info.value.row == 1
+
+
+def test_utf16_file_gets_a_hint(tmp_path: Path) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_bytes(("\n".join(good_lines()) + "\n").encode("utf-16"))
+    with pytest.raises(InputError, match="UTF-16") as info:
+        read_campaign(path)
+    assert info.value.row == 1
