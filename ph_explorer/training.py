@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.errors import InputError
 from ph_explorer.evaluation import evaluation_report, mean_mae
+from ph_explorer.models import network as network_module
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig, ProgressCallback
 from ph_explorer.models.trilinear import TrilinearModel
@@ -111,7 +112,9 @@ def save_models(models: Mapping[str, DeviationModel], out: Path, card: dict[str,
         for model in models.values():
             model.save(tmp)
         (tmp / CARD_NAME).write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
-        os.chmod(tmp, 0o755)
+        os.chmod(tmp, 0o755)  # mkdtemp's 0700 and safetensors' 0600 would hide a shipped model
+        for path in tmp.iterdir():
+            os.chmod(path, 0o644)
         if out.exists():
             # Directories cannot be replaced in one rename: move the old one aside first, so a
             # crash between the two renames leaves it recoverable beside DIR.
@@ -188,7 +191,7 @@ def build_card(
         "holdout_source": source,
         "seed": seed,
         "training_seconds": {**{k: round(v, 2) for k, v in seconds.items()}, "total": round(sum(seconds.values()), 2)},
-        "torch_threads": min(2, os.cpu_count() or 1),
+        "torch_threads": network_module.MAX_THREADS,
         "network": {
             "K": network.config.k_max,
             "hyperparameters": network.config.as_dict(),
