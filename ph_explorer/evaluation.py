@@ -81,8 +81,9 @@ def evaluation_report(
 ) -> dict[str, Any]:
     """The evaluate --json object: the noise floors and the per-orientation tables."""
     floor = noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
+    # A campaign of single repetitions has no measured noise: its floor is unknown (null).
     return {
-        "noise_floor_um": {k: _r(v) for k, v in floor.items()},
+        "noise_floor_um": {k: (_r(v) if math.isfinite(v) else None) for k, v in floor.items()},
         "orientations": orientation_tables(campaign, models, mask),
     }
 
@@ -129,7 +130,7 @@ def format_report(report: Mapping[str, Any]) -> str:
     cells = [[label[i]] + [f"{row['mae_um'][n][ref]:.3f}" for n in names for ref in ("mean", "single")] for i, row in enumerate(rows)]
     average = mean_mae(report)
     cells.append(["average"] + [f"{average[n][ref]:.3f}" for n in names for ref in ("mean", "single")])
-    cells.append(["noise floor"] + [f"{floor[ref]:.3f}" for n in names for ref in ("mean", "single")])
+    cells.append(["noise floor"] + [_f(floor[ref]) for n in names for ref in ("mean", "single")])
     table("Table 3. Mean absolute simulation error eps_s = delta_model - delta_measured / um", header, cells)
     return "\n".join(out).rstrip() + "\n"
 
@@ -164,6 +165,10 @@ def evaluate_command(model: Path, data: Path, json_output: bool = False, geometr
     else:
         print(format_report(report), end="")
     return 0
+
+
+def _f(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.3f}"
 
 
 def _r(x: float) -> float:

@@ -169,3 +169,18 @@ def test_paper_scenario_end_to_end(tmp_path):
     report = json.loads(result.stdout)
     assert [(r["A_deg"], r["B_deg"]) for r in report["orientations"]][:3] == [(15.0, -20.0), (45.0, -20.0), (75.0, 40.0)]
     check_done_when(report)
+
+
+def test_a_campaign_of_single_repetitions_trains_and_evaluates(tmp_path):
+    """No repetitions: no measured spread; the floor is reported as unknown (null), not NaN."""
+    path = write_campaign(lobing_campaign(seed=6, n_repetitions=1), tmp_path / "single.csv")
+    out = tmp_path / "model"
+    assert train_command(path, out, network_config=QUICK, quiet=True) == 0
+    result = CliRunner().invoke(app, ["evaluate", "--model", str(out), "--data", str(path), "--json"])
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["noise_floor_um"] == {"mean": None, "single": None}
+    row = report["orientations"][0]
+    assert row["mae_um"]["trilinear"]["mean"] == row["mae_um"]["trilinear"]["single"] > 0
+    text = CliRunner().invoke(app, ["evaluate", "--model", str(out), "--data", str(path)])
+    assert text.exit_code == 0 and "n/a" in text.output

@@ -168,16 +168,18 @@ class FourierNetwork(DeviationModel):
 
         # Samples: (input, target curve, weight) per orientation or per repetition.
         if cfg.target == "mean":
-            x_fit, y_fit = orientations_of(campaign, fit_idx), means[fit_idx]
+            x_fit, y_fit = campaign.orientations[fit_idx], means[fit_idx]
             target_sigma = pooled / np.sqrt(n_rep)
             spread = sigma_o[fit_idx]
         else:
-            x_fit = np.repeat(orientations_of(campaign, fit_idx), n_rep, axis=0)
+            x_fit = np.repeat(campaign.orientations[fit_idx], n_rep, axis=0)
             y_fit = campaign.deviations[fit_idx].reshape(-1, n_pt)
             target_sigma = pooled
             spread = np.repeat(sigma_o[fit_idx], n_rep)
         weights = inverse_variance_weights(spread, pooled)
-        delta = max(cfg.huber_sigmas * target_sigma / self.scale_um, 1e-3)
+        # Without repetitions there is no noise scale: the Huber loss is then quadratic up to the
+        # curves' own RMS.
+        delta = cfg.huber_sigmas * target_sigma / self.scale_um if pooled > 0 else 1.0
 
         previous_threads = torch.get_num_threads()
         previous_deterministic = torch.are_deterministic_algorithms_enabled()
@@ -190,7 +192,7 @@ class FourierNetwork(DeviationModel):
                 torch.from_numpy(encode_orientations(x_fit)),
                 torch.from_numpy((y_fit / self.scale_um).astype(np.float32)),
                 torch.from_numpy(weights.astype(np.float32)),
-                torch.from_numpy(encode_orientations(orientations_of(campaign, val_idx))),
+                torch.from_numpy(encode_orientations(campaign.orientations[val_idx])),
                 means[val_idx],
                 delta,
             )
@@ -313,10 +315,6 @@ class FourierNetwork(DeviationModel):
         model.module.load_state_dict(load_file(str(path)))
         model.module.eval()
         return model
-
-
-def orientations_of(campaign: Campaign, index: NDArray[np.int64]) -> NDArray[np.float64]:
-    return campaign.orientations[index]
 
 
 def inverse_variance_weights(spread: NDArray[np.float64], pooled: float) -> NDArray[np.float64]:
