@@ -223,6 +223,8 @@ def train_command(
     from ph_explorer.evaluation import format_report
     from ph_explorer.io import read_campaign
 
+    if Path(out).exists() and not Path(out).is_dir():
+        raise InputError("--out must be a folder (it exists as a file)", file=str(out))
     campaign = read_campaign(Path(data), geometry or {})
     mask = parse_holdout(holdout, campaign) if holdout else campaign.holdout_mask()
     if mask.all():

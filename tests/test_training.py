@@ -184,3 +184,13 @@ def test_a_campaign_of_single_repetitions_trains_and_evaluates(tmp_path):
     assert row["mae_um"]["trilinear"]["mean"] == row["mae_um"]["trilinear"]["single"] > 0
     text = CliRunner().invoke(app, ["evaluate", "--model", str(out), "--data", str(path)])
     assert text.exit_code == 0 and "n/a" in text.output
+
+
+def test_train_cli_rejects_bad_options_with_one_line(data, tmp_path):
+    runner = CliRunner()
+    bad = runner.invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "m"), "--holdout", "15;-20"])
+    assert bad.exit_code == 2 and "--holdout" in bad.output and "Traceback" not in bad.output
+    (tmp_path / "file").write_text("x")
+    clash = runner.invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "file")])
+    assert clash.exit_code == 2 and (tmp_path / "file").read_text() == "x"
+    assert not (tmp_path / "m").exists()
