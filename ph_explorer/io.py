@@ -77,6 +77,22 @@ def _decode(raw: bytes, name: str) -> str:
 def _parse_rows(text: str, name: str) -> tuple[list[str], int, list[list[str]], NDArray[np.int64]]:
     """Header, its line, the data rows and their 1-based line numbers; blank lines are skipped."""
     reader = csv.reader(_io.StringIO(text, newline=""), strict=True)
+    if '"' not in text:
+        # Fast path: without quotes every record is one physical line, so record i is line i + 1.
+        try:
+            records = list(reader)
+        except csv.Error as error:
+            raise InputError(f"not valid CSV text ({error})", file=name, row=reader.line_num) from None
+        filled = [i for i, r in enumerate(records) if len(r) > 1 or (r and r[0].strip())]
+        if not filled:
+            raise InputError("empty file: no header and no rows", file=name, row=1)
+        header_index = filled[0]
+        return (
+            [cell.strip() for cell in records[header_index]],
+            header_index + 1,
+            [records[i] for i in filled[1:]],
+            np.asarray(filled[1:], dtype=np.int64) + 1,
+        )
     header: list[str] | None = None
     header_line = 1
     rows: list[list[str]] = []
@@ -111,7 +127,8 @@ def _check_header(header: list[str], name: str, header_line: int = 1) -> None:
                 hint = f"unknown column {column!r}: columns must be separated by commas"
             if any(ord(ch) < 32 and ch not in "\t" for ch in column) or "\ufffd" in column:
                 hint = "not a CSV text file (control characters in the header)"
-            raise InputError(hint, file=name, row=header_line, column=column or None)
+            shown = column if column.isprintable() else repr(column)  # the error stays one line
+            raise InputError(hint, file=name, row=header_line, column=shown or None)
         if column in seen:
             raise InputError(f"column {column!r} appears twice", file=name, row=header_line, column=column)
         seen.add(column)
@@ -251,7 +268,7 @@ def read_campaign(path: str | os.PathLike[str], geometry_overrides: dict[str, An
         raise InputError(
             f"{lengths[i]} fields where the header has {width}", file=name, row=int(lines[i]), column=column
         )
-    columns = {col: list(cells) for col, cells in zip(header, zip(*rows))}
+    columns = {col: [r[j] for r in rows] for j, col in enumerate(header)}
     values = {col: _numeric_column(columns[col], col, lines, name) for col in header}
 
     a, b = values["A_deg"], values["B_deg"]
