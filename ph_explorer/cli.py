@@ -140,6 +140,9 @@ def diagnose(
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder to start from.")] = None,
     add: Annotated[Optional[str], typer.Option(help="Effects to add, 'ID[,ID]' (default: the best candidate, if any).")] = None,
     effects: Annotated[Optional[Path], typer.Option(help="A Python file defining your own effects.")] = None,
+    data_part: Annotated[
+        str, typer.Option(help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained).")
+    ] = "trilinear",
     json_output: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     pivot_to_ball_mm: PivotOpt = None,
     ball_diameter_mm: BallOpt = None,
@@ -153,6 +156,7 @@ def diagnose(
         model=model,
         add=add,
         effects=effects,
+        data_part=data_part,
         json_output=json_output,
         geometry=_geometry_overrides(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm),
     )

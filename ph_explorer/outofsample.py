@@ -1,0 +1,161 @@
+"""Out-of-sample residuals and the least squares of physical terms on them.
+
+The data-driven baselines predict a ring from the other rings. What they cannot predict of a
+ring, its out-of-sample residual, is where a missing physical effect shows (physics.md): here
+training rings are predicted by leave-one-orientation-out (the group-wise cross-validation of a
+lattice method) and held-out rings by all training rings, both with the trilinear interpolator,
+which is linear in its data and so a matrix W over orientations.
+
+A physical effect's basis columns go through the same W, so that a term is only credited with
+what the baseline does not already capture; its coefficients are then the least squares of the
+residual on the residualised columns (Frisch-Waugh-Lovell: the joint fit of the physical terms
+with the data-driven part). Sums over single touches split into the repetition mean and the part
+that changes between repetitions (sum over reps |x|^2 = n_rep |mean|^2 + |within|^2), so every
+product is taken on the small mean part, and on the within part only for effects that change
+between repetitions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.models.base import as_orientations
+from ph_explorer.models.trilinear import TrilinearModel
+
+
+class OutOfSampleSmoother:
+    """W (n_o x n_o): row i predicts orientation i from the training orientations other than i."""
+
+    def __init__(self, orientations: ArrayLike, train: ArrayLike) -> None:
+        o = as_orientations(orientations)
+        n = len(o)
+        train = np.asarray(train, dtype=bool)
+        # The trilinear model is linear in its data: fitted on unit vectors it gives its weights.
+        identity = Campaign(o, np.eye(n)[:, None, :])
+        weights = np.zeros((n, n))
+        outside = np.flatnonzero(~train)
+        if outside.size:
+            weights[outside] = TrilinearModel().fit(identity, train).interpolate(o[outside])
+        for i in np.flatnonzero(train):
+            others = train.copy()
+            others[i] = False
+            if others.any():
+                weights[i] = TrilinearModel().fit(identity, others).interpolate(o[i : i + 1])[0]
+        self.weights = weights
+        self.train = train
+
+    def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Out-of-sample prediction of values shaped (n_o, ...)."""
+        return np.tensordot(self.weights, values, axes=(1, 0))
+
+    def residual(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """values (n_o, n_rep, n_pt, ...) minus the out-of-sample prediction of their repetition mean."""
+        return values - self.predict(values.mean(axis=1))[:, None]
+
+
+class Design:
+    """Columns (n_o, n_rep, n_pt, c) put through the smoother, split into mean and within parts."""
+
+    def __init__(self, columns: NDArray[np.float64], smoother: OutOfSampleSmoother | None) -> None:
+        columns = np.asarray(columns, dtype=float)
+        self.n_rep = columns.shape[1]
+        mean = columns.mean(axis=1)
+        within = columns - mean[:, None]
+        self.mean = mean - smoother.predict(mean) if smoother is not None else mean  # (n_o, n_pt, c)
+        self.scale = float(np.abs(columns).max()) if columns.size else 0.0
+        changes = np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
+        self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
+        self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
+
+    @property
+    def n_columns(self) -> int:
+        return self.mean.shape[-1]
+
+    def ring_gram(self) -> NDArray[np.float64]:
+        """(n_o, c, c): each ring's share of X^T X over single touches."""
+        g = self.n_rep * np.einsum("opc,opd->ocd", self.mean, self.mean)
+        if self.within is not None:
+            g = g + np.einsum("orpc,orpd->ocd", self.within, self.within)
+        return g
+
+    def ring_dot(self, targets: "Design") -> NDArray[np.float64]:
+        """(n_o, c, k): each ring's share of X^T y for the k target columns."""
+        b = self.n_rep * np.einsum("opc,opk->ock", self.mean, targets.mean)
+        if self.within is not None and targets.within is not None:
+            b = b + np.einsum("orpc,orpk->ock", self.within, targets.within)
+        return b
+
+    def flat(self) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The mean and within parts as contiguous (rows, c) matrices, made once."""
+        if getattr(self, "_flat", None) is None:
+            c = self.n_columns
+            within = None if self.within is None else np.ascontiguousarray(self.within.reshape(-1, c))
+            self._flat = (np.ascontiguousarray(self.mean.reshape(-1, c)), within)
+        return self._flat
+
+    def gram(self) -> NDArray[np.float64]:
+        mean, within = self.flat()
+        g = self.n_rep * mean.T @ mean
+        return g if within is None else g + within.T @ within
+
+    def dot(self, targets: "Design") -> NDArray[np.float64]:
+        mean, within = self.flat()
+        t_mean, t_within = targets.flat()
+        b = self.n_rep * mean.T @ t_mean
+        return b if within is None or t_within is None else b + within.T @ t_within
+
+    def total(self) -> NDArray[np.float64]:
+        """(c,): each column's sum of squares over single touches."""
+        t = self.n_rep * (self.mean**2).sum(axis=(0, 1))
+        return t if self.within is None else t + (self.within**2).sum(axis=(0, 1, 2))
+
+    def apply(self, coef: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The fitted terms X coef: (mean part (n_o, n_pt, ...), within part or None)."""
+        within = None if self.within is None else self.within @ coef
+        return self.mean @ coef, within
+
+    def stacked(self, other: "Design") -> "Design":
+        """The columns of self then other."""
+        out = object.__new__(Design)
+        out._flat = None
+        out.n_rep, out.scale = self.n_rep, max(self.scale, other.scale)
+        out.mean = np.concatenate([self.mean, other.mean], axis=-1)
+        if self.within is None and other.within is None:
+            out.within = None
+        else:
+            parts = [
+                d.within if d.within is not None else np.zeros(d.mean.shape[:1] + (self.n_rep,) + d.mean.shape[1:])
+                for d in (self, other)
+            ]
+            out.within = np.concatenate(parts, axis=-1)
+        return out
+
+
+def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int) -> tuple[NDArray, NDArray]:
+    """Least squares from the normal equations: (coefficients (c, k), explained sum of squares (k,)).
+
+    Directions the smoother already predicts (eigenvalues below 1e-12 of the columns' scale
+    squared times the rows) carry nothing out of sample and are dropped.
+    """
+    values, vectors = np.linalg.eigh(gram)
+    keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+    if not keep.any():
+        return np.zeros(dot.shape), np.zeros(dot.shape[1])
+    projected = vectors[:, keep].T @ dot
+    coef = vectors[:, keep] @ (projected / values[keep, None])
+    return coef, (projected**2 / values[keep, None]).sum(axis=0)
+
+
+def fit(design: Design, targets: Design) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Coefficients (c, k) and explained sums of squares (k,) of every target column on the design."""
+    return solve(design.gram(), design.dot(targets), design.scale, design.mean.shape[0] * design.mean.shape[1])
+
+
+def jackknife(design: Design, targets: Design, rings: NDArray[np.int64]) -> NDArray[np.float64]:
+    """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
+    gram, dot = design.gram(), design.dot(targets)[:, :1]
+    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(targets)[:, :, :1]
+    rows = design.mean.shape[0] * design.mean.shape[1]
+    return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, rows)[0][:, 0] for j in rings])
