@@ -314,6 +314,26 @@ def rank_candidates(
 
 
 # -- 3 + 4. add effects, watch the error fall ------------------------------------------------------
+def add_effects(
+    campaign: Campaign,
+    effects: Sequence[Effect],
+    structural: Sequence[dict[str, Any]] | None = None,
+    data_model: str = "trilinear",
+    progress: Callable[[str, float], None] | None = None,
+) -> tuple[HybridModel, Step]:
+    """Fit the hybrid with these physical effects on the campaign and measure it on the held-out rings.
+
+    structural: each effect's scanned values (e.g. from a Candidate); default the effect's own.
+    Returns the fitted model and its Step (MAE against both references, and the noise floor of
+    what its physical terms leave).
+    """
+    held_out = campaign.holdout_mask()
+    hybrid = HybridModel(list(effects), data_model, structural, progress=progress).fit(campaign, ~held_out)
+    floor = noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
+    step = Step([e.id for e in effects], check_mae(hybrid, campaign, held_out), floor, hybrid.effect_parameters())
+    return hybrid, step
+
+
 def diagnose(
     campaign: Campaign,
     add: Sequence[str] | None = None,
@@ -401,9 +421,8 @@ def diagnose(
             pick = remaining[0]
         chosen.append(by_id[pick.effect])
         structural.append(pick.structural or by_id[pick.effect].structural_values())
-        hybrid = HybridModel(chosen, data_model, structural).fit(campaign, train)
-        step_floor = noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
-        steps.append(Step([c.id for c in chosen], check_mae(hybrid, campaign, held_out), step_floor, hybrid.effect_parameters()))
+        hybrid, step = add_effects(campaign, chosen, structural, data_model)
+        steps.append(step)
         if add is None:
             # Search again with the chosen columns in the model.
             fixed = Design(
