@@ -318,7 +318,7 @@ def add_effects(
     campaign: Campaign,
     effects: Sequence[Effect],
     structural: Sequence[dict[str, Any]] | None = None,
-    data_model: str = "trilinear",
+    data_model: str | Callable[[], DeviationModel] = "trilinear",
     progress: Callable[[str, float], None] | None = None,
 ) -> tuple[HybridModel, Step]:
     """Fit the hybrid with these physical effects on the campaign and measure it on the held-out rings.
@@ -338,7 +338,7 @@ def diagnose(
     campaign: Campaign,
     add: Sequence[str] | None = None,
     baseline: DeviationModel | None = None,
-    data_model: str = "trilinear",
+    data_model: str | Callable[[], DeviationModel] = "trilinear",
     catalog: dict[str, type[Effect]] | None = None,
     max_steps: int = 3,
     progress: Callable[[str], None] | None = None,
@@ -373,7 +373,7 @@ def diagnose(
 
     if baseline is None:
         baseline = HybridModel([], data_model).fit(campaign, train)
-        baseline_name = data_model
+        baseline_name = baseline.data_model.name
     else:
         baseline_name = baseline.name
     baseline_mae = check_mae(baseline, campaign, held_out)
@@ -530,11 +530,24 @@ def diagnose_command(
         baseline = trained.get("network") or next(iter(trained.values()))
     with Progress(transient=True, disable=json_output) as bar:
         task = bar.add_task("scanning candidate effects", total=None)
+        data_model: str | Callable[[], DeviationModel] = data_part
+        if data_part == "network":
+            from ph_explorer.models.network import FourierNetwork
+
+            def data_model() -> DeviationModel:
+                # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
+                network_task = bar.add_task("network on the residual", total=None)
+                return FourierNetwork(
+                    progress=lambda epoch, loss, mae, lr: bar.update(
+                        network_task, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
+                    )
+                )
+
         result = diagnose(
             campaign,
             add=ids,
             baseline=baseline,
-            data_model=data_part,
+            data_model=data_model,
             catalog=catalog,
             progress=lambda effect_id: bar.update(task, description=f"scanning {effect_id}"),
         )

@@ -54,7 +54,7 @@ class HybridModel(DeviationModel):
     def __init__(
         self,
         effects: Sequence[Effect] = (),
-        data_model: str | DeviationModel = "trilinear",
+        data_model: str | DeviationModel | Callable[[], DeviationModel] = "trilinear",
         structural: Sequence[dict[str, Any]] | None = None,
         progress: Callable[[str, float], None] | None = None,
     ) -> None:
@@ -195,9 +195,12 @@ class HybridModel(DeviationModel):
         return model
 
 
-def _make_data_model(data_model: str | DeviationModel) -> DeviationModel:
+def _make_data_model(data_model: str | DeviationModel | Callable[[], DeviationModel]) -> DeviationModel:
+    """The data-driven part: a model, a factory of one (e.g. a network with a progress bar), or its name."""
     if isinstance(data_model, DeviationModel):
         return data_model
+    if callable(data_model):
+        return data_model()
     if data_model == "trilinear":
         return TrilinearModel()
     if data_model == "network":
