@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import CATALOG, Effect
+from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
@@ -44,6 +45,9 @@ def fitted_basis(effect: Effect, touches: Touches, structural: dict[str, Any] | 
     # The circle fit acts along the points: move the column axis out of the way and back.
     fitted = remove_size_and_centre(np.moveaxis(columns, -1, -2))
     return np.moveaxis(fitted, -2, -1), list(names)
+
+
+SUBFOLDER = "hybrid"
 
 
 class HybridModel(DeviationModel):
@@ -67,6 +71,10 @@ class HybridModel(DeviationModel):
         self.column_names_: list[str] = []
         self.geometry: Geometry = DEFAULT_GEOMETRY
         self.progress = progress
+        # What fit leaves for the held-out evaluation (check_predictions); None after load.
+        self.smoother_: OutOfSampleSmoother | None = None
+        self.fit_design_: Design | None = None
+        self.fit_targets_: Design | None = None
         self.n_points = 64
 
     # -- physical part ---------------------------------------------------------------------------
@@ -134,6 +142,9 @@ class HybridModel(DeviationModel):
         """
         touches = campaign_touches(campaign.subset(rings))
         data = self.data_model.predict(touches.orientations, n_points=touches.shape[2])[:, None, :]
+        fitted_here = self.smoother_ is not None and self.smoother_.weights.shape[0] == campaign.n_orientations
+        if not fitted_here:
+            raise ValueError("check_predictions needs the hybrid fitted on this campaign (fit, not load)")
         if not self.effects:
             return np.broadcast_to(data, touches.shape).copy()
         coef = outofsample.jackknife(self.fit_design_, self.fit_targets_, rings)  # (m, c)
@@ -166,7 +177,8 @@ class HybridModel(DeviationModel):
 
     # -- files -----------------------------------------------------------------------------------
     def save(self, directory: str | Path) -> Path:
-        directory = Path(directory)
+        # Its own subfolder, so that a hybrid saved beside trained models never overwrites their files.
+        directory = Path(directory) / SUBFOLDER
         directory.mkdir(parents=True, exist_ok=True)
         self.data_model.save(directory)
         path = directory / "hybrid.json"
@@ -184,8 +196,11 @@ class HybridModel(DeviationModel):
 
     @classmethod
     def load(cls, directory: str | Path) -> Self:
-        directory = Path(directory)
+        directory = Path(directory) / SUBFOLDER
         record = json.loads((directory / "hybrid.json").read_text())
+        unknown = [e["id"] for e in record["effects"] if e["id"] not in CATALOG]
+        if unknown:
+            raise InputError(f"effect {unknown[0]!r} is not in the catalog (load its --effects file first)", file=str(directory))
         effects = [CATALOG[e["id"]]() for e in record["effects"]]
         model = cls(effects, record["data_model"], [e["structural"] for e in record["effects"]])
         model.data_model = type(model.data_model).load(directory)
