@@ -1,0 +1,64 @@
+"""PNG plots of the results (matplotlib, Agg backend)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+COLORS = {"network": "tab:blue", "trilinear": "tab:orange", "hybrid": "tab:green"}
+
+
+def data_efficiency_plot(results: dict[str, Any], path: Path) -> Path:
+    curves, details = results["data_efficiency"], results["data_efficiency_details"]
+    fig, axes = plt.subplots(1, len(curves), figsize=(5.5 * len(curves), 4.2), squeeze=False)
+    for ax, (scenario, models) in zip(axes[0], curves.items()):
+        for name, points in models.items():
+            n, mae = zip(*points)
+            ax.plot(n, mae, "o-", color=COLORS.get(name), label=name)
+        floor = details[scenario]["noise_floor_um"]["mean"]
+        ax.axhline(floor, color="grey", ls="--", label=f"noise floor {floor:.3f} um")
+        full = max(models["trilinear"], key=lambda p: p[0])
+        ax.axvline(full[0] / 5, color="grey", ls=":", label="1/5 of the orientations")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("training orientations")
+        ax.set_ylabel("check-ring MAE vs 10-repetition mean (um)")
+        ax.set_title(scenario)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def speed_plot(results: dict[str, Any], path: Path) -> Path:
+    speed, scale = results["speed"], results.get("scale", {})
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    labels, values = [], []
+    for key, label in (("network_training", "network training"), ("physics_refit", "physics refit"), ("diagnosis", "diagnosis"), ("serve_startup", "serve start-up")):
+        entry = speed.get(key) or {}
+        value = entry.get("seconds", entry.get("seconds_from_launch"))
+        if value is not None:
+            labels.append(label)
+            values.append(value)
+    axes[0].barh(labels, values, color="tab:purple")
+    axes[0].set_xlabel("seconds")
+    axes[0].set_title(f"speed on {speed['cpu_count']} cores")
+    ms = [("1 browser", speed["slider_update_ms"]), (f"{scale.get('browsers', '?')} browsers", scale.get("server_update_ms", {}))]
+    names = [m[0] for m in ms]
+    for k, q in enumerate(("p50", "p95")):
+        axes[1].bar([i + 0.4 * k for i in range(len(ms))], [m[1].get(q) or 0 for m in ms], width=0.4, label=q)
+    axes[1].axhline(20, color="red", ls="--", label="target p95 20 ms")
+    axes[1].set_xticks([i + 0.2 for i in range(len(ms))], names)
+    axes[1].set_ylabel("server time per slider update (ms)")
+    axes[1].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,144 @@
+"""The explorer under load: N simulated browsers (websocket clients, a separate process) moving
+sliders at a fixed rate, against the server running in this process (so its render times and
+memory are measured where they happen)."""
+
+from __future__ import annotations
+
+import gc
+import json
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ph_explorer.app import server as app_server
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+
+
+def rss_mb(field: str = "VmRSS") -> float:
+    """This process' resident memory (MB) from /proc/self/status (VmRSS now, VmHWM peak)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+class RenderErrors:
+    """Counts exceptions raised by Session._render in any session (re-raised unchanged)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.last: str | None = None
+        self._lock = threading.Lock()
+        self._original = app_server.Session._render
+
+    def __enter__(self) -> "RenderErrors":
+        original, counter = self._original, self
+
+        def counted(session: Any) -> None:
+            try:
+                original(session)
+            except Exception as error:
+                with counter._lock:
+                    counter.count += 1
+                    counter.last = f"{type(error).__name__}: {error}"
+                raise
+
+        app_server.Session._render = counted
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        app_server.Session._render = self._original
+
+
+def percentile_ms(values: list[float], q: float) -> float | None:
+    return round(1000.0 * float(np.percentile(values, q)), 3) if values else None
+
+
+def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
+    """Run the browsers process against the app; return server-side and client-side figures."""
+    app.render_times.clear()
+    before_sessions = set(app.sessions)
+    gc.collect()
+    rss_before = rss_mb()
+    start = time.perf_counter()
+    missed: int | None = None
+    connected = 0
+    with RenderErrors() as errors:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
+            cwd=REPOSITORY,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        timer = threading.Timer(seconds + 300, process.kill)  # bounded, whatever happens
+        timer.start()
+        try:
+            finals: list[Any] = []
+            for line in process.stdout:
+                if line.startswith("FINALS "):
+                    finals = [tuple(f) for f in json.loads(line[7:]) if f is not None]
+                    break
+            # Every browser is still connected: let the sessions render their last update, then
+            # check that each ended on its own browser's last orientation (latest value wins).
+            sessions = [app.sessions[c] for c in set(app.sessions) - before_sessions if c in app.sessions]
+            connected = len(sessions)
+            for session in sessions:
+                session_wait(session)
+            time.sleep(0.3)
+            for session in sessions:
+                session_wait(session)
+            seen = [session.orientation for session in sessions]
+            missed = sum(1 for f in finals if f not in seen) if finals else None
+            process.stdin.write("release\n")
+            process.stdin.flush()
+            out, err = process.communicate(timeout=120)
+        finally:
+            timer.cancel()
+    wall = time.perf_counter() - start
+    browsers: list[dict[str, Any]] = []
+    client_errors: list[str] = []
+    lines = [l for l in (out or "").splitlines() if l.startswith("{")]
+    if process.returncode != 0 or not lines:
+        client_errors.append(f"browsers process exit {process.returncode}: {(err or '').strip()[-500:]}")
+    else:
+        browsers = json.loads(lines[-1])["browsers"]
+        client_errors = [e for b in browsers for e in b["errors"]]
+    times = list(app.render_times)
+    time.sleep(0.5)
+    gc.collect()
+    rss_after = rss_mb()
+    completed = sum(1 for b in browsers if b["final"] is not None)
+    return {
+        "browsers": n_browsers,
+        "rate_hz": rate_hz,
+        "seconds": seconds,
+        "wall_s": round(wall, 2),
+        "sessions_connected": connected,
+        "browsers_completed": completed,
+        "slider_updates_sent": int(sum(b["sent"] for b in browsers)),
+        "renders": len(times),
+        "frames_received": int(sum(b["received"] for b in browsers)),
+        "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
+        "client_errors": client_errors[:20],
+        "render_errors": errors.count,
+        "last_render_error": errors.last,
+        "sessions_not_on_their_last_orientation": missed,
+        "sessions_left_open": len(set(app.sessions) - before_sessions),
+        "errors": len(client_errors) + errors.count + (missed if missed is not None else n_browsers) + (n_browsers - completed),
+        "rss_mb": {"before": round(rss_before, 1), "after": round(rss_after, 1), "growth": round(rss_after - rss_before, 1), "peak": round(rss_mb("VmHWM"), 1)},
+    }
+
+
+def session_wait(session: Any, timeout: float = 5.0) -> None:
+    """Wait until a session's render loop is idle (its latest slider value rendered)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and getattr(session, "_rendering", False):
+        time.sleep(0.01)
