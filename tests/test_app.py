@@ -1,8 +1,7 @@
 """The explorer without a browser: viser in-process on port 0, browsers simulated by websocket clients.
 
-A simulated browser connects with viser's protocol and sends one camera message (that is when
-viser registers a client); the test then sets GUI values on that browser's session and asserts on
-its scene handles and panel contents.
+A simulated browser (ph_explorer.app.headless) connects with viser's protocol; the test then sets
+GUI values on that browser's session and asserts on its scene handles and panel contents.
 """
 
 from __future__ import annotations
@@ -10,54 +9,16 @@ from __future__ import annotations
 import threading
 import time
 
-import msgspec
 import numpy as np
 import pytest
 
-viser = pytest.importorskip("viser")
-from viser import _messages  # noqa: E402
-from websockets.sync.client import connect  # noqa: E402
-
-from ph_explorer.app.dataset import Dataset, dataset_for  # noqa: E402
-from ph_explorer.app.scene import magnified_radius, quat_head, quat_x, quat_z  # noqa: E402
-from ph_explorer.app.server import ExplorerApp  # noqa: E402
-from ph_explorer.geometry import head_rotation, stylus_direction  # noqa: E402
-from ph_explorer.models.synthetic import lobing_campaign  # noqa: E402
-
-
-class FakeBrowser:
-    """A websocket client speaking viser's protocol, draining everything the server sends."""
-
-    def __init__(self, port: int) -> None:
-        self.ws = connect(f"ws://127.0.0.1:{port}", subprotocols=[f"viser-v{viser.__version__}"], max_size=None)
-        camera = _messages.ViewerCameraMessage(
-            wxyz=(1.0, 0.0, 0.0, 0.0),
-            position=(100.0, -100.0, 0.0),
-            fov=1.0,
-            near=1.0,
-            far=5000.0,
-            image_height=600,
-            image_width=800,
-            look_at=(0.0, 0.0, -60.0),
-            up_direction=(0.0, 0.0, 1.0),
-        )
-        self.send(camera)
-        self.received = 0
-        threading.Thread(target=self._drain, daemon=True).start()
-
-    def send(self, message: _messages.Message) -> None:
-        self.ws.send(msgspec.msgpack.encode(message.as_serializable_dict()))
-
-    def _drain(self) -> None:
-        try:
-            while True:
-                self.ws.recv()
-                self.received += 1
-        except Exception:
-            pass
-
-    def close(self) -> None:
-        self.ws.close()
+from ph_explorer.app.dataset import Dataset, dataset_for
+from ph_explorer.app.headless import SimulatedBrowser, open_session
+from ph_explorer.app.panels import parameter_text
+from ph_explorer.app.scene import magnified_radius, quat_head, quat_x, quat_z
+from ph_explorer.app.server import ExplorerApp, build_server
+from ph_explorer.geometry import head_rotation, stylus_direction
+from ph_explorer.models.synthetic import lobing_campaign
 
 
 def rotation_of(wxyz: np.ndarray) -> np.ndarray:
@@ -86,17 +47,15 @@ def app(dataset: Dataset):
 
 @pytest.fixture()
 def browser(app: ExplorerApp):
-    before = set(app.sessions)
-    fake = FakeBrowser(app.port)
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline and not set(app.sessions) - before:
-        time.sleep(0.02)
-    new = set(app.sessions) - before
-    assert new, "the simulated browser got no session"
-    session = app.sessions[new.pop()]
-    session.wait()
+    fake, session = open_session(app)
     yield session
     fake.close()
+
+
+def click(button) -> None:
+    """What a click on a viser button runs on the server (its callbacks)."""
+    for callback in button._impl.update_cb:
+        callback(None)
 
 
 def test_quaternions_match_the_geometry_conventions() -> None:
@@ -241,26 +200,35 @@ def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:
     assert not s.ring.band.visible
 
 
-def test_each_browser_keeps_its_own_state(app: ExplorerApp) -> None:
-    browsers = [FakeBrowser(app.port) for _ in range(6)]
+def test_thirty_browsers_at_once_each_keep_their_own_state(app: ExplorerApp) -> None:
+    before = set(app.sessions)
+    browsers = [SimulatedBrowser(app.port) for _ in range(30)]
     try:
-        deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and len(app.sessions) < 6:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(set(app.sessions) - before) < 30:
             time.sleep(0.05)
-        sessions = list(app.sessions.values())[-6:]
-        for k, s in enumerate(sessions):
-            s.go_to(15.0 * (k % 7), -160.0 + 20.0 * k)
-        for k, s in enumerate(sessions):
-            assert s.orientation == (15.0 * (k % 7), -160.0 + 20.0 * k)
+        sessions = [app.sessions[k] for k in sorted(set(app.sessions) - before)]
+        assert len(sessions) == 30
+        targets = [(float(3 * k % 116), float(-170 + 11 * k)) for k in range(30)]
+        # Everyone moves at the same time, from their own thread (as their callbacks would).
+        threads = [threading.Thread(target=s.go_to, args=t) for s, t in zip(sessions, targets)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(30)
+        for s, (a, b) in zip(sessions, targets):
+            assert s.orientation == (a, b)
+            assert (s.view.a_deg, s.view.b_deg) == (a, b)
             r = rotation_of(s.head.b_frame.wxyz) @ rotation_of(s.head.a_frame.wxyz)
-            np.testing.assert_allclose(r, head_rotation(*s.orientation), atol=1e-9)
+            np.testing.assert_allclose(r, head_rotation(a, b), atol=1e-9)
+            assert f"A{a:g} B{b:g}" in s.tables.markdown.content
     finally:
         for b in browsers:
             b.close()
 
 
 def test_a_slider_move_from_the_browser_reaches_only_its_session(app: ExplorerApp) -> None:
-    one, two = FakeBrowser(app.port), FakeBrowser(app.port)
+    one, two = SimulatedBrowser(app.port), SimulatedBrowser(app.port)
     try:
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline and len(app.sessions) < 2:
@@ -268,7 +236,7 @@ def test_a_slider_move_from_the_browser_reaches_only_its_session(app: ExplorerAp
         s1, s2 = sorted(app.sessions.items())[-2][1], sorted(app.sessions.items())[-1][1]
         a2 = s2.orientation
         target = one if s1.client.client_id == min(s1.client.client_id, s2.client.client_id) else two
-        target.send(_messages.GuiUpdateMessage(s1.controls.a._impl.uuid, {"value": 60.0}))
+        target.move_slider(s1.controls.a, 60.0)
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline and s1.orientation[0] != 60.0:
             time.sleep(0.02)
@@ -334,18 +302,18 @@ def test_a_good_upload_replaces_the_session_data_only(browser, app: ExplorerApp,
 
 
 def test_physics_panel_lists_the_catalog_effects(browser) -> None:
-    s = browser
-    p = s.physics
-    if not s.diagnosis_available:  # honest label, nothing to click, no figures
-        assert p.diagnose.disabled and p.refit.disabled
-        assert "not in this build" in p.status.content
-        assert p.result.content == "" and not p.history.visible
-        return
     from ph_explorer.effects import CATALOG
 
-    assert not p.diagnose.disabled and not p.refit.disabled
-    assert set(p.effects) <= set(CATALOG) and "b_axis_cyclic" in p.effects
+    p = browser.physics
+    assert set(p.effects) == set(CATALOG) - {"noise"}
     assert all(not box.value for box in p.effects.values())
+    assert not p.history.visible and p.candidates.content == ""
+
+
+def test_parameters_are_shown_with_their_units() -> None:
+    assert parameter_text("amplitude_arcsec", 0.9534, "arcsec") == "amplitude 0.953 arcsec"
+    assert parameter_text("cycles_per_rev", 22.0, "1/rev") == "cycles per rev 22"
+    assert parameter_text("head_rate_um_per_h", 1.5, "um/h") == "head rate 1.5 um/h"
 
 
 def test_reveal_says_when_nothing_is_hidden(browser) -> None:
@@ -354,29 +322,101 @@ def test_reveal_says_when_nothing_is_hidden(browser) -> None:
     assert "no hidden effect" in s.physics.revealed.content
 
 
+def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(browser) -> None:
+    """Refit alone works too: add_effects gives the baseline step, then the hybrid's step."""
+    s = browser
+    s.physics.effects["lobing"].value = True
+    click(s.physics.refit)
+    s.wait(timeout=120)
+    assert [step.added for step in s.steps] == [[], ["lobing"]]
+    assert s.physics.history.visible and len(s.physics.history.data[0]) == 2
+    assert "hybrid" in s.dataset.models
+    # Untick everything and refit: the hybrid curve goes away, the history keeps growing.
+    s.physics.effects["lobing"].value = False
+    click(s.physics.refit)
+    s.wait(timeout=120)
+    assert len(s.steps) == 3 and "hybrid" not in s.dataset.models and not s.ring.curves["hybrid"].visible
+
+
 @pytest.mark.slow
 def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
     """Done-when of issue 6: on a teaching scenario the GUI loop diagnose -> add -> refit lowers the error."""
-    pytest.importorskip("ph_explorer.diagnosis")
-    pytest.importorskip("ph_explorer.twin")
     s = browser
     s.data_panel.scenario.value = "b_axis_22"
     s.wait(timeout=300)
     assert "b_axis_22" in s.data_panel.source.content
-    for callback in s.physics.diagnose._impl.update_cb:  # what a click on Diagnose runs
-        callback(None)
+    click(s.physics.diagnose)
     s.wait(timeout=600)
-    assert s.diagnosis is not None and s.diagnosis.candidates[0].effect == "b_axis_cyclic"
-    assert "significant" in s.physics.result.content
-    s.physics.effects["b_axis_cyclic"].value = True
-    for callback in s.physics.refit._impl.update_cb:
-        callback(None)
+    p = s.physics
+    best = s.diagnosis.candidates[0]
+    assert best.effect == "b_axis_cyclic" and best.structural["cycles_per_rev"] == 22 and best.significant
+    # The ranked table, the verdict with units and the teaching text, the evidence chart.
+    assert "b_axis_cyclic" in p.candidates.content and f"{100 * best.explained_fraction:.1f}" in p.candidates.content
+    assert "Verdict: a missing effect" in p.verdict.content and "cycles per rev 22" in p.verdict.content
+    assert "arcsec" in p.verdict.content and best.teaching in p.verdict.content
+    assert p.evidence.visible and p.evidence_of.value == "b_axis_cyclic"
+    np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual_um"])
+    assert "B joint angle" in p.evidence.axes[0]["label"]
+    # The history starts at the baseline.
+    assert len(s.steps) == 1 and s.steps[0].added == [] and p.history.visible
+    baseline = s.steps[0]
+    p.effects["b_axis_cyclic"].value = True
+    click(p.refit)
     s.wait(timeout=600)
-    (_, baseline), (_, with_effect) = s.history[0], s.history[-1]
-    print("history", s.history)
-    assert with_effect < 0.8 * baseline, s.history
-    assert "hybrid" in s.dataset.models and s.physics.history.visible
+    last = s.steps[-1]
+    print("history", [(st.added, st.mae_um, st.noise_floor_um) for st in s.steps])
+    assert last.added == ["b_axis_cyclic"]
+    assert last.mae_um["mean"] < baseline.mae_um["mean"]
+    assert last.mae_um["mean"] <= 1.3 * last.noise_floor_um["mean"], last
+    # The chart: x = steps; MAE and floor against the mean and single repetitions, per step.
+    x, mae_mean, floor_mean, mae_single, floor_single = (np.asarray(d) for d in p.history.data)
+    np.testing.assert_array_equal(x, [0.0, 1.0])
+    np.testing.assert_allclose(mae_mean, [baseline.mae_um["mean"], last.mae_um["mean"]])
+    np.testing.assert_allclose(floor_single, [baseline.noise_floor_um["single"], last.noise_floor_um["single"]])
+    assert "+ b_axis_cyclic" in p.history_table.content
+    # The hybrid curve is in the scene, the charts and the tables.
+    assert "hybrid" in s.dataset.models
     s.go_to(43.0, 90.0)
     assert "hybrid" in s.view.curves and s.ring.curves["hybrid"].visible
+    assert "hybrid" in [series["label"] for series in s.charts.deviation.series]
+    assert "hybrid" in s.tables.markdown.content
     s._reveal()
-    assert "b_axis_cyclic" in s.physics.revealed.content
+    assert "b_axis_cyclic" in p.revealed.content
+    # New data clears the physics of the old.
+    s.data_panel.scenario.value = "paper"
+    s.wait(timeout=300)
+    assert s.steps == [] and s.diagnosis is None and not p.history.visible and "hybrid" not in s.dataset.models
+
+
+# -- the default start: the shipped paper campaign with model/paper -----------------------------------
+
+
+@pytest.fixture(scope="module")
+def default_app():
+    explorer = build_server(port=0)
+    yield explorer
+    explorer.stop()
+
+
+def test_default_start_shows_measured_network_and_trilinear(default_app: ExplorerApp) -> None:
+    app = default_app
+    assert app.dataset.model_names == ["network", "trilinear"]
+    assert app.startup_s > 0
+    fake, s = open_session(app)
+    try:
+        view = s.view
+        assert view.measured and view.held_out  # A15 B-20: a check ring of model/paper
+        for name in ("measured", "network", "trilinear"):
+            assert s.ring.curves[name].visible, name
+        assert [series["label"] for series in s.charts.deviation.series] == ["point", "measured", "network", "trilinear"]
+        text = s.tables.markdown.content
+        assert "| um | measured | network | trilinear |" in text
+        mae = view.tables["mae_um"]["network"]["mean"]
+        assert f"{mae:.2f}" in text and mae > 0
+        assert "network" in s.controls.legend.content
+        # An unseen orientation: the network predicts it.
+        s.go_to(43.0, 100.0)
+        assert not s.view.measured and s.ring.curves["network"].visible
+        assert len(s.render_times) >= 2 and all(t > 0 for t in s.render_times)
+    finally:
+        fake.close()

@@ -1,39 +1,31 @@
 """What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
 
 This module only calls the core (io, twin, models, training, evaluation, harmonics); it holds no
-physics. Parts of the core that are not built yet are found at run time (`optional`), and the
-app says honestly what is missing instead of showing made-up figures.
+physics.
 """
 
 from __future__ import annotations
 
-import importlib
-import json
 import tempfile
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
 from typing import Any, Mapping
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer import paths
+from ph_explorer import paths, twin
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
-from ph_explorer.geometry import Geometry
+from ph_explorer.evaluation import holdout_from_card, noise_floor, orientation_tables
+from ph_explorer.harmonics import harmonic_spectrum, ron_t
+from ph_explorer.io import read_campaign
+from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.training import load_card, load_models
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
-
-
-def optional(module: str) -> ModuleType | None:
-    """The core module when it exists in this build, else None (other parts are built in parallel)."""
-    try:
-        return importlib.import_module(module)
-    except ImportError:
-        return None
 
 
 def _paper_orientations_key(a_deg: float, b_deg: float) -> tuple[float, float]:
@@ -77,11 +69,9 @@ class Dataset:
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
         self.sigma_um = self.campaign.noise_sigma_um()
-        evaluation = optional("ph_explorer.evaluation")
-        if evaluation is not None and np.isfinite(self.sigma_um):
-            self.noise_floor_um: dict[str, float] = evaluation.noise_floor(self.sigma_um, self.campaign.n_repetitions)
-        else:
-            self.noise_floor_um = {}
+        # A campaign of single repetitions has no repetition spread: no floor to show.
+        finite = np.isfinite(self.sigma_um)
+        self.noise_floor_um: dict[str, float] = noise_floor(self.sigma_um, self.campaign.n_repetitions) if finite else {}
 
     # -- models ----------------------------------------------------------------------------------
     @property
@@ -90,8 +80,15 @@ class Dataset:
 
     def with_model(self, name: str, model: Any) -> "Dataset":
         """A copy holding one more (or a replaced) model; the views are recomputed."""
-        models = dict(self.models)
-        models[name] = model
+        return self._with_models({**self.models, name: model})
+
+    def without_model(self, name: str) -> "Dataset":
+        """A copy without the named model (the same dataset when it has none)."""
+        if name not in self.models:
+            return self
+        return self._with_models({k: v for k, v in self.models.items() if k != name})
+
+    def _with_models(self, models: dict[str, Any]) -> "Dataset":
         copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
@@ -123,20 +120,18 @@ class Dataset:
             reps = c.deviations[idx]
         for name in self.model_names:
             curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
-        harmonics = importlib.import_module("ph_explorer.harmonics")
-        spectra = {k: harmonics.harmonic_spectrum(v)[0] for k, v in curves.items()}
+        spectra = {k: harmonic_spectrum(v)[0] for k, v in curves.items()}
         tables = self._tables(idx, curves)
         held_out = idx is not None and not bool(self.train_mask[idx])
         return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
         """Tables 1-3 of the paper at this orientation: from ph_explorer.evaluation when measured."""
-        evaluation = optional("ph_explorer.evaluation")
         models = {n: self.models[n] for n in self.model_names}
-        if idx is not None and evaluation is not None:
+        if idx is not None:
             mask = np.zeros(self.campaign.n_orientations, dtype=bool)
             mask[idx] = True
-            row = evaluation.orientation_tables(self.campaign, models, mask)[0]
+            row = orientation_tables(self.campaign, models, mask)[0]
             return {"range_um": row["range_um"], "max_abs_um": row["max_abs_um"], "mae_um": row["mae_um"]}
         # Not measured: there is nothing to compare with; range and max |dev| of each prediction only.
         return {
@@ -186,9 +181,8 @@ class Dataset:
         return result
 
     def _compute_figure(self, name: str) -> tuple[NDArray[np.float64], str]:
-        harmonics = importlib.import_module("ph_explorer.harmonics")
         if name == "measured RONt":
-            return harmonics.ron_t(self.mean_curves), "um, peak to valley of the measured mean curve (ISO 12181)"
+            return ron_t(self.mean_curves), "um, peak to valley of the measured mean curve (ISO 12181)"
         ratio = name.endswith("/ noise floor") or "/ noise floor," in name
         floor = self.noise_floor_um.get("mean")
         if name.startswith("trilinear MAE") and "leave-one-out" in name:
@@ -211,8 +205,6 @@ class Dataset:
 
     def _trilinear_leave_one_out(self) -> NDArray[np.float64]:
         """MAE of the trilinear model at each ring with that ring left out of its tables."""
-        from ph_explorer.models.trilinear import TrilinearModel
-
         c = self.campaign
         mae = np.empty(c.n_orientations)
         base = np.asarray(self.train_mask, dtype=bool)
@@ -232,53 +224,22 @@ class Dataset:
 # -- loading -----------------------------------------------------------------------------------------
 
 
-def fit_trilinear(campaign: Campaign, train_mask: NDArray[np.bool_]) -> Any | None:
-    models = optional("ph_explorer.models.trilinear")
-    if models is None:
-        return None
-    return models.TrilinearModel().fit(campaign, train_mask)
-
-
-def _loaded_models(directory: Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Models and card from training.load_models (mapping, or an object with .models / .card)."""
-    training = optional("ph_explorer.training")
-    if training is None or not hasattr(training, "load_models"):
-        raise LookupError("ph_explorer.training.load_models is not available in this build")
-    loaded = training.load_models(directory)
-    if isinstance(loaded, tuple) and len(loaded) == 2 and isinstance(loaded[0], Mapping):
-        return dict(loaded[0]), dict(loaded[1] or {})
-    if isinstance(loaded, Mapping):
-        card = loaded.get("card", {}) if isinstance(loaded.get("card"), Mapping) else {}
-        return {k: v for k, v in loaded.items() if hasattr(v, "predict")}, dict(card)
-    models = getattr(loaded, "models", None)
-    if isinstance(models, Mapping):
-        return dict(models), dict(getattr(loaded, "card", {}) or {})
-    named = {n: getattr(loaded, n) for n in MODEL_ORDER if hasattr(getattr(loaded, n, None), "predict")}
-    return named, dict(getattr(loaded, "card", {}) or {})
-
-
 def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: list[str] | None = None) -> Dataset:
-    """A Dataset for a campaign: the models of model_dir when given, else the trilinear tables fitted now."""
+    """A Dataset for a campaign: the models of model_dir when given, else the trilinear tables fitted now.
+
+    The held-out rings are those of the model card when the models come from a folder (what the
+    models never saw), else the campaign's own check orientations.
+    """
     notes = list(notes or [])
     models: dict[str, Any] = {}
     train = ~campaign.holdout_mask()
     if model_dir is not None:
-        try:
-            models, card = _loaded_models(model_dir)
-            card_file = Path(model_dir) / "card.json"
-            if not card and card_file.is_file():
-                card = json.loads(card_file.read_text())
-            evaluation = optional("ph_explorer.evaluation")
-            if card and evaluation is not None and hasattr(evaluation, "holdout_from_card"):
-                train = ~np.asarray(evaluation.holdout_from_card(campaign, card), dtype=bool)
-            notes.append(f"models from {model_dir}")
-        except LookupError as error:
-            notes.append(f"{error}; the network is not shown")
+        models = dict(load_models(Path(model_dir)))
+        train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
+        notes.append(f"models from {model_dir}")
     if "trilinear" not in models and train.any():
-        trilinear = fit_trilinear(campaign, train)
-        if trilinear is not None:
-            models["trilinear"] = trilinear
-            notes.append("trilinear tables fitted at start-up on the training rings")
+        models["trilinear"] = TrilinearModel().fit(campaign, train)
+        notes.append("trilinear tables fitted at start-up on the training rings")
     if "network" not in models:
         notes.append("no trained network for this campaign (ph-explorer train makes one)")
     return Dataset(campaign, models, label, notes, train)
@@ -286,44 +247,31 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
 
 def read_uploaded_campaign(name: str, content: bytes, geometry: Mapping[str, float] | None = None) -> Campaign:
     """Read an uploaded CSV with the core's reader; its InputError names the uploaded file, not a temp path."""
-    io = optional("ph_explorer.io")
-    if io is None:
-        raise InputError("reading campaign files is not available in this build (ph_explorer.io)", file=name)
     safe = Path(name or "upload.csv").name or "upload.csv"
     with tempfile.TemporaryDirectory(prefix="ph-explorer-upload-") as tmp:
         path = Path(tmp) / safe
         path.write_bytes(content)
         try:
-            campaign = io.read_campaign(path, dict(geometry or {}))
+            campaign = read_campaign(path, dict(geometry or {}))
         except InputError as error:
-            if error.file is not None:
-                error.file = str(error.file).replace(str(path), safe)
-            raise InputError(error.message, file=error.file, row=error.row, column=error.column) from None
+            file = None if error.file is None else str(error.file).replace(str(path), safe)
+            raise InputError(error.message, file=file, row=error.row, column=error.column) from None
     campaign.source = safe
     return campaign
 
 
 def simulated_scenario(name: str) -> Campaign:
-    twin = optional("ph_explorer.twin")
-    if twin is None:
-        raise InputError("scenarios need the digital twin (ph_explorer.twin), which is not in this build yet")
+    """A shipped scenario's campaign, simulated by the twin with the scenario's own seed."""
     scenario = twin.load_scenario(name)
-    return twin.simulate(scenario, getattr(scenario, "seed", 0))
+    return twin.simulate(scenario, scenario.seed)
 
 
 def list_scenarios() -> list[str]:
-    twin = optional("ph_explorer.twin")
-    if twin is None or not hasattr(twin, "list_scenarios"):
-        return []
-    names = []
-    for item in twin.list_scenarios():  # names, (name, description) pairs or Scenario objects
-        if isinstance(item, str):
-            names.append(item)
-        elif isinstance(item, (tuple, list)) and item:
-            names.append(str(item[0]))
-        else:
-            names.append(str(getattr(item, "name", item)))
-    return names
+    return [name for name, _description in twin.list_scenarios()]
+
+
+def scenario_descriptions() -> dict[str, str]:
+    return dict(twin.list_scenarios())
 
 
 def default_dataset(
@@ -338,31 +286,10 @@ def default_dataset(
     if model_dir is not None and not model_dir.is_dir():
         raise InputError("no such model folder", file=str(model_dir))
     if data is not None:
-        io = optional("ph_explorer.io")
-        if io is None:
-            raise InputError("reading campaign files is not available in this build (ph_explorer.io)", file=str(data))
-        campaign = io.read_campaign(Path(data), geometry)
+        campaign = read_campaign(Path(data), geometry)
         return dataset_for(campaign, f"campaign {Path(data).name}", model_dir)
     if scenario is not None:
         campaign = simulated_scenario(scenario)
         return dataset_for(campaign, f"scenario {scenario} (simulated by the twin)", model_dir)
     paper_csv = paths.assets_dir() / "data" / "paper.csv"
-    default_models = model_dir or paths.default_model_dir()
-    if not default_models.is_dir() or not any(default_models.iterdir()):
-        default_models = None
-    io = optional("ph_explorer.io")
-    if paper_csv.is_file() and io is not None:
-        return dataset_for(io.read_campaign(paper_csv, geometry), "the shipped paper campaign", default_models)
-    twin = optional("ph_explorer.twin")
-    if twin is not None and hasattr(twin, "simulate"):
-        campaign = simulated_scenario("paper")
-        return dataset_for(campaign, "the paper scenario, simulated at start-up", default_models)
-    synthetic = importlib.import_module("ph_explorer.models.synthetic")
-    campaign = synthetic.lobing_campaign()
-    if geometry:
-        campaign.geometry = Geometry(**{**campaign.geometry.as_dict(), **geometry})
-    return dataset_for(
-        campaign,
-        "a synthetic lobing campaign (the shipped paper campaign and the twin are not in this build yet)",
-        None,
-    )
+    return dataset_for(read_campaign(paper_csv, geometry), "the shipped paper campaign", model_dir or paths.default_model_dir())

@@ -259,11 +259,7 @@ class DataPanel:
     def __init__(self, gui: Any, scenarios: Sequence[str]) -> None:
         with gui.add_folder("Data", expand_by_default=False):
             self.source = gui.add_markdown("")
-            self.scenario = gui.add_dropdown(
-                "Scenario",
-                (NO_CHOICE, *scenarios) if scenarios else ("(twin not in this build)",),
-                disabled=not scenarios,
-            )
+            self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *scenarios), hint="a campaign simulated by the twin")
             self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
             self.message = gui.add_markdown("")
 
@@ -282,50 +278,207 @@ class DataPanel:
         self.message.content = text
 
 
+# Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
+HISTORY_SERIES = (
+    {"label": "step"},
+    {"label": "MAE vs mean", "stroke": "#2a9d3c", "width": 2, "points": {"show": True, "size": 7}},
+    {"label": "floor (mean)", "stroke": "#2a9d3c", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
+    {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
+    {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
+)
+EVIDENCE_SERIES = (
+    {"label": "x"},
+    {"label": "out-of-sample residual", "stroke": "#444444", "width": 0, "points": {"show": True, "size": 5, "fill": "#444444"}},
+    {"label": "candidate, fitted", "stroke": "#d62728", "width": 2, "points": {"show": False}},
+)
+
+
+def parameter_text(name: str, value: float, unit: str) -> str:
+    """'amplitude_arcsec', 0.95, 'arcsec' -> 'amplitude 0.95 arcsec'; 'cycles_per_rev', 22, '1/rev' -> 'cycles per rev 22'."""
+    label = name
+    written = unit.replace("/", "_per_")  # 'um/h' is spelled 'um_per_h' in parameter names
+    if unit and label.endswith("_" + written):
+        label = label[: -len(written) - 1]
+    elif unit == "1/rev" and label.endswith("per_rev"):
+        unit = ""  # 'cycles per rev' says it
+    return f"{label.replace('_', ' ')} {value:.3g}" + (f" {unit}" if unit else "")
+
+
+def parameters_text(params: Mapping[str, float], units: Mapping[str, str]) -> str:
+    return ", ".join(parameter_text(k, float(v), units.get(k, "")) for k, v in params.items())
+
+
+def step_label(added: Sequence[str], baseline: str) -> str:
+    return f"baseline ({baseline})" if not added else "+ " + " + ".join(added)
+
+
+def history_data(steps: Sequence[Any]) -> tuple[NDArray[np.float64], ...]:
+    """uPlot data of the error history: per step, MAE and floor against the mean and single repetitions."""
+    x = np.arange(len(steps), dtype=float)
+    get = lambda attr, ref: np.array([float(getattr(s, attr)[ref]) for s in steps])
+    return (x, get("mae_um", "mean"), get("noise_floor_um", "mean"), get("mae_um", "single"), get("noise_floor_um", "single"))
+
+
+def candidates_html(candidates: Sequence[Any], units: Mapping[str, Mapping[str, str]], limit: int = 8) -> str:
+    """The ranked candidates: explained share, fall of the held-out error, what noise explains, significance."""
+    head = (
+        '<table style="width:100%;border-collapse:collapse;font-size:0.78em;line-height:1.3em">'
+        '<tr style="border-bottom:1px solid #ccc;text-align:right"><th style="text-align:left">#&nbsp;effect</th>'
+        '<th title="share of the out-of-sample residual it explains">explains</th>'
+        '<th title="fall of the held-out rms error against the reference that exposes it">error&nbsp;&darr;</th>'
+        '<th title="the most the same scan explains on pure noise">noise</th><th></th></tr>'
+    )
+    rows = []
+    for rank, c in enumerate(candidates[:limit], 1):
+        weight = "font-weight:600;" if c.significant else "color:#777;"
+        params = ""
+        if c.significant:  # a non-significant fit's parameters describe noise: not shown as findings
+            params = f'<div style="font-size:0.92em;color:#2a6a2a">{parameters_text(c.params, units.get(c.effect, {}))}</div>'
+        mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
+        rows.append(
+            f'<tr style="border-bottom:1px solid #eee;text-align:right;{weight}">'
+            f'<td style="text-align:left">{rank}.&nbsp;{c.effect}{params}</td>'
+            f"<td>{100.0 * c.explained_fraction:.1f}&nbsp;%</td><td>{100.0 * c.error_reduction:.0f}&nbsp;%</td>"
+            f"<td>{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td>{mark}</td></tr>"
+        )
+    more = f'<div style="font-size:0.75em;color:#777">… and {len(candidates) - limit} more</div>' if len(candidates) > limit else ""
+    return head + "".join(rows) + "</table>" + more
+
+
 class PhysicsPanel:
     """Diagnose -> add an effect -> refit -> the error falls; reveal the hidden effect.
 
-    Built against ph_explorer.diagnosis (diagnose, HybridModel); when it is not in this build the
-    widgets stay disabled with an honest label and no figures.
+    Formats what ph_explorer.diagnosis returns (Diagnosis, Candidate, Step); computes nothing.
     """
 
-    def __init__(self, gui: Any, available: bool, effect_names: Mapping[str, str]) -> None:
+    def __init__(self, gui: Any, effect_names: Mapping[str, str]) -> None:
         with gui.add_folder("Physics: diagnose and add effects", expand_by_default=False):
-            self.status = gui.add_markdown(
-                ""
-                if available
-                else "_The diagnosis core (ph_explorer.diagnosis) is not in this build yet: diagnose, effects and refit are disabled._"
-            )
-            self.diagnose = gui.add_button("Diagnose", disabled=not available)
-            self.result = gui.add_markdown("")
-            self.effects = {
-                effect_id: gui.add_checkbox(name, False, disabled=not available, hint=f"add {effect_id} to the hybrid")
-                for effect_id, name in effect_names.items()
-            }
-            self.refit = gui.add_button("Refit the hybrid", disabled=not available)
+            self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
+            self.status = gui.add_markdown("")
             self.progress = gui.add_progress_bar(0.0, visible=False)
-            self.history = gui.add_uplot(
+            self.summary = gui.add_markdown("")
+            self.candidates = gui.add_html("")
+            self.verdict = gui.add_markdown("")
+            self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
+            self.evidence = gui.add_uplot(
                 (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
-                ({"label": "step"}, {"label": "MAE (um)", "stroke": "#2a9d3c", "width": 2}, {"label": "noise floor", "stroke": "#999999", "dash": (5.0, 5.0)}),
-                title="Out-of-sample MAE per step",
-                aspect=1.8,
+                EVIDENCE_SERIES,
+                title="Evidence",
+                aspect=1.6,
                 scales={"x": {"time": False}},
+                axes=({"label": "x"}, {"label": "um"}),
                 visible=False,
             )
-            self.reveal = gui.add_button("Reveal the hidden effect", disabled=not available)
+            self.evidence_text = gui.add_markdown("")
+            self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
+            self.effects = {
+                effect_id: gui.add_checkbox(name, False, hint=f"add {effect_id} to the hybrid's physical terms")
+                for effect_id, name in effect_names.items()
+            }
+            self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
+            self.history = gui.add_uplot(
+                (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+                HISTORY_SERIES,
+                title="Check-ring MAE per step (um), dashed: noise floor",
+                aspect=1.5,
+                scales={"x": {"time": False, "range": [-0.5, 0.5]}},
+                axes=({"label": "step"}, {"label": "um"}),
+                visible=False,
+            )
+            self.history_table = gui.add_markdown("")
+            self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
             self.revealed = gui.add_markdown("")
+        self.effect_names = dict(effect_names)
 
-    def show_history(self, steps: Sequence[tuple[str, float]], floor: float | None) -> None:
+    def clear(self) -> None:
+        """New data: the diagnosis and history of the old data no longer apply."""
+        for handle in (self.status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
+            handle.content = ""
+        self.candidates.content = ""
+        self.progress.visible = False
+        self.evidence.visible = self.evidence_of.visible = self.history.visible = False
+        self.evidence_of.options = (NO_CHOICE,)
+        for effect_id, box in self.effects.items():
+            box.label = self.effect_names[effect_id]
+            box.value = False
+
+    def show_progress(self, text: str, fraction: float | None) -> None:
+        self.progress.visible = True
+        self.progress.animated = fraction is None
+        if fraction is not None:
+            self.progress.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+        self.status.content = f"_{text}_"
+
+    def done(self, text: str) -> None:
+        self.progress.value = 100.0
+        self.progress.visible = False
+        self.status.content = text
+
+    def show_diagnosis(self, result: Any, units: Mapping[str, Mapping[str, str]]) -> None:
+        floor, base = result.noise_floor_um, result.baseline_mae_um
+        n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
+        self.summary.content = (
+            f"**Where it fails:** {n_fail} of {len(result.failing)} orientations are worse than their noise floor "
+            f"(out of sample). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
+            f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
+        )
+        self.candidates.content = candidates_html(result.candidates, units)
+        if result.verdict == "missing":
+            best = result.candidates[0]
+            self.verdict.content = (
+                f"**Verdict: a missing effect — {best.name} (`{best.effect}`)**, "
+                f"{parameters_text(best.params, units.get(best.effect, {}))}.\n\n_{best.teaching}_\n\nTick it below and refit."
+            )
+        else:
+            self.verdict.content = (
+                "**Verdict: no missing effect found** — no candidate explains more than noise would "
+                "and lowers the held-out error materially."
+            )
+        for c in result.candidates:
+            box = self.effects.get(c.effect)
+            if box is not None:
+                box.label = f"{self.effect_names[c.effect]} — {100.0 * c.explained_fraction:.1f} %" + (" ✔" if c.significant else "")
+        options = tuple(c.effect for c in result.candidates if c.evidence.get("x"))
+        self.evidence_of.options = options or (NO_CHOICE,)
+        self.evidence_of.visible = bool(options)
+
+    def show_evidence(self, candidate: Any, units: Mapping[str, str]) -> None:
+        ev = candidate.evidence
+        if not ev.get("x"):
+            self.evidence.visible = False
+            self.evidence_text.content = ""
+            return
+        data = (np.asarray(ev["x"], float), np.asarray(ev["residual_um"], float), np.asarray(ev["fitted_um"], float))
+        self.evidence.title = f"{candidate.effect}: residual and fit (um)"
+        self.evidence.axes = ({"label": ev["x_label"]}, {"label": "um"})
+        self.evidence.data = data
+        self.evidence.visible = True
+        flag = "significant" if candidate.significant else "not significant"
+        self.evidence_text.content = (
+            f"**{candidate.name}** ({flag}): {parameters_text(candidate.params, units)}. "
+            f"Binned means over every touch against {ev['x_label']}.\n\n_{candidate.teaching}_"
+        )
+
+    def show_history(self, steps: Sequence[Any], baseline: str) -> None:
+        """The error history: MAE against the mean and single repetitions per step, each with its floor."""
         if not steps:
             self.history.visible = False
+            self.history_table.content = ""
             return
-        x = np.arange(len(steps), dtype=float)
-        y = np.array([v for _, v in steps], dtype=float)
-        if x.size == 1:  # uPlot draws a line from two points at least
-            x, y = np.array([0.0, 1.0]), np.repeat(y, 2)
-        f = np.full(x.size, np.nan if floor is None else floor)
-        self.history.data = (x, y, f)
+        self.history.data = history_data(steps)
+        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
         self.history.visible = True
+        lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
+        for k, s in enumerate(steps):
+            lines.append(
+                f"| {k}: {step_label(s.added, baseline)} | {s.mae_um['mean']:.3f} ({s.noise_floor_um['mean']:.3f}) | "
+                f"{s.mae_um['single']:.3f} ({s.noise_floor_um['single']:.3f}) |"
+            )
+        last = steps[-1]
+        ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
+        lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
+        self.history_table.content = "\n".join(lines)
 
     def selected_effects(self) -> list[str]:
         return [e for e, box in self.effects.items() if box.value]
