@@ -116,6 +116,15 @@ class Design:
         within = None if self.within is None else self.within @ coef
         return self.mean @ coef, within
 
+    def first_column(self) -> "Design":
+        """A view of column 0 only (the data, where the other columns are noise draws)."""
+        out = object.__new__(Design)
+        out._flat = None
+        out.n_rep, out.scale = self.n_rep, self.scale
+        out.mean = self.mean[..., :1]
+        out.within = None if self.within is None else self.within[..., :1]
+        return out
+
     def stacked(self, other: "Design") -> "Design":
         """The columns of self then other."""
         out = object.__new__(Design)
@@ -155,7 +164,8 @@ def fit(design: Design, targets: Design) -> tuple[NDArray[np.float64], NDArray[n
 
 def jackknife(design: Design, targets: Design, rings: NDArray[np.int64]) -> NDArray[np.float64]:
     """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
-    gram, dot = design.gram(), design.dot(targets)[:, :1]
-    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(targets)[:, :, :1]
+    target = targets.first_column()
+    gram, dot = design.gram(), design.dot(target)
+    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)
     rows = design.mean.shape[0] * design.mean.shape[1]
     return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, rows)[0][:, 0] for j in rings])
