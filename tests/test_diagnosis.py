@@ -195,3 +195,53 @@ def test_cli_rejects_an_unknown_effect_in_one_line(b22_csv):
     assert done.returncode == 2
     assert len(done.stderr.strip().splitlines()) == 1 and "gremlins" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def other_campaign(hidden: dict | None) -> Campaign:
+    """A campaign unlike the shipped ones: 10 x 30 deg lattice, 48 points, 5 repetitions, L = 100 mm,
+    a 25 mm ring and a 3 mm ball, no check orientations (the off-grid rings are held out)."""
+    import tomllib
+
+    from ph_explorer.paths import scenarios_dir
+    from ph_explorer.twin import scenario_from_dict
+
+    recipe = tomllib.loads((scenarios_dir() / "paper.toml").read_text())
+    recipe.update(
+        name="other",
+        seed=7,
+        repetitions=5,
+        check_orientations=[],
+        geometry={"points_per_circle": 48, "pivot_to_ball_mm": 100.0, "bore_diameter_mm": 25.0, "ball_diameter_mm": 3.0},
+        orientations={
+            "a_deg": [0, 90, 10],
+            "b_deg": [-150, 180, 30],
+            "off_grid": [[37, 75], [14, -100], [63, 20], [81, -160], [26, 130], [48, -40], [55, 100], [72, -70]],
+        },
+    )
+    if hidden is not None:
+        recipe["effects"] = recipe["effects"] + [dict(hidden, hidden=True)]
+    return simulate(scenario_from_dict(recipe))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "hidden",
+    [
+        {"id": "b_axis_cyclic", "amplitude_arcsec": 1.2, "phase_deg": 80.0, "cycles_per_rev": 13},
+        {"id": "a_axis_cyclic", "amplitude_arcsec": 1.0, "phase_deg": 10.0, "cycles_per_rev": 17},
+    ],
+    ids=["b13", "a17"],
+)
+def test_a_campaign_on_another_lattice_and_geometry(hidden):
+    # Nothing here is the shipped scenarios' set-up: the diagnosis must not depend on it.
+    result = diagnose(other_campaign(hidden))
+    best = result.candidates[0]
+    assert result.verdict == "missing" and best.effect == hidden["id"]
+    assert best.params["cycles_per_rev"] == hidden["cycles_per_rev"]
+    assert best.params["amplitude_arcsec"] == pytest.approx(hidden["amplitude_arcsec"], rel=0.2)
+    assert result.steps[-1].mae_um["mean"] <= 1.3 * result.steps[-1].noise_floor_um["mean"]
+
+
+@pytest.mark.slow
+def test_nothing_hidden_on_another_lattice_and_geometry():
+    assert diagnose(other_campaign(None)).verdict == "none"
