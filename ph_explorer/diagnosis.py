@@ -69,6 +69,7 @@ class Candidate:
     structural: dict[str, Any]
     teaching: str
     evidence: dict[str, Any] = field(default_factory=dict)
+    note: str = ""  # why the effect could not be tested on this campaign, if it could not
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -326,7 +327,10 @@ def rank_candidates(
             continue
         if progress is not None:
             progress(effect.id)
-        candidate = search.score(effect, fixed)
+        try:
+            candidate = search.score(effect, fixed)
+        except InputError as error:  # e.g. drift on a campaign without touch times
+            candidate = Candidate(effect.id, effect.name, 0.0, 0.0, 0.0, False, {}, {}, effect.teaching, note=error.message)
         out.append(candidate)
     out.sort(key=lambda c: (c.significant, c.explained_fraction), reverse=True)
     return out
@@ -497,6 +501,9 @@ def format_diagnosis(result: Diagnosis) -> str:
     for c in result.candidates:
         params = ", ".join(f"{k}={v:.3g}" for k, v in c.params.items()) if c.significant else ""
         flag = "*" if c.significant else " "
+        if c.note:
+            lines.append(f"   {c.effect.ljust(width)}  not tested: {c.note}")
+            continue
         lines.append(
             f" {flag} {c.effect.ljust(width)}  explains {100 * c.explained_fraction:5.1f} %  (noise alone {100 * c.noise_fraction:5.2f} %)"
             f"  error -{100 * c.error_reduction:4.1f} %  {params}"

@@ -245,3 +245,13 @@ def test_a_campaign_on_another_lattice_and_geometry(hidden):
 @pytest.mark.slow
 def test_nothing_hidden_on_another_lattice_and_geometry():
     assert diagnose(other_campaign(None)).verdict == "none"
+
+
+@pytest.mark.slow
+def test_a_campaign_without_touch_times_is_diagnosed_and_says_what_it_cannot_test():
+    campaign = simulate(load_scenario("b_axis_22"))
+    campaign.times_s = None  # a file without t_s
+    result = diagnose(campaign)
+    by_id = {c.effect: c for c in result.candidates}
+    assert "t_s" in by_id["drift"].note and not by_id["drift"].significant
+    assert result.candidates[0].effect == "b_axis_cyclic" and result.verdict == "missing"
