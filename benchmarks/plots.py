@@ -9,6 +9,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 COLORS = {"network": "tab:blue", "trilinear": "tab:orange", "hybrid": "tab:green"}
 
@@ -23,9 +24,15 @@ def data_efficiency_plot(results: dict[str, Any], path: Path) -> Path:
         floor = details[scenario]["noise_floor_um"]["mean"]
         ax.axhline(floor, color="grey", ls="--", label=f"noise floor {floor:.3f} um")
         full = max(models["trilinear"], key=lambda p: p[0])
+        ax.axhline(full[1], color=COLORS["trilinear"], ls=":", lw=1, label=f"full-data trilinear {full[1]:.3f} um")
         ax.axvline(full[0] / 5, color="grey", ls=":", label="1/5 of the orientations")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        ax.set_xticks([p[0] for p in models["trilinear"]])
+        ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%.2f"))
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%.2f"))
         ax.set_xlabel("training orientations")
         ax.set_ylabel("check-ring MAE vs 10-repetition mean (um)")
         ax.set_title(scenario)

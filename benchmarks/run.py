@@ -48,7 +48,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
     parser.add_argument("--out", type=Path, default=HERE, help="folder for results.json and the PNGs")
+    parser.add_argument("--replot", action="store_true", help="only redraw the PNGs from OUT/results.json")
     args = parser.parse_args(argv)
+    if args.replot:
+        results = json.loads((args.out / "results.json").read_text())
+        plots.data_efficiency_plot(results, args.out / "data_efficiency.png")
+        plots.speed_plot(results, args.out / "speed.png")
+        return 0
     quick: bool = args.quick
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)

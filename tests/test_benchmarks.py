@@ -1,0 +1,99 @@
+"""The benchmark command stays working (issue 7): its subset choice, and a quick run end to end.
+
+No timed assertions: the figures belong in benchmarks/results.json, not in tests.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPOSITORY = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPOSITORY))
+
+from benchmarks.data_efficiency import hybrid_effects, lattice_subsets, target  # noqa: E402
+from ph_explorer.models.trilinear import TrilinearModel  # noqa: E402
+from ph_explorer.twin import load_scenario, simulate  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def paper():
+    scenario = load_scenario("paper")
+    return scenario, simulate(scenario, scenario.seed)
+
+
+def test_subsets_are_lattices_that_keep_every_a_row_and_no_check_ring(paper) -> None:
+    _, campaign = paper
+    check = campaign.holdout_mask()
+    masks = lattice_subsets(campaign, ~check)
+    # The 3 grid rings among the check orientations are never trained on: 126 - 3, then 7 rows x k.
+    assert [int(m.sum()) for m in masks] == [123, 62, 42, 21, 14, 7]
+    a_rows = np.unique(campaign.orientations[~check & ~campaign.off_grid_mask(), 0])
+    for mask in masks:
+        assert not (mask & check).any()
+        assert set(np.unique(campaign.orientations[mask, 0])) == set(a_rows)
+        # A lattice: the trilinear model puts every training orientation on a node of its table.
+        model = TrilinearModel().fit(campaign, mask)
+        assert model.measured.sum() == mask.sum()
+        assert np.isfinite(model.predict(campaign.orientations[check])).all()
+    # Nested: each smaller subset lies inside the larger ones' B columns spread evenly.
+    b_counts = [np.unique(campaign.orientations[m, 1]).size for m in masks]
+    assert b_counts == [18, 9, 6, 3, 2, 1]
+
+
+def test_the_hybrid_gets_the_scenario_effects_minus_noise_with_their_cycles() -> None:
+    effects, structural = hybrid_effects(load_scenario("b_axis_22"))
+    ids = [e.id for e in effects]
+    assert "noise" not in ids and "lobing" in ids
+    cycles = sorted(s["cycles_per_rev"] for e, s in zip(effects, structural) if e.id == "b_axis_cyclic")
+    assert cycles == [2.0, 4.0, 22.0]  # the hidden 22/rev included
+
+
+def test_target_reads_the_curves() -> None:
+    curves = {"trilinear": [[126, 0.05], [21, 0.08]], "hybrid": [[126, 0.045], [21, 0.051], [14, 0.06]]}
+    t = target(curves)
+    assert t["holds"] and t["fewest_matching"] == [21, 0.051]
+    curves["hybrid"] = [[126, 0.045], [21, 0.06]]
+    assert not target(curves)["holds"]
+
+
+@pytest.mark.slow
+def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--quick", "--out", str(tmp_path)],
+        cwd=REPOSITORY,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert result.returncode == 0, result.stderr[-3000:]
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["mode"] == "quick"
+    for scenario in ("paper", "b_axis_22"):
+        curves = results["data_efficiency"][scenario]
+        assert set(curves) == {"network", "trilinear", "hybrid"}
+        for points in curves.values():
+            assert len(points) == 2 and all(math.isfinite(mae) and mae > 0 for _, mae in points)
+            assert [n for n, _ in points] == [123, 21]
+        details = results["data_efficiency_details"][scenario]
+        assert details["predictions_finite"] and details["noise_floor_um"]["mean"] > 0
+    assert isinstance(results["target"]["holds"], bool) and results["target"]["detail"]
+    speed = results["speed"]
+    for key in ("simulate", "network_training", "physics_refit", "diagnosis", "predict_one_orientation_us",
+                "monte_carlo_touches_per_s", "serve_startup", "slider_update_ms", "cpu_count"):
+        assert key in speed, key
+    assert speed["serve_startup"]["seconds_from_launch"] is not None
+    assert set(speed["predict_one_orientation_us"]) == {"network", "trilinear", "hybrid"}
+    scale = results["scale"]
+    assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
+    assert scale["errors"] == 0 and scale["renders"] > 0
+    for key in ("p50", "p95"):
+        assert scale["server_update_ms"][key] > 0
+    for png in ("data_efficiency.png", "speed.png"):
+        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
