@@ -75,7 +75,7 @@ class Candidate:
         out = asdict(self)
         for key in ("explained_fraction", "error_reduction", "noise_fraction"):
             out[key] = round(out[key], DIGITS)
-        out["params"] = {k: round(v, DIGITS) for k, v in self.params.items()}
+        out["params"] = _rounded(self.params)
         return out
 
 
@@ -118,8 +118,8 @@ class Diagnosis:
                     "A_deg": float(a),
                     "B_deg": float(b),
                     "held_out": bool(h),
-                    "mae_um": {k: round(float(v[i]), DIGITS) for k, v in self.out_of_sample_mae_um.items()},
-                    "floor_um": {k: round(float(v[i]), DIGITS) for k, v in self.out_of_sample_floor_um.items()},
+                    "mae_um": _rounded({k: v[i] for k, v in self.out_of_sample_mae_um.items()}),
+                    "floor_um": _rounded({k: v[i] for k, v in self.out_of_sample_floor_um.items()}),
                 }
                 for i, ((a, b), h) in enumerate(zip(self.orientations, self.held_out))
                 if self.failing[i]
@@ -471,8 +471,9 @@ def diagnose(
     )
 
 
-def _rounded(figures: dict[str, float]) -> dict[str, float]:
-    return {k: round(float(v), DIGITS) for k, v in figures.items()}
+def _rounded(figures: dict[str, float]) -> dict[str, float | None]:
+    """Figures for JSON: rounded, and null where a figure does not exist (one repetition has no floor)."""
+    return {k: round(float(v), DIGITS) if np.isfinite(v) else None for k, v in figures.items()}
 
 
 # -- the command ---------------------------------------------------------------------------------

@@ -255,3 +255,16 @@ def test_a_campaign_without_touch_times_is_diagnosed_and_says_what_it_cannot_tes
     by_id = {c.effect: c for c in result.candidates}
     assert "t_s" in by_id["drift"].note and not by_id["drift"].significant
     assert result.candidates[0].effect == "b_axis_cyclic" and result.verdict == "missing"
+
+
+@pytest.mark.slow
+def test_a_single_repetition_campaign_gives_strict_json():
+    campaign = simulate(load_scenario("b_axis_22"))
+    campaign.deviations, campaign.times_s = campaign.deviations[:, :1], campaign.times_s[:, :1]
+    report = diagnose(campaign).as_dict()
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"{constant} is not JSON")
+
+    again = json.loads(json.dumps(report), parse_constant=refuse)
+    assert again["noise_floor_um"] == {"mean": None, "single": None}  # one repetition has no noise floor
