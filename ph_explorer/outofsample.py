@@ -142,30 +142,64 @@ class Design:
         return out
 
 
-def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int) -> tuple[NDArray, NDArray]:
+def solve(
+    gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int, ridge: float = 0.0
+) -> tuple[NDArray, NDArray]:
     """Least squares from the normal equations: (coefficients (c, k), explained sum of squares (k,)).
 
     Directions the smoother already predicts (eigenvalues below 1e-12 of the columns' scale
-    squared times the rows) carry nothing out of sample and are dropped.
+    squared times the rows) carry nothing out of sample and are dropped. `ridge` adds a penalty
+    ridge * |coef|^2 (see choose_ridge).
     """
     values, vectors = np.linalg.eigh(gram)
     keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
     if not keep.any():
         return np.zeros(dot.shape), np.zeros(dot.shape[1])
     projected = vectors[:, keep].T @ dot
-    coef = vectors[:, keep] @ (projected / values[keep, None])
-    return coef, (projected**2 / values[keep, None]).sum(axis=0)
+    shrunk = projected / (values[keep, None] + ridge)
+    coef = vectors[:, keep] @ shrunk
+    return coef, (projected * shrunk).sum(axis=0) if ridge else (projected**2 / values[keep, None]).sum(axis=0)
 
 
-def fit(design: Design, targets: Design) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _rows(design: Design) -> int:
+    return design.mean.shape[0] * design.mean.shape[1]
+
+
+def fit(design: Design, targets: Design, ridge: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Coefficients (c, k) and explained sums of squares (k,) of every target column on the design."""
-    return solve(design.gram(), design.dot(targets), design.scale, design.mean.shape[0] * design.mean.shape[1])
+    return solve(design.gram(), design.dot(targets), design.scale, _rows(design), ridge)
 
 
-def jackknife(design: Design, targets: Design, rings: NDArray[np.int64]) -> NDArray[np.float64]:
+def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
     """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
     target = targets.first_column()
     gram, dot = design.gram(), design.dot(target)
     ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)
-    rows = design.mean.shape[0] * design.mean.shape[1]
-    return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, rows)[0][:, 0] for j in rings])
+    return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, _rows(design), ridge)[0][:, 0] for j in rings])
+
+
+def choose_ridge(design: Design, targets: Design) -> float:
+    """The ridge penalty with the least leave-one-ring-out error, from none to strong.
+
+    With few rings, physical terms can alias (two cyclic orders seen at two B values only) and
+    plain least squares trades huge opposite coefficients; the rings left out tell how much
+    shrinkage predicts best. Each ring's error comes from ring-level sums, never the raw arrays:
+    |y_j - X_j b|^2 = y_j'y_j - 2 b'X_j'y_j + b'X_j'X_j b.
+    """
+    target = targets.first_column()
+    gram, dot = design.gram(), design.dot(target)[:, 0]
+    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)[:, :, 0]
+    ring_total = target.n_rep * (target.mean[..., 0] ** 2).sum(axis=1)
+    if target.within is not None:
+        ring_total = ring_total + (target.within[..., 0] ** 2).sum(axis=(1, 2))
+    used = np.flatnonzero(np.abs(ring_gram).sum(axis=(1, 2)) > 0)
+    typical = float(np.trace(gram)) / max(gram.shape[0], 1)
+    best, best_error = 0.0, np.inf
+    for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
+        error = 0.0
+        for j in used:
+            coef = solve(gram - ring_gram[j], (dot - ring_dot[j])[:, None], design.scale, _rows(design), ridge)[0][:, 0]
+            error += ring_total[j] - 2.0 * coef @ ring_dot[j] + coef @ ring_gram[j] @ coef
+        if error < best_error * (1.0 - 1e-9):
+            best, best_error = ridge, error
+    return best

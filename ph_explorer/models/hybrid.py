@@ -68,24 +68,34 @@ class HybridModel(DeviationModel):
         ]
         self.data_model: DeviationModel = _make_data_model(data_model)
         self.coefficients_: NDArray[np.float64] = np.zeros(0)
-        self.column_names_: list[str] = []
         self.geometry: Geometry = DEFAULT_GEOMETRY
         self.progress = progress
         # What fit leaves for the held-out evaluation (check_predictions); None after load.
         self.smoother_: OutOfSampleSmoother | None = None
         self.fit_design_: Design | None = None
         self.fit_targets_: Design | None = None
+        self.ridge_ = 0.0  # penalty chosen by leave-one-ring-out (outofsample.choose_ridge)
+        self.widths_: list[int | None] = [None] * len(self.effects)  # basis columns per effect, set by fit
         self.n_points = 64
 
     # -- physical part ---------------------------------------------------------------------------
     def physical_basis(self, touches: Touches) -> NDArray[np.float64]:
-        """All effects' fitted basis columns side by side, (n_o, n_rep, n_pt, n_cols)."""
+        """All effects' fitted basis columns side by side, (n_o, n_rep, n_pt, n_cols).
+
+        At touches without times (a prediction at an orientation nobody measured) an effect that
+        needs them (drift) contributes nothing: when it will be measured is unknown.
+        """
         blocks, names = [], []
-        for effect, structural in zip(self.effects, self.structural):
-            cols, cols_names = fitted_basis(effect, touches, structural)
+        for index, (effect, structural) in enumerate(zip(self.effects, self.structural)):
+            try:
+                cols, cols_names = fitted_basis(effect, touches, structural)
+                self.widths_[index] = cols.shape[-1]
+            except InputError:
+                if touches.times_s is not None or self.widths_[index] is None:
+                    raise
+                cols, cols_names = np.zeros(touches.shape + (self.widths_[index],)), []
             blocks.append(cols)
             names += cols_names
-        self.column_names_ = names
         if not blocks:
             return np.zeros(touches.shape + (0,))
         return np.concatenate(blocks, axis=-1)
@@ -99,15 +109,11 @@ class HybridModel(DeviationModel):
     def effect_parameters(self) -> list[dict[str, Any]]:
         """Each effect's fitted physical parameters (units of its Parameter list)."""
         out, start = [], 0
-        for effect, structural, width in zip(self.effects, self.structural, self._widths()):
+        for effect, structural, width in zip(self.effects, self.structural, self.widths_):
             coef = self.coefficients_[start : start + width]
             out.append({"effect": effect.id, "params": effect.from_coefficients(coef, **structural)})
             start += width
         return out
-
-    def _widths(self) -> list[int]:
-        probe = touch_kinematics([[45.0, 0.0]], self.geometry)
-        return [fitted_basis(e, probe, s)[0].shape[-1] for e, s in zip(self.effects, self.structural)]
 
     # -- DeviationModel --------------------------------------------------------------------------
     def fit(self, campaign: Campaign, train: ArrayLike | None = None) -> Self:
@@ -120,7 +126,8 @@ class HybridModel(DeviationModel):
         if self.effects:
             self._report("physical terms", 0.0)
             self.fit_design_ = Design(self.physical_basis(touches), self.smoother_)
-            self.coefficients_ = outofsample.fit(self.fit_design_, self.fit_targets_)[0][:, 0]
+            self.ridge_ = outofsample.choose_ridge(self.fit_design_, self.fit_targets_)
+            self.coefficients_ = outofsample.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
             remainder = campaign.deviations - self.physical_part(touches)
         else:
             self.fit_design_ = None
@@ -147,7 +154,7 @@ class HybridModel(DeviationModel):
             raise ValueError("check_predictions needs the hybrid fitted on this campaign (fit, not load)")
         if not self.effects:
             return np.broadcast_to(data, touches.shape).copy()
-        coef = outofsample.jackknife(self.fit_design_, self.fit_targets_, rings)  # (m, c)
+        coef = outofsample.jackknife(self.fit_design_, self.fit_targets_, rings, self.ridge_)  # (m, c)
         basis = self.physical_basis(touches)  # (m, n_rep, n_pt, c)
         own = np.einsum("orpc,oc->orp", basis, coef)
         full = self.physical_basis(campaign_touches(campaign)).mean(axis=1)
@@ -190,6 +197,8 @@ class HybridModel(DeviationModel):
                 for e, s, p in zip(self.effects, self.structural, self.effect_parameters())
             ],
             "coefficients": self.coefficients_.tolist(),
+            "widths": self.widths_,
+            "ridge": self.ridge_,
         }
         path.write_text(json.dumps(record, indent=2))
         return path
@@ -207,6 +216,8 @@ class HybridModel(DeviationModel):
         model.geometry = Geometry(**record["geometry"])
         model.n_points = model.geometry.points_per_circle
         model.coefficients_ = np.asarray(record["coefficients"], dtype=float)
+        model.widths_ = list(record["widths"])
+        model.ridge_ = float(record["ridge"])
         return model
 
 
