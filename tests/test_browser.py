@@ -67,7 +67,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             page.goto(app.url)
             session = app.session(timeout=60)
             assert _wait(lambda: session.render_count >= 1)
-            page.get_by_text("Tables 1-3 (paper)").wait_for(timeout=30_000)
+            page.get_by_text("Tables 1-3").first.wait_for(timeout=30_000)
             time.sleep(2.0)  # let the canvas draw
             page.screenshot(path=str(shots / "explorer_initial.png"))
             print(f"page ready and drawn after {time.monotonic() - t0:.1f} s")

@@ -20,6 +20,7 @@ PAPER_PRESETS: dict[str, tuple[float, float]] = {
     "A43 B90": (43.0, 90.0),
 }
 NO_CHOICE = "(choose)"
+DEFAULT_MAGNIFICATION = 10000.0
 MAX_UPR = 16
 
 
@@ -51,7 +52,9 @@ class ControlsPanel:
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the field's figure is largest")
             self.status = gui.add_markdown("")
         with gui.add_folder("Curves"):
-            self.magnification = gui.add_slider("Magnification", 1000.0, 20000.0, 500.0, 5000.0, hint="x: radial deviation scale")
+            self.magnification = gui.add_slider(
+                "Magnification", 1000.0, 20000.0, 500.0, DEFAULT_MAGNIFICATION, hint="x: radial deviation scale"
+            )
             self.show = {
                 name: gui.add_checkbox(label, True)
                 for name, label in (
@@ -64,14 +67,14 @@ class ControlsPanel:
             self.repetitions = gui.add_checkbox("Each repetition (faint)", False)
             self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % of simulated measurements of a model")
             self.legend = gui.add_html("")
-            self.view_head = gui.add_button("View the head")
-            self.view_ring = gui.add_button("View the ring (along its axis)")
+            self.follow = gui.add_checkbox("Camera follows the ring", True, hint="each move puts the ring in front of you")
+            self.view_ring = gui.add_button_group("View", ("ring + head", "along the axis", "whole field"))
 
     def set_models(self, names: Sequence[str]) -> None:
         for name, box in self.show.items():
             box.disabled = name != "measured" and name not in names
         self.band.options = ("none", *names)
-        self.legend.content = legend_html(["measured", "repetitions", *names])
+        self.legend.content = legend_html(["measured", *names, "repetitions", "reference"])
 
     def set_worst(self, worst: Iterable[tuple[float, float, float]], unit_note: str) -> None:
         options = [NO_CHOICE] + [f"{orientation_label(a, b)} ({v:.3g})" for a, b, v in worst]
@@ -83,14 +86,19 @@ class ControlsPanel:
         return {name: bool(box.value) and not box.disabled for name, box in self.show.items()}
 
 
+LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "circle R, ±1 um"}
+
+
 def legend_html(names: Iterable[str]) -> str:
     items = []
     for name in names:
         color = hex_color(curve_color(name))
+        label = LEGEND_LABELS.get(name, name)
+        height = "2px" if name in ("repetitions", "reference") else "4px"
         items.append(
             f'<span style="display:inline-block;margin-right:10px;white-space:nowrap">'
-            f'<span style="display:inline-block;width:18px;height:4px;background:{color};vertical-align:middle;'
-            f'margin-right:4px"></span>{name}</span>'
+            f'<span style="display:inline-block;width:18px;height:{height};background:{color};vertical-align:middle;'
+            f'margin-right:4px"></span>{label}</span>'
         )
     bands = [n for n in names if n in BAND_COLORS]
     if bands:
@@ -107,8 +115,7 @@ class TablesPanel:
     """The paper's Tables 1-3 for the current orientation (markdown)."""
 
     def __init__(self, gui: Any) -> None:
-        with gui.add_folder("Tables 1-3 (paper)"):
-            self.markdown = gui.add_markdown("")
+        self.markdown = gui.add_markdown("")
 
     def update(self, view: OrientationView, dataset: Dataset) -> None:
         self.markdown.content = tables_markdown(view, dataset)
@@ -195,25 +202,24 @@ class ChartsPanel:
     """Deviation against point number, and the harmonic (UPR) bar chart, for the shown curves."""
 
     def __init__(self, gui: Any, view: OrientationView, shown: Mapping[str, bool]) -> None:
-        with gui.add_folder("Charts"):
-            data, series = deviation_chart_data(view, shown)
-            self.deviation = gui.add_uplot(
-                data,
-                series,
-                title="Deviation (um) against point number",
-                aspect=1.6,
-                scales={"x": {"time": False}},
-                axes=({"label": "point"}, {"label": "um"}),
-            )
-            data, series = harmonic_chart_data(view, shown)
-            self.harmonics = gui.add_uplot(
-                data,
-                series,
-                title="Harmonics: amplitude (um) per UPR",
-                aspect=1.6,
-                scales={"x": {"time": False}},
-                axes=({"label": "UPR"}, {"label": "um"}),
-            )
+        data, series = deviation_chart_data(view, shown)
+        self.deviation = gui.add_uplot(
+            data,
+            series,
+            title="Deviation (um) against point number",
+            aspect=1.6,
+            scales={"x": {"time": False}},
+            axes=({"label": "point"}, {"label": "um"}),
+        )
+        data, series = harmonic_chart_data(view, shown)
+        self.harmonics = gui.add_uplot(
+            data,
+            series,
+            title="Harmonics: amplitude (um) per UPR",
+            aspect=1.6,
+            scales={"x": {"time": False}},
+            axes=({"label": "UPR"}, {"label": "um"}),
+        )
 
     def update(self, view: OrientationView, shown: Mapping[str, bool]) -> None:
         data, series = deviation_chart_data(view, shown)
@@ -230,11 +236,10 @@ class FieldPanel:
     """Which per-orientation figure colours the error field, its scale, and whether it shows."""
 
     def __init__(self, gui: Any, names: Sequence[str]) -> None:
-        with gui.add_folder("Error field"):
-            self.figure = gui.add_dropdown("Colour by", tuple(names))
-            self.show = gui.add_checkbox("Show the field", True)
-            self.scale = gui.add_html("")
-            self.note = gui.add_markdown("")
+        self.figure = gui.add_dropdown("Colour by", tuple(names))
+        self.show = gui.add_checkbox("Show the field", True)
+        self.scale = gui.add_html("")
+        self.note = gui.add_markdown("")
 
     def set_names(self, names: Sequence[str]) -> None:
         self.figure.options = tuple(names)
@@ -257,11 +262,10 @@ class DataPanel:
     """Where the session's data came from; scenario picker and CSV upload, with the reader's error line."""
 
     def __init__(self, gui: Any, scenarios: Sequence[str]) -> None:
-        with gui.add_folder("Data", expand_by_default=False):
-            self.source = gui.add_markdown("")
-            self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *scenarios), hint="a campaign simulated by the twin")
-            self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
-            self.message = gui.add_markdown("")
+        self.source = gui.add_markdown("")
+        self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *scenarios), hint="a campaign simulated by the twin")
+        self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
+        self.message = gui.add_markdown("")
 
     def set_source(self, dataset: Dataset) -> None:
         c = dataset.campaign
@@ -321,28 +325,37 @@ def history_data(steps: Sequence[Any]) -> tuple[NDArray[np.float64], ...]:
 
 def candidates_html(candidates: Sequence[Any], units: Mapping[str, Mapping[str, str]], limit: int = 8) -> str:
     """The ranked candidates: explained share, fall of the held-out error, what noise explains, significance."""
+    cell = "padding:2px 4px;"
     head = (
-        '<table style="width:100%;border-collapse:collapse;font-size:0.78em;line-height:1.3em">'
-        '<tr style="border-bottom:1px solid #ccc;text-align:right"><th style="text-align:left">#&nbsp;effect</th>'
-        '<th title="share of the out-of-sample residual it explains">explains</th>'
-        '<th title="fall of the held-out rms error against the reference that exposes it">error&nbsp;&darr;</th>'
-        '<th title="the most the same scan explains on pure noise">noise</th><th></th></tr>'
+        '<table style="width:100%;border-collapse:collapse;font-size:0.75em;line-height:1.3em;table-layout:fixed">'
+        '<colgroup><col style="width:49%"><col style="width:17%"><col style="width:15%"><col style="width:13%">'
+        '<col style="width:6%"></colgroup>'
+        f'<tr style="border-bottom:1px solid #bbb;text-align:right"><th style="text-align:left;{cell}">effect</th>'
+        f'<th style="{cell}" title="share of the out-of-sample residual it explains">explains</th>'
+        f'<th style="{cell}" title="fall of the held-out rms error against the reference that exposes it">error&nbsp;&darr;</th>'
+        f'<th style="{cell}" title="the most the same scan explains on pure noise">noise</th><th></th></tr>'
     )
     rows = []
     for rank, c in enumerate(candidates[:limit], 1):
-        weight = "font-weight:600;" if c.significant else "color:#777;"
+        style = "font-weight:600;" if c.significant else "color:#777;"
         params = ""
         if c.significant:  # a non-significant fit's parameters describe noise: not shown as findings
-            params = f'<div style="font-size:0.92em;color:#2a6a2a">{parameters_text(c.params, units.get(c.effect, {}))}</div>'
+            params = f'<div style="font-weight:400;color:#1f6f2f">{parameters_text(c.params, units.get(c.effect, {}))}</div>'
         mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
         rows.append(
-            f'<tr style="border-bottom:1px solid #eee;text-align:right;{weight}">'
-            f'<td style="text-align:left">{rank}.&nbsp;{c.effect}{params}</td>'
-            f"<td>{100.0 * c.explained_fraction:.1f}&nbsp;%</td><td>{100.0 * c.error_reduction:.0f}&nbsp;%</td>"
-            f"<td>{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td>{mark}</td></tr>"
+            f'<tr style="border-bottom:1px solid #eee;text-align:right;vertical-align:top;{style}">'
+            f'<td style="text-align:left;{cell}overflow-wrap:anywhere">{rank}. {c.effect}{params}</td>'
+            f'<td style="{cell}">{100.0 * c.explained_fraction:.1f}&nbsp;%</td>'
+            f'<td style="{cell}">{100.0 * c.error_reduction:.0f}&nbsp;%</td>'
+            f'<td style="{cell}">{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td style="{cell}">{mark}</td></tr>'
         )
     more = f'<div style="font-size:0.75em;color:#777">… and {len(candidates) - limit} more</div>' if len(candidates) > limit else ""
-    return head + "".join(rows) + "</table>" + more
+    legend = (
+        '<div style="font-size:0.72em;color:#666;margin-top:3px">explains: share of what the baseline cannot predict '
+        "out of sample; error &darr;: fall of the check-ring rms error; noise: the most the same scan explains on "
+        "pure noise; &#10004;: significant.</div>"
+    )
+    return head + "".join(rows) + "</table>" + more + legend
 
 
 class PhysicsPanel:
@@ -352,67 +365,71 @@ class PhysicsPanel:
     """
 
     def __init__(self, gui: Any, effect_names: Mapping[str, str]) -> None:
-        with gui.add_folder("Physics: diagnose and add effects", expand_by_default=False):
-            self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
-            self.status = gui.add_markdown("")
-            self.progress = gui.add_progress_bar(0.0, visible=False)
-            self.summary = gui.add_markdown("")
-            self.candidates = gui.add_html("")
-            self.verdict = gui.add_markdown("")
-            self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
-            self.evidence = gui.add_uplot(
-                (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
-                EVIDENCE_SERIES,
-                title="Evidence",
-                aspect=1.6,
-                scales={"x": {"time": False}},
-                axes=({"label": "x"}, {"label": "um"}),
-                visible=False,
-            )
-            self.evidence_text = gui.add_markdown("")
-            self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
-            self.effects = {
-                effect_id: gui.add_checkbox(name, False, hint=f"add {effect_id} to the hybrid's physical terms")
-                for effect_id, name in effect_names.items()
-            }
-            self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
-            self.history = gui.add_uplot(
-                (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
-                HISTORY_SERIES,
-                title="Check-ring MAE per step (um), dashed: noise floor",
-                aspect=1.5,
-                scales={"x": {"time": False, "range": [-0.5, 0.5]}},
-                axes=({"label": "step"}, {"label": "um"}),
-                visible=False,
-            )
-            self.history_table = gui.add_markdown("")
-            self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
-            self.revealed = gui.add_markdown("")
+        self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
+        self.status = gui.add_markdown("")
+        self.progress = gui.add_progress_bar(0.0, visible=False)
+        self.summary = gui.add_markdown("")
+        self.candidates = gui.add_html("")
+        self.verdict = gui.add_markdown("")
+        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
+        self.evidence = gui.add_uplot(
+            (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
+            EVIDENCE_SERIES,
+            title="Evidence",
+            aspect=1.6,
+            scales={"x": {"time": False}},
+            axes=({"label": "x"}, {"label": "um"}),
+            visible=False,
+        )
+        self.evidence_text = gui.add_markdown("")
+        self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
+        # Labelled by id (as in the candidates table): the panel's label column is narrow.
+        self.effects = {
+            effect_id: gui.add_checkbox(effect_id, False, hint=f"{name}: add it to the hybrid's physical terms")
+            for effect_id, name in effect_names.items()
+        }
+        self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
+        self.refit_progress = gui.add_progress_bar(0.0, visible=False)
+        self.refit_status = gui.add_markdown("")
+        self.history = gui.add_uplot(
+            (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+            HISTORY_SERIES,
+            title="Check-ring MAE per step (um), dashed: noise floor",
+            aspect=1.5,
+            scales={"x": {"time": False, "range": [-0.5, 0.5]}},
+            axes=({"label": "step"}, {"label": "um"}),
+            visible=False,
+        )
+        self.history_table = gui.add_markdown("")
+        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
+        self.revealed = gui.add_markdown("")
         self.effect_names = dict(effect_names)
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
-        for handle in (self.status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
+        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
             handle.content = ""
         self.candidates.content = ""
-        self.progress.visible = False
+        self.progress.visible = self.refit_progress.visible = False
         self.evidence.visible = self.evidence_of.visible = self.history.visible = False
         self.evidence_of.options = (NO_CHOICE,)
         for effect_id, box in self.effects.items():
-            box.label = self.effect_names[effect_id]
+            box.label = effect_id
             box.value = False
 
-    def show_progress(self, text: str, fraction: float | None) -> None:
-        self.progress.visible = True
-        self.progress.animated = fraction is None
+    def show_progress(self, text: str, fraction: float | None, refit: bool = False) -> None:
+        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
+        bar.visible = True
+        bar.animated = fraction is None
         if fraction is not None:
-            self.progress.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
-        self.status.content = f"_{text}_"
+            bar.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+        status.content = f"_{text}_"
 
-    def done(self, text: str) -> None:
-        self.progress.value = 100.0
-        self.progress.visible = False
-        self.status.content = text
+    def done(self, text: str, refit: bool = False) -> None:
+        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
+        bar.value = 100.0
+        bar.visible = False
+        status.content = text
 
     def show_diagnosis(self, result: Any, units: Mapping[str, Mapping[str, str]]) -> None:
         floor, base = result.noise_floor_um, result.baseline_mae_um
@@ -438,7 +455,7 @@ class PhysicsPanel:
         for c in result.candidates:
             box = self.effects.get(c.effect)
             if box is not None:
-                box.label = f"{self.effect_names[c.effect]} — {100.0 * c.explained_fraction:.1f} %" + (" ✔" if c.significant else "")
+                box.label = c.effect + (" ✔" if c.significant else "")
         options = tuple(c.effect for c in result.candidates if c.evidence.get("x"))
         self.evidence_of.options = options or (NO_CHOICE,)
         self.evidence_of.visible = bool(options)
@@ -468,6 +485,7 @@ class PhysicsPanel:
             return
         self.history.data = history_data(steps)
         self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
+        self.history.axes = ({"label": "step", "splits": tuple(float(k) for k in range(len(steps)))}, {"label": "um"})
         self.history.visible = True
         lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
         for k, s in enumerate(steps):

@@ -65,6 +65,40 @@ def quat_head(a_deg: float, b_deg: float) -> NDArray[np.float64]:
     return quat_mul(quat_z(b_deg), quat_x(a_deg))
 
 
+# -- where to look from ----------------------------------------------------------------------------------
+
+
+def ring_camera(
+    a_deg: float, b_deg: float, axial_distance_mm: float, distance_mm: float = 105.0, off_axis_deg: float = 62.0, shift_mm: float = 18.0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Camera (position, look_at) in mm showing the ring obliquely from the head's side, the stylus behind it.
+
+    The camera sits off the ring axis towards the A joint's axis (always horizontal), a little
+    raised, so the ring plane, its curves and the stylus arm stay in view at any orientation. The
+    look-at point is shifted to the camera's right so that the ring sits left of the side panel.
+    """
+    s = stylus_direction(a_deg, b_deg)
+    centre = axial_distance_mm * s
+    b = np.radians(b_deg)
+    side = np.array([np.cos(b), np.sin(b), 0.0])  # the A axis after B: perpendicular to the stylus
+    e = np.radians(off_axis_deg)
+    direction = -np.cos(e) * s + np.sin(e) * side + np.array([0.0, 0.0, 0.12])
+    position = centre + distance_mm * direction / np.linalg.norm(direction)
+    right = np.cross(centre - position, [0.0, 0.0, 1.0])
+    norm = np.linalg.norm(right)
+    look_at = centre + (shift_mm * right / norm if norm > 1e-9 else 0.0)
+    return position + (look_at - centre), look_at
+
+
+def axis_camera(a_deg: float, b_deg: float, axial_distance_mm: float, distance_mm: float = 70.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Camera looking down the ring's axis from the head's side (the polar plot undistorted)."""
+    s = stylus_direction(a_deg, b_deg)
+    centre = axial_distance_mm * s
+    b = np.radians(b_deg)
+    side = np.array([np.cos(b), np.sin(b), 0.0])
+    return centre - distance_mm * s + 4.0 * side, centre
+
+
 # -- the PH20 / TP20 head, built with trimesh ----------------------------------------------------------
 
 
@@ -185,9 +219,9 @@ class RingScene:
         self.geometry = geometry
         self.bore_radius = 0.5 * geometry.bore_diameter_mm
         self.frame = scene.add_frame("/ring", show_axes=False)
-        gauge = _annulus(self.bore_radius + 0.6, self.bore_radius + 12.0, 6.0)
+        gauge = _annulus(self.bore_radius + 0.6, self.bore_radius + 7.0, 5.0)
         # The gauge sits below the measuring plane (away from the head) so the curves stay visible.
-        gauge.apply_translation((0.0, 0.0, -3.6))
+        gauge.apply_translation((0.0, 0.0, -3.1))
         self.gauge = scene.add_mesh_simple(
             "/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.35, side="double"
         )
@@ -232,14 +266,14 @@ class RingScene:
             scene.add_label(
                 f"/ring/point_{k}",
                 str(k),
-                position=tuple(ring_points(self.bore_radius + 13.5, np.array([self.theta[k]]))[0]),
+                position=tuple(ring_points(self.bore_radius + 9.0, np.array([self.theta[k]]))[0]),
                 anchor="center-center",
                 font_screen_scale=0.7,
             )
             for k in range(0, geometry.points_per_circle, max(1, geometry.points_per_circle // 4))
         ]
         self.title = scene.add_label(
-            "/ring/title", "", position=(0.0, -(self.bore_radius + 20.0), 0.0), anchor="center-center", font_screen_scale=0.8
+            "/ring/title", "", position=(0.0, -(self.bore_radius + 14.0), 0.0), anchor="center-center", font_screen_scale=0.8
         )
         self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
 
@@ -355,7 +389,7 @@ class ErrorField:
     current orientation is a highlighted marker where the stylus points.
     """
 
-    def __init__(self, scene: Any, radius_mm: float = 220.0, opacity: float = 0.35) -> None:
+    def __init__(self, scene: Any, radius_mm: float = 300.0, opacity: float = 0.22) -> None:
         self.scene = scene
         self.opacity = opacity
         self.radius = radius_mm
@@ -368,7 +402,7 @@ class ErrorField:
         self.range = (0.0, 1.0)
         marker = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
         self._marker = marker
-        self.current = scene.add_icosphere("/field/current", radius=8.0, color=(220, 30, 30), subdivisions=3)
+        self.current = scene.add_icosphere("/field/current", radius=7.0, color=(220, 30, 30), subdivisions=3)
         self.current_line = scene.add_line_segments(
             "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen"
         )

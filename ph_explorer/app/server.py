@@ -53,16 +53,16 @@ from ph_explorer.app.panels import (
     PhysicsPanel,
     TablesPanel,
     orientation_label,
+    parameters_text,
     parse_orientation_label,
 )
-from ph_explorer.app.scene import ErrorField, HeadScene, RingScene
+from ph_explorer.app.scene import ErrorField, HeadScene, RingScene, axis_camera, ring_camera
 from ph_explorer.effects import CATALOG
 from ph_explorer.errors import InputError
-from ph_explorer.geometry import stylus_direction
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
-# Initial camera: the ring of the first orientation in front, the head above it, mm.
-HEAD_VIEW = {"position": (40.0, -75.0, -150.0), "look_at": (4.0, 10.0, -60.0)}
+# The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
+FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
 
 
 # Diagnoses and refits running at once over all browsers (the machine's cores; the rest queue).
@@ -109,11 +109,18 @@ class Session:
             self.field = ErrorField(scene)
             self.field.on_pick(self.go_to)
             self.controls = ControlsPanel(gui, a0, b0)
-            self.tables = TablesPanel(gui)
-            self.charts = ChartsPanel(gui, dataset.view(a0, b0), self.controls.shown())
-            self.field_panel = FieldPanel(gui, dataset.figure_names())
-            self.physics = PhysicsPanel(gui, effect_names())
-            self.data_panel = DataPanel(gui, app.scenarios)
+            tabs = gui.add_tab_group()
+            with tabs.add_tab("Tables 1-3", icon=viser.Icon.TABLE):
+                self.tables = TablesPanel(gui)
+            with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
+                self.charts = ChartsPanel(gui, dataset.view(a0, b0), self.controls.shown())
+            with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
+                self.physics = PhysicsPanel(gui, effect_names())
+            with tabs.add_tab("Field", icon=viser.Icon.WORLD):
+                self.field_panel = FieldPanel(gui, dataset.figure_names())
+            with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
+                self.data_panel = DataPanel(gui, app.scenarios)
+        self._camera_at: tuple[float, float] | None = None
         self._wire()
         self.set_dataset(dataset)
 
@@ -133,19 +140,14 @@ class Session:
             if target is not None:
                 self.go_to(*target)
 
-        @c.view_head.on_click
-        def _(event: Any) -> None:
-            self.client.camera.position = HEAD_VIEW["position"]
-            self.client.camera.look_at = HEAD_VIEW["look_at"]
-
         @c.view_ring.on_click
         def _(event: Any) -> None:
-            a, b = float(c.a.value), float(c.b.value)
-            s = stylus_direction(a, b)
-            centre = self.dataset.campaign.geometry.axial_distance_mm * s
-            side = np.cross(s, [0.0, 0.0, 1.0]) if abs(s[2]) < 0.99 else np.array([0.0, 1.0, 0.0])
-            self.client.camera.look_at = centre
-            self.client.camera.position = centre + 75.0 * s + 6.0 * side
+            self.look(event.target.value)
+
+        @c.follow.on_update
+        def _(event: Any) -> None:
+            if c.follow.value:
+                self.look("ring + head")
 
         @self.field_panel.figure.on_update
         def _(event: Any) -> None:
@@ -189,6 +191,21 @@ class Session:
         finally:
             self._moving = False
         self.request_render()
+
+    def look(self, view: str) -> None:
+        """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
+        a, b = self.orientation
+        axial = self.dataset.campaign.geometry.axial_distance_mm
+        if view == "along the axis":
+            position, look_at = axis_camera(a, b, axial)
+        elif view == "whole field":
+            position, look_at = np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"])
+        else:
+            position, look_at = ring_camera(a, b, axial)
+        with self.client.atomic():  # position first: viser moves look_at along with it
+            self.client.camera.position = position
+            self.client.camera.look_at = look_at
+        self._camera_at = (a, b)
 
     def request_render(self) -> None:
         """Render now, or, when a render is running, make it run once more with the latest values."""
@@ -244,6 +261,8 @@ class Session:
             self.tables.update(view, ds)
             self.charts.update(view, shown)
             self.controls.status.content = f"**{title}**"
+            if self.controls.follow.value and self._camera_at != (a, b):
+                self.look("ring + head")
         self.view = view
         self.render_count += 1
         elapsed = time.perf_counter() - start
@@ -310,6 +329,7 @@ class Session:
                 line = f"**Error** — {type(error).__name__}: {' '.join(str(error).split())}"
                 self.data_panel.show_info(line)
                 self.physics.done(line)
+                self.physics.done(line, refit=True)
                 raise
 
     def close(self) -> None:
@@ -401,29 +421,29 @@ class Session:
         # The structural values the diagnosis found (e.g. 22 cycles per revolution), else the effect's own.
         structural = [dict(scanned[i].structural) if i in scanned else e.structural_values() for i, e in zip(ids, effects)]
         if not ds.campaign.holdout_mask().any():
-            p.done("**Cannot refit** — no held-out ring to measure the error on.")
+            p.done("**Cannot refit** — no held-out ring to measure the error on.", refit=True)
             return
         if not self.steps:
-            p.show_progress("fitting the trilinear baseline…", 0.02)
+            p.show_progress("fitting the trilinear baseline…", 0.02, refit=True)
             self.steps = [diagnosis.add_effects(ds.campaign, [])[1]]
         label = ", ".join(ids) or "no effect"
-        p.show_progress(f"refitting the hybrid with {label}…", 0.05)
+        p.show_progress(f"refitting the hybrid with {label}…", 0.05, refit=True)
         hybrid, step = diagnosis.add_effects(
             ds.campaign,
             effects,
             structural,
-            progress=lambda stage, fraction: p.show_progress(f"{label}: {stage}", 0.05 + 0.9 * float(fraction)),
+            progress=lambda stage, fraction: p.show_progress(f"{label}: {stage}", 0.05 + 0.9 * float(fraction), refit=True),
         )
         if ds.campaign is not self.dataset.campaign:
             return  # the data changed meanwhile
         self.steps.append(step)
         p.show_history(self.steps, "trilinear")
-        fitted = "; ".join(
-            f"{e['effect']}: " + ", ".join(f"{k} = {v:.3g}" for k, v in e["params"].items()) for e in step.params
-        )
+        units = effect_units()
+        fitted = "; ".join(f"{e['effect']}: {parameters_text(e['params'], units.get(e['effect'], {}))}" for e in step.params)
         p.done(
             f"Hybrid ({label}): check-ring MAE **{step.mae_um['mean']:.3f} um** vs mean, "
-            f"{step.mae_um['single']:.3f} um vs single. {fitted}"
+            f"{step.mae_um['single']:.3f} um vs single. {fitted}",
+            refit=True,
         )
         # No physical term ticked: the hybrid would be the baseline again; draw no separate curve.
         self.set_dataset(ds.with_model("hybrid", hybrid) if ids else ds.without_model("hybrid"))
@@ -470,8 +490,9 @@ class ExplorerApp:
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
         camera = self.server.initial_camera
-        camera.position = HEAD_VIEW["position"]
-        camera.look_at = HEAD_VIEW["look_at"]
+        position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry.axial_distance_mm)
+        camera.position = tuple(position)
+        camera.look_at = tuple(look_at)
         camera.near = 1.0
         camera.far = 5000.0
         self.server.on_client_connect(self._connect)
