@@ -24,6 +24,7 @@ For benchmarks and scripts (stable names)::
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from collections import deque
@@ -563,6 +564,17 @@ def build_server(
     return app
 
 
+def seconds_since_process_start() -> float | None:
+    """Wall-clock seconds since this process started (imports included), where /proc says; else None."""
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        start_ticks = int(fields[19])  # field 22 of stat: start time in clock ticks after boot
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 def serve_command(
     scenario: str | None = None,
     data: Path | None = None,
@@ -579,7 +591,9 @@ def serve_command(
     print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
     for note in app.dataset.notes:
         print(f"  - {note}")
-    print(f"ph-explorer: serving at http://{shown_host}:{app.port}  (ready in {app.startup_s:.1f} s; Ctrl-C stops)", flush=True)
+    since_start = seconds_since_process_start()
+    ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"
+    print(f"ph-explorer: serving at http://{shown_host}:{app.port}  ({ready}; Ctrl-C stops)", flush=True)
     try:
         while True:
             time.sleep(3600)
