@@ -338,6 +338,45 @@ def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(browser) -
     assert len(s.steps) == 3 and "hybrid" not in s.dataset.models and not s.ring.curves["hybrid"].visible
 
 
+def test_sliders_stay_live_while_a_diagnosis_runs_and_the_verdict_says_none(app: ExplorerApp, monkeypatch) -> None:
+    """Heavy work runs on the session's worker: both this and another browser's sliders render meanwhile.
+
+    The synthetic campaign hides nothing: the verdict reads "no missing effect found".
+    """
+    from ph_explorer.app import server
+
+    running, release = threading.Event(), threading.Event()
+    real = server.diagnosis.diagnose
+
+    def held_diagnose(*args, **kwargs):
+        running.set()
+        release.wait(60)  # the diagnosis is "still running" until the sliders have been moved
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(server.diagnosis, "diagnose", held_diagnose)
+    (b1, s1), (b2, s2) = open_session(app), open_session(app)
+    try:
+        click(s1.physics.diagnose)
+        assert running.wait(30)
+        job = s1.jobs[-1]
+        counts = s1.render_count, s2.render_count
+        s1.controls.a.value = 52.0
+        s2.go_to(30.0, 60.0)
+        assert not job.done()  # the renders happened while the diagnosis was running
+        assert s1.render_count > counts[0] and s2.render_count > counts[1]
+        assert s1.view.a_deg == 52.0 and (s2.view.a_deg, s2.view.b_deg) == (30.0, 60.0)
+        release.set()
+        s1.wait(timeout=120)
+        assert s1.diagnosis is not None and s1.diagnosis.verdict == "none"
+        assert "no missing effect found" in s1.physics.verdict.content
+        assert "✔" not in s1.physics.candidates.content and "b_axis_cyclic" in s1.physics.candidates.content
+        assert s2.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
+    finally:
+        release.set()
+        b1.close()
+        b2.close()
+
+
 @pytest.mark.slow
 def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
     """Done-when of issue 6: on a teaching scenario the GUI loop diagnose -> add -> refit lowers the error."""
@@ -357,6 +396,10 @@ def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
     assert p.evidence.visible and p.evidence_of.value == "b_axis_cyclic"
     np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual_um"])
     assert "B joint angle" in p.evidence.axes[0]["label"]
+    other = s.diagnosis.candidates[1]
+    p.evidence_of.value = other.effect  # another candidate's evidence on request
+    np.testing.assert_allclose(p.evidence.data[2], other.evidence["fitted_um"])
+    assert other.name in p.evidence_text.content
     # The history starts at the baseline.
     assert len(s.steps) == 1 and s.steps[0].added == [] and p.history.visible
     baseline = s.steps[0]
