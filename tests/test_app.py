@@ -102,6 +102,31 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
     assert not np.allclose(np.asarray(s.ring.curves["measured"].points), before, atol=1e-3)
 
 
+def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
+    from ph_explorer.app.scene import axis_camera, ring_camera
+
+    s = browser
+    axial = s.dataset.campaign.geometry.axial_distance_mm
+    s.go_to(43.0, 90.0)
+    position, look_at = ring_camera(43.0, 90.0, axial)
+    np.testing.assert_allclose(s.client.camera.position, position, atol=1e-6)
+    np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    s.look("along the axis")
+    s.go_to(75.0, 40.0)  # the following camera keeps the chosen view
+    position, look_at = axis_camera(75.0, 40.0, axial)
+    np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    np.testing.assert_allclose(
+        (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position),
+        stylus_direction(75.0, 40.0),
+        atol=0.1,
+    )
+    s.controls.follow.value = False
+    s.go_to(15.0, -20.0)  # not following: the camera stays where the user put it
+    np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    s.controls.follow.value = True
+    s.look("ring + head")
+
+
 def test_magnification_scales_the_deviation_not_the_circle(browser) -> None:
     s = browser
     s.go_to(15.0, -20.0)

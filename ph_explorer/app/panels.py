@@ -444,7 +444,7 @@ class PhysicsPanel:
         if result.verdict == "missing":
             best = result.candidates[0]
             self.verdict.content = (
-                f"**Verdict: a missing effect — {best.name} (`{best.effect}`)**, "
+                f"**Verdict: a missing effect — {best.name} ({best.effect})**, "
                 f"{parameters_text(best.params, units.get(best.effect, {}))}.\n\n_{best.teaching}_\n\nTick it below and refit."
             )
         else:

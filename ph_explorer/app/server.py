@@ -122,6 +122,7 @@ class Session:
             with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
                 self.data_panel = DataPanel(gui, app.scenarios)
         self._camera_at: tuple[float, float] | None = None
+        self._camera_view = "ring + head"
         self._wire()
         self.set_dataset(dataset)
 
@@ -148,7 +149,7 @@ class Session:
         @c.follow.on_update
         def _(event: Any) -> None:
             if c.follow.value:
-                self.look("ring + head")
+                self.look("ring + head" if self._camera_view == "whole field" else self._camera_view)
 
         @self.field_panel.figure.on_update
         def _(event: Any) -> None:
@@ -207,6 +208,7 @@ class Session:
             self.client.camera.position = position
             self.client.camera.look_at = look_at
         self._camera_at = (a, b)
+        self._camera_view = view  # the view a following camera keeps
 
     def request_render(self) -> None:
         """Render now, or, when a render is running, make it run once more with the latest values."""
@@ -262,8 +264,8 @@ class Session:
             self.tables.update(view, ds)
             self.charts.update(view, shown)
             self.controls.status.content = f"**{title}**"
-            if self.controls.follow.value and self._camera_at != (a, b):
-                self.look("ring + head")
+            if self.controls.follow.value and self._camera_at != (a, b) and self._camera_view != "whole field":
+                self.look(self._camera_view)
         self.view = view
         self.render_count += 1
         elapsed = time.perf_counter() - start
