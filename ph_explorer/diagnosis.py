@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import CATALOG, Effect
+from ph_explorer.effects.base import joint_angle_deg, rotation_deviation_um_per_arcsec
 from ph_explorer.errors import InputError
 from ph_explorer.evaluation import MEAN_ABS_PER_SIGMA, noise_floor
 from ph_explorer.harmonics import remove_size_and_centre
@@ -251,7 +252,7 @@ class CandidateSearch:
             params={k: float(v) for k, v in params.items()},
             structural=structural,
             teaching=effect.teaching,
-            evidence=self.evidence(effect, design, own),
+            evidence=self.evidence(effect, design, own, structural),
         )
 
     def check_residual(self, design: Design | None) -> tuple[NDArray, NDArray]:
@@ -275,24 +276,39 @@ class CandidateSearch:
         by_single = 1.0 - rms(single_after) / max(rms(single_before), 1e-300)
         return float(max(by_mean, by_single, 0.0))
 
-    def evidence(self, effect: Effect, design: Design, coef: NDArray[np.float64]) -> dict[str, Any]:
-        """Residual and the candidate's fitted terms, binned against the variable the effect depends on."""
+    def evidence(self, effect: Effect, design: Design, coef: NDArray[np.float64], structural: dict[str, Any]) -> dict[str, Any]:
+        """Residual and the candidate's fitted terms, binned against the variable the effect depends on.
+
+        A cyclic axis error is shown as what it is, an angle: against its phase (cycles per
+        revolution x joint angle, mod 360), each bin's angular error in arcsec is the lever-weighted
+        least squares of the radial residual (a touch's lever: um of deviation per arcsec).
+        """
         mean, within = design.apply(coef)
-        fitted = mean[:, None, :] + (0.0 if within is None else within)
-        fitted = np.broadcast_to(fitted, self.residual.shape)
-        name, x = evidence_axis(effect.id, self.touches)
+        fitted = np.broadcast_to(mean[:, None, :] + (0.0 if within is None else within), self.residual.shape)
+        axis = getattr(effect, "axis", None)
+        if axis in ("A", "B") and "cycles_per_rev" in structural:
+            m = float(structural["cycles_per_rev"])
+            x = np.mod(m * joint_angle_deg(self.touches, axis), 360.0)
+            weight = rotation_deviation_um_per_arcsec(self.touches, axis)
+            x_label, y_label, edges = f"{m:g} x {axis} joint angle, mod 360 (deg)", "out-of-sample angular residual (arcsec)", np.linspace(0, 360, 37)
+        else:
+            x_label, x = evidence_axis(effect.id, self.touches)
+            weight, y_label = None, "out-of-sample residual (um)"
+            flat = np.ravel(x)
+            edges = np.linspace(flat.min(), flat.max() + 1e-9, 49)
         x = np.broadcast_to(x, self.residual.shape).ravel()
-        edges = np.linspace(x.min(), x.max() + 1e-9, 49)
         which = np.clip(np.digitize(x, edges) - 1, 0, len(edges) - 2)
-        count = np.bincount(which, minlength=len(edges) - 1)
-        used = count > 0
+        w = np.ones_like(x) if weight is None else np.broadcast_to(weight, self.residual.shape).ravel()
+        norm = np.bincount(which, w * w, minlength=len(edges) - 1)
+        used = norm > 1e-12 * max(norm.max(), 1e-300)
+        binned = lambda v: np.bincount(which, w * np.ravel(v), minlength=len(edges) - 1)[used] / norm[used]
         centre = 0.5 * (edges[:-1] + edges[1:])
-        binned = lambda v: np.bincount(which, np.ravel(v), minlength=len(edges) - 1)[used] / count[used]
         return {
-            "x_label": name,
+            "x_label": x_label,
+            "y_label": y_label,
             "x": np.round(centre[used], 3).tolist(),
-            "residual_um": np.round(binned(self.residual), DIGITS).tolist(),
-            "fitted_um": np.round(binned(fitted), DIGITS).tolist(),
+            "residual": np.round(binned(self.residual), DIGITS).tolist(),
+            "fitted": np.round(binned(fitted), DIGITS).tolist(),
         }
 
 

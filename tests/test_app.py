@@ -419,11 +419,11 @@ def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
     assert "Verdict: a missing effect" in p.verdict.content and "cycles per rev 22" in p.verdict.content
     assert "arcsec" in p.verdict.content and best.teaching in p.verdict.content
     assert p.evidence.visible and p.evidence_of.value == "b_axis_cyclic"
-    np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual_um"])
+    np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual"])
     assert "B joint angle" in p.evidence.axes[0]["label"]
     other = s.diagnosis.candidates[1]
     p.evidence_of.value = other.effect  # another candidate's evidence on request
-    np.testing.assert_allclose(p.evidence.data[2], other.evidence["fitted_um"])
+    np.testing.assert_allclose(p.evidence.data[2], other.evidence["fitted"])
     assert other.name in p.evidence_text.content
     # The history starts at the baseline.
     assert len(s.steps) == 1 and s.steps[0].added == [] and p.history.visible

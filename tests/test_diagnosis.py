@@ -291,3 +291,16 @@ def test_hybrid_with_every_effect_on_a_sparse_lattice_neither_breaks_down_nor_ne
     # At an orientation nobody measured there are no touch times: drift contributes nothing.
     assert np.all(np.isfinite(hybrid.predict([[43.0, 90.0]])))
     assert {p["effect"] for p in hybrid.effect_parameters()} == {e.id for e in effects}
+
+
+@pytest.mark.slow
+def test_evidence_of_a_cyclic_error_is_a_sine_of_its_phase(diagnoses):
+    best = diagnoses[("b_axis_22", True)].candidates[0]
+    ev = best.evidence
+    assert "arcsec" in ev["y_label"] and "22 x B" in ev["x_label"]
+    phase = np.radians(np.asarray(ev["x"]))
+    residual = np.asarray(ev["residual"])
+    # One clean period over the phase: the residual correlates with the fitted sine almost perfectly.
+    sine = np.column_stack([np.sin(phase), np.cos(phase)])
+    fit = sine @ np.linalg.lstsq(sine, residual, rcond=None)[0]
+    assert np.corrcoef(fit, residual)[0, 1] > 0.95

@@ -466,15 +466,15 @@ class PhysicsPanel:
             self.evidence.visible = False
             self.evidence_text.content = ""
             return
-        data = (np.asarray(ev["x"], float), np.asarray(ev["residual_um"], float), np.asarray(ev["fitted_um"], float))
-        self.evidence.title = f"{candidate.effect}: residual and fit (um)"
-        self.evidence.axes = ({"label": ev["x_label"]}, {"label": "um"})
+        data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
+        self.evidence.title = f"{candidate.effect}: residual and fit, {ev['y_label']}"
+        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
         self.evidence.data = data
         self.evidence.visible = True
         flag = "significant" if candidate.significant else "not significant"
         self.evidence_text.content = (
             f"**{candidate.name}** ({flag}): {parameters_text(candidate.params, units)}. "
-            f"Binned means over every touch against {ev['x_label']}.\n\n_{candidate.teaching}_"
+            f"Every touch's out-of-sample residual, binned against {ev['x_label']}.\n\n_{candidate.teaching}_"
         )
 
     def show_history(self, steps: Sequence[Any], baseline: str) -> None:
