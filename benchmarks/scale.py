@@ -1,6 +1,12 @@
 """The explorer under load: N simulated browsers (websocket clients, a separate process) moving
 sliders at a fixed rate, against the server running in this process (so its render times and
-memory are measured where they happen)."""
+memory are measured where they happen).
+
+Two server-side figures per render: `server_update_ms`, the time of the render itself, and
+`latency_ms`, from the oldest slider event the render drew (when viser applied it) to the end of
+that render, so queueing behind other browsers' renders is counted. Slider moves that arrive
+before their session's turn are coalesced: `renders` is at most `slider_updates_sent`.
+"""
 
 from __future__ import annotations
 
@@ -65,12 +71,14 @@ def percentile_ms(values: list[float], q: float) -> float | None:
 def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
     """Run the browsers process against the app; return server-side and client-side figures."""
     app.render_times.clear()
+    app.latency_times.clear()
     before_sessions = set(app.sessions)
     gc.collect()
     rss_before = rss_mb()
     start = time.perf_counter()
     missed: int | None = None
     connected = 0
+    sessions: list[Any] = []
     with RenderErrors() as errors:
         process = subprocess.Popen(
             [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
@@ -114,10 +122,13 @@ def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str
         browsers = json.loads(lines[-1])["browsers"]
         client_errors = [e for b in browsers for e in b["errors"]]
     times = list(app.render_times)
+    latencies = list(app.latency_times)
+    per_session = [session.render_count for session in sessions] if connected else []
     time.sleep(0.5)
     gc.collect()
     rss_after = rss_mb()
     completed = sum(1 for b in browsers if b["final"] is not None)
+    sent = int(sum(b["sent"] for b in browsers))
     return {
         "browsers": n_browsers,
         "rate_hz": rate_hz,
@@ -125,11 +136,15 @@ def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str
         "wall_s": round(wall, 2),
         "sessions_connected": connected,
         "browsers_completed": completed,
-        "slider_updates_sent": int(sum(b["sent"] for b in browsers)),
+        "slider_updates_sent": sent,
         "renders": errors.calls,
+        # Renders per slider update sent: below 1 when moves were coalesced (the latest value drawn).
+        "renders_per_update": round(errors.calls / sent, 3) if sent else None,
+        "renders_per_session": {"min": min(per_session), "median": float(np.median(per_session)), "max": max(per_session)} if per_session else None,
         "renders_in_percentiles": len(times),  # app.render_times keeps the last 10 000
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
+        "latency_ms": {"p50": percentile_ms(latencies, 50), "p95": percentile_ms(latencies, 95), "max": percentile_ms(latencies, 100)},
         "client_errors": client_errors[:20],
         "render_errors": errors.count,
         "last_render_error": errors.last,
@@ -140,8 +155,6 @@ def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str
     }
 
 
-def session_wait(session: Any, timeout: float = 5.0) -> None:
-    """Wait until a session's render loop is idle (its latest slider value rendered)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline and getattr(session, "_rendering", False):
-        time.sleep(0.01)
+def session_wait(session: Any, timeout: float = 10.0) -> None:
+    """Wait until a session's latest slider values are drawn (none pending on the render thread)."""
+    session.wait_rendered(timeout)

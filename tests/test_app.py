@@ -263,9 +263,10 @@ def test_a_slider_move_from_the_browser_reaches_only_its_session(app: ExplorerAp
         target = one if s1.client.client_id == min(s1.client.client_id, s2.client.client_id) else two
         target.move_slider(s1.controls.a, 60.0)
         deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and s1.orientation[0] != 60.0:
+        # The render thread draws it after the callback: wait for the drawn view, not just the value.
+        while time.monotonic() < deadline and (s1.orientation[0] != 60.0 or s1.view.a_deg != 60.0):
             time.sleep(0.02)
-        assert s1.orientation[0] == 60.0
+        assert s1.orientation[0] == 60.0 and s1.view.a_deg == 60.0
         np.testing.assert_allclose(rotation_of(s1.head.a_frame.wxyz), head_rotation(60.0, 0.0), atol=1e-9)
         assert s2.orientation == a2
     finally:
@@ -299,6 +300,55 @@ def test_slider_updates_coalesce_latest_value_wins(browser) -> None:
     assert s.orientation[0] == 34.0
     assert s.view.a_deg == 34.0  # the last render used the latest value
     assert s.render_count - count == 2  # the running render, then one more for all the queued moves
+
+
+def test_browser_moves_render_in_turn_on_the_one_render_thread_latest_value_wins(app: ExplorerApp) -> None:
+    """A browser's slider messages only mark its session dirty; the app's render thread draws the
+    dirty sessions oldest request first, each with its latest values (the skipped ones coalesced)."""
+    (b1, s1), (b2, s2) = open_session(app), open_session(app)
+    drawn: list[tuple[str, float, str]] = []
+    entered, release = threading.Event(), threading.Event()
+
+    def recording(name: str, session, hold: bool):
+        original = session._render
+
+        def render() -> None:
+            drawn.append((name, session.orientation[0], threading.current_thread().name))
+            if hold and not release.is_set():
+                entered.set()
+                release.wait(10)  # s1's first render holds the render thread
+            original()
+
+        return render
+
+    s1._render, s2._render = recording("s1", s1, True), recording("s2", s2, False)
+    try:
+        renders, latencies = s2.render_count, len(s2.latency_times)
+        b1.move_slider(s1.controls.a, 20.0)
+        assert entered.wait(10)
+        for a in (21.0, 22.0, 23.0):  # s1 moves on during its own render
+            b1.move_slider(s1.controls.a, a)
+        for a in (61.0, 62.0):  # s2 asks while the render thread is busy: queued before s1's next turn
+            b2.move_slider(s2.controls.a, a)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not (
+            s1.orientation[0] == 23.0 and s2.orientation[0] == 62.0 and s1._dirty and s2._dirty
+        ):
+            time.sleep(0.01)
+        assert s1.orientation[0] == 23.0 and s2.orientation[0] == 62.0
+        release.set()
+        assert s1.wait_rendered(10) and s2.wait_rendered(10)
+    finally:
+        release.set()
+        del s1._render, s2._render
+        b1.close()
+        b2.close()
+    assert [(name, a) for name, a, _ in drawn] == [("s1", 20.0), ("s2", 62.0), ("s1", 23.0)]
+    assert {thread for _, _, thread in drawn} == {"ph-explorer-render"}
+    assert s1.view.a_deg == 23.0 and s2.view.a_deg == 62.0
+    assert s2.render_count == renders + 1  # two moves, one render
+    # Its latency covers the wait behind s1's held render; the render itself was not held.
+    assert len(s2.latency_times) == latencies + 1 and s2.latency_times[-1] > s2.render_times[-1]
 
 
 def test_a_bad_upload_keeps_the_data_and_shows_the_error(browser) -> None:

@@ -1,11 +1,16 @@
 """`ph-explorer serve`: the viser server, one Session per browser, heavy work on worker threads.
 
 Each browser (viser client) gets its own Session: its own sliders, scene objects and panels,
-and its own data once it uploads a file or picks a scenario. A slider move renders in the
-callback's thread; moves that arrive while a render is running are coalesced so the latest value
-wins. Diagnoses, refits, scenario simulations, uploads and slow figures run on worker threads (in
-order within a session, at most HEAVY_JOBS at once over all sessions) and never hold a lock that
-a slider update needs.
+and its own data once it uploads a file or picks a scenario. A slider move from a browser only
+notes that its session is dirty (and since when); ONE render thread per app draws the dirty
+sessions in the order they became dirty (oldest request first, a session re-queued at the back
+when it moved again meanwhile), each render with that session's latest values: moves that arrive
+before their session's turn are coalesced, the latest value wins. One renderer because renders are
+Python under the interpreter lock: thirty renders at once in viser's callback threads each took
+thirty times as long. Values set by the server itself (`go_to`, tests, scripts) render in the
+caller's thread and `go_to` returns once its orientation is drawn. Diagnoses, refits, scenario
+simulations, uploads and slow figures run on worker threads (in order within a session, at most
+HEAVY_JOBS at once over all sessions) and never hold a lock that a slider update needs.
 
 For benchmarks and scripts (stable names)::
 
@@ -18,7 +23,9 @@ For benchmarks and scripts (stable names)::
     session.go_to(43.0, 90.0)           # move that browser's sliders (renders once)
     session.controls.a.value = 50.0     # or one slider, as a user would
     app.render_times                    # server seconds per render, every session (a deque)
-    session.render_times                # the same for one session
+    app.latency_times                   # seconds from a slider event to the end of its render
+    session.render_times                # the same for one session (also session.latency_times)
+    session.wait_rendered()             # until that browser's latest values are drawn
     browser.close(); app.stop()
 """
 
@@ -27,6 +34,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+import traceback
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -68,6 +76,8 @@ FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
 
 # Diagnoses and refits running at once over all browsers (the machine's cores; the rest queue).
 HEAVY_JOBS = 2
+# The longest a synchronous render (go_to) waits for the render thread to finish this session's render.
+RENDER_WAIT_S = 30.0
 
 
 def effect_names() -> dict[str, str]:
@@ -92,12 +102,17 @@ class Session:
         self.jobs: list[Future] = []
         self.render_count = 0
         self.render_times: deque[float] = deque(maxlen=10_000)  # server seconds per render
+        # Seconds from the oldest slider event a render drew to the end of that render (wall clock).
+        self.latency_times: deque[float] = deque(maxlen=10_000)
         self.view: Any = None
         # This browser's heavy jobs run in order on its own thread; app.heavy bounds them overall.
         self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-{client.client_id}")
-        self._render_lock = threading.Lock()
-        self._dirty = False
-        self._rendering = False
+        # Guards _dirty/_rendering/_pending_since; notified when a render of this session ends.
+        self._render_state = threading.Condition()
+        self._dirty = False  # values changed since the last render took them
+        self._rendering = False  # a thread (the app's render thread or a caller) is rendering this session
+        self._pending_since: float | None = None  # time.time() of the oldest event not yet drawn
+        self._closed = False
         self._moving = False  # sliders being set together (a preset): render once at the end
         self._field_token = 0
 
@@ -130,7 +145,7 @@ class Session:
     def _wire(self) -> None:
         c = self.controls
         for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, *c.show.values()):
-            handle.on_update(lambda _event: self.request_render())
+            handle.on_update(self._control_changed)
 
         @c.presets.on_click
         def _(event: Any) -> None:
@@ -185,14 +200,14 @@ class Session:
         return float(self.controls.a.value), float(self.controls.b.value)
 
     def go_to(self, a_deg: float, b_deg: float) -> None:
-        """Move both sliders (a preset, a marker click), then render once."""
+        """Move both sliders (a preset, a marker click), then render once; returns once it is drawn."""
         self._moving = True
         try:
             self.controls.a.value = float(np.clip(a_deg, 0.0, 115.0))
             self.controls.b.value = float(((b_deg + 180.0) % 360.0) - 180.0 if b_deg != 180.0 else 180.0)
         finally:
             self._moving = False
-        self.request_render()
+        self.render_now(wait=True)
 
     def look(self, view: str) -> None:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
@@ -210,27 +225,113 @@ class Session:
         self._camera_at = (a, b)
         self._camera_view = view  # the view a following camera keeps
 
-    def request_render(self) -> None:
-        """Render now, or, when a render is running, make it run once more with the latest values."""
+    def _control_changed(self, event: Any) -> None:
+        if event.client is not None:
+            # A browser's message: viser stamped the value when its event loop applied it.
+            stamp = getattr(getattr(event.target, "_impl", None), "update_timestamp", None)
+            self.request_render(since=stamp)
+        elif not self._moving:  # set by the server (a test, a script): draw it in this thread
+            self.render_now(wait=False)
+
+    def _mark_dirty(self, since: float | None) -> None:
+        """Under _render_state: the values changed at `since` (time.time()); keep the oldest pending."""
+        since = time.time() if since is None else float(since)
+        self._dirty = True
+        if self._pending_since is None or since < self._pending_since:
+            self._pending_since = since
+
+    def _take(self) -> float:
+        """Under _render_state: start a render of the latest values; return since when they were pending."""
+        since = self._pending_since if self._pending_since is not None else time.time()
+        self._dirty, self._pending_since, self._rendering = False, None, True
+        return since
+
+    def request_render(self, since: float | None = None) -> None:
+        """Note that this session's values changed; the app's render thread draws the latest ones.
+
+        Never blocks on a render: a browser's slider callback returns at once. A session being
+        rendered is not queued now: its renderer re-queues it (at the back) or renders again.
+        """
+        with self._render_state:
+            self._mark_dirty(since)
+            queue = not self._rendering
+        if queue:
+            self.app.schedule_render(self)
+
+    def render_now(self, wait: bool = True) -> None:
+        """Render in this thread, looping until this session's latest values are drawn.
+
+        When another thread is rendering this session: with wait, wait for that render to end and
+        then draw what is still pending (so the caller returns with its values drawn); without wait,
+        leave the new values to that thread (it renders once more, or re-queues the session).
+        """
         if self._moving:
             return
-        with self._render_lock:
-            self._dirty = True
-            if self._rendering:
-                return
-            self._rendering = True
+        deadline = time.monotonic() + RENDER_WAIT_S
+        with self._render_state:
+            self._mark_dirty(None)
+            while self._rendering:
+                remaining = deadline - time.monotonic()
+                if not wait or remaining <= 0:
+                    return
+                self._render_state.wait(remaining)
+            if not self._dirty:
+                return  # drawn meanwhile by the render thread
+            since = self._take()
         try:
             while True:
-                with self._render_lock:
+                self._timed_render(since)
+                with self._render_state:
                     if not self._dirty:
                         self._rendering = False
+                        self._render_state.notify_all()
                         return
-                    self._dirty = False
-                self._render()
+                    since = self._take()
         except BaseException:
-            with self._render_lock:
+            with self._render_state:
                 self._rendering = False
+                self._render_state.notify_all()
             raise
+
+    def render_queued(self) -> None:
+        """The app's render thread: draw this session's latest values once (re-queued if it moved again)."""
+        with self._render_state:
+            if self._rendering or not self._dirty or self._closed:
+                return  # another thread is drawing it, or it is clean, or gone
+            since = self._take()
+        try:
+            self._timed_render(since)
+        finally:
+            with self._render_state:
+                self._rendering = False
+                again = self._dirty and not self._closed
+                self._render_state.notify_all()
+            if again:
+                self.app.schedule_render(self)
+
+    def _timed_render(self, since: float) -> None:
+        self._render()
+        latency = max(0.0, time.time() - since)
+        self.latency_times.append(latency)
+        self.app.latency_times.append(latency)
+
+    @property
+    def render_idle(self) -> bool:
+        """No render running or pending: the latest values are drawn."""
+        with self._render_state:
+            return not (self._dirty or self._rendering)
+
+    def wait_rendered(self, timeout: float = 10.0) -> bool:
+        """Wait until this session's latest values are drawn; False on timeout."""
+        deadline = time.monotonic() + timeout
+        with self._render_state:
+            while self._dirty or self._rendering:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return False
+                # The render thread notifies at the end of each render; a re-queued session waits its turn.
+                self._render_state.wait(min(remaining, 0.05))
+            return True
 
     def _render(self) -> None:
         start = time.perf_counter()
@@ -287,7 +388,7 @@ class Session:
         self.field_panel.set_names(dataset.figure_names())
         self.data_panel.set_source(dataset)
         self.refresh_field()
-        self.request_render()
+        self.render_now(wait=True)
 
     def refresh_field(self) -> None:
         """Recolour the error field; slow figures (leave-one-out refits) are computed on the worker."""
@@ -336,13 +437,17 @@ class Session:
                 raise
 
     def close(self) -> None:
+        with self._render_state:
+            self._closed = True
         self._jobs.shutdown(wait=False, cancel_futures=True)
 
     def wait(self, timeout: float = 60.0) -> None:
-        """Wait for this session's worker jobs (tests)."""
+        """Wait for this session's worker jobs, then for its latest values to be drawn (tests)."""
         deadline = time.monotonic() + timeout
         while self.jobs:
             self.jobs.pop(0).result(timeout=max(0.1, deadline - time.monotonic()))
+        if not self.wait_rendered(timeout=max(0.1, deadline - time.monotonic())):
+            raise TimeoutError("the session's latest values were not drawn in time")
 
     def _load_upload(self, name: str, content: bytes) -> None:
         try:
@@ -480,7 +585,13 @@ class ExplorerApp:
         self.geometry_overrides = dict(geometry_overrides or {})
         self.sessions: dict[int, Session] = {}
         self.render_times: deque[float] = deque(maxlen=10_000)  # server seconds per render, all sessions
+        self.latency_times: deque[float] = deque(maxlen=10_000)  # slider event -> end of its render, s
         self.heavy = threading.BoundedSemaphore(HEAVY_JOBS)
+        # The render thread's queue: dirty sessions, oldest request first, each at most once.
+        self._render_queue: deque[Session] = deque()
+        self._queued: set[int] = set()  # id() of the sessions in the queue
+        self._render_ready = threading.Condition()
+        self._stopping = False
         self.startup_s = float("nan")  # set by build_server: from the call to a ready server
         described = scenario_descriptions()
         self.scenarios = list(described)
@@ -498,8 +609,33 @@ class ExplorerApp:
         camera.look_at = tuple(look_at)
         camera.near = 1.0
         camera.far = 5000.0
+        self._renderer = threading.Thread(target=self._render_loop, name="ph-explorer-render", daemon=True)
+        self._renderer.start()
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
+
+    def schedule_render(self, session: Session) -> None:
+        """Queue a dirty session for the render thread (at the back, unless it is queued already)."""
+        with self._render_ready:
+            if id(session) not in self._queued:
+                self._queued.add(id(session))
+                self._render_queue.append(session)
+                self._render_ready.notify()
+
+    def _render_loop(self) -> None:
+        """The one render thread: sessions in turn, each with its latest values."""
+        while True:
+            with self._render_ready:
+                while not self._render_queue and not self._stopping:
+                    self._render_ready.wait()
+                if self._stopping:
+                    return
+                session = self._render_queue.popleft()
+                self._queued.discard(id(session))
+            try:
+                session.render_queued()
+            except Exception:  # one browser's failed render must not stop the others'
+                traceback.print_exc()
 
     @property
     def host(self) -> str:
@@ -537,7 +673,11 @@ class ExplorerApp:
         raise TimeoutError("no browser session connected")
 
     def stop(self) -> None:
-        """Stop the server and every session's jobs."""
+        """Stop the server, the render thread and every session's jobs."""
+        with self._render_ready:
+            self._stopping = True
+            self._render_ready.notify_all()
+        self._renderer.join(timeout=10)
         self.server.stop()
         with self._sessions_lock:
             sessions = list(self.sessions.values())
