@@ -99,7 +99,8 @@ def serve_startup(timeout: float = 120.0) -> dict[str, Any]:
     wall, reported, url = None, None, None
     try:
         for line in process.stdout:
-            match = re.search(r"serving at (\S+)\s+\(ready in ([0-9.]+) s", line)
+            # "(ready 3.4 s after the command started; ...)" or "(ready in 0.9 s; ...)"
+            match = re.search(r"serving at (\S+)\s+\(ready (?:in )?([0-9.]+) s", line)
             if match:
                 wall = time.perf_counter() - start
                 url, reported = match.group(1), float(match.group(2))
