@@ -10,6 +10,7 @@ import threading
 import time
 
 import numpy as np
+from viser.transforms import SO3
 import pytest
 
 from ph_explorer.app.dataset import Dataset, dataset_for
@@ -22,14 +23,8 @@ from ph_explorer.models.synthetic import lobing_campaign
 
 
 def rotation_of(wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = wxyz
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """The rotation matrix of a viser frame's (w, x, y, z) quaternion."""
+    return SO3(np.asarray(wxyz, dtype=float)).as_matrix()
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from viser.transforms import SO3
 import pytest
 
 CHROMIUM = "/usr/bin/chromium"
@@ -25,14 +26,8 @@ if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
 
 
 def _rotation(wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = wxyz
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """The rotation matrix of a viser frame's (w, x, y, z) quaternion."""
+    return SO3(np.asarray(wxyz, dtype=float)).as_matrix()
 
 
 def _wait(condition, timeout: float = 20.0) -> bool:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import msgspec
 import numpy as np
+from viser.transforms import SO3
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -160,11 +161,5 @@ def test_a_bad_upload_leaves_every_browser_served(explorer, name: str) -> None:
 
 
 def _rotation(wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = wxyz
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    """The rotation matrix of a viser frame's (w, x, y, z) quaternion."""
+    return SO3(np.asarray(wxyz, dtype=float)).as_matrix()
