@@ -8,7 +8,6 @@ to the test's tmp folder (and $PH_EXPLORER_SCREENSHOTS when set) so a human can 
 from __future__ import annotations
 
 import os
-import shutil
 import time
 from pathlib import Path
 

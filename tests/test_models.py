@@ -117,7 +117,7 @@ def test_predict_touches_broadcasts_over_repetitions(campaign):
 
 
 # -- network -----------------------------------------------------------------------------------
-from ph_explorer.models.network import FourierNetwork, NetworkConfig  # noqa: E402
+from ph_explorer.models.network import FourierNetwork  # noqa: E402
 
 QUICK = dict(max_epochs=40, early_stopping_patience=40)
 
