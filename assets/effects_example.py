@@ -1,19 +1,17 @@
 """An example of a user-defined effect for ph-explorer: the form error of the stylus ball.
 
 Use it with `ph-explorer diagnose --data CAMPAIGN.csv --effects effects_example.py`, or in Python with
-`ph_explorer.effects.load_user_effects("effects_example.py")`; after loading, a scenario TOML may use
-`id = "ball_form"` in its [[effects]] tables like any built-in effect.
+`catalog = ph_explorer.effects.DEFAULT_CATALOG.with_file("effects_example.py")`; a scenario read with
+that catalog may use `id = "ball_form"` in its [[effects]] tables like any built-in effect.
 
 An effect is a subclass of ph_explorer.effects.base.Effect with an id, a name, a teaching text, its
-parameters (with units and defaults), the non-linear parameters a diagnosis should scan
-(`structural`), and a linear `basis`; `forward` (the deviations it adds before the circle fit)
-defaults to `basis @ coefficients()`. Every array is shaped like the campaign's touches,
+parameters (with units and defaults), the values a diagnosis should try for its non-linear
+parameters (`scan`), and a linear `basis` at the instance's own values of them; `forward` (the
+deviations it adds before the circle fit) defaults to `basis @ coefficients()`. Every array is shaped like the campaign's touches,
 (n_orientations, n_repetitions, n_points), with a trailing column axis for the basis.
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,22 +34,22 @@ class BallForm(Effect):
         Parameter("phase_deg", "deg", 0.0, "azimuth of the first high point in the probe frame, times lobes"),
         Parameter("lobes", "UPR", 2.0, "undulations of the ball's radius per turn of psi"),
     )
-    structural = {"lobes": (2.0, 3.0, 4.0, 5.0)}
+    scan = {"lobes": (2.0, 3.0, 4.0, 5.0)}
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
-        k = float(structural.get("lobes", self.params["lobes"]))
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
+        k = self.params["lobes"]
         psi = np.radians(touches.psi_deg)  # (n_o, 1, n_pt): the same at every repetition
         columns = -np.stack([np.cos(k * psi), np.sin(k * psi)], axis=-1)
         return full_shape(columns, touches), [f"ball_cos{k:g}psi", f"ball_sin{k:g}psi"]
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         phase = np.radians(self.params["phase_deg"])
         return self.params["amplitude_um"] * np.array([np.cos(phase), np.sin(phase)])
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         c, s = np.asarray(coef, dtype=float)[:2]
         return {
             "amplitude_um": float(np.hypot(c, s)),
             "phase_deg": float(np.degrees(np.arctan2(s, c)) % 360.0),
-            "lobes": float(structural.get("lobes", self.params["lobes"])),
+            "lobes": self.params["lobes"],
         }

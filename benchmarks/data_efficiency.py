@@ -11,7 +11,7 @@ Models: the paper's network, the trilinear model, and the hybrid with the scenar
 (every effect but noise, cyclic effects at their own cycles per revolution; data part = trilinear).
 The hybrid is fitted on a campaign holding the training orientations only, so neither its
 physical terms nor its data part see a check ring or an orientation left out of the subset; it
-then predicts every touch of the check rings. (`diagnosis.check_mae` on the whole campaign lets
+then predicts every touch of the check rings. (`crossval.held_out_mae` on the whole campaign lets
 the physical fit use the other check rings' residuals; that figure is recorded beside it.)
 """
 
@@ -23,11 +23,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.campaign import Campaign, lattice_axes
-from ph_explorer.diagnosis import check_mae
-from ph_explorer.evaluation import noise_floor
+from ph_explorer import metrics
+from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes
+from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.crossval import held_out_mae
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
@@ -45,26 +46,20 @@ def lattice_subsets(campaign: Campaign, train: NDArray[np.bool_], columns: tuple
     Only training orientations on the lattice are used; the masks shrink as k falls.
     """
     a_axis, b_axis = lattice_axes(campaign.orientations[train])
-    on_a = np.isclose(campaign.orientations[:, :1], a_axis[None, :], atol=1e-6).any(axis=1)
+    on_a = (np.abs(campaign.orientations[:, :1] - a_axis[None, :]) <= ORIENTATION_TOLERANCE_DEG).any(axis=1)
     masks = []
     for k in columns:
         if k > b_axis.size:
             continue
         keep_b = b_axis[np.round(np.arange(k) * b_axis.size / k).astype(int)]
-        on_b = np.isclose(campaign.orientations[:, 1:], keep_b[None, :], atol=1e-6).any(axis=1)
+        on_b = (np.abs(campaign.orientations[:, 1:] - keep_b[None, :]) <= ORIENTATION_TOLERANCE_DEG).any(axis=1)
         masks.append(train & on_a & on_b)
     return masks
 
 
-def hybrid_effects(scenario: Scenario) -> tuple[list[Any], list[dict[str, Any]]]:
-    """The scenario's effects minus noise (hidden ones included) and their structural values."""
-    effects = [e for e in scenario.effects if e.id != "noise"]
-    return effects, [e.structural_values() for e in effects]
-
-
-def mae_vs_mean(predicted: NDArray[np.float64], measured: NDArray[np.float64]) -> float:
-    """MAE (um) of predicted touches (m, n_rep, n_pt) against the repetition mean of measured ones."""
-    return float(np.abs(predicted.mean(axis=1) - measured.mean(axis=1)).mean())
+def hybrid_effects(scenario: Scenario) -> list[Effect]:
+    """The scenario's effects a model can add (hidden ones included), each at its own settings."""
+    return [e for e in scenario.effects if e.candidate]
 
 
 def fit_model(name: str, campaign: Campaign, train: NDArray[np.bool_], scenario: Scenario, network_config: NetworkConfig) -> tuple[DeviationModel, float]:
@@ -74,8 +69,7 @@ def fit_model(name: str, campaign: Campaign, train: NDArray[np.bool_], scenario:
     elif name == "trilinear":
         model = TrilinearModel().fit(campaign, train)
     else:
-        effects, structural = hybrid_effects(scenario)
-        model = HybridModel(effects, "trilinear", structural).fit(campaign.subset(train))
+        model = HybridModel(hybrid_effects(scenario), "trilinear").fit(campaign.subset(train))
     return model, time.perf_counter() - start
 
 
@@ -99,7 +93,7 @@ def run_scenario(name: str, network_config: NetworkConfig, columns: tuple[int, .
             predicted = model.predict_touches(check_touches)
             ok = bool(np.isfinite(predicted).all())
             finite &= ok
-            mae = mae_vs_mean(predicted, measured) if ok else float("nan")
+            mae = metrics.mae(predicted, measured)["mean"] if ok else float("nan")
             curves[model_name].append([n, round(mae, 5)])
             seconds[model_name].append([n, round(took, 3)])
             if model_name == "network":
@@ -107,19 +101,17 @@ def run_scenario(name: str, network_config: NetworkConfig, columns: tuple[int, .
             log(f"  {name}: {model_name:9s} n={n:3d}  MAE vs mean {mae:.4f} um  ({took:.1f} s)")
         # The design's own protocol (app, diagnose): check rings in the campaign, each left out of
         # the physical fit in turn, the other check rings' residuals used.
-        effects, structural = hybrid_effects(scenario)
         both = mask | check
-        hybrid = HybridModel(effects, "trilinear", structural).fit(campaign.subset(both), mask[both])
-        hybrid_transductive.append([n, round(check_mae(hybrid, campaign.subset(both), check[both])["mean"], 5)])
-    effects, structural = hybrid_effects(scenario)
+        hybrid = HybridModel(hybrid_effects(scenario), "trilinear").fit(campaign.subset(both), mask[both])
+        hybrid_transductive.append([n, round(held_out_mae(hybrid, campaign.subset(both), check[both])["mean"], 5)])
     return {
         "curves": curves,
         "details": {
-            "noise_floor_um": {k: round(v, 5) for k, v in noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions).items()},
+            "noise_floor_um": {k: round(v, 5) for k, v in metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions).items()},
             "reference": "MAE (um) over the check rings' touches against the 10-repetition mean",
             "check_orientations": campaign.orientations[check].tolist(),
             "subsets": "every A row x k evenly spread B columns of the 7 x 18 grid, k = " + ", ".join(map(str, columns)),
-            "hybrid_effects": [{"id": e.id, **s} for e, s in zip(effects, structural)],
+            "hybrid_effects": [{"id": e.id, **e.settings()} for e in hybrid_effects(scenario)],
             "hybrid_data_model": "trilinear",
             "hybrid_protocol": "fitted on the training orientations only; predicts every check-ring touch",
             "hybrid_check_rings_in_physical_fit": hybrid_transductive,

@@ -20,7 +20,6 @@ import torch
 
 from benchmarks import data_efficiency, plots, scale, speed
 from ph_explorer.app.server import build_server
-from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
 
@@ -30,17 +29,6 @@ SCENARIOS = ("paper", "b_axis_22")
 
 def log(text: str) -> None:
     print(text, flush=True)
-
-
-def _drift_note(campaign: Any, check: Any) -> str | None:
-    """Whether a hybrid with the paper's full effect list (drift included) predicts an orientation."""
-    effects, structural = data_efficiency.hybrid_effects(data_efficiency.load_scenario("paper"))
-    hybrid = HybridModel(effects, "trilinear", structural).fit(campaign, ~check)
-    try:
-        hybrid.predict([[43.0, 90.0]])
-    except Exception as error:  # noqa: BLE001 - recorded, this is what the note is for
-        return f"HybridModel.predict with the drift effect fails without touch times: {type(error).__name__}: {error}"
-    return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -108,11 +96,9 @@ def main(argv: list[str] | None = None) -> int:
     }
     trilinear = TrilinearModel().fit(paper_campaign, ~check)
     s["physics_refit"], hybrid = speed.refit_speed(paper_campaign)
-    # Prediction and Monte Carlo of the hybrid use the refit's (lobing + b_axis_cyclic): a hybrid
-    # holding the drift effect cannot predict an orientation without touch times (see the note).
+    # Prediction and Monte Carlo of the hybrid use the refit's (lobing + b_axis_cyclic).
     models = {"network": network, "trilinear": trilinear, "hybrid": hybrid}
     s["hybrid_used_for_prediction"] = "lobing + b_axis_cyclic (2/rev), data part trilinear"
-    s["note"] = _drift_note(paper_campaign, check)
     s["diagnosis"] = speed.diagnosis_speed(paper_campaign)
     s["predict_one_orientation_us"] = speed.prediction_speed(models, 30 if quick else 200)
     s["monte_carlo_touches_per_s"] = speed.monte_carlo_speed(models, paper_campaign.orientations, 10, 1 if quick else 3)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import add_effects, diagnose
-from ph_explorer.effects import CATALOG
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.twin import load_scenario, simulate
 
@@ -39,7 +39,7 @@ def simulate_speed(repeat: int = 5) -> dict[str, Any]:
 
 def refit_speed(campaign: Campaign) -> tuple[dict[str, Any], DeviationModel]:
     """The hybrid refit after ticking effects: add_effects on the paper campaign (fit + check MAE)."""
-    effects = [CATALOG["lobing"](), CATALOG["b_axis_cyclic"](cycles_per_rev=2)]
+    effects = [DEFAULT_CATALOG["lobing"](), DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=2)]
     start = time.perf_counter()
     hybrid, step = add_effects(campaign, effects)
     seconds = time.perf_counter() - start

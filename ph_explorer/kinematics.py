@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ph_explorer.campaign import Campaign
 from ph_explorer.geometry import (
     A_LIMIT_DEG,
     DEFAULT_GEOMETRY,
@@ -116,7 +117,7 @@ def touch_kinematics(
     )
 
 
-def campaign_touches(campaign) -> Touches:  # noqa: ANN001 - Campaign, imported lazily to avoid a cycle
+def campaign_touches(campaign: Campaign) -> Touches:
     """Kinematics of every touch of a Campaign, in its own touch order."""
     return touch_kinematics(campaign.orientations, campaign.geometry, campaign.n_repetitions, campaign.times_s)
 

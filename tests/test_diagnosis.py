@@ -17,11 +17,12 @@ import pytest
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.effects import CATALOG
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
-from ph_explorer.outofsample import OutOfSampleSmoother
+from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
+from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir
 from ph_explorer.twin import load_scenario, simulate
 
@@ -126,14 +127,18 @@ def test_out_of_sample_smoother_predicts_a_ring_from_the_others_only():
     # Something identical at every orientation (ring form) leaves no out-of-sample residual at all.
     form = np.broadcast_to(np.sin(3 * np.linspace(0, 2 * np.pi, 64, endpoint=False)), (len(w), 1, 64))
     assert np.abs(smoother.residual(form)).max() < 1e-12
+    # The smoother is the one cross-validation applied to a linear model: the same predictions as
+    # refitting the trilinear tables without each ring.
+    direct = cross_val_predict(TrilinearModel, campaign, train)
+    assert np.abs(smoother.predict(campaign.mean_curves()) - direct).max() < 1e-9
 
 
 def test_hybrid_refits_recovers_a_known_effect_and_predicts_unseen_orientations(tmp_path):
     scenario = load_scenario("b_axis_22")
     campaign = simulate(scenario)
     train = ~campaign.holdout_mask()
-    effect = CATALOG["b_axis_cyclic"]()
-    hybrid = HybridModel([effect], "trilinear", [{"cycles_per_rev": 22}]).fit(campaign, train)
+    effect = DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=22)
+    hybrid = HybridModel([effect], "trilinear").fit(campaign, train)
     params = hybrid.effect_parameters()[0]["params"]
     assert params["cycles_per_rev"] == 22
     assert params["amplitude_arcsec"] == pytest.approx(1.0, rel=0.2)
@@ -282,7 +287,7 @@ def test_hybrid_with_every_effect_on_a_sparse_lattice_neither_breaks_down_nor_ne
     sparse = ~held & ~campaign.off_grid_mask() & np.isin(campaign.orientations[:, 1], [-160.0, 20.0])
     assert sparse.sum() == 2 * a_axis.size
     effects = [e for e in scenario.effects if e.id != "noise"]
-    hybrid = HybridModel(effects, "trilinear", [e.structural_values() for e in effects]).fit(campaign.subset(sparse))
+    hybrid = HybridModel(effects, "trilinear").fit(campaign.subset(sparse))
     checks = campaign.subset(held)
     predicted = hybrid.predict_touches(campaign_touches(checks))
     mae = np.abs(predicted.mean(axis=1) - checks.deviations.mean(axis=1)).mean()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ph_explorer.effects import BUILTIN, CATALOG, load_user_effects, make_effect
+from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, EffectSum, load_user_effects
 from ph_explorer.effects.base import RAD_PER_ARCSEC, Effect
 from ph_explorer.effects.probe import support_fourier
 from ph_explorer.errors import InputError
@@ -33,18 +33,52 @@ def after_fit(effect: Effect, touches, seed: int = 0):
 
 def test_catalog_has_the_issue_ids_with_documented_parameters():
     need = {"noise", "lobing", "gravity", "a_axis_cyclic", "b_axis_cyclic", "direction", "drift", "ring_form"}
-    assert need <= set(CATALOG)
-    for effect_id, cls in BUILTIN.items():
-        assert cls.id == effect_id and cls.name and len(cls.teaching) > 150
+    assert need <= set(DEFAULT_CATALOG)
+    for cls in BUILTIN_EFFECTS:
+        assert DEFAULT_CATALOG[cls.id] is cls and cls.name and len(cls.teaching) > 150
         for p in cls.parameters:
             assert p.unit is not None and p.description
-        for key in cls.structural:
+        for key in cls.scan:
             assert key in {p.name for p in cls.parameters}
+    # Only pure noise is no candidate: every other effect is something a model can add.
+    assert set(DEFAULT_CATALOG) - set(DEFAULT_CATALOG.candidates()) == {"noise"}
+
+
+def test_effects_describe_what_they_need_and_how_their_evidence_is_read(mixed_touches):
+    drift = DEFAULT_CATALOG["drift"]()
+    no_times = touches_at(grid([30.0]))
+    assert drift.unmet_needs(mixed_touches) == [] and drift.unmet_needs(no_times) == ["needs touch times (a t_s column)"]
+    for cls in BUILTIN_EFFECTS:
+        evidence = cls().evidence(mixed_touches)
+        assert evidence.x_label and np.broadcast_to(evidence.x, mixed_touches.shape).shape == mixed_touches.shape
+    # An axis error is read as an angle against its own phase, weighted by each touch's lever.
+    cyclic = DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=22).evidence(mixed_touches)
+    assert "arcsec" in cyclic.y_label and cyclic.weight is not None and np.ptp(cyclic.edges) == 360.0
+
+
+def test_scanned_values_are_settings_of_the_instance():
+    cls = DEFAULT_CATALOG["drift"]
+    grid_values = cls.scan_grid()
+    assert len(grid_values) == len(cls.scan["tau_s"]) * len(cls.scan["cycle_period_s"])
+    effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=0.5).with_settings(cycles_per_rev=22)
+    assert effect.settings() == {"cycles_per_rev": 22.0} and effect.params["amplitude_arcsec"] == 0.5
+    assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(
+        {"amplitude_arcsec": 0.953, "phase_deg": 30.8, "cycles_per_rev": 22}
+    ) == "amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev"
+
+
+def test_effects_add_like_lmfit_models(mixed_touches):
+    lobing, cyclic = DEFAULT_CATALOG["lobing"](), DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=5)
+    both = lobing + cyclic
+    assert isinstance(both, EffectSum) and [e.id for e in both + DEFAULT_CATALOG["noise"]()] == ["lobing", "b_axis_cyclic", "noise"]
+    np.testing.assert_allclose(
+        both.forward(mixed_touches, None), lobing.forward(mixed_touches, None) + cyclic.forward(mixed_touches, None)
+    )
 
 
 # -- lobing -----------------------------------------------------------------------------------------
 def test_lobing_largest_harmonic_is_3_upr_at_high_a0_and_nothing_at_a0_zero():
-    lobing = CATALOG["lobing"](amplitude_um=0.25, seat_phase_deg=10.0)
+    lobing = DEFAULT_CATALOG["lobing"](amplitude_um=0.25, seat_phase_deg=10.0)
     t = touches_at(grid([0.0, 60.0, 90.0]))
     d = after_fit(lobing, t)[:, 0]  # (n_o, n_pt)
     amp, _ = harmonic_spectrum(d)
@@ -61,7 +95,7 @@ def test_lobing_largest_harmonic_is_3_upr_at_high_a0_and_nothing_at_a0_zero():
 
 
 def test_lobing_is_the_same_at_every_b0_and_shows_side_bands_at_mid_a0():
-    lobing = CATALOG["lobing"](amplitude_um=0.25)
+    lobing = DEFAULT_CATALOG["lobing"](amplitude_um=0.25)
     d = after_fit(lobing, touches_at(grid([30.0])))[:, 0]
     assert np.abs(d - d[0]).max() < 1e-9  # the probe-frame picture only depends on A0
     amp, _ = harmonic_spectrum(d[0])
@@ -70,7 +104,7 @@ def test_lobing_is_the_same_at_every_b0_and_shows_side_bands_at_mid_a0():
 
 
 def test_lobing_basis_fit_recovers_amplitude_and_seat_phase():
-    truth = CATALOG["lobing"](amplitude_um=0.3, seat_phase_deg=37.0)
+    truth = DEFAULT_CATALOG["lobing"](amplitude_um=0.3, seat_phase_deg=37.0)
     t = touches_at(grid([30.0, 60.0, 90.0]))
     y = truth.forward(t, np.random.default_rng(0)).ravel()
     cols, names = truth.basis(t)
@@ -84,14 +118,14 @@ def test_lobing_basis_fit_recovers_amplitude_and_seat_phase():
 # -- gravity ----------------------------------------------------------------------------------------
 def test_gravity_lobing_grows_with_sin_a_and_its_directional_part_is_one_fold():
     t = touches_at(grid([15.0, 30.0, 45.0, 60.0, 75.0, 90.0], [0.0]))
-    lobes = after_fit(CATALOG["gravity"](directional_um=0.0, lobing_um=0.2), t)[:, 0]
+    lobes = after_fit(DEFAULT_CATALOG["gravity"](directional_um=0.0, lobing_um=0.2), t)[:, 0]
     amp3 = harmonic_spectrum(lobes)[0][:, 3]
     sin_a = np.sin(np.radians([15.0, 30.0, 45.0, 60.0, 75.0, 90.0]))
     assert np.all(np.diff(amp3) > 0)
     # Relative to its value at A0 = 90 the 3-UPR term follows sin A0 (A_k ~ A0 +- 6.5 deg).
     assert np.allclose(amp3[1:] / amp3[-1], sin_a[1:], rtol=0.08)
-    directional = after_fit(CATALOG["gravity"](directional_um=0.5, lobing_um=0.0), t)
-    before = CATALOG["gravity"](directional_um=0.5, lobing_um=0.0).forward(t, None)
+    directional = after_fit(DEFAULT_CATALOG["gravity"](directional_um=0.5, lobing_um=0.0), t)
+    before = DEFAULT_CATALOG["gravity"](directional_um=0.5, lobing_um=0.0).forward(t, None)
     assert np.ptp(before, axis=-1).max() > 0.3  # it does move the touches...
     assert np.abs(directional).max() < 1e-9  # ...but only as size and centre in head touches
 
@@ -99,7 +133,7 @@ def test_gravity_lobing_grows_with_sin_a_and_its_directional_part_is_one_fold():
 # -- rotary axes ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("cycles", [1, 3, 22])
 def test_b_axis_cyclic_leaves_nothing_at_a0_zero(cycles):
-    effect = CATALOG["b_axis_cyclic"](amplitude_arcsec=2.0, cycles_per_rev=cycles, phase_deg=25.0)
+    effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=2.0, cycles_per_rev=cycles, phase_deg=25.0)
     before = effect.forward(touches_at(grid([0.0])), None)
     assert np.abs(before).max() < 1e-12  # a turn about z moves the ball along the ring, not across it
 
@@ -107,14 +141,14 @@ def test_b_axis_cyclic_leaves_nothing_at_a0_zero(cycles):
 def test_b_axis_cyclic_grows_with_sin_a0():
     a0 = np.array([15.0, 30.0, 45.0, 60.0, 75.0, 90.0])
     # 1/rev with its peak at B0 = 0: eps ~ 1 arcsec over every ring's small B sweep.
-    effect = CATALOG["b_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=1, phase_deg=90.0)
+    effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=1, phase_deg=90.0)
     before = effect.forward(touches_at(grid(a0[1:], [0.0])), None)[:, 0]
     one_upr = harmonic_spectrum(before)[0][:, 1]
     lever = UM_PER_ARCSEC_AT_L * DEFAULT_GEOMETRY.axial_distance_mm / L_MM * np.sin(np.radians(a0[1:]))
     assert np.allclose(one_upr, lever, rtol=0.04)
     # A short-period error (16.4 deg) shows after the fit too. Where each ring's B sweep covers more
     # than one period (A0 >= 45), its rms over B0 follows sin A0; at A0 = 15 it is less than half.
-    short = CATALOG["b_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=22)
+    short = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=22)
     rms = np.array([np.sqrt(np.mean(after_fit(short, touches_at(grid([a], np.arange(-180.0, 180.0, 5.0)))) ** 2)) for a in a0])
     per_sin = rms[2:] / np.sin(np.radians(a0[2:]))
     assert np.ptp(per_sin) < 0.12 * per_sin.mean()
@@ -124,26 +158,26 @@ def test_b_axis_cyclic_grows_with_sin_a0():
 def test_a_axis_cyclic_moves_the_tip_by_the_full_lever():
     # eps peaks at each ring's A0 (phase 90 - A0 for 1/rev): the radial deviation reaches ~ eps L.
     for a0 in (0.0, 45.0, 90.0):
-        effect = CATALOG["a_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=1, phase_deg=90.0 - a0)
+        effect = DEFAULT_CATALOG["a_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=1, phase_deg=90.0 - a0)
         before = effect.forward(touches_at(grid([a0], [-120.0, 10.0, 100.0])), None)
         assert np.abs(before).max() == pytest.approx(UM_PER_ARCSEC_AT_L, rel=0.03)
     # A short-period A error shows after the fit at A0 > 0, and not at A0 = 0 where A stays fixed.
-    short = CATALOG["a_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=24)
+    short = DEFAULT_CATALOG["a_axis_cyclic"](amplitude_arcsec=1.0, cycles_per_rev=24)
     assert np.abs(after_fit(short, touches_at(grid([0.0])))).max() < 1e-9
     assert np.ptp(after_fit(short, touches_at(grid([45.0]))), axis=-1).min() > 0.15
 
 
 def test_cyclic_basis_takes_cycles_per_rev_and_recovers_parameters():
-    truth = CATALOG["b_axis_cyclic"](amplitude_arcsec=0.8, cycles_per_rev=22, phase_deg=200.0)
+    truth = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=0.8, cycles_per_rev=22, phase_deg=200.0)
     t = touches_at(grid([15.0, 45.0, 75.0], np.arange(-180.0, 180.0, 10.0)))
     y = truth.forward(t, None).ravel()
     residual = {}
     for m in (20, 21, 22, 23):
-        cols, names = truth.basis(t, cycles_per_rev=m)
+        cols, names = truth.with_settings(cycles_per_rev=m).basis(t)
         coef, *_ = np.linalg.lstsq(cols.reshape(-1, 2), y, rcond=None)
         residual[m] = np.linalg.norm(y - cols.reshape(-1, 2) @ coef)
         if m == 22:
-            found = truth.from_coefficients(coef, cycles_per_rev=m)
+            found = truth.with_settings(cycles_per_rev=m).from_coefficients(coef)
     assert min(residual, key=residual.get) == 22 and residual[22] < 1e-9
     assert found == pytest.approx({"amplitude_arcsec": 0.8, "phase_deg": 200.0, "cycles_per_rev": 22.0})
 
@@ -158,7 +192,7 @@ def scan_times(orientations, n_rep, alternating):
 
 def test_direction_shows_only_when_the_scan_order_changes_between_repetitions():
     o = grid([30.0, 60.0, 90.0])
-    effect = CATALOG["direction"](a_lost_motion_arcsec=1.0, b_lost_motion_arcsec=1.0)
+    effect = DEFAULT_CATALOG["direction"](a_lost_motion_arcsec=1.0, b_lost_motion_arcsec=1.0)
     same = after_fit(effect, touches_at(o, 4, scan_times(o, 4, False)))
     alternating = after_fit(effect, touches_at(o, 4, scan_times(o, 4, True)))
     assert np.abs(same - same[:, :1]).max() < 1e-12  # a fixed part of every repetition's curve
@@ -173,7 +207,7 @@ def test_direction_shows_only_when_the_scan_order_changes_between_repetitions():
 def test_drift_shows_only_with_time_changing_within_a_circle():
     o = grid([45.0, 90.0])
     n_rep, n_pt = 3, DEFAULT_GEOMETRY.points_per_circle
-    effect = CATALOG["drift"](head_rate_um_per_h=30.0, stylus_rate_um_per_h=20.0, head_cycle_um=1.0)
+    effect = DEFAULT_CATALOG["drift"](head_rate_um_per_h=30.0, stylus_rate_um_per_h=20.0, head_cycle_um=1.0)
     circle = np.arange(len(o) * n_rep).reshape(len(o), n_rep, 1) * 200.0
     frozen = np.broadcast_to(circle, (len(o), n_rep, n_pt)).copy()  # every touch of a circle at one time
     moving = circle + 2.0 * np.arange(n_pt)
@@ -187,14 +221,14 @@ def test_drift_of_the_stylus_is_seen_through_rho_over_l():
     o = grid([0.0], [0.0])
     n_pt = DEFAULT_GEOMETRY.points_per_circle
     times = (np.arange(n_pt) * 3600.0 / n_pt).reshape(1, 1, n_pt)  # one hour over the circle
-    d = CATALOG["drift"](stylus_rate_um_per_h=1.0).forward(touches_at(o, 1, times), None)
+    d = DEFAULT_CATALOG["drift"](stylus_rate_um_per_h=1.0).forward(touches_at(o, 1, times), None)
     rho_over_l = DEFAULT_GEOMETRY.contact_radius_mm / L_MM
     assert np.ptp(d) == pytest.approx(rho_over_l * (n_pt - 1) / n_pt, rel=1e-9)
 
 
 # -- ring form ------------------------------------------------------------------------------------
 def test_ring_form_is_identical_at_every_orientation():
-    form = CATALOG["ring_form"](form_um=0.2, shape_seed=3)
+    form = DEFAULT_CATALOG["ring_form"](form_um=0.2, shape_seed=3)
     d = after_fit(form, touches_at(grid([0.0, 15.0, 45.0, 90.0]), n_rep=2))
     assert np.abs(d - d[:1, :1]).max() < 1e-12
     assert np.ptp(d[0, 0]) == pytest.approx(0.2, rel=0.1)
@@ -206,7 +240,7 @@ def test_ring_form_is_identical_at_every_orientation():
 def test_noise_alone_reproduces_the_noise_floor_figures():
     sigma = 0.175
     t = touches_at(grid([0.0, 30.0, 60.0, 90.0], np.arange(-160.0, 181.0, 20.0)), n_rep=10)
-    d = after_fit(CATALOG["noise"](sigma_um=sigma), t, seed=11)  # (72, 10, 64)
+    d = after_fit(DEFAULT_CATALOG["noise"](sigma_um=sigma), t, seed=11)  # (72, 10, 64)
     assert np.mean(np.ptp(d, axis=-1)) / sigma == pytest.approx(4.69, rel=0.1)
     assert np.mean(np.abs(d).max(axis=-1)) / sigma == pytest.approx(2.60, rel=0.1)
     assert np.mean(np.abs(d)) / sigma == pytest.approx(0.80, rel=0.1)
@@ -235,11 +269,11 @@ def mixed_touches():
 
 @pytest.mark.parametrize("effect_id", ["a_axis_cyclic", "b_axis_cyclic", "direction", "drift", "ring_form"])
 def test_basis_reproduces_forward_for_the_linear_effects(effect_id, mixed_touches):
-    effect = CATALOG[effect_id](**EXAMPLES[effect_id])
+    effect = DEFAULT_CATALOG[effect_id](**EXAMPLES[effect_id])
     cols, names = effect.basis(mixed_touches)
     assert cols.shape == mixed_touches.shape + (len(names),)
     np.testing.assert_allclose(cols @ effect.coefficients(), effect.forward(mixed_touches, None), atol=1e-12)
-    found = effect.from_coefficients(effect.coefficients(), **effect.structural_values())
+    found = effect.from_coefficients(effect.coefficients())
     for key, value in EXAMPLES[effect_id].items():
         if key in found:
             assert found[key] == pytest.approx(value, abs=1e-9), key
@@ -247,7 +281,7 @@ def test_basis_reproduces_forward_for_the_linear_effects(effect_id, mixed_touche
 
 @pytest.mark.parametrize("effect_id", ["lobing", "gravity"])
 def test_seat_bases_reproduce_forward_up_to_harmonic_12(effect_id, mixed_touches):
-    effect = CATALOG[effect_id](**EXAMPLES[effect_id])
+    effect = DEFAULT_CATALOG[effect_id](**EXAMPLES[effect_id])
     cols, _ = effect.basis(mixed_touches)
     forward = remove_size_and_centre(effect.forward(mixed_touches, None))
     linear = remove_size_and_centre(cols @ effect.coefficients())
@@ -258,33 +292,26 @@ def test_seat_bases_reproduce_forward_up_to_harmonic_12(effect_id, mixed_touches
 
 
 def test_noise_has_no_basis_columns(mixed_touches):
-    cols, names = CATALOG["noise"]().basis(mixed_touches)
+    cols, names = DEFAULT_CATALOG["noise"]().basis(mixed_touches)
     assert cols.shape == mixed_touches.shape + (0,) and names == []
 
 
 def test_bad_parameters_are_input_errors():
     with pytest.raises(InputError, match="no parameter 'amplitude'"):
-        make_effect({"id": "lobing", "amplitude": 1.0})
+        DEFAULT_CATALOG.make({"id": "lobing", "amplitude": 1.0})
     with pytest.raises(InputError, match="unknown effect"):
-        make_effect({"id": "wobble"})
+        DEFAULT_CATALOG.make({"id": "wobble"})
     with pytest.raises(InputError, match="must be a number"):
-        make_effect({"id": "noise", "sigma_um": "big"})
+        DEFAULT_CATALOG.make({"id": "noise", "sigma_um": "big"})
 
 
 # -- user effects ---------------------------------------------------------------------------------
-@pytest.fixture
-def restore_catalog():
-    """Loading a user file changes the global catalog: put it back so other tests see the built-ins."""
-    saved = dict(CATALOG)
-    yield
-    CATALOG.clear()
-    CATALOG.update(saved)
-
-
-def test_user_effect_file_joins_the_catalog(restore_catalog):
-    classes = load_user_effects(assets_dir() / "effects_example.py")
-    assert [c.id for c in classes] == ["ball_form"] and CATALOG["ball_form"] is classes[0]
-    effect = make_effect({"id": "ball_form", "amplitude_um": 0.1, "lobes": 2, "phase_deg": 30.0})
+def test_user_effect_file_makes_a_new_catalog_and_leaves_the_default_alone():
+    catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
+    assert list(catalog)[: len(DEFAULT_CATALOG)] == list(DEFAULT_CATALOG) and "ball_form" in catalog
+    assert "ball_form" not in DEFAULT_CATALOG and "ball_form" in catalog.candidates()
+    assert [c.id for c in load_user_effects(assets_dir() / "effects_example.py")] == ["ball_form"]
+    effect = catalog.make({"id": "ball_form", "amplitude_um": 0.1, "lobes": 2, "phase_deg": 30.0})
     t = touches_at(grid([0.0, 45.0, 90.0]), n_rep=2)
     d = after_fit(effect, t)
     # Fixed in the probe frame: invisible where psi stays put (A0 = 0), 2 UPR where psi sweeps (A0 = 90).
@@ -295,7 +322,7 @@ def test_user_effect_file_joins_the_catalog(restore_catalog):
     assert effect.from_coefficients(coef)["amplitude_um"] == pytest.approx(0.1)
 
 
-def test_bad_user_effect_files_are_input_errors(tmp_path, restore_catalog):
+def test_bad_user_effect_files_are_input_errors(tmp_path):
     broken = tmp_path / "broken.py"
     broken.write_text("import numpy as np\ndef oops(:\n")
     with pytest.raises(InputError, match="cannot import"):
@@ -307,9 +334,16 @@ def test_bad_user_effect_files_are_input_errors(tmp_path, restore_catalog):
     clash = tmp_path / "clash.py"
     clash.write_text(
         "from ph_explorer.effects.base import Effect\n"
-        "class MyNoise(Effect):\n    id = 'noise'\n    def basis(self, touches, **s):\n        raise NotImplementedError\n"
+        "class MyNoise(Effect):\n    id = 'noise'\n    def basis(self, touches):\n        raise NotImplementedError\n"
     )
     with pytest.raises(InputError, match="already a built-in"):
         load_user_effects(clash)
     with pytest.raises(InputError, match="not found"):
         load_user_effects(tmp_path / "missing.py")
+    unscanned = tmp_path / "unscanned.py"
+    unscanned.write_text(
+        "from ph_explorer.effects.base import Effect\n"
+        "class Odd(Effect):\n    id = 'odd'\n    scan = {'lobes': (2, 3)}\n    def basis(self, touches):\n        raise NotImplementedError\n"
+    )
+    with pytest.raises(InputError, match="scanned 'lobes' is not one of its parameters"):
+        load_user_effects(unscanned)

@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Parameter, full_shape, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, joint_angle_deg, rotation_deviation_um_per_arcsec
 from ph_explorer.kinematics import Touches
 
 CYCLES_PER_REV = tuple(range(1, 41))
@@ -20,31 +18,42 @@ class _AxisCyclic(Effect):
     parameters = (
         Parameter("amplitude_arcsec", "arcsec", 1.0, "amplitude of the angular error"),
         Parameter("phase_deg", "deg", 0.0, "phase of the error at joint angle 0"),
-        Parameter("cycles_per_rev", "1/rev", 3.0, "cycles per revolution of the joint"),
+        Parameter("cycles_per_rev", "cycles/rev", 3.0, "cycles per revolution of the joint"),
     )
-    structural = {"cycles_per_rev": CYCLES_PER_REV}
+    scan = {"cycles_per_rev": CYCLES_PER_REV}
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
-        m = float(structural.get("cycles_per_rev", self.params["cycles_per_rev"]))
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
+        m = self.params["cycles_per_rev"]
         angle = m * np.radians(joint_angle_deg(touches, self.axis))
         lever = rotation_deviation_um_per_arcsec(touches, self.axis)
         cols = np.stack([np.sin(angle) * lever, np.cos(angle) * lever], axis=-1)
         tag = f"{self.id}_{m:g}"
         return full_shape(cols, touches), [f"{tag}_sin", f"{tag}_cos"]
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         amp, phase = self.params["amplitude_arcsec"], np.radians(self.params["phase_deg"])
         # sin(m x + phi) = cos(phi) sin(m x) + sin(phi) cos(m x)
         return np.array([amp * np.cos(phase), amp * np.sin(phase)])
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         c_sin, c_cos = np.asarray(coef, dtype=float)[:2]
-        m = float(structural.get("cycles_per_rev", self.params["cycles_per_rev"]))
         return {
             "amplitude_arcsec": float(np.hypot(c_sin, c_cos)),
             "phase_deg": float(np.degrees(np.arctan2(c_cos, c_sin)) % 360.0),
-            "cycles_per_rev": m,
+            "cycles_per_rev": self.params["cycles_per_rev"],
         }
+
+    def evidence(self, touches: Touches) -> Evidence:
+        """An angle against its phase: each bin's angular error (arcsec) is the lever-weighted least
+        squares of the radial residual (a touch's lever: um of deviation per arcsec)."""
+        m = self.params["cycles_per_rev"]
+        return Evidence(
+            f"{m:g} x {self.axis} joint angle, mod 360 (deg)",
+            np.mod(m * joint_angle_deg(touches, self.axis), 360.0),
+            edges=np.linspace(0.0, 360.0, 37),
+            weight=rotation_deviation_um_per_arcsec(touches, self.axis),
+            y_label="out-of-sample angular residual (arcsec)",
+        )
 
 
 class AAxisCyclic(_AxisCyclic):
@@ -94,9 +103,11 @@ class Direction(Effect):
         Parameter("a_lost_motion_arcsec", "arcsec", 0.5, "A joint: difference between its two approach directions"),
         Parameter("b_lost_motion_arcsec", "arcsec", 0.5, "B joint: difference between its two approach directions"),
     )
-    structural: dict[str, tuple] = {}
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def evidence(self, touches: Touches) -> Evidence:
+        return Evidence("B joint approach sign x point angle (deg)", touches.b_approach * touches.theta_deg)
+
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         cols = np.stack(
             [
                 0.5 * touches.a_approach * rotation_deviation_um_per_arcsec(touches, "A"),

@@ -5,13 +5,18 @@ points. It gives, for every touch of a campaign (a `ph_explorer.kinematics.Touch
 
 - `forward(touches, rng)`: the radial deviation of each touch in um, *before* the least-squares
   circle fit (the twin applies the fit afterwards), shaped (n_orientations, n_repetitions, n_points);
-- `basis(touches, **structural)`: the same contribution written as columns whose coefficients are
-  the effect's parameters (or a linearisation of them), shaped (n_o, n_rep, n_pt, n_cols) in um per
-  unit coefficient, with the column names;
-- `from_coefficients(coef, **structural)`: the physical parameters (units of `parameters`) that a
-  fit of the basis columns found;
-- `coefficients(**structural)`: the coefficients of its own parameters, so that for a linear effect
+- `basis(touches)`: the same contribution written as columns whose coefficients are the effect's
+  parameters (or a linearisation of them), shaped (n_o, n_rep, n_pt, n_cols) in um per unit
+  coefficient, with the column names, at the instance's values of its scanned parameters;
+- `from_coefficients(coef)`: the physical parameters (units of `parameters`) that a fit of the
+  basis columns found;
+- `coefficients()`: the coefficients of its own parameters, so that for a linear effect
   `forward == basis @ coefficients` (the tests check this).
+
+It also describes itself: `scan` (the grid of non-linear parameters a diagnosis tries, e.g.
+cycles per revolution 1-40), `needs` (what a campaign must hold, e.g. touch times), `candidate`
+(whether a model can add it) and `evidence(touches)` (the variable its signature is read against).
+Effects add: `a + b` is an EffectSum whose forward is the sum of theirs.
 
 Sign convention: a touch reads the wall at R + p - d . u_k, where p is the pre-travel of the probe
 (the head keeps moving outward after contact) and d the displacement of the real ball centre from
@@ -22,7 +27,8 @@ Writing your own effect
 -----------------------
 Put a subclass of `Effect` in any Python file and pass the file to the tools (for example
 `ph-explorer diagnose --effects my_effects.py`, or `ph_explorer.effects.load_user_effects(path)`);
-every Effect subclass defined in that file joins the catalog under its `id`. Minimal example
+every Effect subclass defined in that file joins the catalog under its `id`
+(`ph_explorer.effects.DEFAULT_CATALOG.with_file(path)` returns that catalog). Minimal example
 (see assets/effects_example.py for a complete one)::
 
     import numpy as np
@@ -33,9 +39,8 @@ every Effect subclass defined in that file joins the catalog under its `id`. Min
         name = "Stylus bending under the probing force"
         teaching = "The stylus bends by the trigger force; it adds pre-travel along the force ..."
         parameters = (Parameter("amplitude_um", "um", 0.1, "extra pre-travel at full lateral share"),)
-        structural = {}
 
-        def basis(self, touches, **structural):
+        def basis(self, touches):
             lateral = np.sin(np.radians(touches.beta_deg))            # (n_o, 1, n_pt)
             column = np.broadcast_to(lateral, touches.shape)[..., None]  # (n_o, n_rep, n_pt, 1)
             return column, ["amplitude_um"]
@@ -44,12 +49,14 @@ Rules: every array is shaped like the touches (broadcast the repetition axis of 
 effect does not change between repetitions); units are um for deviations; `forward` defaults to
 `basis @ coefficients` for a linear effect whose parameters are its coefficients (as above), so a
 linear effect only needs `basis`; a non-linear or random one overrides `forward`. Free non-linear
-parameters a diagnosis should scan go in `structural` as {name: tuple of values}, and `basis`
-accepts them as keyword arguments.
+parameters a diagnosis should scan are parameters too, listed in `scan` as {name: tuple of values};
+`basis` reads them from `self.params`.
 """
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -76,13 +83,25 @@ class Parameter:
 
 
 class Effect:
-    """One physical mechanism: forward model, linear basis and parameters (see module docstring)."""
+    """One physical mechanism: forward model, linear basis and parameters (see module docstring).
+
+    An effect describes itself, so that the twin, the diagnosis and the app never name one:
+    `scan` is the grid of its non-linear parameters a diagnosis tries (their chosen values are
+    the instance's `settings()`), `needs` what a campaign must hold for it to be tested, `candidate`
+    whether a model can add it at all, and `evidence` the variable its signature is read against.
+    """
 
     id: ClassVar[str] = ""
     name: ClassVar[str] = ""
     teaching: ClassVar[str] = ""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
-    structural: ClassVar[dict[str, tuple]] = {}
+    # Grid of the non-linear parameters a diagnosis scans, {parameter name: values}; each is also a
+    # Parameter, and the instance's value of it is the chosen one (settings()).
+    scan: ClassVar[dict[str, tuple]] = {}
+    # What a campaign must hold (keys of NEEDS) for this effect to be fitted or tested.
+    needs: ClassVar[frozenset[str]] = frozenset()
+    # False for what no model can add (pure noise): never a candidate of the diagnosis.
+    candidate: ClassVar[bool] = True
 
     def __init__(self, **params: float) -> None:
         known = {p.name: p for p in self.parameters}
@@ -107,37 +126,116 @@ class Effect:
         inner = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
         return f"{type(self).__name__}({inner})"
 
-    # -- structural (non-linear) parameters --------------------------------------------------------
-    def structural_values(self, **overrides: Any) -> dict[str, Any]:
-        """This effect's structural parameters (from its params), with any overrides."""
-        out = {k: self.params[k] for k in self.structural if k in self.params}
-        out.update(overrides)
-        return out
+    def __add__(self, other: "Effect | EffectSum") -> "EffectSum":
+        return EffectSum([self]) + other
+
+    # -- the scanned (non-linear) parameters -------------------------------------------------------
+    @classmethod
+    def scan_grid(cls) -> list[dict[str, float]]:
+        """Every combination of the scanned values, [{name: value, ...}, ...] ([{}] when nothing is scanned)."""
+        names = list(cls.scan)
+        return [dict(zip(names, values)) for values in itertools.product(*(cls.scan[n] for n in names))]
+
+    def settings(self) -> dict[str, float]:
+        """The values of the scanned parameters this instance uses (e.g. {"cycles_per_rev": 22})."""
+        return {k: self.params[k] for k in self.scan}
+
+    def with_settings(self, **settings: float) -> "Effect":
+        """A copy of this effect with other values of its scanned parameters."""
+        return type(self)(**{**self.params, **settings})
+
+    def unmet_needs(self, touches: Touches) -> list[str]:
+        """What the touches lack for this effect (texts from NEEDS); empty when it can be fitted."""
+        return [text for need, (text, met) in NEEDS.items() if need in self.needs and not met(touches)]
 
     # -- the model -------------------------------------------------------------------------------
     def forward(self, touches: Touches, rng: np.random.Generator) -> NDArray[np.float64]:
         """Radial deviation of every touch before the circle fit, (n_o, n_rep, n_pt) um."""
-        columns, _ = self.basis(touches, **self.structural_values())
+        columns, _ = self.basis(touches)
         return np.broadcast_to(columns @ self.coefficients(), touches.shape).copy()
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
-        """Columns (n_o, n_rep, n_pt, n_cols) in um per unit coefficient, and their names."""
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
+        """Columns (n_o, n_rep, n_pt, n_cols) in um per unit coefficient at this instance's settings, and their names."""
         raise NotImplementedError
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
-        """The basis coefficients of this effect's own parameters (default: the parameters in order)."""
-        return np.array([self.params[p.name] for p in self.parameters if p.name not in self.structural])
+    def coefficients(self) -> NDArray[np.float64]:
+        """The basis coefficients of this effect's own parameters (default: the unscanned parameters in order)."""
+        return np.array([self.params[p.name] for p in self.parameters if p.name not in self.scan])
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         """Physical parameters from fitted basis coefficients (default: coefficients are parameters)."""
-        names = [p.name for p in self.parameters if p.name not in self.structural]
+        names = [p.name for p in self.parameters if p.name not in self.scan]
         out = {n: float(c) for n, c in zip(names, np.asarray(coef, dtype=float))}
-        out.update({k: float(v) for k, v in structural.items()})
+        out.update(self.settings())
         return out
+
+    def evidence(self, touches: Touches) -> Evidence:
+        """The variable this effect's signature is read against (default: the point angle theta)."""
+        return Evidence("point angle theta (deg)", np.broadcast_to(touches.theta_deg, touches.a_deg.shape))
 
     def describe(self) -> dict[str, Any]:
         """A plain description (id and parameters) for sidecars and reports."""
         return {"id": self.id, **self.params}
+
+    @classmethod
+    def parameters_text(cls, params: Mapping[str, float]) -> str:
+        """'amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev': fitted parameters with their units."""
+        units = {p.name: p.unit for p in cls.parameters}
+        return ", ".join(parameter_text(k, float(v), units.get(k, "")) for k, v in params.items())
+
+
+class EffectSum:
+    """Effects added together (as lmfit composes models): forwards add, bases stand side by side."""
+
+    def __init__(self, effects: Sequence[Effect] = ()) -> None:
+        self.effects = list(effects)
+
+    def __add__(self, other: "Effect | EffectSum") -> "EffectSum":
+        more = other.effects if isinstance(other, EffectSum) else [other]
+        return EffectSum(self.effects + list(more))
+
+    def __iter__(self) -> Iterator[Effect]:
+        return iter(self.effects)
+
+    def __len__(self) -> int:
+        return len(self.effects)
+
+    def forward(self, touches: Touches, rng: np.random.Generator) -> NDArray[np.float64]:
+        """The sum of every effect's radial deviation, drawn in order (the same rng stream as one by one)."""
+        radial = np.zeros(touches.shape)
+        for effect in self.effects:
+            radial += effect.forward(touches, rng)
+        return radial
+
+
+def parameter_text(name: str, value: float, unit: str) -> str:
+    """'amplitude_arcsec', 0.95, 'arcsec' -> 'amplitude 0.95 arcsec'; 'cycles_per_rev', 22, 'cycles/rev' -> '22 cycles/rev'."""
+    written = unit.replace("/", "_per_")  # units are spelled with _per_ in parameter names ('um/h' -> 'um_per_h')
+    label = name[: -len(written)].rstrip("_") if unit and name.endswith(written) else name
+    number = f"{value:.3g}" + (f" {unit}" if unit else "")
+    return f"{label.replace('_', ' ')} {number}" if label else number
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """How an effect's signature is read: its variable at every touch, and how to bin it.
+
+    weight: None when the plotted quantity is the radial residual itself (um); otherwise each
+    touch's deviation per unit of the plotted quantity (e.g. um per arcsec of an axis error), so
+    that a bin's value is the weighted least squares of the residual in that quantity.
+    """
+
+    x_label: str
+    x: NDArray[np.float64]  # broadcastable to the touches' shape
+    edges: NDArray[np.float64] | None = None  # bin edges; None: 48 bins over the range of x
+    weight: NDArray[np.float64] | None = None
+    y_label: str = "out-of-sample residual (um)"
+
+
+# What an effect may need of a campaign: key -> (what to tell the user, test on the touches).
+NEEDS: dict[str, tuple[str, Callable[[Touches], bool]]] = {
+    "touch_times": ("needs touch times (a t_s column)", lambda touches: touches.times_s is not None),
+}
 
 
 # -- shared kinematics of the tip ------------------------------------------------------------------

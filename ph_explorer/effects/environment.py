@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Parameter, ball_centre_mm, full_shape, radial_unit
+from ph_explorer.effects.base import Effect, Evidence, Parameter, ball_centre_mm, full_shape, radial_unit
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import Touches
 
@@ -42,13 +40,13 @@ class Drift(Effect):
         Parameter("tau_s", "s", 1200.0, "time constant of the warm-up"),
         Parameter("cycle_period_s", "s", 1800.0, "period of the room's temperature cycle (air conditioning)"),
     )
-    structural = {"tau_s": DRIFT_TIME_CONSTANTS_S, "cycle_period_s": DRIFT_CYCLE_PERIODS_S}
+    scan = {"tau_s": DRIFT_TIME_CONSTANTS_S, "cycle_period_s": DRIFT_CYCLE_PERIODS_S}
+    needs = frozenset({"touch_times"})
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         if touches.times_s is None:
             raise InputError("the drift effect needs touch times (a t_s column)", column="t_s")
-        tau = float(structural.get("tau_s", self.params["tau_s"]))
-        period = float(structural.get("cycle_period_s", self.params["cycle_period_s"]))
+        tau, period = self.params["tau_s"], self.params["cycle_period_s"]
         if not (tau > 0 and period > 0):
             raise InputError("drift: tau_s and cycle_period_s must be positive", column="tau_s")
         t = touches.times_s
@@ -66,7 +64,7 @@ class Drift(Effect):
         names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
         return full_shape(cols, touches), names
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         p = self.params
         phase = np.radians(p["cycle_phase_deg"])
         # g sin(w t + phi) = g cos(phi) sin(w t) + g sin(phi) cos(w t)
@@ -78,7 +76,7 @@ class Drift(Effect):
             ]
         )
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         c = np.asarray(coef, dtype=float)
         stylus_cycle, head_cycle = np.hypot(c[2], c[3]), np.hypot(c[6], c[7])
         # One phase for the room's cycle: from whichever part carries more of it.
@@ -91,9 +89,12 @@ class Drift(Effect):
             "head_step_um": float(c[5]),
             "head_cycle_um": float(head_cycle),
             "cycle_phase_deg": float(np.degrees(np.arctan2(k, s)) % 360.0),
-            "tau_s": float(structural.get("tau_s", self.params["tau_s"])),
-            "cycle_period_s": float(structural.get("cycle_period_s", self.params["cycle_period_s"])),
+            "tau_s": self.params["tau_s"],
+            "cycle_period_s": self.params["cycle_period_s"],
         }
+
+    def evidence(self, touches: Touches) -> Evidence:
+        return Evidence("time of the touch (s)", touches.times_s)
 
 
 class RingForm(Effect):
@@ -111,7 +112,6 @@ class RingForm(Effect):
         Parameter("upr_min", "UPR", 2.0, "lowest harmonic of the form"),
         Parameter("upr_max", "UPR", 15.0, "highest harmonic of the form"),
     )
-    structural: dict[str, tuple] = {}
 
     def _orders(self) -> NDArray[np.float64]:
         lo, hi = int(self.params["upr_min"]), int(self.params["upr_max"])
@@ -119,7 +119,7 @@ class RingForm(Effect):
             raise InputError("ring_form: need 2 <= upr_min <= upr_max", column="upr_min")
         return np.arange(lo, hi + 1, dtype=float)
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         n = self._orders()
         theta = np.radians(touches.theta_deg)[:, None] * n  # (n_pt, n_h)
         cols = np.empty((touches.theta_deg.size, 2 * n.size))
@@ -128,7 +128,7 @@ class RingForm(Effect):
         names = [f"ring_{trig}{k:g}theta" for k in n for trig in ("cos", "sin")]
         return np.ascontiguousarray(np.broadcast_to(cols, touches.shape + cols.shape[-1:])), names
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         n = self._orders()
         rng = np.random.default_rng(int(self.params["shape_seed"]))
         amplitude = rng.uniform(0.5, 1.0, n.size) / n  # falling with order
@@ -137,7 +137,7 @@ class RingForm(Effect):
         coef[0::2], coef[1::2] = amplitude * np.cos(phase), amplitude * np.sin(phase)
         return coef * (self.params["form_um"] / _peak_to_valley(coef, n))
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         n = self._orders()
         coef = np.asarray(coef, dtype=float)
         out = {"form_um": _peak_to_valley(coef, n)}

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Parameter, full_shape
+from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape
 from ph_explorer.kinematics import Touches
 
-# Harmonics of the three-seat support function that the basis keeps (physics.md).
+# Harmonics of the three-seat support function that the basis keeps (docs/physics.md).
 SEAT_HARMONICS = (3, 6, 9, 12)
 
 
@@ -94,18 +92,18 @@ class Noise(Effect):
         "0.044 um against the mean of 10."
     )
     parameters = (Parameter("sigma_um", "um", 0.175, "standard deviation of one touch"),)
-    structural: dict[str, tuple] = {}
+    candidate = False  # pure noise: nothing a model can add
 
     def forward(self, touches: Touches, rng: np.random.Generator) -> NDArray[np.float64]:
         return rng.normal(0.0, self.params["sigma_um"], size=touches.shape)
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         return np.zeros(touches.shape + (0,)), []
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         return np.zeros(0)
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         return {}
 
 
@@ -127,22 +125,24 @@ class Lobing(Effect):
         Parameter("amplitude_um", "um", 0.25, "3-UPR amplitude of the pre-travel variation in psi at full lateral share"),
         Parameter("seat_phase_deg", "deg", 0.0, "azimuth of the first seat in the probe frame"),
     )
-    structural: dict[str, tuple] = {}
 
     def forward(self, touches: Touches, rng: np.random.Generator) -> NDArray[np.float64]:
         h = support_function(np.radians(touches.psi_deg), np.radians(self.params["seat_phase_deg"]))
         p = self.params["amplitude_um"] / H3 * (h - support_fourier(0)) * lateral_share(touches)
         return full_shape(p, touches)
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         cols, names = lobing_columns(touches, lateral_share(touches))
         return cols, [f"lobing_{n}" for n in names]
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         return lobing_coefficients(self.params["amplitude_um"], self.params["seat_phase_deg"])
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         return lobing_from_coefficients(coef)
+
+    def evidence(self, touches: Touches) -> Evidence:
+        return Evidence("force azimuth psi in the probe frame (deg)", touches.psi_deg)
 
 
 class Gravity(Effect):
@@ -164,7 +164,6 @@ class Gravity(Effect):
         Parameter("lobing_um", "um", 0.1, "extra 3-UPR lobing amplitude at A = 90 (scales with sin A)"),
         Parameter("seat_phase_deg", "deg", 0.0, "azimuth of the first seat in the probe frame"),
     )
-    structural: dict[str, tuple] = {}
 
     def _directional(self, touches: Touches) -> NDArray[np.float64]:
         # Unit lateral force direction (probe x-y) dotted with the lateral gravity vector.
@@ -180,16 +179,19 @@ class Gravity(Effect):
         lobes = self.params["lobing_um"] / H3 * (h - support_fourier(0)) * self._lobing_weight(touches)
         return full_shape(self.params["directional_um"] * self._directional(touches) + lobes, touches)
 
-    def basis(self, touches: Touches, **structural: Any) -> tuple[NDArray[np.float64], list[str]]:
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         lobes, names = lobing_columns(touches, self._lobing_weight(touches))
         directional = full_shape(self._directional(touches)[..., None], touches)
         return np.concatenate([directional, lobes], axis=-1), ["gravity_directional"] + [f"gravity_{n}" for n in names]
 
-    def coefficients(self, **structural: Any) -> NDArray[np.float64]:
+    def coefficients(self) -> NDArray[np.float64]:
         lobes = lobing_coefficients(self.params["lobing_um"], self.params["seat_phase_deg"])
         return np.concatenate([[self.params["directional_um"]], lobes])
 
-    def from_coefficients(self, coef: NDArray[np.float64], **structural: Any) -> dict[str, float]:
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
         coef = np.asarray(coef, dtype=float)
         lobes = lobing_from_coefficients(coef[1:])
         return {"directional_um": float(coef[0]), "lobing_um": lobes.pop("amplitude_um"), **lobes}
+
+    def evidence(self, touches: Touches) -> Evidence:
+        return Evidence("nominal A0 (deg)", np.broadcast_to(touches.orientations[:, :1, None], touches.a_deg.shape))

@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.kinematics import Touches
+from ph_explorer.kinematics import Touches, campaign_touches
 
 
 def as_orientations(orientations: ArrayLike) -> NDArray[np.float64]:
@@ -102,6 +102,12 @@ class DeviationModel(ABC):
         n_o, n_rep, n_pt = touches.shape
         curve = self.predict(touches.orientations, n_points=n_pt)
         return np.broadcast_to(curve[:, None, :], (n_o, n_rep, n_pt)).copy()
+
+    def predict_held_out(self, campaign: Campaign, rings: NDArray[np.int64]) -> NDArray[np.float64]:
+        """(m, n_rep, n_pt): every touch of the given rings of the campaign this model was fitted on,
+        each as out of sample as the model can make it (a hybrid leaves each ring out of its
+        physical fit); by default the model's predictions, which never saw the held-out rings."""
+        return self.predict_touches(campaign_touches(campaign.subset(rings)))
 
     def simulate(
         self,

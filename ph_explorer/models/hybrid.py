@@ -5,9 +5,9 @@ columns computed from the kinematics of every touch; the data-driven part (the t
 the network) learns what remains over the nominal orientations.
 
 The physical coefficients are fitted jointly with the data-driven part (Frisch-Waugh-Lovell, see
-ph_explorer.outofsample): what the out-of-sample smoother cannot predict of the deviations is
+ph_explorer.models.design): what the out-of-sample smoother cannot predict of the deviations is
 fitted on what it cannot predict of the basis columns, over every ring (the held-out rings'
-residuals included: they say most about what interpolation misses; `check_mae` keeps their
+residuals included: they say most about what interpolation misses; predict_held_out keeps their
 evaluation honest by leaving each one out of the physical fit). The data-driven part then learns
 the deviations minus the physical terms from the training rings only. The physical fit is linear
 least squares: a change of effects refits in about a second on a paper-size campaign.
@@ -15,32 +15,33 @@ least squares: a change of effects refits in about a second on a paper-size camp
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, Self
 
-import json
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.effects import CATALOG, Effect
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
+from ph_explorer.models import design
 from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
-from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer import outofsample
-from ph_explorer.outofsample import Design, OutOfSampleSmoother
+from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.design import Design
+from ph_explorer.models.folder import MODEL_TYPES
 
 
-def fitted_basis(effect: Effect, touches: Touches, structural: dict[str, Any] | None = None) -> tuple[NDArray, list[str]]:
+def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     """An effect's basis columns as they appear in deviations: after each repetition's circle fit.
 
     Returns (n_o, n_rep, n_pt, n_cols) and the column names.
     """
-    columns, names = effect.basis(touches, **(structural or {}))
+    columns, names = effect.basis(touches)
     columns = np.broadcast_to(columns, touches.shape + columns.shape[3:])
     # The circle fit acts along the points: move the column axis out of the way and back.
     fitted = remove_size_and_centre(np.moveaxis(columns, -1, -2))
@@ -48,6 +49,7 @@ def fitted_basis(effect: Effect, touches: Touches, structural: dict[str, Any] | 
 
 
 SUBFOLDER = "hybrid"
+DataModel = str | DeviationModel | Callable[[], DeviationModel]
 
 
 class HybridModel(DeviationModel):
@@ -58,23 +60,19 @@ class HybridModel(DeviationModel):
     def __init__(
         self,
         effects: Sequence[Effect] = (),
-        data_model: str | DeviationModel | Callable[[], DeviationModel] = "trilinear",
-        structural: Sequence[dict[str, Any]] | None = None,
+        data_model: DataModel = "trilinear",
         progress: Callable[[str, float], None] | None = None,
     ) -> None:
-        self.effects = list(effects)
-        self.structural = [dict(s) for s in structural] if structural is not None else [
-            effect.structural_values() for effect in self.effects
-        ]
-        self.data_model: DeviationModel = _make_data_model(data_model)
+        self.effects = list(effects)  # each at its own settings (e.g. cycles per revolution)
+        self.data_model: DeviationModel = make_data_model(data_model)
         self.coefficients_: NDArray[np.float64] = np.zeros(0)
         self.geometry: Geometry = DEFAULT_GEOMETRY
         self.progress = progress
-        # What fit leaves for the held-out evaluation (check_predictions); None after load.
+        # What fit leaves for the held-out evaluation (predict_held_out); None after load.
         self.smoother_: OutOfSampleSmoother | None = None
         self.fit_design_: Design | None = None
         self.fit_targets_: Design | None = None
-        self.ridge_ = 0.0  # penalty chosen by leave-one-ring-out (outofsample.choose_ridge)
+        self.ridge_ = 0.0  # penalty chosen by leave-one-ring-out (design.choose_ridge)
         self.widths_: list[int | None] = [None] * len(self.effects)  # basis columns per effect, set by fit
         self.n_points = 64
 
@@ -82,24 +80,23 @@ class HybridModel(DeviationModel):
     def physical_basis(self, touches: Touches) -> NDArray[np.float64]:
         """All effects' fitted basis columns side by side, (n_o, n_rep, n_pt, n_cols).
 
-        At touches without times (a prediction at an orientation nobody measured) an effect that
-        needs them (drift) contributes nothing: when it will be measured is unknown.
+        At touches that lack what an effect needs (no touch times at an orientation nobody
+        measured) a fitted effect contributes nothing: when it will be measured is unknown.
         """
-        blocks, names = [], []
-        for index, (effect, structural) in enumerate(zip(self.effects, self.structural)):
-            try:
-                cols, cols_names = fitted_basis(effect, touches, structural)
-                self.widths_[index] = cols.shape[-1]
-            except InputError:
-                if touches.times_s is not None or self.widths_[index] is None:
-                    raise
-                cols, cols_names = np.zeros(touches.shape + (self.widths_[index],)), []
+        blocks = []
+        for index, effect in enumerate(self.effects):
+            unmet = effect.unmet_needs(touches)
+            if unmet:
+                if self.widths_[index] is None:
+                    raise InputError(f"effect {effect.id!r} {'; '.join(unmet)}")
+                blocks.append(np.zeros(touches.shape + (self.widths_[index],)))
+                continue
+            cols, _ = fitted_basis(effect, touches)
+            self.widths_[index] = cols.shape[-1]
             blocks.append(cols)
-            names += cols_names
         if not blocks:
             return np.zeros(touches.shape + (0,))
         return np.concatenate(blocks, axis=-1)
-
     def physical_part(self, touches: Touches) -> NDArray[np.float64]:
         """The physical terms' deviations at every touch, (n_o, n_rep, n_pt) um."""
         if not self.effects:
@@ -109,9 +106,9 @@ class HybridModel(DeviationModel):
     def effect_parameters(self) -> list[dict[str, Any]]:
         """Each effect's fitted physical parameters (units of its Parameter list)."""
         out, start = [], 0
-        for effect, structural, width in zip(self.effects, self.structural, self.widths_):
+        for effect, width in zip(self.effects, self.widths_):
             coef = self.coefficients_[start : start + width]
-            out.append({"effect": effect.id, "params": effect.from_coefficients(coef, **structural)})
+            out.append({"effect": effect.id, "params": effect.from_coefficients(coef)})
             start += width
         return out
 
@@ -126,8 +123,8 @@ class HybridModel(DeviationModel):
         if self.effects:
             self._report("physical terms", 0.0)
             self.fit_design_ = Design(self.physical_basis(touches), self.smoother_)
-            self.ridge_ = outofsample.choose_ridge(self.fit_design_, self.fit_targets_)
-            self.coefficients_ = outofsample.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
+            self.ridge_ = design.choose_ridge(self.fit_design_, self.fit_targets_)
+            self.coefficients_ = design.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
             remainder = campaign.deviations - self.physical_part(touches)
         else:
             self.fit_design_ = None
@@ -141,7 +138,7 @@ class HybridModel(DeviationModel):
         self._report("done", 1.0)
         return self
 
-    def check_predictions(self, campaign: Campaign, rings: NDArray[np.int64]) -> NDArray[np.float64]:
+    def predict_held_out(self, campaign: Campaign, rings: NDArray[np.int64]) -> NDArray[np.float64]:
         """Predictions (m, n_rep, n_pt) of the given rings with each ring left out of the physical fit.
 
         The data-driven part is the one fitted (on the training rings); its dependence on the
@@ -151,10 +148,10 @@ class HybridModel(DeviationModel):
         data = self.data_model.predict(touches.orientations, n_points=touches.shape[2])[:, None, :]
         fitted_here = self.smoother_ is not None and self.smoother_.weights.shape[0] == campaign.n_orientations
         if not fitted_here:
-            raise ValueError("check_predictions needs the hybrid fitted on this campaign (fit, not load)")
+            raise ValueError("predict_held_out needs the hybrid fitted on this campaign (fit, not load)")
         if not self.effects:
             return np.broadcast_to(data, touches.shape).copy()
-        coef = outofsample.jackknife(self.fit_design_, self.fit_targets_, rings, self.ridge_)  # (m, c)
+        coef = design.jackknife(self.fit_design_, self.fit_targets_, rings, self.ridge_)  # (m, c)
         basis = self.physical_basis(touches)  # (m, n_rep, n_pt, c)
         own = np.einsum("orpc,oc->orp", basis, coef)
         full = self.physical_basis(campaign_touches(campaign)).mean(axis=1)
@@ -193,8 +190,8 @@ class HybridModel(DeviationModel):
             "data_model": self.data_model.name,
             "geometry": self.geometry.as_dict(),
             "effects": [
-                {"id": e.id, "structural": s, "params": p["params"]}
-                for e, s, p in zip(self.effects, self.structural, self.effect_parameters())
+                {"id": e.id, "settings": e.settings(), "params": p["params"]}
+                for e, p in zip(self.effects, self.effect_parameters())
             ],
             "coefficients": self.coefficients_.tolist(),
             "widths": self.widths_,
@@ -204,14 +201,15 @@ class HybridModel(DeviationModel):
         return path
 
     @classmethod
-    def load(cls, directory: str | Path) -> Self:
+    def load(cls, directory: str | Path, catalog: Catalog = DEFAULT_CATALOG) -> Self:
+        """Read a hybrid written by save; its effects come from `catalog` (with the user's file, if any)."""
         directory = Path(directory) / SUBFOLDER
         record = json.loads((directory / "hybrid.json").read_text())
-        unknown = [e["id"] for e in record["effects"] if e["id"] not in CATALOG]
+        unknown = [e["id"] for e in record["effects"] if e["id"] not in catalog]
         if unknown:
-            raise InputError(f"effect {unknown[0]!r} is not in the catalog (load its --effects file first)", file=str(directory))
-        effects = [CATALOG[e["id"]]() for e in record["effects"]]
-        model = cls(effects, record["data_model"], [e["structural"] for e in record["effects"]])
+            raise InputError(f"effect {unknown[0]!r} is not in the catalog (give its --effects file)", file=str(directory))
+        effects = [catalog[e["id"]](**e["settings"]) for e in record["effects"]]
+        model = cls(effects, record["data_model"])
         model.data_model = type(model.data_model).load(directory)
         model.geometry = Geometry(**record["geometry"])
         model.n_points = model.geometry.points_per_circle
@@ -221,16 +219,12 @@ class HybridModel(DeviationModel):
         return model
 
 
-def _make_data_model(data_model: str | DeviationModel | Callable[[], DeviationModel]) -> DeviationModel:
+def make_data_model(data_model: DataModel) -> DeviationModel:
     """The data-driven part: a model, a factory of one (e.g. a network with a progress bar), or its name."""
     if isinstance(data_model, DeviationModel):
         return data_model
     if callable(data_model):
         return data_model()
-    if data_model == "trilinear":
-        return TrilinearModel()
-    if data_model == "network":
-        from ph_explorer.models.network import FourierNetwork
-
-        return FourierNetwork()
-    raise ValueError(f"unknown data-driven model {data_model!r} (trilinear or network)")
+    if data_model not in MODEL_TYPES:
+        raise ValueError(f"unknown data-driven model {data_model!r} ({' or '.join(MODEL_TYPES)})")
+    return MODEL_TYPES[data_model][0]()

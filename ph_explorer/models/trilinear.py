@@ -21,7 +21,7 @@ from typing import Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.campaign import Campaign, lattice_axes
+from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_keys
 from ph_explorer.geometry import point_angles_deg, wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
@@ -103,7 +103,7 @@ class TrilinearModel(DeviationModel):
             raise ValueError("the trilinear model needs at least one training orientation")
         orientations = campaign.orientations[mask]
         a_axis, b_values = lattice_axes(orientations)
-        b_axis = np.unique(np.round(wrap_deg(b_values), 6))
+        b_axis = np.unique(orientation_keys(wrap_deg(b_values)))
         # Node index of each training orientation, or -1 off the lattice.
         ia = _node_index(orientations[:, 0], a_axis)
         ib = _node_index(wrap_deg(orientations[:, 1]), b_axis)
@@ -198,7 +198,7 @@ class TrilinearModel(DeviationModel):
         return model
 
 
-def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64], atol: float = 1e-6) -> NDArray[np.int64]:
+def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.int64]:
     """Index of each value on the axis, -1 when it is not a node."""
-    hit = np.isclose(values[:, None], axis[None, :], atol=atol)
+    hit = np.abs(values[:, None] - axis[None, :]) <= ORIENTATION_TOLERANCE_DEG
     return np.where(hit.any(axis=1), hit.argmax(axis=1), -1)

@@ -1,58 +1,20 @@
-"""Out-of-sample residuals and the least squares of physical terms on them.
+"""The least squares of physical terms on out-of-sample residuals.
 
-The data-driven baselines predict a ring from the other rings. What they cannot predict of a
-ring, its out-of-sample residual, is where a missing physical effect shows (physics.md): here
-training rings are predicted by leave-one-orientation-out (the group-wise cross-validation of a
-lattice method) and held-out rings by all training rings, both with the trilinear interpolator,
-which is linear in its data and so a matrix W over orientations.
-
-A physical effect's basis columns go through the same W, so that a term is only credited with
-what the baseline does not already capture; its coefficients are then the least squares of the
-residual on the residualised columns (Frisch-Waugh-Lovell: the joint fit of the physical terms
-with the data-driven part). Sums over single touches split into the repetition mean and the part
-that changes between repetitions (sum over reps |x|^2 = n_rep |mean|^2 + |within|^2), so every
-product is taken on the small mean part, and on the within part only for effects that change
-between repetitions.
+A physical effect's basis columns go through the out-of-sample smoother W of the data-driven part
+(ph_explorer.models.crossval), so that a term is only credited with what that part does not
+already capture; its coefficients are then the least squares of the residual on the residualised
+columns (Frisch-Waugh-Lovell: the joint fit of the physical terms with the data-driven part).
+Sums over single touches split into the repetition mean and the part that changes between
+repetitions (sum over reps |x|^2 = n_rep |mean|^2 + |within|^2), so every product is taken on the
+small mean part, and on the within part only for effects that change between repetitions.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from ph_explorer.campaign import Campaign
-from ph_explorer.models.base import as_orientations
-from ph_explorer.models.trilinear import TrilinearModel
-
-
-class OutOfSampleSmoother:
-    """W (n_o x n_o): row i predicts orientation i from the training orientations other than i."""
-
-    def __init__(self, orientations: ArrayLike, train: ArrayLike) -> None:
-        o = as_orientations(orientations)
-        n = len(o)
-        train = np.asarray(train, dtype=bool)
-        # The trilinear model is linear in its data: fitted on unit vectors it gives its weights.
-        identity = Campaign(o, np.eye(n)[:, None, :])
-        weights = np.zeros((n, n))
-        outside = np.flatnonzero(~train)
-        if outside.size:
-            weights[outside] = TrilinearModel().fit(identity, train).interpolate(o[outside])
-        for i in np.flatnonzero(train):
-            others = train.copy()
-            others[i] = False
-            if others.any():
-                weights[i] = TrilinearModel().fit(identity, others).interpolate(o[i : i + 1])[0]
-        self.weights = weights
-        self.train = train
-
-    def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Out-of-sample prediction of values shaped (n_o, ...)."""
-        return np.tensordot(self.weights, values, axes=(1, 0))
-
-    def residual(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
-        """values (n_o, n_rep, n_pt, ...) minus the out-of-sample prediction of their repetition mean."""
-        return values - self.predict(values.mean(axis=1))[:, None]
+from ph_explorer.models.crossval import OutOfSampleSmoother
 
 
 class Design:

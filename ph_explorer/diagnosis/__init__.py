@@ -1,0 +1,24 @@
+"""See where a model fails, find the missing physical effect, add it, and watch the error fall.
+
+results (what a diagnosis finds, as data), search (which effect is missing), evidence (a
+candidate's signature binned against its own variable), loop (diagnose, add_effects).
+"""
+
+from ph_explorer.diagnosis.loop import add_effects, diagnose, failing_orientations, repetition_sigma
+from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
+
+__all__ = [
+    "MATERIAL_REDUCTION",
+    "NULL_DRAWS",
+    "NULL_MARGIN",
+    "Candidate",
+    "CandidateSearch",
+    "Diagnosis",
+    "Step",
+    "add_effects",
+    "diagnose",
+    "failing_orientations",
+    "rank_candidates",
+    "repetition_sigma",
+]

@@ -1,0 +1,189 @@
+"""The loop: see where a model fails, find the missing physical effect, add it, watch the error fall.
+
+1. Where it fails: the out-of-sample error at every orientation. Training orientations are
+   predicted by leave-one-orientation-out (group-wise cross-validation) of the lattice interpolator,
+   held-out (check) orientations by the model fitted on all training orientations. Each error is
+   read against its own noise floor: a leave-one-out prediction carries the noise of the
+   neighbours it is made of, so its floor is E|e| of that combined noise.
+2. Which effect is missing: ph_explorer.diagnosis.search.
+3. Add it: a HybridModel with the chosen effects + the data-driven part.
+4. Watch the error fall: the check-ring MAE of each step against both references and the floors.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer import metrics
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
+from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.errors import InputError
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.crossval import held_out_mae
+from ph_explorer.models.hybrid import DataModel, HybridModel
+
+
+def repetition_sigma(campaign: Campaign, model: HybridModel | None = None) -> float:
+    """Pooled repetition sigma per touch (um) of what the model's physical terms leave.
+
+    Terms that change between repetitions (direction with an alternating scan, drift) inflate the
+    raw repetition spread; once they are modelled, the noise floor is read from what remains.
+    """
+    if model is None or not model.effects:
+        return campaign.noise_sigma_um()
+    return metrics.pooled_sigma(campaign.deviations - model.physical_part(campaign_touches(campaign)))
+
+
+def failing_orientations(mae: NDArray[np.float64], floor: NDArray[np.float64], n_points: int) -> NDArray[np.bool_]:
+    """Orientations whose MAE exceeds their floor by more than 4 standard errors of an N-point MAE.
+
+    For Gaussian errors |e| has relative spread sqrt(pi/2 - 1) ~ 0.76; the MAE of N points has
+    that spread over sqrt(N).
+    """
+    return mae > floor * (1.0 + 4.0 * math.sqrt(math.pi / 2.0 - 1.0) / math.sqrt(n_points))
+
+
+def out_of_sample_figures(
+    search: CandidateSearch, campaign: Campaign, baseline: DeviationModel | None, held_out: NDArray[np.bool_]
+) -> tuple[dict[str, NDArray[np.float64]], dict[str, NDArray[np.float64]]]:
+    """Each ring's out-of-sample MAE and its own floor, against the mean and single repetitions.
+
+    baseline: a model of another kind than the trilinear interpolator, which then speaks for
+    itself at the check rings; None when the baseline is the interpolator itself.
+    """
+    sigma, n_rep = campaign.noise_sigma_um(), campaign.n_repetitions
+    # A prediction made of neighbours carries their noise: E|e| of both together is the floor.
+    weights_sq = (search.smoother.weights**2).sum(axis=1)
+    mae = metrics.ring_mae(campaign.deviations - search.residual, campaign.deviations)
+    floors = {
+        "mean": metrics.MEAN_ABS_PER_SIGMA * sigma * np.sqrt((1 + weights_sq) / n_rep),
+        "single": metrics.MEAN_ABS_PER_SIGMA * sigma * np.sqrt(1 + weights_sq / n_rep),
+    }
+    if baseline is not None:
+        rings = np.flatnonzero(held_out)
+        own = metrics.ring_mae(baseline.predict_held_out(campaign, rings), campaign.deviations[rings])
+        floor = metrics.noise_floor(sigma, n_rep)
+        for reference in metrics.REFERENCES:
+            mae[reference][held_out] = own[reference]
+            floors[reference][held_out] = floor[reference]
+    return mae, floors
+
+
+def add_effects(
+    campaign: Campaign,
+    effects: Sequence[Effect],
+    data_model: DataModel = "trilinear",
+    progress: Callable[[str, float], None] | None = None,
+) -> tuple[HybridModel, Step]:
+    """Fit the hybrid with these physical effects (each at its own settings) on the campaign and
+    measure it on the held-out rings.
+
+    Returns the fitted model and its Step (MAE against both references, and the noise floor of
+    what its physical terms leave).
+    """
+    held_out = campaign.holdout_mask()
+    hybrid = HybridModel(list(effects), data_model, progress=progress).fit(campaign, ~held_out)
+    floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
+    step = Step([e.id for e in effects], held_out_mae(hybrid, campaign, held_out), floor, hybrid.effect_parameters())
+    return hybrid, step
+
+
+def diagnose(
+    campaign: Campaign,
+    add: Sequence[str] | None = None,
+    baseline: DeviationModel | None = None,
+    data_model: DataModel = "trilinear",
+    catalog: Catalog = DEFAULT_CATALOG,
+    max_steps: int = 3,
+    progress: Callable[[str], None] | None = None,
+    seed: int = 0,
+) -> Diagnosis:
+    """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
+
+    add: effect ids to add in that order; None adds the best significant candidate, then searches
+    again, until no candidate is left (at most max_steps effects).
+    baseline: a trained model to start from (default: the trilinear model fitted on the training
+    orientations).
+    catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
+    """
+    held_out = campaign.holdout_mask()
+    train = ~held_out
+    if train.sum() < 4:
+        raise InputError("too few training orientations to diagnose (need at least 4 off the held-out set)", file=campaign.source)
+    if not held_out.any():
+        raise InputError(
+            "no held-out orientation to measure the error on: give check orientations in the sidecar or off-grid rings",
+            file=campaign.source,
+        )
+    candidates_by_id = catalog.candidates()
+    for effect_id in add or []:
+        if effect_id not in catalog:
+            raise catalog.unknown(effect_id, column=None)
+        if effect_id not in candidates_by_id:
+            raise InputError(f"effect {effect_id!r} cannot be added to a model: {catalog[effect_id].name} is not systematic")
+    effects = [cls() for cls in candidates_by_id.values()]
+    by_id = {e.id: e for e in effects}
+
+    if baseline is None:
+        baseline = HybridModel([], data_model).fit(campaign, train)
+        baseline_name = baseline.data_model.name
+    else:
+        baseline_name = baseline.name
+    baseline_mae = held_out_mae(baseline, campaign, held_out)
+
+    # 1. where it fails: leave-one-out residuals at training rings, the training fit at check rings.
+    search = CandidateSearch(campaign, train, seed)
+    interpolator = search.smoother.model_name
+    mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
+    failing = np.zeros(campaign.n_orientations, dtype=bool)
+    for reference in metrics.REFERENCES:
+        failing |= failing_orientations(mae[reference], floors[reference], campaign.n_points)
+
+    # 2. which effect is missing
+    candidates = rank_candidates(search, effects, progress=progress)
+    verdict = "missing" if candidates and candidates[0].significant else "none"
+
+    # 3 + 4. add effects one at a time, each step refitted and measured on the check rings
+    floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
+    steps = [Step([], baseline_mae, floor)]
+    chosen: list[Effect] = []
+    hybrid = None
+    scan = {c.effect: c for c in candidates}
+    remaining = list(candidates)
+    for position in range(len(add) if add is not None else max_steps):
+        if add is not None:
+            pick = scan.get(add[position]) or Candidate.untested(add[position], "", "")
+        else:
+            if not remaining or not remaining[0].significant:
+                break
+            pick = remaining[0]
+        chosen.append(by_id[pick.effect].with_settings(**pick.settings))
+        hybrid, step = add_effects(campaign, chosen, data_model)
+        steps.append(step)
+        if add is None:
+            # Search again with the chosen columns in the model.
+            others = [e for e in effects if e.id not in {c.id for c in chosen}]
+            remaining = rank_candidates(search, others, fixed=search.design(chosen), progress=progress)
+
+    return Diagnosis(
+        # The touch noise once the modelled effects that change between repetitions are taken out.
+        noise_floor_um=steps[-1].noise_floor_um,
+        baseline_model=baseline_name,
+        baseline_mae_um=baseline_mae,
+        candidates=candidates,
+        verdict=verdict,
+        steps=steps,
+        orientations=campaign.orientations,
+        out_of_sample_mae_um=mae,
+        out_of_sample_floor_um=floors,
+        failing=failing,
+        held_out=held_out,
+        hybrid=hybrid,
+    )

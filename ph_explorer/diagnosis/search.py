@@ -1,0 +1,172 @@
+"""Which effect is missing: every candidate effect competes for what the baseline cannot predict
+out of sample.
+
+Its basis columns are put through the same out-of-sample smoother as the data, so that an effect
+is only credited with what the baseline does not already capture (docs/physics.md). The values of
+its scanned parameters are tried one by one (cycles per revolution 1-40 for the cyclic errors). A
+candidate counts only when it explains more than the same scan explains on pure noise of the
+campaign's own repetition sigma (Monte Carlo, a look-elsewhere-corrected test), and when adding it
+lowers the out-of-sample rms error against the reference that exposes it materially
+(MATERIAL_REDUCTION).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.evidence import binned_evidence
+from ph_explorer.diagnosis.results import Candidate
+from ph_explorer.effects import Effect
+from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models import design as least_squares
+from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.design import Design
+from ph_explorer.models.hybrid import fitted_basis
+
+# Monte Carlo draws of pure noise for the significance of a candidate's scan.
+NULL_DRAWS = 39
+# A candidate must explain more than this multiple of the most that pure noise explained in the
+# same scan (a look-elsewhere-corrected significance test) ...
+NULL_MARGIN = 2.0
+# ... and lower the out-of-sample rms error against the reference that exposes it by at least this
+# fraction: less is within what a user would see as the model's normal scatter, not a missing effect.
+MATERIAL_REDUCTION = 0.15
+# Significant scan values of one effect tried for materiality, most explained first.
+MAX_MATERIAL_TRIALS = 8
+
+
+def _rms(x: NDArray[np.float64]) -> float:
+    return float(np.sqrt(np.mean(x**2)))
+
+
+class CandidateSearch:
+    """Scores candidate effects against what the baseline cannot predict out of sample."""
+
+    def __init__(self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0) -> None:
+        self.campaign = campaign
+        self.train = np.asarray(train, dtype=bool)
+        self.held_out = np.flatnonzero(~self.train)
+        # Every ring's out-of-sample residual: leave-one-out at training rings, the whole training
+        # set at held-out rings (whose measurements never enter a data-driven fit).
+        self.touches = campaign_touches(campaign)
+        self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
+        self.residual = self.smoother.residual(campaign.deviations)
+        sigma = campaign.noise_sigma_um()
+        self.sigma = sigma if np.isfinite(sigma) and sigma > 0 else float(np.std(self.residual))
+        n_o, n_rep, n_pt = campaign.deviations.shape
+        rng = np.random.default_rng(seed)
+        # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother.
+        inflate = math.sqrt(n_pt / max(n_pt - 3, 1))
+        noise = remove_size_and_centre(rng.standard_normal((n_o, n_rep, NULL_DRAWS, n_pt)) * self.sigma * inflate)
+        noise = np.moveaxis(self.smoother.residual(noise), 2, -1)  # (n_o, n_rep, n_pt, draws)
+        # Column 0: the data's residual; the others: what noise alone would leave.
+        self.targets = Design(np.concatenate([self.residual[..., None], noise], axis=-1), None)
+
+    def design(self, effects: Sequence[Effect]) -> Design:
+        """The effects' fitted basis columns, side by side, through the smoother."""
+        columns = [fitted_basis(effect, self.touches)[0] for effect in effects]
+        return Design(np.concatenate(columns, axis=-1), self.smoother)
+
+    def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:
+        """The candidate's best scan value, beyond the columns `fixed` already in the model.
+
+        Every scan value is tested against pure noise; among the significant ones (most explained
+        first, at most MAX_MATERIAL_TRIALS) the first that also lowers the held-out error
+        materially is chosen, so that a large but harmless component of the same effect (a
+        low-order cyclic error the grid resolves) does not hide a short-period one that it does not.
+        """
+        unmet = effect.unmet_needs(self.touches)
+        if unmet:
+            return Candidate.untested(effect.id, effect.name, effect.teaching, note=f"the {effect.id} effect {'; '.join(unmet)}")
+        total_all = self.targets.total()
+        base = least_squares.fit(fixed, self.targets)[1] if fixed is not None else np.zeros_like(total_all)
+        total = float(total_all[0] - base[0])
+        scanned: list[tuple[float, dict[str, Any]]] = []
+        null_best = np.zeros(NULL_DRAWS)
+        for settings in effect.scan_grid():
+            design = self.design([effect.with_settings(**settings)])
+            if not design.n_columns:
+                continue
+            joint = design if fixed is None else fixed.stacked(design)
+            explained = least_squares.fit(joint, self.targets)[1] - base
+            null_best = np.maximum(null_best, explained[1:])
+            scanned.append((float(explained[0]), settings))
+        if not scanned:
+            return Candidate.untested(effect.id, effect.name, effect.teaching)
+        scanned.sort(key=lambda item: item[0], reverse=True)
+        threshold = NULL_MARGIN * float(null_best.max())
+        trials = [item for item in scanned if item[0] > threshold][:MAX_MATERIAL_TRIALS] or scanned[:1]
+        before = self.check_residual(fixed)
+        chosen = None
+        for explained, settings in trials:
+            design = self.design([effect.with_settings(**settings)])
+            joint = design if fixed is None else fixed.stacked(design)
+            reduction = self.check_reduction(joint, before)
+            if chosen is None or (reduction >= MATERIAL_REDUCTION and chosen[2] < MATERIAL_REDUCTION):
+                chosen = (explained, settings, reduction, design, joint)
+            if reduction >= MATERIAL_REDUCTION:
+                break
+        explained, settings, reduction, design, joint = chosen
+        own = least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0]
+        found = effect.with_settings(**settings)
+        return Candidate(
+            effect=effect.id,
+            name=effect.name,
+            explained_fraction=explained / max(total, 1e-300),
+            error_reduction=reduction,
+            noise_fraction=float(null_best.max() / max(total, 1e-300)),
+            significant=bool(explained > threshold and reduction >= MATERIAL_REDUCTION),
+            params={k: float(v) for k, v in found.from_coefficients(own).items()},
+            settings=settings,
+            teaching=effect.teaching,
+            evidence=self.evidence(found, design, own),
+        )
+
+    def check_residual(self, design: Design | None) -> tuple[NDArray, NDArray]:
+        """The held-out rings' residual (mean, single touches) left by design, each ring left out of its fit."""
+        residual = self.residual[self.held_out]
+        if design is not None and design.n_columns:
+            coef = least_squares.jackknife(design, self.targets, self.held_out)  # (m, c)
+            mean = np.einsum("opc,oc->op", design.mean[self.held_out], coef)
+            within = 0.0 if design.within is None else np.einsum("orpc,oc->orp", design.within[self.held_out], coef)
+            residual = residual - mean[:, None, :] - within
+        return residual.mean(axis=1), residual
+
+    def check_reduction(self, joint: Design, before: tuple[NDArray, NDArray]) -> float:
+        """How much the joint design lowers the held-out rings' rms error from `before` (a
+        check_residual), against the reference that exposes it: the repetition mean, or single
+        repetitions for what changes between them."""
+        mean_before, single_before = before
+        mean_after, single_after = self.check_residual(joint)
+        by_mean = 1.0 - _rms(mean_after) / max(_rms(mean_before), 1e-300)
+        by_single = 1.0 - _rms(single_after) / max(_rms(single_before), 1e-300)
+        return float(max(by_mean, by_single, 0.0))
+
+    def evidence(self, effect: Effect, design: Design, coef: NDArray[np.float64]) -> dict[str, Any]:
+        """The residual and the candidate's fitted terms, binned against the effect's own variable."""
+        mean, within = design.apply(coef)
+        fitted = mean[:, None, :] + (0.0 if within is None else within)
+        return binned_evidence(effect.evidence(self.touches), self.residual, fitted)
+
+
+def rank_candidates(
+    search: CandidateSearch,
+    effects: Sequence[Effect],
+    fixed: Design | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> list[Candidate]:
+    """Every given effect scored, best first (significant ones, then by the share of the residual it explains)."""
+    out = []
+    for effect in effects:
+        if progress is not None:
+            progress(effect.id)
+        out.append(search.score(effect, fixed))
+    out.sort(key=lambda c: (c.significant, c.explained_fraction), reverse=True)
+    return out

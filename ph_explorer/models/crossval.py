@@ -1,0 +1,96 @@
+"""Out-of-sample predictions for any DeviationModel: the one cross-validation of the project.
+
+In the spirit of scikit-learn's cross_val_predict with the orientation as the group: every
+training ring is predicted by the model fitted on the other training rings
+(leave-one-orientation-out), every held-out ring by the model fitted on all training rings (its
+measurements never enter a fit). What a model cannot predict of a ring out of sample is where a
+missing physical effect shows (docs/physics.md).
+
+A model that is linear in its data (the trilinear tables) also gives its out-of-sample weights W
+(n_o x n_o): row i predicts ring i from the others. The diagnosis and the hybrid put an effect's
+basis columns through the same W, so that an effect is only credited with what the model cannot
+already predict (Frisch-Waugh-Lovell).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer import metrics
+from ph_explorer.campaign import Campaign
+from ph_explorer.models.base import DeviationModel, as_orientations
+from ph_explorer.models.trilinear import TrilinearModel
+
+ModelFactory = Callable[[], DeviationModel]
+
+
+def _out_of_sample(
+    make_model: ModelFactory,
+    campaign: Campaign,
+    train: ArrayLike,
+    predict: Callable[[DeviationModel, NDArray[np.float64]], NDArray[np.float64]],
+) -> NDArray[np.float64]:
+    """predict(model, orientations) at every ring, the model fitted without it (see the module docstring).
+
+    A training ring with no other training ring to learn from is predicted as zero.
+    """
+    train = np.asarray(train, dtype=bool)
+    o = campaign.orientations
+    parts: list[tuple[NDArray[np.int64], NDArray[np.float64]]] = []
+    held_out = np.flatnonzero(~train)
+    if held_out.size and train.any():
+        parts.append((held_out, predict(make_model().fit(campaign, train), o[held_out])))
+    for i in np.flatnonzero(train):  # one fit per ring: a loop over rings, never over touches
+        others = train.copy()
+        others[i] = False
+        if others.any():
+            parts.append((np.array([i]), predict(make_model().fit(campaign, others), o[i : i + 1])))
+    width = parts[0][1].shape[1] if parts else campaign.n_points
+    out = np.zeros((campaign.n_orientations, width))
+    for rows, values in parts:
+        out[rows] = values
+    return out
+
+
+def cross_val_predict(make_model: ModelFactory, campaign: Campaign, train: ArrayLike) -> NDArray[np.float64]:
+    """Each ring's out-of-sample systematic curve (n_o, n_points) in um (see the module docstring)."""
+    return _out_of_sample(make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points))
+
+
+def held_out_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike) -> dict[str, float]:
+    """A fitted model's MAE (um) over the held-out rings (mask), against the repetition mean and single
+    repetitions, every touch predicted (physical terms may depend on the touch order and time)."""
+    rings = np.flatnonzero(np.asarray(mask, dtype=bool))
+    return metrics.mae(model.predict_held_out(campaign, rings), campaign.deviations[rings])
+
+
+def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike) -> NDArray[np.float64]:
+    """W (n_o x n_o) of the trilinear model: row i predicts orientation i out of sample.
+
+    The model is linear in its data: fitted on unit vectors (one per orientation, in place of the
+    points) its interpolation, before any circle fit, is its weights.
+    """
+    o = as_orientations(orientations)
+    identity = Campaign(o, np.eye(len(o))[:, None, :])
+    return _out_of_sample(TrilinearModel, identity, train, lambda model, at: model.interpolate(at))
+
+
+class OutOfSampleSmoother:
+    """W (n_o x n_o) and what it does to arrays over orientations (see out_of_sample_weights)."""
+
+    model_name = TrilinearModel.name  # the model whose out-of-sample predictions W makes
+
+    def __init__(self, orientations: ArrayLike, train: ArrayLike) -> None:
+        self.train = np.asarray(train, dtype=bool)
+        self.weights = out_of_sample_weights(orientations, self.train)
+
+    def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Out-of-sample prediction of values shaped (n_o, ...)."""
+        return np.tensordot(self.weights, values, axes=(1, 0))
+
+    def residual(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
+        """values (n_o, n_rep, n_pt, ...) minus the out-of-sample prediction of their repetition mean."""
+        return values - self.predict(values.mean(axis=1))[:, None]

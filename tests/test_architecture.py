@@ -1,0 +1,184 @@
+"""The package's layout holds: arrows point one way, viser stays in the app, effects stay in effects/.
+
+Read from the source with ast (nothing is imported), so a test fails on the line that breaks the rule.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+from ph_explorer.effects import DEFAULT_CATALOG
+
+PACKAGE = Path(__file__).resolve().parent.parent / "ph_explorer"
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def imported_names(path: Path) -> list[tuple[str, int]]:
+    """Every module an import statement names (anywhere in the file), with its line."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, node.lineno) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative import
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([node.module] if node.module else []))
+            found.append((base, node.lineno))
+            # `from ph_explorer.models import design` imports the module ph_explorer.models.design.
+            found += [(f"{base}.{alias.name}", node.lineno) for alias in node.names if f"{base}.{alias.name}" in MODULES]
+    return found
+
+
+def internal_graph() -> dict[str, set[str]]:
+    """Module -> the package modules it imports (a name resolves to the longest module prefix)."""
+    graph: dict[str, set[str]] = {}
+    for name, path in MODULES.items():
+        targets = set()
+        for imported, _ in imported_names(path):
+            parts = imported.split(".")
+            for cut in range(len(parts), 0, -1):
+                candidate = ".".join(parts[:cut])
+                if candidate in MODULES:
+                    if candidate != name:
+                        targets.add(candidate)
+                    break
+        graph[name] = targets
+    return graph
+
+
+def is_package_init(name: str) -> bool:
+    return name in MODULES and MODULES[name].name == "__init__.py"
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """A cycle of imports between modules, or None. A package's __init__ re-exporting its own
+    submodules is not an edge back to it (importing a submodule runs the parent's __init__ first)."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for target in sorted(graph[node]):
+            if is_package_init(target) and node.startswith(target + "."):
+                continue  # a submodule importing its own package's __init__ (usually a sibling)
+            if state.get(target) == 1:
+                return stack[stack.index(target) :] + [target]
+            if state.get(target) is None:
+                cycle = visit(target)
+                if cycle:
+                    return cycle
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            cycle = visit(node)
+            if cycle:
+                return cycle
+    return None
+
+
+def test_there_is_no_import_cycle():
+    graph = internal_graph()
+    assert {"ph_explorer.diagnosis.loop", "ph_explorer.cli", "ph_explorer.app.server"} <= set(graph)
+    assert find_cycle(graph) is None, " -> ".join(find_cycle(graph) or [])
+
+
+def test_the_cycle_finder_finds_a_cycle():
+    # The rule above must be able to fail.
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def test_viser_is_imported_only_in_the_app():
+    offenders = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}"
+        for name, path in MODULES.items()
+        if not name.startswith("ph_explorer.app")
+        for imported, line in imported_names(path)
+        if imported == "viser" or imported.startswith("viser.")
+    ]
+    assert not offenders, offenders
+
+
+def test_arrows_point_one_way_core_below_app_and_cli():
+    """The core never imports the app or the command line; the app never imports the command line."""
+    offenders = []
+    for name, path in MODULES.items():
+        for imported, line in imported_names(path):
+            # `python -m ph_explorer` runs the command line: __main__ stands with it.
+            core = not name.startswith(("ph_explorer.app", "ph_explorer.cli", "ph_explorer.__main__"))
+            if (core and imported.startswith(("ph_explorer.app", "ph_explorer.cli"))) or (
+                name.startswith("ph_explorer.app") and imported.startswith("ph_explorer.cli")
+            ):
+                offenders.append(f"{path.relative_to(PACKAGE.parent)}:{line} imports {imported}")
+    assert not offenders, offenders
+
+
+def effect_id_literals(path: Path, ids: set[str]) -> list[str]:
+    """String literals in the file that name an effect id (docstrings aside)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    docstrings = {
+        id(node.body[0].value)
+        for node in ast.walk(tree)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+        and node.body
+        and isinstance(node.body[0], ast.Expr)
+        and isinstance(node.body[0].value, ast.Constant)
+    }
+    # Ids that are plain words ("noise", "drift") only count as a whole literal; ids with an
+    # underscore ("b_axis_cyclic") are never a word of ordinary text.
+    compound = [re.compile(rf"\b{re.escape(i)}\b") for i in ids if "_" in i]
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings:
+            text = node.value
+            if text in ids or any(p.search(text) for p in compound):
+                found.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {text!r}")
+    return found
+
+
+def test_no_effect_id_is_written_in_the_diagnosis_or_the_app():
+    ids = set(DEFAULT_CATALOG)
+    paths = [p for name, p in MODULES.items() if name.startswith(("ph_explorer.diagnosis", "ph_explorer.app"))]
+    assert len(paths) >= 5
+    offenders = [hit for path in paths for hit in effect_id_literals(path, ids)]
+    assert not offenders, offenders
+
+
+def test_the_effect_id_rule_can_fail(tmp_path):
+    sample = tmp_path / "ph_explorer" / "app" / "sample.py"
+    sample.parent.mkdir(parents=True)
+    sample.write_text('"""Mentions b_axis_cyclic in a docstring: allowed."""\nX = "b_axis_cyclic"\nY = "noise floor"\nZ = "drift"\n')
+    global PACKAGE
+    saved, PACKAGE = PACKAGE, tmp_path / "ph_explorer"
+    try:
+        hits = effect_id_literals(sample, set(DEFAULT_CATALOG))
+    finally:
+        PACKAGE = saved
+    assert [h.split(" ", 1)[1] for h in hits] == ["'b_axis_cyclic'", "'drift'"]
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_modules_stay_readable(name):
+    """One job per module: none is over ~400 lines (a module that holds one job that cannot be cut
+    is listed here with the reason)."""
+    allowed = {}
+    lines = len(MODULES[name].read_text(encoding="utf-8").splitlines())
+    assert lines <= allowed.get(name, 420), f"{name} has {lines} lines"
