@@ -14,9 +14,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
+from ph_explorer.metrics import pooled_sigma
 
-# Two orientations closer than this (deg) in both A and B are the same orientation.
-ORIENTATION_TOLERANCE_DEG = 1e-6
+# Two orientations whose A and B agree to this (deg) are the same orientation: the reader groups
+# rows by it, orientation_match, the lattice and the off-grid test compare with it. Grouping needs
+# keys, so angles are rounded to the matching number of decimals (orientation_keys).
+ORIENTATION_DECIMALS = 6
+ORIENTATION_TOLERANCE_DEG = 10.0**-ORIENTATION_DECIMALS
 
 
 @dataclass
@@ -82,10 +86,8 @@ class Campaign:
         return self.deviations.std(axis=1, ddof=1)
 
     def noise_sigma_um(self) -> float:
-        """Pooled repetition standard deviation per touch (um)."""
-        if self.n_repetitions < 2:
-            return float("nan")
-        return float(np.sqrt(np.mean(self.deviations.var(axis=1, ddof=1))))
+        """Pooled repetition standard deviation per touch (um); NaN for a single repetition."""
+        return pooled_sigma(self.deviations)
 
     # -- orientations --------------------------------------------------------------------------
     def index_of(self, a_deg: float, b_deg: float) -> int | None:
@@ -100,8 +102,8 @@ class Campaign:
     def off_grid_mask(self) -> NDArray[np.bool_]:
         """True for orientations off the campaign's regular lattice."""
         a_grid, b_grid = self.grid()
-        on_a = np.isclose(self.orientations[:, :1], a_grid[None, :], atol=1e-6).any(axis=1)
-        on_b = np.isclose(self.orientations[:, 1:], b_grid[None, :], atol=1e-6).any(axis=1)
+        on_a = (np.abs(self.orientations[:, :1] - a_grid[None, :]) <= ORIENTATION_TOLERANCE_DEG).any(axis=1)
+        on_b = (np.abs(self.orientations[:, 1:] - b_grid[None, :]) <= ORIENTATION_TOLERANCE_DEG).any(axis=1)
         return ~(on_a & on_b)
 
     def holdout_mask(self) -> NDArray[np.bool_]:
@@ -134,7 +136,14 @@ class Campaign:
         return order.reshape(self.deviations.shape)
 
 
-def orientation_match(orientations: ArrayLike, targets: ArrayLike, atol: float = 1e-3) -> NDArray[np.bool_]:
+def orientation_keys(angles_deg: ArrayLike) -> NDArray[np.float64]:
+    """Angles rounded to the orientation tolerance: rows with equal keys are the same orientation."""
+    return np.round(np.asarray(angles_deg, dtype=float), ORIENTATION_DECIMALS)
+
+
+def orientation_match(
+    orientations: ArrayLike, targets: ArrayLike, atol: float = ORIENTATION_TOLERANCE_DEG
+) -> NDArray[np.bool_]:
     """(n, m) boolean: orientation i equals target j (A equal, B equal modulo 360)."""
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
     t = np.asarray(targets, dtype=float).reshape(-1, 2)
@@ -152,7 +161,7 @@ def lattice_axes(orientations: ArrayLike) -> tuple[NDArray[np.float64], NDArray[
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
     axes = []
     for column in (0, 1):
-        values, counts = np.unique(np.round(o[:, column], 6), return_counts=True)
+        values, counts = np.unique(orientation_keys(o[:, column]), return_counts=True)
         if values.size == 0:
             axes.append(values)
             continue

@@ -95,30 +95,6 @@ def fit_circles(x: ArrayLike, y: ArrayLike, iterations: int = 50, tol: float = 1
     return np.stack([p[..., 0] + mx[..., 0], p[..., 1] + my[..., 0], p[..., 2]], axis=-1)
 
 
-def fit_circle(x: ArrayLike, y: ArrayLike) -> tuple[float, float, float]:
-    """Geometric least-squares circle of one point set with scipy: (centre x, centre y, radius)."""
-    from scipy.optimize import least_squares
-
-    x = np.asarray(x, dtype=float).ravel()
-    y = np.asarray(y, dtype=float).ravel()
-    if x.size < 3 or x.size != y.size:
-        raise ValueError("a circle fit needs at least 3 points with both coordinates")
-    mx, my = x.mean(), y.mean()
-    xs, ys = x - mx, y - my
-    start = _kasa_circles(xs, ys)
-
-    def residual(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.hypot(xs - p[0], ys - p[1]) - p[2]
-
-    def jacobian(p: NDArray[np.float64]) -> NDArray[np.float64]:
-        dx, dy = xs - p[0], ys - p[1]
-        d = np.maximum(np.hypot(dx, dy), np.finfo(float).tiny)
-        return np.stack([-dx / d, -dy / d, -np.ones_like(d)], axis=-1)
-
-    fit = least_squares(residual, start, jac=jacobian, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
-    return float(fit.x[0] + mx), float(fit.x[1] + my), float(fit.x[2])
-
-
 def circle_deviations_um(x_mm: ArrayLike, y_mm: ArrayLike) -> NDArray[np.float64]:
     """Signed radial distance (um, positive outward) of each point from the LS circle of its own set.
 

@@ -1,4 +1,4 @@
-"""Where the shipped assets (scenarios, meshes, data) and trained models live.
+"""Where the shipped assets (scenarios, data, the example effects file) and trained models live.
 
 In a source checkout they are the repository's assets/ and model/ folders; in an installed
 package they are ph_explorer.assets and ph_explorer.model (mapped by pyproject.toml).
@@ -20,7 +20,7 @@ def _located(name: str) -> Path:
 
 
 def assets_dir() -> Path:
-    """The shipped assets folder (scenarios/, meshes/, data/)."""
+    """The shipped assets folder (scenarios/, data/, effects_example.py)."""
     return _located("assets")
 
 

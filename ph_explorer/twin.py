@@ -38,7 +38,6 @@ Scenario TOML::
 
 from __future__ import annotations
 
-import sys
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,7 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_match
-from ph_explorer.effects import Effect, make_effect
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect, EffectSum
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
@@ -138,8 +137,13 @@ def _pairs(values: Any, key: str, source: str) -> NDArray[np.float64]:
     return arr
 
 
-def scenario_from_dict(data: dict[str, Any], source: str | None = None, default_name: str = "scenario") -> Scenario:
-    """A Scenario from the parsed TOML (see the module docstring)."""
+def scenario_from_dict(
+    data: dict[str, Any],
+    source: str | None = None,
+    default_name: str = "scenario",
+    catalog: Catalog = DEFAULT_CATALOG,
+) -> Scenario:
+    """A Scenario from the parsed TOML (see the module docstring); its effects come from catalog."""
     unknown = sorted(set(data) - TOP_KEYS)
     if unknown:
         raise InputError(f"unknown key {unknown[0]!r} in the scenario", file=source, column=unknown[0])
@@ -177,7 +181,7 @@ def scenario_from_dict(data: dict[str, Any], source: str | None = None, default_
     specs = data.get("effects", [])
     if not isinstance(specs, list) or not all(isinstance(s, dict) for s in specs):
         raise InputError("effects must be an array of tables [[effects]]", file=source, column="effects")
-    effects = [make_effect(s, source) for s in specs]
+    effects = [catalog.make(s, source) for s in specs]
     hidden = [bool(s.get("hidden", False)) for s in specs]
 
     repetitions = data.get("repetitions", 10)
@@ -205,8 +209,8 @@ def shipped_scenario_paths() -> list[Path]:
     return sorted(scenarios_dir().glob("*.toml"))
 
 
-def load_scenario(name_or_path: str | Path) -> Scenario:
-    """A shipped scenario by name (e.g. "paper"), or a scenario TOML by path."""
+def load_scenario(name_or_path: str | Path, catalog: Catalog = DEFAULT_CATALOG) -> Scenario:
+    """A shipped scenario by name (e.g. "paper"), or a scenario TOML by path; its effects come from catalog."""
     text = str(name_or_path)
     path = Path(text)
     if not (path.suffix == ".toml" or path.is_file()):
@@ -220,15 +224,12 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
         data = tomllib.loads(path.read_bytes().decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
         raise InputError(f"not a valid TOML file: {error}", file=str(path)) from None
-    return scenario_from_dict(data, source=str(path), default_name=path.stem)
+    return scenario_from_dict(data, source=str(path), default_name=path.stem, catalog=catalog)
 
 
 def list_scenarios() -> list[tuple[str, str]]:
     """(name, one-line description) of every shipped scenario."""
     return [(s.name, s.description) for s in (load_scenario(p) for p in shipped_scenario_paths())]
-
-
-_shipped_scenarios = list_scenarios  # simulate_command's option shadows the name
 
 
 # -- simulation ------------------------------------------------------------------------------------
@@ -238,9 +239,7 @@ def simulate(scenario: Scenario, seed: int | None = None) -> Campaign:
     rng = np.random.default_rng(seed)
     times = scenario.times_s()
     touches = touch_kinematics(scenario.orientations, scenario.geometry, scenario.repetitions, times)
-    radial = np.zeros(touches.shape)
-    for effect in scenario.effects:
-        radial += effect.forward(touches, rng)
+    radial = EffectSum(scenario.effects).forward(touches, rng)  # drawn in order: one random stream
     return Campaign(
         orientations=scenario.orientations.copy(),
         deviations=remove_size_and_centre(radial),
@@ -250,35 +249,3 @@ def simulate(scenario: Scenario, seed: int | None = None) -> Campaign:
         scenario=scenario.record(seed),
         source=scenario.source,
     )
-
-
-def simulate_command(
-    scenario: str | None = None,
-    out: Path | None = None,
-    seed: int | None = None,
-    list_scenarios: bool = False,
-) -> int:
-    """`ph-explorer simulate`: write a scenario's campaign CSV and sidecar, or list the scenarios."""
-    if list_scenarios:
-        shipped = _shipped_scenarios()
-        width = max((len(name) for name, _ in shipped), default=0)
-        for name, description in shipped:
-            print(f"{name:<{width}}  {description}")
-        return 0
-    if scenario is None:
-        raise InputError("give --scenario NAME|PATH (see --list)", column="--scenario")
-    if out is None:
-        raise InputError("give --out FILE.csv", column="--out")
-    from ph_explorer.io import write_campaign
-
-    loaded = load_scenario(scenario)
-    campaign = simulate(loaded, seed)
-    path = write_campaign(campaign, out)
-    hidden = ", ".join(loaded.hidden_ids) or "none"
-    print(
-        f"{path}: scenario {loaded.name}, seed {campaign.scenario['seed']}, {campaign.n_orientations} orientations x "
-        f"{campaign.n_repetitions} repetitions x {campaign.n_points} points, {len(loaded.check_orientations)} check "
-        f"orientations, hidden effects: {hidden}",
-        file=sys.stdout,
-    )
-    return 0

@@ -1,7 +1,8 @@
 """Test-wide settings.
 
-One BLAS thread per process, as the CLI sets it (ph_explorer/cli.py): the core's matrices are
-small, and threads that fight over two cores make it an order of magnitude slower.
+One BLAS thread per process, as ph_explorer/__init__.py sets it for the CLI and the app: the core's
+matrices are small, and threads that fight over two cores make it an order of magnitude slower.
+Set here too because a test may import numpy before ph_explorer.
 """
 
 import os

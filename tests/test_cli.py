@@ -84,3 +84,80 @@ def test_inspect_text_and_geometry_options(tmp_path: Path) -> None:
 def test_inspect_without_a_file_is_a_usage_error() -> None:
     result = run("inspect")
     assert result.returncode == 2 and "Traceback" not in result.stderr
+
+
+# -- the command layer: imports, import errors, option errors --------------------------------------
+
+# Runs the console script's main() with torch unimportable, as on a machine without it.
+WITHOUT_TORCH = """
+import sys
+
+class NoTorch:
+    def find_spec(self, name, path=None, target=None):
+        if name == "torch" or name.startswith("torch."):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return None
+
+sys.meta_path.insert(0, NoTorch())
+from ph_explorer.cli import main
+
+sys.argv[0] = "ph-explorer"
+main()
+"""
+
+
+def run_without_torch(*args: str) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, COLUMNS="120")
+    return subprocess.run([sys.executable, "-c", WITHOUT_TORCH, *args], capture_output=True, text=True, env=env, timeout=120)
+
+
+def test_without_torch_train_reports_the_import_error_and_inspect_works(tmp_path: Path) -> None:
+    path = _campaign(tmp_path)
+    out = tmp_path / "model"
+    train = run_without_torch("train", "--data", str(path), "--out", str(out))
+    assert train.returncode == 1, (train.stdout, train.stderr)
+    assert train.stderr.strip().splitlines() == ["ph-explorer train: ModuleNotFoundError: No module named 'torch'"]
+    assert not out.exists() and "not implemented" not in train.stderr
+    inspect = run_without_torch("inspect", str(path), "--json")
+    assert inspect.returncode == 0, inspect.stderr
+    assert json.loads(inspect.stdout)["orientations"] == 11
+    listed = run_without_torch("simulate", "--list")  # the twin needs no torch either
+    assert listed.returncode == 0 and listed.stdout.startswith("a_axis_24")
+
+
+def test_importing_the_cli_imports_neither_torch_nor_viser() -> None:
+    probe = (
+        "import json, sys\n"
+        "import ph_explorer.cli\n"
+        "print(json.dumps({m: m in sys.modules for m in ('torch', 'viser', 'ph_explorer.cli.train', 'ph_explorer.cli.serve')}))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    loaded = json.loads(result.stdout)
+    assert loaded["ph_explorer.cli.train"] and loaded["ph_explorer.cli.serve"]  # the command modules are loaded ...
+    assert not loaded["torch"] and not loaded["viser"]  # ... without what they need only when they run
+
+
+@pytest.mark.parametrize(
+    "value,words",
+    [("", "names no effect"), (" , ", "names no effect"), ("wobble", "unknown effect 'wobble'"), ("noise", "cannot be added")],
+)
+def test_a_bad_add_option_is_one_line_naming_the_option(tmp_path: Path, value: str, words: str) -> None:
+    path = _campaign(tmp_path)
+    result = run("diagnose", "--data", str(path), "--add", value)
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    assert lines[0].startswith("option --add: ") and words in lines[0], lines[0]
+
+
+def test_other_option_errors_name_the_option(tmp_path: Path) -> None:
+    path = _campaign(tmp_path)
+    part = run("diagnose", "--data", str(path), "--data-part", "forest")
+    assert part.returncode == 2 and part.stderr.strip() == (
+        "option --data-part: unknown data-driven part 'forest' (trilinear or network)"
+    )
+    missing = run("simulate", "--out", str(tmp_path / "x.csv"))
+    assert missing.returncode == 2 and missing.stderr.strip().startswith("option --scenario: ")
+    holdout = run("train", "--data", str(path), "--out", str(tmp_path / "m"), "--holdout", "1:2")
+    assert holdout.returncode == 2 and holdout.stderr.strip() == f"{path}, option --holdout: orientation(s) 1:2 not in the campaign"

@@ -322,28 +322,27 @@ def test_user_effect_file_makes_a_new_catalog_and_leaves_the_default_alone():
     assert effect.from_coefficients(coef)["amplitude_um"] == pytest.approx(0.1)
 
 
-def test_bad_user_effect_files_are_input_errors(tmp_path):
-    broken = tmp_path / "broken.py"
-    broken.write_text("import numpy as np\ndef oops(:\n")
-    with pytest.raises(InputError, match="cannot import"):
-        load_user_effects(broken)
-    empty = tmp_path / "empty.py"
-    empty.write_text("x = 1\n")
-    with pytest.raises(InputError, match="defines no subclass"):
-        load_user_effects(empty)
-    clash = tmp_path / "clash.py"
-    clash.write_text(
-        "from ph_explorer.effects.base import Effect\n"
-        "class MyNoise(Effect):\n    id = 'noise'\n    def basis(self, touches):\n        raise NotImplementedError\n"
-    )
-    with pytest.raises(InputError, match="already a built-in"):
-        load_user_effects(clash)
+EFFECT_HEADER = "from ph_explorer.effects.base import Effect\n"
+BAD_EFFECT_FILES = {
+    "cannot import": "import numpy as np\ndef oops(:\n",
+    "defines no subclass": "x = 1\n",
+    "already a built-in": EFFECT_HEADER + "class MyNoise(Effect):\n    id = 'noise'\n    def basis(self, touches):\n        return None\n",
+    "scanned 'lobes' is not one of its parameters": EFFECT_HEADER
+    + "class Odd(Effect):\n    id = 'odd'\n    scan = {'lobes': (2, 3)}\n    def basis(self, touches):\n        return None\n",
+    "defines neither basis": EFFECT_HEADER + "class Empty(Effect):\n    id = 'empty'\n",
+}
+
+
+@pytest.mark.parametrize("problem", sorted(BAD_EFFECT_FILES))
+def test_bad_user_effect_files_are_input_errors(tmp_path, problem):
+    path = tmp_path / "effects.py"
+    path.write_text(BAD_EFFECT_FILES[problem])
+    with pytest.raises(InputError, match=problem):
+        load_user_effects(path)
+    with pytest.raises(InputError, match=problem):
+        DEFAULT_CATALOG.with_file(path)
+
+
+def test_a_missing_user_effect_file_is_an_input_error(tmp_path):
     with pytest.raises(InputError, match="not found"):
         load_user_effects(tmp_path / "missing.py")
-    unscanned = tmp_path / "unscanned.py"
-    unscanned.write_text(
-        "from ph_explorer.effects.base import Effect\n"
-        "class Odd(Effect):\n    id = 'odd'\n    scan = {'lobes': (2, 3)}\n    def basis(self, touches):\n        raise NotImplementedError\n"
-    )
-    with pytest.raises(InputError, match="scanned 'lobes' is not one of its parameters"):
-        load_user_effects(unscanned)

@@ -8,10 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ph_explorer.evaluation import evaluation_report, format_report, mean_mae, noise_floor, orientation_tables
+from ph_explorer.cli.evaluate import format_report
+from ph_explorer.evaluation import evaluation_report, mean_mae, orientation_tables
+from ph_explorer.metrics import noise_floor
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.synthetic import lobing_campaign, systematic_curves
 from ph_explorer.models.trilinear import TrilinearModel
+from synthetic import lobing_campaign, systematic_curves
 
 
 class Oracle(DeviationModel):

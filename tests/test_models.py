@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ph_explorer.harmonics import fourier_basis
-from ph_explorer.models.synthetic import lobing_campaign, systematic_curves
+from synthetic import lobing_campaign, systematic_curves
 from ph_explorer.models.trilinear import TrilinearModel, periodic_weights
 
 

@@ -10,12 +10,13 @@ import pytest
 from typer.testing import CliRunner
 
 from ph_explorer.cli import app
+from ph_explorer.cli.evaluate import evaluate_command
+from ph_explorer.cli.train import parse_holdout, train_command
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import evaluate_command
 from ph_explorer.io import read_campaign, sidecar_path, write_campaign
+from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
-from ph_explorer.models.synthetic import lobing_campaign
-from ph_explorer.training import load_card, load_models, parse_holdout, train_command
+from synthetic import lobing_campaign
 
 QUICK = NetworkConfig(max_epochs=8, early_stopping_patience=8)
 CHECKS = [(15.0, -20.0), (43.0, 91.0)]

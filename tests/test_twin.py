@@ -9,11 +9,14 @@ import numpy as np
 import pytest
 
 from ph_explorer.campaign import orientation_match
+from ph_explorer.cli.simulate import simulate_command
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import noise_floor
 from ph_explorer.io import read_campaign
+from ph_explorer.metrics import noise_floor
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.twin import list_scenarios, load_scenario, scenario_from_dict, simulate, simulate_command
+from ph_explorer.paths import assets_dir
+from ph_explorer.twin import list_scenarios, load_scenario, scenario_from_dict, simulate
 
 SIGMA = 0.175
 FLOOR = noise_floor(SIGMA, 10)  # {"mean": 0.044, "single": 0.140} um
@@ -146,26 +149,17 @@ def test_scenario_errors_are_input_errors(tmp_path):
 
 
 def test_scenario_from_a_user_path_with_a_user_effect(tmp_path):
-    from ph_explorer.effects import CATALOG, load_user_effects
-    from ph_explorer.paths import assets_dir
-
-    saved = dict(CATALOG)
-    load_user_effects(assets_dir() / "effects_example.py")
-    try:
-        check_user_scenario(tmp_path)
-    finally:  # the catalog is global: leave only the built-ins for other tests
-        CATALOG.clear()
-        CATALOG.update(saved)
-
-
-def check_user_scenario(tmp_path):
     path = tmp_path / "mine.toml"
     path.write_text(
         'name = "mine"\ndescription = "ball form only"\nseed = 3\nrepetitions = 2\n'
         "[orientations]\na_deg = [0, 90, 45]\nb_deg = [0, 90, 90]\n"
         '[[effects]]\nid = "ball_form"\namplitude_um = 0.1\n'
     )
-    campaign = simulate(load_scenario(path))
+    # The user's effect is known only to the catalog that was given its file.
+    with pytest.raises(InputError, match="unknown effect 'ball_form'"):
+        load_scenario(path)
+    catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
+    campaign = simulate(load_scenario(path, catalog=catalog))
     assert campaign.deviations.shape == (6, 2, 64)
     assert np.abs(campaign.deviations[:2]).max() < 1e-12  # A0 = 0: fixed in the probe frame, psi constant
     assert np.ptp(campaign.deviations[4:], axis=-1).min() > 0.15
@@ -184,8 +178,10 @@ def test_simulate_command_writes_campaign_and_sidecar(tmp_path, capsys):
     assert campaign.scenario["name"] == "b_axis_22" and campaign.scenario["seed"] == 5
     assert campaign.scenario["hidden"] == ["b_axis_cyclic"]
     assert len(campaign.check_orientations) == 12 and campaign.times_s is not None
-    with pytest.raises(InputError):
+    assert capsys.readouterr().out.startswith(f"{out}: scenario b_axis_22, seed 5, 135 orientations")
+    with pytest.raises(InputError) as info:
         simulate_command(scenario=None, out=out)
+    assert info.value.option == "--scenario" and "option --scenario" in info.value.line()
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:

@@ -65,8 +65,10 @@ class AAxisCyclic(_AxisCyclic):
         "eccentricity (1/rev), ovality (2/rev), mounting (3-8/rev), gear or motor-pole cycles at higher "
         "orders; residuals after mapping 0.3-2 arcsec. It tilts the stylus about the head's x axis with the "
         "full lever L: 1 arcsec moves the tip 0.39 um at 80 mm. Evaluated at each touch's actual A, which "
-        "sweeps +-6.5 deg around A0 during one ring: a constant error is a pure centre shift (removed by "
-        "the circle fit); what shows is how eps changes across that sweep. Only 7 A values on the paper's "
+        "sweeps +-6.5 deg around A0 during one ring: what shows is mostly how eps changes across that sweep. "
+        "A constant error is nearly a centre shift (removed by the circle fit), but its axis turns with the "
+        "B joint, which leaves a 2-UPR term: up to 0.1 um per arcsec near A0 = 9 deg, 0.07 at 15, 0.02 at 45, "
+        "none at 0 and 90. Only 7 A values on the paper's "
         "grid: a short period in A (15-20 deg) is invisible to a model indexed by the nominal A0, and a "
         "period that divides the 15-deg grid step looks the same at every grid ring (aliased)."
     )
@@ -82,7 +84,7 @@ class BAxisCyclic(_AxisCyclic):
         "distance from that axis, ~ L sin A: nothing at A0 = 0 (the move is tangential to the ring), "
         "growing with sin A0. During one ring B sweeps a full turn at A0 = 0, ~50 deg at A0 = 15, under "
         "20 deg at A0 >= 45; evaluated at each touch's actual B. Linear interpolation on the 20-deg B grid "
-        "fails for periods under ~40 deg (100 % error), and a period that divides 20 deg is aliased "
+        "fails for periods under ~40 deg (an error of 100 % of the effect or more), and a period that divides 20 deg is aliased "
         "on the grid; yet every ring samples B continuously, so a term in the joint angles can learn it."
     )
 

@@ -38,8 +38,11 @@ from typing import Any, Self
 import numpy as np
 import torch
 from numpy.typing import ArrayLike, NDArray
+from safetensors import safe_open
+from safetensors.torch import load_file, save_file
 from torch import nn
 
+from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import fourier_basis, remove_size_and_centre
 from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
@@ -283,8 +286,6 @@ class FourierNetwork(DeviationModel):
 
     # -- files ---------------------------------------------------------------------------------
     def save(self, directory: str | Path) -> Path:
-        from safetensors.torch import save_file
-
         if self.module is None:
             raise RuntimeError("the network is not fitted")
         path = Path(directory) / FILE_NAME
@@ -301,9 +302,6 @@ class FourierNetwork(DeviationModel):
 
     @classmethod
     def load(cls, directory: str | Path) -> Self:
-        from safetensors import safe_open
-        from safetensors.torch import load_file
-
         path = Path(directory) / FILE_NAME
         with safe_open(str(path), framework="pt") as handle:
             metadata = handle.metadata()
@@ -330,12 +328,12 @@ def curve_metrics(predicted: NDArray[np.float64], deviations: NDArray[np.float64
     """Curve-level MAE and RMSE (um) of predicted curves (m, N) against the repetition mean and single ones."""
     if predicted.size == 0:
         return {}
-    mean = deviations.mean(axis=1)
-    eps_mean = predicted - mean
+    mae = metrics.mae(predicted, deviations)
+    eps_mean = predicted - deviations.mean(axis=1)
     eps_single = predicted[:, None, :] - deviations
     return {
-        "mae_mean_um": float(np.abs(eps_mean).mean()),
+        "mae_mean_um": mae["mean"],
         "rmse_mean_um": float(np.sqrt((eps_mean**2).mean())),
-        "mae_single_um": float(np.abs(eps_single).mean()),
+        "mae_single_um": mae["single"],
         "rmse_single_um": float(np.sqrt((eps_single**2).mean())),
     }

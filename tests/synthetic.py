@@ -1,4 +1,4 @@
-"""A small synthetic campaign for tests and quick checks of the models (not the digital twin).
+"""A small synthetic campaign for the tests of the models (not the digital twin).
 
 Smooth lobing-like systematic curves that vary with the orientation the way the head's do
 (physics.md): a 3-lobe pattern whose phase turns with B0 at A0 = 0 and less as A0 grows, whose

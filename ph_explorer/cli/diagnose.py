@@ -1,0 +1,158 @@
+"""`ph-explorer diagnose`: where the model fails, which effect is missing, add it, and the error history."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+from rich.progress import Progress
+
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog
+from ph_explorer.errors import InputError
+from ph_explorer.io import read_campaign
+from ph_explorer.models.base import DeviationModel
+
+if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
+    from ph_explorer.diagnosis import Diagnosis
+
+DATA_PARTS = ("trilinear", "network")
+
+
+def diagnose_command(
+    data: Path,
+    model: Path | None = None,
+    add: str | None = None,
+    effects: Path | None = None,
+    json_output: bool = False,
+    geometry: dict[str, float] | None = None,
+    data_part: str = "trilinear",
+) -> int:
+    """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON."""
+    # torch: imported when the command runs, so that the CLI (and inspect) works without it.
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.models.folder import load_models
+    from ph_explorer.models.network import FourierNetwork
+
+    if data_part not in DATA_PARTS:
+        raise InputError(f"unknown data-driven part {data_part!r} (trilinear or network)", option="--data-part")
+    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+    ids = parse_add(add, catalog)
+    campaign = read_campaign(Path(data), geometry or {})
+    baseline = None
+    if model is not None:
+        trained = load_models(Path(model))
+        baseline = trained.get("network") or next(iter(trained.values()))
+    with Progress(transient=True, disable=json_output) as bar:
+        task = bar.add_task("scanning candidate effects", total=None)
+        data_model: str | Callable[[], DeviationModel] = data_part
+        if data_part == "network":
+
+            def data_model() -> DeviationModel:
+                # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
+                network_task = bar.add_task("network on the residual", total=None)
+                return FourierNetwork(
+                    progress=lambda epoch, loss, mae, lr: bar.update(
+                        network_task, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
+                    )
+                )
+
+        result = diagnose(
+            campaign,
+            add=ids,
+            baseline=baseline,
+            data_model=data_model,
+            catalog=catalog,
+            progress=lambda effect_id: bar.update(task, description=f"scanning {effect_id}"),
+        )
+    if json_output:
+        print(json.dumps(result.as_dict()))
+    else:
+        print(format_diagnosis(result, catalog), end="")
+    return 0
+
+
+def parse_add(text: str | None, catalog: Catalog) -> list[str] | None:
+    """The effect ids of --add 'ID[,ID]' (None when the option is not given); each must be a candidate."""
+    if text is None:
+        return None
+    ids = [a.strip() for a in text.split(",") if a.strip()]
+    if not ids:
+        raise InputError("names no effect (expected 'ID[,ID]', e.g. b_axis_cyclic)", option="--add")
+    candidates = catalog.candidates()
+    for effect_id in ids:
+        if effect_id not in catalog:
+            raise InputError(catalog.unknown(effect_id, column=None).message, option="--add")
+        if effect_id not in candidates:
+            raise InputError(f"effect {effect_id!r} cannot be added to a model: {catalog[effect_id].name} is not systematic", option="--add")
+    return ids
+
+
+def format_diagnosis(result: Diagnosis, catalog: Catalog = DEFAULT_CATALOG) -> str:
+    """A plain-text report: where it fails, the ranked candidates, the verdict, the error history."""
+    return "\n".join(
+        _floor_and_baseline(result) + [""] + _where_it_fails(result) + [""] + _candidates(result, catalog) + [""]
+        + _verdict(result) + [""] + _history(result)
+    ) + "\n"
+
+
+def _floor_and_baseline(result: Diagnosis) -> list[str]:
+    floor, baseline = result.noise_floor_um, result.baseline_mae_um
+    return [
+        f"Noise floor (touch noise after the modelled effects): {floor['mean']:.3f} um against the repetition mean, "
+        f"{floor['single']:.3f} um against single repetitions.",
+        f"Baseline ({result.baseline_model}) on the {int(result.held_out.sum())} held-out rings: "
+        f"MAE {baseline['mean']:.3f} um (mean), {baseline['single']:.3f} um (single).",
+    ]
+
+
+def _where_it_fails(result: Diagnosis) -> list[str]:
+    """The count of failing orientations, then the worst five (by MAE over their own floor)."""
+    mae, floor = result.out_of_sample_mae_um["mean"], result.out_of_sample_floor_um["mean"]
+    lines = [
+        f"Where it fails: {int(result.failing.sum())} of {len(result.failing)} orientations are worse than their "
+        "noise floor by more than 4 standard errors (out of sample)."
+    ]
+    for i in np.argsort(-(mae / floor))[:5]:
+        if not result.failing[i]:
+            continue
+        a, b = result.orientations[i]
+        kind = "held out" if result.held_out[i] else "leave-one-out"
+        lines.append(f"  A {a:g} B {b:g} ({kind}): MAE {mae[i]:.3f} um, {mae[i] / floor[i]:.1f}x its floor")
+    return lines
+
+
+def _candidates(result: Diagnosis, catalog: Catalog) -> list[str]:
+    lines = ["Candidate effects (best first): share of the out-of-sample residual explained, fall of the held-out error"]
+    width = max([len(c.effect) for c in result.candidates] + [6])
+    for c in result.candidates:
+        if c.note:
+            lines.append(f"   {c.effect.ljust(width)}  not tested: {c.note}")
+            continue
+        params = catalog[c.effect].parameters_text(c.params) if c.significant else ""
+        flag = "*" if c.significant else " "
+        lines.append(
+            f" {flag} {c.effect.ljust(width)}  explains {100 * c.explained_fraction:5.1f} %  (noise alone {100 * c.noise_fraction:5.2f} %)"
+            f"  error -{100 * c.error_reduction:4.1f} %  {params}"
+        )
+    return lines
+
+
+def _verdict(result: Diagnosis) -> list[str]:
+    if result.verdict == "missing":
+        best = result.candidates[0]
+        return [f"Verdict: a missing effect: {best.effect} ({best.name}).", f"  {best.teaching}"]
+    return ["Verdict: no missing effect found: no candidate explains more than noise would and lowers the held-out error materially."]
+
+
+def _history(result: Diagnosis) -> list[str]:
+    lines = ["Error history on the held-out rings (MAE / um, and the noise floor):"]
+    for step in result.steps:
+        name = "baseline" if not step.added else "+ " + " + ".join(step.added)
+        lines.append(
+            f"  {name:40s} mean {step.mae_um['mean']:.3f} (floor {step.noise_floor_um['mean']:.3f})   "
+            f"single {step.mae_um['single']:.3f} (floor {step.noise_floor_um['single']:.3f})"
+        )
+    return lines

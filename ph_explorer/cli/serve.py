@@ -1,0 +1,54 @@
+"""`ph-explorer serve`: start the 3D explorer, print its URL and when it was ready, serve until Ctrl-C."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+
+from ph_explorer.errors import InputError
+
+
+def serve_command(
+    scenario: str | None = None,
+    data: Path | None = None,
+    model: Path | None = None,
+    host: str = "127.0.0.1",
+    port: int = 8080,
+    geometry: Mapping[str, float] | None = None,
+) -> int:
+    """Start the explorer on the data (default: the shipped paper campaign with model/paper)."""
+    # viser and torch: imported when the command runs, so that the CLI (and inspect) works without them.
+    from ph_explorer.app.server import build_server
+
+    if scenario is not None and data is not None:
+        raise InputError("give --scenario or --data, not both")
+    app = build_server(scenario=scenario, data=data, model=model, host=host, port=port, geometry=geometry)
+    shown_host = "127.0.0.1" if app.host in ("0.0.0.0", "") else app.host
+    print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
+    for note in app.dataset.notes:
+        print(f"  - {note}")
+    since_start = seconds_since_process_start()
+    # Benchmarks read this line in both forms.
+    ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"
+    print(f"ph-explorer: serving at http://{shown_host}:{app.port}  ({ready}; Ctrl-C stops)", flush=True)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        print("ph-explorer: stopped")
+    finally:
+        app.stop()
+    return 0
+
+
+def seconds_since_process_start() -> float | None:
+    """Wall-clock seconds since this process started (imports included), where /proc says; else None."""
+    try:
+        fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+        start_ticks = int(fields[19])  # field 22 of stat: start time in clock ticks after boot
+        uptime = float(Path("/proc/uptime").read_text().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return None

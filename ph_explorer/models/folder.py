@@ -1,0 +1,85 @@
+"""A model folder: the trained models' files and their card, written atomically, read back by name.
+
+A folder written by `ph-explorer train` holds network.safetensors, trilinear.npz and card.json
+(the data's sha256, the holdout, hyperparameters, epochs, training times, geometry and the
+evaluation at the holdout). Writing goes to a temporary folder beside DIR, which then replaces
+DIR: an interrupted training leaves an existing DIR as it was.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ph_explorer.errors import InputError
+from ph_explorer.models import network, trilinear
+from ph_explorer.models.base import DeviationModel
+
+CARD_NAME = "card.json"
+CARD_FORMAT = 1
+
+# name -> (class, file); a folder holds the models whose files are present.
+MODEL_TYPES: dict[str, tuple[type[DeviationModel], str]] = {
+    "network": (network.FourierNetwork, network.FILE_NAME),
+    "trilinear": (trilinear.TrilinearModel, trilinear.FILE_NAME),
+}
+
+
+def save_models(models: Mapping[str, DeviationModel], out: Path, card: dict[str, Any]) -> Path:
+    """Write the models and the card into out, atomically (temp folder beside out, then a rename)."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    try:
+        for model in models.values():
+            model.save(tmp)
+        (tmp / CARD_NAME).write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
+        os.chmod(tmp, 0o755)  # mkdtemp's 0700 and safetensors' 0600 would hide a shipped model
+        for path in tmp.iterdir():
+            os.chmod(path, 0o644)
+        if out.exists():
+            # Directories cannot be replaced in one rename: move the old one aside first, so a
+            # crash between the two renames leaves it recoverable beside DIR.
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            os.replace(out, old)
+            os.replace(tmp, out)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def load_card(directory: Path) -> dict[str, Any]:
+    """The card.json of a model folder; InputError when there is none or it is unreadable."""
+    path = Path(directory) / CARD_NAME
+    if not path.is_file():
+        raise InputError("not a model folder (no card.json)", file=str(directory))
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise InputError(f"unreadable model card: {error}", file=str(path)) from None
+
+
+def load_models(directory: Path) -> dict[str, DeviationModel]:
+    """The models of a folder written by train (name -> model), in MODEL_TYPES order."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise InputError("model folder not found", file=str(directory))
+    models = {}
+    for name, (cls, file_name) in MODEL_TYPES.items():
+        if (directory / file_name).is_file():
+            try:
+                models[name] = cls.load(directory)
+            except Exception as error:  # a damaged or foreign file: one line, not a traceback
+                raise InputError(f"cannot load the {name} model: {error}", file=str(directory / file_name)) from None
+    if not models:
+        raise InputError("the model folder holds no model file", file=str(directory))
+    return models
