@@ -1,6 +1,6 @@
-"""The explorer under load: N simulated browsers (websocket clients, a separate process) moving
-sliders at a fixed rate, against the server running in this process (so its render times and
-memory are measured where they happen).
+"""The explorer under load: N simulated browsers (tests/fake_browser.py, in a separate process:
+benchmarks/browsers.py) moving sliders at a fixed rate, against the server running in this
+process (so its render times and memory are measured where they happen).
 
 Two server-side figures per render: `server_update_ms`, the time of the render itself, and
 `latency_ms`, from the oldest slider event the render drew (when viser applied it) to the end of
@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ph_explorer.app import server as app_server
+from ph_explorer.app.server import ExplorerApp
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -34,41 +34,11 @@ def rss_mb(field: str = "VmRSS") -> float:
     return float("nan")
 
 
-class RenderErrors:
-    """Counts renders and the exceptions raised by Session._render in any session (re-raised unchanged)."""
-
-    def __init__(self) -> None:
-        self.count = 0
-        self.calls = 0  # every render (app.render_times keeps only the last 10 000)
-        self.last: str | None = None
-        self._lock = threading.Lock()
-        self._original = app_server.Session._render
-
-    def __enter__(self) -> "RenderErrors":
-        original, counter = self._original, self
-
-        def counted(session: Any) -> None:
-            counter.calls += 1  # under the GIL; an approximate count is enough
-            try:
-                original(session)
-            except Exception as error:
-                with counter._lock:
-                    counter.count += 1
-                    counter.last = f"{type(error).__name__}: {error}"
-                raise
-
-        app_server.Session._render = counted
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        app_server.Session._render = self._original
-
-
 def percentile_ms(values: list[float], q: float) -> float | None:
     return round(1000.0 * float(np.percentile(values, q)), 3) if values else None
 
 
-def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
+def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
     """Run the browsers process against the app; return server-side and client-side figures."""
     app.render_times.clear()
     app.latency_times.clear()
@@ -79,39 +49,42 @@ def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str
     missed: int | None = None
     connected = 0
     sessions: list[Any] = []
-    with RenderErrors() as errors:
-        process = subprocess.Popen(
-            [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
-            cwd=REPOSITORY,
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        timer = threading.Timer(seconds + 300, process.kill)  # bounded, whatever happens
-        timer.start()
-        try:
-            finals: list[Any] = []
-            for line in process.stdout:
-                if line.startswith("FINALS "):
-                    finals = [tuple(f) for f in json.loads(line[7:]) if f is not None]
-                    break
-            # Every browser is still connected: let the sessions render their last update, then
-            # check that each ended on its own browser's last orientation (latest value wins).
-            sessions = [app.sessions[c] for c in set(app.sessions) - before_sessions if c in app.sessions]
-            connected = len(sessions)
-            for session in sessions:
-                session_wait(session)
-            time.sleep(0.3)
-            for session in sessions:
-                session_wait(session)
-            seen = [session.orientation for session in sessions]
-            missed = sum(1 for f in finals if f not in seen) if finals else None
-            process.stdin.write("release\n")
-            process.stdin.flush()
-            out, err = process.communicate(timeout=120)
-        finally:
-            timer.cancel()
+    stats = app.stats  # every render of every session, failed ones included
+    renders_before, errors_before = stats.render_count + stats.error_count, stats.error_count
+    process = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
+        cwd=REPOSITORY,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    timer = threading.Timer(seconds + 300, process.kill)  # bounded, whatever happens
+    timer.start()
+    try:
+        finals: list[Any] = []
+        for line in process.stdout:
+            if line.startswith("FINALS "):
+                finals = [tuple(f) for f in json.loads(line[7:]) if f is not None]
+                break
+        # Every browser is still connected: let the sessions render their last update, then
+        # check that each ended on its own browser's last orientation (latest value wins).
+        sessions = [app.sessions[c] for c in set(app.sessions) - before_sessions if c in app.sessions]
+        connected = len(sessions)
+        for session in sessions:
+            session_wait(session)
+        time.sleep(0.3)
+        for session in sessions:
+            session_wait(session)
+        seen = [session.orientation for session in sessions]
+        missed = sum(1 for f in finals if f not in seen) if finals else None
+        process.stdin.write("release\n")
+        process.stdin.flush()
+        out, err = process.communicate(timeout=120)
+    finally:
+        timer.cancel()
+    renders = stats.render_count + stats.error_count - renders_before
+    render_errors = stats.error_count - errors_before
     wall = time.perf_counter() - start
     browsers: list[dict[str, Any]] = []
     client_errors: list[str] = []
@@ -137,20 +110,20 @@ def drive(app: Any, n_browsers: int, rate_hz: float, seconds: float) -> dict[str
         "sessions_connected": connected,
         "browsers_completed": completed,
         "slider_updates_sent": sent,
-        "renders": errors.calls,
+        "renders": renders,
         # Renders per slider update sent: below 1 when moves were coalesced (the latest value drawn).
-        "renders_per_update": round(errors.calls / sent, 3) if sent else None,
+        "renders_per_update": round(renders / sent, 3) if sent else None,
         "renders_per_session": {"min": min(per_session), "median": float(np.median(per_session)), "max": max(per_session)} if per_session else None,
         "renders_in_percentiles": len(times),  # app.render_times keeps the last 10 000
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
         "latency_ms": {"p50": percentile_ms(latencies, 50), "p95": percentile_ms(latencies, 95), "max": percentile_ms(latencies, 100)},
         "client_errors": client_errors[:20],
-        "render_errors": errors.count,
-        "last_render_error": errors.last,
+        "render_errors": render_errors,
+        "last_render_error": stats.last_error if render_errors else None,
         "sessions_not_on_their_last_orientation": missed,
         "sessions_left_open": len(set(app.sessions) - before_sessions),
-        "errors": len(client_errors) + errors.count + (missed if missed is not None else n_browsers) + (n_browsers - completed),
+        "errors": len(client_errors) + render_errors + (missed if missed is not None else n_browsers) + (n_browsers - completed),
         "rss_mb": {"before": round(rss_before, 1), "after": round(rss_after, 1), "growth": round(rss_after - rss_before, 1), "peak": round(rss_mb("VmHWM"), 1)},
     }
 

@@ -2,7 +2,7 @@
 
 The server runs in this process on a free port; Debian's chromium (driven by Playwright) is the
 browser. 1) the default start (shipped paper campaign, model/paper); 2) the teaching loop on the
-b_axis_22 scenario: Diagnose, tick the top candidate, Refit, through that browser's GUI objects.
+b_axis_22 scenario: Diagnose, tick the top candidate, Refit, through that browser's Session.
 """
 
 from __future__ import annotations
@@ -17,12 +17,6 @@ from ph_explorer.app.server import build_server
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader", "--disable-background-networking"]
-
-
-def click(button) -> None:
-    """What a click on a viser button runs (its callbacks), from the server side."""
-    for callback in button._impl.update_cb:
-        callback(None)
 
 
 def dismiss_notices(page) -> None:
@@ -47,11 +41,11 @@ def main(out: Path) -> None:
             page.screenshot(path=str(out / "screenshot_default.png"))
             session.data_panel.scenario.value = "b_axis_22"
             session.wait(timeout=300)
-            click(session.physics.diagnose)
+            session.submit(session.loop.diagnose)  # what the Diagnose button runs
             session.wait(timeout=600)
-            best = session.diagnosis.candidates[0].effect
+            best = session.loop.diagnosis.candidates[0].effect
             session.physics.effects[best].value = True
-            click(session.physics.refit)
+            session.submit(session.loop.refit)  # what the Refit button runs
             session.wait(timeout=600)
             session.go_to(43.0, 90.0)
             page.get_by_text("Curves", exact=True).first.click()  # fold the curve switches away

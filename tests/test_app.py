@@ -1,25 +1,28 @@
-"""The explorer without a browser: viser in-process on port 0, browsers simulated by websocket clients.
+"""The explorer without a browser: viser in-process on port 0, browsers faked by websocket clients.
 
-A simulated browser (ph_explorer.app.headless) connects with viser's protocol; the test then sets
-GUI values on that browser's session and asserts on its scene handles and panel contents.
+A fake browser (tests/fake_browser.py) connects with viser's protocol; the test then moves that
+browser's sliders and clicks its buttons (as messages from the browser) or sets GUI values on its
+session (as a script would), and asserts on its scene handles and panel contents.
 """
 
 from __future__ import annotations
 
 import threading
-import time
 
 import numpy as np
 from viser.transforms import SO3
 import pytest
 
+from fake_browser import FakeBrowser, open_session, wait_for
 from ph_explorer.app.dataset import Dataset, dataset_for
-from ph_explorer.app.headless import SimulatedBrowser, open_session
-from ph_explorer.app.panels import parameter_text
-from ph_explorer.app.scene import magnified_radius, quat_head, quat_x, quat_z
+from ph_explorer.app.render_queue import RenderState
+from ph_explorer.app.scene import a_joint, b_joint, head_orientation, magnified_radius
 from ph_explorer.app.server import ExplorerApp, build_server
-from ph_explorer.geometry import head_rotation, stylus_direction
-from ph_explorer.models.synthetic import lobing_campaign
+from ph_explorer.app.session import Session
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.geometry import A_LIMIT_DEG, head_rotation, stylus_direction
+from ph_explorer.io import write_campaign
+from synthetic import lobing_campaign
 
 
 def rotation_of(wxyz: np.ndarray) -> np.ndarray:
@@ -41,22 +44,30 @@ def app(dataset: Dataset):
 
 
 @pytest.fixture()
-def browser(app: ExplorerApp):
+def opened(app: ExplorerApp):
     fake, session = open_session(app)
-    yield session
+    yield fake, session
+    session.wait(timeout=120)  # its jobs end while the browser still listens
     fake.close()
 
 
-def click(button) -> None:
-    """What a click on a viser button runs on the server (its callbacks)."""
-    for callback in button._impl.update_cb:
-        callback(None)
+@pytest.fixture()
+def browser(opened) -> Session:
+    return opened[1]
 
 
-def test_quaternions_match_the_geometry_conventions() -> None:
-    for a, b in [(0, 0), (15, -20), (43, 90), (75, 40), (110, -170)]:
-        np.testing.assert_allclose(rotation_of(quat_head(a, b)), head_rotation(a, b), atol=1e-12)
-        np.testing.assert_allclose(rotation_of(quat_z(b)) @ rotation_of(quat_x(a)), head_rotation(a, b), atol=1e-12)
+def click(fake: FakeBrowser, session: Session, label: str, timeout: float = 120.0) -> None:
+    """The user clicks a button that starts a job: the browser's message, then that job to its end."""
+    before = len(session.jobs)
+    fake.click(label)
+    assert wait_for(lambda: len(session.jobs) > before), f"{label!r} started no job"
+    session.wait(timeout=timeout)
+
+
+def test_rotations_match_the_geometry_conventions() -> None:
+    for a, b in [(0, 0), (15, -20), (43, 90), (75, 40), (110, -170), (-30, 60)]:
+        np.testing.assert_allclose(rotation_of(head_orientation(a, b).wxyz), head_rotation(a, b), atol=1e-12)
+        np.testing.assert_allclose(rotation_of(b_joint(b).wxyz) @ rotation_of(a_joint(a).wxyz), head_rotation(a, b), atol=1e-12)
 
 
 def test_binds_localhost_and_serves_the_page(app: ExplorerApp) -> None:
@@ -173,12 +184,10 @@ def test_harmonic_chart_bars_are_the_spectrum(browser) -> None:
         assert measured[inside].max() == pytest.approx(amp[k], rel=1e-9)
 
 
-def test_presets_and_marker_clicks_move_the_sliders(browser) -> None:
-    s = browser
-    s.controls.presets.value = "A75 B40"
-    for callback in s.controls.presets._impl.update_cb:
-        callback(type("E", (), {"target": s.controls.presets, "client": None, "client_id": None})())
-    assert s.orientation == (75.0, 40.0)
+def test_presets_and_marker_clicks_move_the_sliders(opened) -> None:
+    fake, s = opened
+    fake.click("Paper", "A75 B40")
+    assert wait_for(lambda: s.orientation == (75.0, 40.0) and (s.view.a_deg, s.view.b_deg) == (75.0, 40.0))
     i = int(np.flatnonzero((s.field.orientations == [45.0, -20.0]).all(axis=1))[0])
     s.field.pick(i)
     assert s.orientation == (45.0, -20.0)
@@ -222,11 +231,9 @@ def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:
 
 def test_thirty_browsers_at_once_each_keep_their_own_state(app: ExplorerApp) -> None:
     before = set(app.sessions)
-    browsers = [SimulatedBrowser(app.port) for _ in range(30)]
+    browsers = [FakeBrowser(app.port) for _ in range(30)]
     try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and len(set(app.sessions) - before) < 30:
-            time.sleep(0.05)
+        wait_for(lambda: len(set(app.sessions) - before) >= 30, timeout=120)
         sessions = [app.sessions[k] for k in sorted(set(app.sessions) - before)]
         assert len(sessions) == 30
         targets = [(float(3 * k % 116), float(-170 + 11 * k)) for k in range(30)]
@@ -248,108 +255,56 @@ def test_thirty_browsers_at_once_each_keep_their_own_state(app: ExplorerApp) -> 
 
 
 def test_a_slider_move_from_the_browser_reaches_only_its_session(app: ExplorerApp) -> None:
-    one, two = SimulatedBrowser(app.port), SimulatedBrowser(app.port)
+    (one, s1), (two, s2) = open_session(app), open_session(app)
     try:
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and len(app.sessions) < 2:
-            time.sleep(0.02)
-        s1, s2 = sorted(app.sessions.items())[-2][1], sorted(app.sessions.items())[-1][1]
         a2 = s2.orientation
-        target = one if s1.client.client_id == min(s1.client.client_id, s2.client.client_id) else two
-        target.move_slider(s1.controls.a, 60.0)
-        deadline = time.monotonic() + 10
+        one.move_slider("A (deg)", 60.0)
         # The render thread draws it after the callback: wait for the drawn view, not just the value.
-        while time.monotonic() < deadline and (s1.orientation[0] != 60.0 or s1.view.a_deg != 60.0):
-            time.sleep(0.02)
-        assert s1.orientation[0] == 60.0 and s1.view.a_deg == 60.0
-        np.testing.assert_allclose(rotation_of(s1.head.a_frame.wxyz), head_rotation(60.0, 0.0), atol=1e-9)
+        assert wait_for(lambda: s1.orientation[0] == 60.0 and s1.view.a_deg == 60.0)
+        np.testing.assert_allclose(rotation_of(s1.head.a_frame.wxyz), head_rotation(60.0, 0.0), atol=1e-9)  # the A joint alone
         assert s2.orientation == a2
     finally:
         one.close()
         two.close()
 
 
-def test_slider_updates_coalesce_latest_value_wins(browser) -> None:
-    s = browser
-    s.go_to(15.0, -20.0)
-    release, entered = threading.Event(), threading.Event()
-    original = s._render
-
-    def slow_render() -> None:
-        entered.set()
-        release.wait(5)
-        original()
-
-    s._render = slow_render
-    try:
-        first = threading.Thread(target=lambda: setattr(s.controls.a, "value", 30.0))
-        first.start()
-        assert entered.wait(5)
-        count = s.render_count
-        for a in (31.0, 32.0, 33.0, 34.0):  # arrive while the first render runs: no render each
-            s.controls.a.value = a
-        release.set()
-        first.join(5)
-    finally:
-        s._render = original
-    assert s.orientation[0] == 34.0
-    assert s.view.a_deg == 34.0  # the last render used the latest value
-    assert s.render_count - count == 2  # the running render, then one more for all the queued moves
-
-
-def test_browser_moves_render_in_turn_on_the_one_render_thread_latest_value_wins(app: ExplorerApp) -> None:
-    """A browser's slider messages only mark its session dirty; the app's render thread draws the
-    dirty sessions oldest request first, each with its latest values (the skipped ones coalesced)."""
+def test_browser_moves_wait_for_the_one_render_thread_and_the_latest_value_wins(app: ExplorerApp) -> None:
+    """A browser's slider messages only mark its session dirty; the app's render thread draws each
+    dirty session once with its latest values (the scheduling itself: tests/test_render_queue.py)."""
     (b1, s1), (b2, s2) = open_session(app), open_session(app)
-    drawn: list[tuple[str, float, str]] = []
-    entered, release = threading.Event(), threading.Event()
+    started, release = threading.Event(), threading.Event()
 
-    def recording(name: str, session, hold: bool):
-        original = session._render
+    def held() -> None:  # keeps the render thread busy until released
+        started.set()
+        release.wait(10)
 
-        def render() -> None:
-            drawn.append((name, session.orientation[0], threading.current_thread().name))
-            if hold and not release.is_set():
-                entered.set()
-                release.wait(10)  # s1's first render holds the render thread
-            original()
-
-        return render
-
-    s1._render, s2._render = recording("s1", s1, True), recording("s2", s2, False)
     try:
-        renders, latencies = s2.render_count, len(s2.latency_times)
-        b1.move_slider(s1.controls.a, 20.0)
-        assert entered.wait(10)
-        for a in (21.0, 22.0, 23.0):  # s1 moves on during its own render
-            b1.move_slider(s1.controls.a, a)
-        for a in (61.0, 62.0):  # s2 asks while the render thread is busy: queued before s1's next turn
-            b2.move_slider(s2.controls.a, a)
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline and not (
-            s1.orientation[0] == 23.0 and s2.orientation[0] == 62.0 and s1._dirty and s2._dirty
-        ):
-            time.sleep(0.01)
-        assert s1.orientation[0] == 23.0 and s2.orientation[0] == 62.0
+        app.renders.request(RenderState(held))
+        assert started.wait(10)
+        renders = s1.render_count, s2.render_count
+        for a in (20.0, 21.0, 22.0, 23.0):
+            b1.move_slider("A (deg)", a)
+        for a in (61.0, 62.0):
+            b2.move_slider("A (deg)", a)
+        assert wait_for(lambda: s1.orientation[0] == 23.0 and s2.orientation[0] == 62.0)
+        assert (s1.render_count, s2.render_count) == renders  # nothing drawn in viser's callback threads
+        assert not s1.render_state.idle and not s2.render_state.idle
         release.set()
         assert s1.wait_rendered(10) and s2.wait_rendered(10)
     finally:
         release.set()
-        del s1._render, s2._render
         b1.close()
         b2.close()
-    assert [(name, a) for name, a, _ in drawn] == [("s1", 20.0), ("s2", 62.0), ("s1", 23.0)]
-    assert {thread for _, _, thread in drawn} == {"ph-explorer-render"}
+    assert (s1.render_count, s2.render_count) == (renders[0] + 1, renders[1] + 1)  # the moves coalesced
     assert s1.view.a_deg == 23.0 and s2.view.a_deg == 62.0
-    assert s2.render_count == renders + 1  # two moves, one render
-    # Its latency covers the wait behind s1's held render; the render itself was not held.
-    assert len(s2.latency_times) == latencies + 1 and s2.latency_times[-1] > s2.render_times[-1]
+    # Its latency covers the wait behind the held render; the render itself was not held.
+    assert s2.latency_times[-1] > s2.render_times[-1]
 
 
 def test_a_bad_upload_keeps_the_data_and_shows_the_error(browser) -> None:
     s = browser
     before = s.dataset
-    s._load_upload("broken.csv", b"A_deg,B_deg,rep,point,dev_um\n0,0,0,0,abc\n")
+    s.load_upload("broken.csv", b"A_deg,B_deg,rep,point,dev_um\n0,0,0,0,abc\n")
     assert s.dataset is before
     message = s.data_panel.message.content
     assert "broken.csv" in message and "row" in message and "keeps its current data" in message
@@ -357,12 +312,10 @@ def test_a_bad_upload_keeps_the_data_and_shows_the_error(browser) -> None:
 
 
 def test_a_good_upload_replaces_the_session_data_only(browser, app: ExplorerApp, tmp_path) -> None:
-    from ph_explorer.io import write_campaign
-
     campaign = lobing_campaign(seed=9, n_repetitions=3, extra_orientations=((30.0, 50.0),))
     path = write_campaign(campaign, tmp_path / "mine.csv")
     s = browser
-    s._load_upload("mine.csv", path.read_bytes())
+    s.load_upload("mine.csv", path.read_bytes())
     assert s.dataset is not app.dataset
     assert s.dataset.campaign.n_repetitions == 3
     assert "mine.csv" in s.data_panel.source.content
@@ -371,41 +324,57 @@ def test_a_good_upload_replaces_the_session_data_only(browser, app: ExplorerApp,
     assert s.view.measured
 
 
-def test_physics_panel_lists_the_catalog_effects(browser) -> None:
-    from ph_explorer.effects import CATALOG
+def test_a_campaign_with_negative_a_is_shown(opened, app: ExplorerApp, tmp_path) -> None:
+    """The A slider's range comes from the data: a campaign with negative A reaches them (issue 12)."""
+    fake, s = opened
+    assert (s.controls.a.min, s.controls.a.max) == (0.0, A_LIMIT_DEG)  # the test campaign: A 0..90
+    campaign = lobing_campaign(seed=7, n_repetitions=3, extra_orientations=((-30.0, 60.0), (-75.0, -140.0)))
+    s.load_upload("negative.csv", write_campaign(campaign, tmp_path / "negative.csv").read_bytes())
+    assert "negative.csv" in s.data_panel.source.content
+    assert (s.controls.a.min, s.controls.a.max) == (-A_LIMIT_DEG, A_LIMIT_DEG)
+    assert wait_for(lambda: fake.props("A (deg)")["min"] == -A_LIMIT_DEG)  # what the browser's slider shows
+    s.go_to(-30.0, 60.0)
+    assert s.orientation == (-30.0, 60.0) and s.view.measured and s.ring.curves["measured"].visible
+    np.testing.assert_allclose(rotation_of(s.ring.frame.wxyz), head_rotation(-30.0, 60.0), atol=1e-9)
+    # A click on the ring's marker in the field lands on it, not on A = 0.
+    s.go_to(15.0, -20.0)
+    i = int(np.flatnonzero((s.field.orientations == [-75.0, -140.0]).all(axis=1))[0])
+    s.field.pick(i)
+    assert s.orientation == (-75.0, -140.0) and s.view.measured
+    # Back to data without negative A: the slider's range and value follow.
+    s.load_upload("positive.csv", write_campaign(lobing_campaign(seed=8, n_repetitions=3), tmp_path / "positive.csv").read_bytes())
+    assert (s.controls.a.min, s.orientation[0], s.view.a_deg) == (0.0, 0.0, 0.0)
 
+
+def test_physics_panel_lists_the_catalog_effects(browser) -> None:
     p = browser.physics
-    assert set(p.effects) == set(CATALOG) - {"noise"}
+    assert set(p.effects) == set(DEFAULT_CATALOG.candidates())
+    assert browser.catalog is DEFAULT_CATALOG
     assert all(not box.value for box in p.effects.values())
     assert not p.history.visible and p.candidates.content == ""
 
 
-def test_parameters_are_shown_with_their_units() -> None:
-    assert parameter_text("amplitude_arcsec", 0.9534, "arcsec") == "amplitude 0.953 arcsec"
-    assert parameter_text("cycles_per_rev", 22.0, "1/rev") == "cycles per rev 22"
-    assert parameter_text("head_rate_um_per_h", 1.5, "um/h") == "head rate 1.5 um/h"
+def test_reveal_says_when_nothing_is_hidden(opened) -> None:
+    fake, s = opened
+    fake.click("Reveal the hidden effect")
+    assert wait_for(lambda: "no hidden effect" in s.physics.revealed.content)
 
 
-def test_reveal_says_when_nothing_is_hidden(browser) -> None:
-    s = browser
-    s._reveal()
-    assert "no hidden effect" in s.physics.revealed.content
-
-
-def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(browser) -> None:
+def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(opened) -> None:
     """Refit alone works too: add_effects gives the baseline step, then the hybrid's step."""
-    s = browser
+    fake, s = opened
     s.physics.effects["lobing"].value = True
-    click(s.physics.refit)
-    s.wait(timeout=120)
-    assert [step.added for step in s.steps] == [[], ["lobing"]]
+    click(fake, s, "Refit the hybrid")
+    assert [step.added for step in s.loop.steps] == [[], ["lobing"]]
     assert s.physics.history.visible and len(s.physics.history.data[0]) == 2
     assert "hybrid" in s.dataset.models
+    # The fitted parameters are written by the effect itself, with their units.
+    fitted = s.loop.steps[-1].params[0]["params"]
+    assert DEFAULT_CATALOG["lobing"].parameters_text(fitted) in s.physics.refit_status.content
     # Untick everything and refit: the hybrid curve goes away, the history keeps growing.
     s.physics.effects["lobing"].value = False
-    click(s.physics.refit)
-    s.wait(timeout=120)
-    assert len(s.steps) == 3 and "hybrid" not in s.dataset.models and not s.ring.curves["hybrid"].visible
+    click(fake, s, "Refit the hybrid")
+    assert len(s.loop.steps) == 3 and "hybrid" not in s.dataset.models and not s.ring.curves["hybrid"].visible
 
 
 def test_sliders_stay_live_while_a_diagnosis_runs_and_the_verdict_says_none(app: ExplorerApp, monkeypatch) -> None:
@@ -413,21 +382,21 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_the_verdict_says_none(app:
 
     The synthetic campaign hides nothing: the verdict reads "no missing effect found".
     """
-    from ph_explorer.app import server
+    from ph_explorer.app import physics
 
     running, release = threading.Event(), threading.Event()
-    real = server.diagnosis.diagnose
+    real = physics.diagnosis.diagnose
 
     def held_diagnose(*args, **kwargs):
         running.set()
         release.wait(60)  # the diagnosis is "still running" until the sliders have been moved
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(server.diagnosis, "diagnose", held_diagnose)
+    monkeypatch.setattr(physics.diagnosis, "diagnose", held_diagnose)
     (b1, s1), (b2, s2) = open_session(app), open_session(app)
     try:
-        click(s1.physics.diagnose)
-        assert running.wait(30)
+        b1.click("Diagnose")
+        assert running.wait(30) and wait_for(lambda: bool(s1.jobs))  # the callback lists the job after submitting it
         job = s1.jobs[-1]
         counts = s1.render_count, s2.render_count
         s1.controls.a.value = 52.0
@@ -437,10 +406,10 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_the_verdict_says_none(app:
         assert s1.view.a_deg == 52.0 and (s2.view.a_deg, s2.view.b_deg) == (30.0, 60.0)
         release.set()
         s1.wait(timeout=120)
-        assert s1.diagnosis is not None and s1.diagnosis.verdict == "none"
+        assert s1.loop.diagnosis is not None and s1.loop.diagnosis.verdict == "none"
         assert "no missing effect found" in s1.physics.verdict.content
         assert "✔" not in s1.physics.candidates.content and "b_axis_cyclic" in s1.physics.candidates.content
-        assert s2.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
+        assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
     finally:
         release.set()
         b1.close()
@@ -448,36 +417,35 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_the_verdict_says_none(app:
 
 
 @pytest.mark.slow
-def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
+def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     """Done-when of issue 6: on a teaching scenario the GUI loop diagnose -> add -> refit lowers the error."""
-    s = browser
+    fake, s = opened
     s.data_panel.scenario.value = "b_axis_22"
     s.wait(timeout=300)
     assert "b_axis_22" in s.data_panel.source.content
-    click(s.physics.diagnose)
-    s.wait(timeout=600)
+    click(fake, s, "Diagnose", timeout=600)
     p = s.physics
-    best = s.diagnosis.candidates[0]
-    assert best.effect == "b_axis_cyclic" and best.structural["cycles_per_rev"] == 22 and best.significant
+    best = s.loop.diagnosis.candidates[0]
+    assert best.effect == "b_axis_cyclic" and best.settings["cycles_per_rev"] == 22 and best.significant
     # The ranked table, the verdict with units and the teaching text, the evidence chart.
     assert "b_axis_cyclic" in p.candidates.content and f"{100 * best.explained_fraction:.1f}" in p.candidates.content
-    assert "Verdict: a missing effect" in p.verdict.content and "cycles per rev 22" in p.verdict.content
+    assert "Verdict: a missing effect" in p.verdict.content
+    assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(best.params) in p.verdict.content
     assert "arcsec" in p.verdict.content and best.teaching in p.verdict.content
     assert p.evidence.visible and p.evidence_of.value == "b_axis_cyclic"
     np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual"])
     assert "B joint angle" in p.evidence.axes[0]["label"]
-    other = s.diagnosis.candidates[1]
+    other = s.loop.diagnosis.candidates[1]
     p.evidence_of.value = other.effect  # another candidate's evidence on request
     np.testing.assert_allclose(p.evidence.data[2], other.evidence["fitted"])
     assert other.name in p.evidence_text.content
     # The history starts at the baseline.
-    assert len(s.steps) == 1 and s.steps[0].added == [] and p.history.visible
-    baseline = s.steps[0]
+    assert len(s.loop.steps) == 1 and s.loop.steps[0].added == [] and p.history.visible
+    baseline = s.loop.steps[0]
     p.effects["b_axis_cyclic"].value = True
-    click(p.refit)
-    s.wait(timeout=600)
-    last = s.steps[-1]
-    print("history", [(st.added, st.mae_um, st.noise_floor_um) for st in s.steps])
+    click(fake, s, "Refit the hybrid", timeout=600)
+    last = s.loop.steps[-1]
+    print("history", [(st.added, st.mae_um, st.noise_floor_um) for st in s.loop.steps])
     assert last.added == ["b_axis_cyclic"]
     assert last.mae_um["mean"] < baseline.mae_um["mean"]
     assert last.mae_um["mean"] <= 1.3 * last.noise_floor_um["mean"], last
@@ -493,12 +461,12 @@ def test_teaching_loop_diagnose_add_refit_error_falls(browser) -> None:
     assert "hybrid" in s.view.curves and s.ring.curves["hybrid"].visible
     assert "hybrid" in [series["label"] for series in s.charts.deviation.series]
     assert "hybrid" in s.tables.markdown.content
-    s._reveal()
-    assert "b_axis_cyclic" in p.revealed.content
+    fake.click("Reveal the hidden effect")
+    assert wait_for(lambda: "b_axis_cyclic" in p.revealed.content)
     # New data clears the physics of the old.
     s.data_panel.scenario.value = "paper"
     s.wait(timeout=300)
-    assert s.steps == [] and s.diagnosis is None and not p.history.visible and "hybrid" not in s.dataset.models
+    assert s.loop.steps == [] and s.loop.diagnosis is None and not p.history.visible and "hybrid" not in s.dataset.models
 
 
 # -- the default start: the shipped paper campaign with model/paper -----------------------------------

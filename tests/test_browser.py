@@ -15,6 +15,8 @@ import numpy as np
 from viser.transforms import SO3
 import pytest
 
+from fake_browser import wait_for
+
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader", "--disable-background-networking", "--disable-gpu"]
 
@@ -29,15 +31,6 @@ def _rotation(wxyz: np.ndarray) -> np.ndarray:
     return SO3(np.asarray(wxyz, dtype=float)).as_matrix()
 
 
-def _wait(condition, timeout: float = 20.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.05)
-    return False
-
-
 def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     assert Path(CHROMIUM).exists(), "CI must have Debian's chromium at /usr/bin/chromium"
     from playwright.sync_api import sync_playwright
@@ -45,7 +38,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     from ph_explorer.app.dataset import dataset_for
     from ph_explorer.app.server import ExplorerApp
     from ph_explorer.geometry import head_rotation
-    from ph_explorer.models.synthetic import lobing_campaign
+    from synthetic import lobing_campaign
 
     campaign = lobing_campaign(seed=5, extra_orientations=((43.0, 90.0), (15.0, -20.0)))
     app = ExplorerApp(dataset_for(campaign, "synthetic browser-test campaign", None), port=0)
@@ -60,7 +53,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             t0 = time.monotonic()
             page.goto(app.url)
             session = app.session(timeout=60)
-            assert _wait(lambda: session.render_count >= 1)
+            assert wait_for(lambda: session.render_count >= 1)
             page.get_by_text("Tables 1-3").first.wait_for(timeout=30_000)
             time.sleep(2.0)  # let the canvas draw
             page.screenshot(path=str(shots / "explorer_initial.png"))
@@ -76,9 +69,9 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             thumb.focus()
             for _ in range(3):
                 page.keyboard.press("ArrowRight")
-            assert _wait(lambda: session.orientation[0] == a_before + 3.0, timeout=90), session.orientation
+            assert wait_for(lambda: session.orientation[0] == a_before + 3.0, timeout=90), session.orientation
             print(f"slider moved after {time.monotonic() - t0:.1f} s")
-            assert _wait(lambda: session.view.a_deg == a_before + 3.0)
+            assert wait_for(lambda: session.view.a_deg == a_before + 3.0)
             assert session.render_count > renders
 
             a, b = session.orientation

@@ -9,11 +9,8 @@ running server with several browsers connected.
 
 from __future__ import annotations
 
-import time
-import uuid
 from pathlib import Path
 
-import msgspec
 import numpy as np
 from viser.transforms import SO3
 import pytest
@@ -60,59 +57,14 @@ def test_any_file_through_the_cli_ends_in_one_line(tmp_path: Path, data: bytes) 
 
 # -- the server: a bad upload in one browser, every browser keeps being served ---------------------
 viser = pytest.importorskip("viser")
-from viser import _messages  # noqa: E402
-from websockets.sync.client import connect  # noqa: E402
-
-
-class Browser:
-    """A minimal viser websocket client that drains what the server sends."""
-
-    def __init__(self, port: int) -> None:
-        import threading
-
-        self.ws = connect(f"ws://127.0.0.1:{port}", subprotocols=[f"viser-v{viser.__version__}"], max_size=None)
-        self.send(
-            _messages.ViewerCameraMessage(
-                wxyz=(1.0, 0.0, 0.0, 0.0), position=(100.0, -100.0, 0.0), fov=1.0, near=1.0, far=5000.0,
-                image_height=600, image_width=800, look_at=(0.0, 0.0, -60.0), up_direction=(0.0, 0.0, 1.0),
-            )
-        )
-        threading.Thread(target=self._drain, daemon=True).start()
-
-    def send(self, message: _messages.Message) -> None:
-        self.ws.send(msgspec.msgpack.encode(message.as_serializable_dict()))
-
-    def upload(self, button_uuid: str, name: str, content: bytes) -> None:
-        """What the browser's upload button sends: a transfer start, then the file in one part."""
-        transfer = str(uuid.uuid4())
-        self.send(_messages.FileTransferStartUpload(button_uuid, transfer, name, "text/csv", 1, len(content)))
-        self.send(_messages.FileTransferPart(button_uuid, transfer, 0, content))
-
-    def _drain(self) -> None:
-        try:
-            while True:
-                self.ws.recv()
-        except Exception:
-            pass
-
-    def close(self) -> None:
-        self.ws.close()
-
-
-def _wait(condition, timeout: float = 20.0) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if condition():
-            return True
-        time.sleep(0.02)
-    return condition()
+from fake_browser import open_session, wait_for  # noqa: E402
 
 
 @pytest.fixture(scope="module")
 def explorer():
     from ph_explorer.app.dataset import dataset_for
     from ph_explorer.app.server import ExplorerApp
-    from ph_explorer.models.synthetic import lobing_campaign
+    from synthetic import lobing_campaign
 
     campaign = lobing_campaign(seed=5, extra_orientations=((43.0, 90.0),))
     app = ExplorerApp(dataset_for(campaign, "synthetic robustness campaign", None), host="127.0.0.1", port=0)
@@ -132,27 +84,21 @@ BAD_FILES = {
 def test_a_bad_upload_leaves_every_browser_served(explorer, name: str) -> None:
     from ph_explorer.geometry import head_rotation
 
-    before = set(explorer.sessions)
-    browsers = [Browser(explorer.port) for _ in range(3)]
+    opened = [open_session(explorer) for _ in range(3)]
+    browsers, sessions = [b for b, _ in opened], [s for _, s in opened]
     try:
-        assert _wait(lambda: len(set(explorer.sessions) - before) == 3), "a browser got no session"
-        ids = sorted(set(explorer.sessions) - before)
-        sessions = [explorer.sessions[i] for i in ids]
-        for s in sessions:
-            s.wait()
-        # Client ids are given in connection order: browsers[k] owns sessions[k].
         datasets = [s.dataset for s in sessions]
         uploader = sessions[0]
-        browsers[0].upload(uploader.data_panel.upload._impl.uuid, name, BAD_FILES[name])
-        assert _wait(lambda: name in uploader.data_panel.message.content), uploader.data_panel.message.content
+        browsers[0].upload("Upload a campaign CSV", name, BAD_FILES[name])
+        assert wait_for(lambda: name in uploader.data_panel.message.content), uploader.data_panel.message.content
         uploader.wait()
         assert "keeps its current data" in uploader.data_panel.message.content
         assert [s.dataset for s in sessions] == datasets
         # Every browser, the uploader included, still moves its own head.
-        for k, (browser, s) in enumerate(zip(browsers, sessions)):
-            browser.send(_messages.GuiUpdateMessage(s.controls.a._impl.uuid, {"value": 20.0 + 10.0 * k}))
+        for k, browser in enumerate(browsers):
+            browser.move_slider("A (deg)", 20.0 + 10.0 * k)
         for k, s in enumerate(sessions):
-            assert _wait(lambda: s.orientation[0] == 20.0 + 10.0 * k and s.view.a_deg == 20.0 + 10.0 * k)
+            assert wait_for(lambda: s.orientation[0] == 20.0 + 10.0 * k and s.view.a_deg == 20.0 + 10.0 * k)
             r = _rotation(s.head.b_frame.wxyz) @ _rotation(s.head.a_frame.wxyz)
             np.testing.assert_allclose(r, head_rotation(*s.orientation), atol=1e-9)
     finally:

@@ -1,7 +1,7 @@
 """What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
 
-This module only calls the core (io, twin, models, training, evaluation, harmonics); it holds no
-physics.
+This module only calls the core (io, twin, models, metrics, evaluation, harmonics); it holds no
+physics. Views and figures are computed on demand and cached per Dataset.
 """
 
 from __future__ import annotations
@@ -17,19 +17,26 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import holdout_from_card, noise_floor, orientation_tables
+from ph_explorer.evaluation import holdout_from_card, orientation_tables
+from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
+from ph_explorer.metrics import noise_floor, ring_mae
+from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.crossval import cross_val_predict
+from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.training import load_card, load_models
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
+VIEW_CACHE = 512  # orientations whose views a dataset keeps (a slider sweep revisits them)
 
 
-def _paper_orientations_key(a_deg: float, b_deg: float) -> tuple[float, float]:
-    return (round(float(a_deg), 6), round(float(b_deg) % 360.0, 6))
+def _view_key(a_deg: float, b_deg: float) -> tuple[float, float]:
+    """Views of the same orientation (campaign.ORIENTATION_TOLERANCE_DEG, B modulo 360) share a key."""
+    a, b = orientation_keys([float(a_deg), float(b_deg) % 360.0])
+    return float(a), float(b)
 
 
 @dataclass
@@ -55,7 +62,7 @@ class Dataset:
     """A campaign and its models; every derived figure is computed by the core and cached here."""
 
     campaign: Campaign
-    models: dict[str, Any]
+    models: dict[str, DeviationModel]
     label: str
     notes: list[str] = field(default_factory=list)
     train_mask: NDArray[np.bool_] | None = None
@@ -73,12 +80,18 @@ class Dataset:
         finite = np.isfinite(self.sigma_um)
         self.noise_floor_um: dict[str, float] = noise_floor(self.sigma_um, self.campaign.n_repetitions) if finite else {}
 
+    @property
+    def a_range(self) -> tuple[float, float]:
+        """The A slider's range: 0 to the head's reach, from minus the reach when the campaign has negative A."""
+        low = -A_LIMIT_DEG if float(self.campaign.orientations[:, 0].min(initial=0.0)) < 0.0 else 0.0
+        return low, A_LIMIT_DEG
+
     # -- models ----------------------------------------------------------------------------------
     @property
     def model_names(self) -> list[str]:
         return [n for n in MODEL_ORDER if n in self.models] + [n for n in self.models if n not in MODEL_ORDER]
 
-    def with_model(self, name: str, model: Any) -> "Dataset":
+    def with_model(self, name: str, model: DeviationModel) -> "Dataset":
         """A copy holding one more (or a replaced) model; the views are recomputed."""
         return self._with_models({**self.models, name: model})
 
@@ -88,7 +101,7 @@ class Dataset:
             return self
         return self._with_models({k: v for k, v in self.models.items() if k != name})
 
-    def _with_models(self, models: dict[str, Any]) -> "Dataset":
+    def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
         copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
@@ -97,7 +110,7 @@ class Dataset:
 
     # -- one orientation ---------------------------------------------------------------------------
     def view(self, a_deg: float, b_deg: float) -> OrientationView:
-        key = _paper_orientations_key(a_deg, b_deg)
+        key = _view_key(a_deg, b_deg)
         with self._lock:
             hit = self._views.get(key)
             if hit is not None:
@@ -106,7 +119,7 @@ class Dataset:
         view = self._compute_view(float(a_deg), float(b_deg))
         with self._lock:
             self._views[key] = view
-            while len(self._views) > 512:
+            while len(self._views) > VIEW_CACHE:
                 self._views.popitem(last=False)
         return view
 
@@ -186,34 +199,23 @@ class Dataset:
         ratio = name.endswith("/ noise floor") or "/ noise floor," in name
         floor = self.noise_floor_um.get("mean")
         if name.startswith("trilinear MAE") and "leave-one-out" in name:
-            mae = self._trilinear_leave_one_out()
+            # Out of sample: each training ring by tables fitted without it, each held-out ring by the training rings.
+            predicted = cross_val_predict(TrilinearModel, self.campaign, self.train_mask)
             note = "um against the measured mean; each ring predicted by tables refitted without it (out of sample)"
         else:
             model = name.split(" ")[0]
             if model not in self.models:
                 raise KeyError(name)
             predicted = self.models[model].predict(self.campaign.orientations, n_points=self.campaign.n_points)
-            mae = np.abs(predicted - self.mean_curves).mean(axis=1)
             note = (
                 "um against the measured mean: out of sample on the held-out rings, in sample on the training rings"
             )
+        mae = ring_mae(predicted, self.campaign.deviations)["mean"]
         if ratio:
             if not floor:
                 return np.full(self.campaign.n_orientations, np.nan), "noise floor unknown (a single repetition)"
             return mae / floor, f"x the noise floor of the mean ({floor:.3f} um); " + note
         return mae, note
-
-    def _trilinear_leave_one_out(self) -> NDArray[np.float64]:
-        """MAE of the trilinear model at each ring with that ring left out of its tables."""
-        c = self.campaign
-        mae = np.empty(c.n_orientations)
-        base = np.asarray(self.train_mask, dtype=bool)
-        for i in range(c.n_orientations):  # one cheap table fit per ring (a loop over rings, not touches)
-            mask = base.copy()
-            mask[i] = False
-            predicted = TrilinearModel().fit(c, mask).predict(c.orientations[i : i + 1], n_points=c.n_points)[0]
-            mae[i] = np.abs(predicted - self.mean_curves[i]).mean()
-        return mae
 
     def worst_orientations(self, name: str, count: int = 5) -> list[tuple[float, float, float]]:
         values, _ = self.figure(name)
@@ -231,7 +233,7 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     models never saw), else the campaign's own check orientations.
     """
     notes = list(notes or [])
-    models: dict[str, Any] = {}
+    models: dict[str, DeviationModel] = {}
     train = ~campaign.holdout_mask()
     if model_dir is not None:
         models = dict(load_models(Path(model_dir)))
@@ -266,11 +268,8 @@ def simulated_scenario(name: str) -> Campaign:
     return twin.simulate(scenario, scenario.seed)
 
 
-def list_scenarios() -> list[str]:
-    return [name for name, _description in twin.list_scenarios()]
-
-
 def scenario_descriptions() -> dict[str, str]:
+    """Shipped scenario name -> its one-line description."""
     return dict(twin.list_scenarios())
 
 

@@ -1,13 +1,15 @@
 """Side panels of one browser: each panel owns its GUI elements and fills them from core results.
 
 Panels never compute physics: they format what ph_explorer.app.dataset (i.e. the core) returns.
+The Physics tab is in physics_panel.py.
 """
 
 from __future__ import annotations
 
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
+import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.dataset import Dataset, OrientationView
@@ -28,28 +30,20 @@ def orientation_label(a_deg: float, b_deg: float) -> str:
     return f"A{a_deg:g} B{b_deg:g}"
 
 
-def parse_orientation_label(label: str) -> tuple[float, float] | None:
-    """'A43 B90 ...' -> (43.0, 90.0)."""
-    try:
-        a_part, b_part = label.split()[:2]
-        return float(a_part[1:]), float(b_part[1:])
-    except (ValueError, IndexError):
-        return None
-
-
-def _fmt(value: Any) -> str:
+def _fmt(value: float | None) -> str:
     return "—" if value is None or (isinstance(value, float) and not np.isfinite(value)) else f"{value:.2f}"
 
 
 class ControlsPanel:
     """Orientation sliders, presets, curve switches, magnification, band, legend and camera views."""
 
-    def __init__(self, gui: Any, a_deg: float, b_deg: float) -> None:
+    def __init__(self, gui: viser.GuiApi, a_deg: float, b_deg: float, a_range: tuple[float, float]) -> None:
         with gui.add_folder("Orientation"):
-            self.a = gui.add_slider("A (deg)", 0.0, 115.0, 1.0, float(a_deg), hint="tilt of the stylus, 0 = down")
+            self.a = gui.add_slider("A (deg)", *a_range, 1.0, float(a_deg), hint="tilt of the stylus, 0 = down")
             self.b = gui.add_slider("B (deg)", -180.0, 180.0, 1.0, float(b_deg), hint="turn about the quill axis")
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the field's figure is largest")
+            self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
             self.status = gui.add_markdown("")
         with gui.add_folder("Curves"):
             self.magnification = gui.add_slider(
@@ -76,9 +70,15 @@ class ControlsPanel:
         self.band.options = ("none", *names)
         self.legend.content = legend_html(["measured", *names, "repetitions", "reference"])
 
+    def set_a_range(self, low: float, high: float) -> None:
+        """The A slider's range for new data (its value kept inside)."""
+        self.a.min, self.a.max = float(low), float(high)
+        if not low <= self.a.value <= high:
+            self.a.value = float(np.clip(self.a.value, low, high))
+
     def set_worst(self, worst: Iterable[tuple[float, float, float]], unit_note: str) -> None:
-        options = [NO_CHOICE] + [f"{orientation_label(a, b)} ({v:.3g})" for a, b, v in worst]
-        self.worst.options = tuple(options)
+        self.worst_targets = {f"{orientation_label(a, b)} ({v:.3g})": (a, b) for a, b, v in worst}
+        self.worst.options = (NO_CHOICE, *self.worst_targets)
         self.worst.value = NO_CHOICE
         self.worst.hint = f"largest values of the field's figure ({unit_note})"
 
@@ -114,7 +114,7 @@ def legend_html(names: Iterable[str]) -> str:
 class TablesPanel:
     """The paper's Tables 1-3 for the current orientation (markdown)."""
 
-    def __init__(self, gui: Any) -> None:
+    def __init__(self, gui: viser.GuiApi) -> None:
         self.markdown = gui.add_markdown("")
 
     def update(self, view: OrientationView, dataset: Dataset) -> None:
@@ -198,44 +198,38 @@ def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_up
     return data, series
 
 
+ChartData = Callable[[OrientationView, Mapping[str, bool]], tuple[tuple[NDArray, ...], tuple[dict, ...]]]
+
+
 class ChartsPanel:
     """Deviation against point number, and the harmonic (UPR) bar chart, for the shown curves."""
 
-    def __init__(self, gui: Any, view: OrientationView, shown: Mapping[str, bool]) -> None:
-        data, series = deviation_chart_data(view, shown)
-        self.deviation = gui.add_uplot(
-            data,
-            series,
-            title="Deviation (um) against point number",
-            aspect=1.6,
-            scales={"x": {"time": False}},
-            axes=({"label": "point"}, {"label": "um"}),
-        )
-        data, series = harmonic_chart_data(view, shown)
-        self.harmonics = gui.add_uplot(
-            data,
-            series,
-            title="Harmonics: amplitude (um) per UPR",
-            aspect=1.6,
-            scales={"x": {"time": False}},
-            axes=({"label": "UPR"}, {"label": "um"}),
-        )
+    CHARTS: tuple[tuple[str, str, ChartData], ...] = (
+        ("Deviation (um) against point number", "point", deviation_chart_data),
+        ("Harmonics: amplitude (um) per UPR", "UPR", harmonic_chart_data),
+    )
+
+    def __init__(self, gui: viser.GuiApi, view: OrientationView, shown: Mapping[str, bool]) -> None:
+        self.charts: list[tuple[viser.GuiUplotHandle, ChartData]] = []
+        for title, x_label, chart_data in self.CHARTS:
+            data, series = chart_data(view, shown)
+            axes = ({"label": x_label}, {"label": "um"})
+            handle = gui.add_uplot(data, series, title=title, aspect=1.6, scales={"x": {"time": False}}, axes=axes)
+            self.charts.append((handle, chart_data))
+        self.deviation, self.harmonics = (handle for handle, _ in self.charts)
 
     def update(self, view: OrientationView, shown: Mapping[str, bool]) -> None:
-        data, series = deviation_chart_data(view, shown)
-        if tuple(self.deviation.series) != series:
-            self.deviation.series = series
-        self.deviation.data = data
-        data, series = harmonic_chart_data(view, shown)
-        if tuple(self.harmonics.series) != series:
-            self.harmonics.series = series
-        self.harmonics.data = data
+        for handle, chart_data in self.charts:
+            data, series = chart_data(view, shown)
+            if tuple(handle.series) != series:  # series change only with the shown curves: resent only then
+                handle.series = series
+            handle.data = data
 
 
 class FieldPanel:
     """Which per-orientation figure colours the error field, its scale, and whether it shows."""
 
-    def __init__(self, gui: Any, names: Sequence[str]) -> None:
+    def __init__(self, gui: viser.GuiApi, names: Sequence[str]) -> None:
         self.figure = gui.add_dropdown("Colour by", tuple(names))
         self.show = gui.add_checkbox("Show the field", True)
         self.scale = gui.add_html("")
@@ -261,7 +255,7 @@ class FieldPanel:
 class DataPanel:
     """Where the session's data came from; scenario picker and CSV upload, with the reader's error line."""
 
-    def __init__(self, gui: Any, scenarios: Sequence[str]) -> None:
+    def __init__(self, gui: viser.GuiApi, scenarios: Sequence[str]) -> None:
         self.source = gui.add_markdown("")
         self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *scenarios), hint="a campaign simulated by the twin")
         self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
@@ -280,223 +274,3 @@ class DataPanel:
 
     def show_info(self, text: str) -> None:
         self.message.content = text
-
-
-# Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
-HISTORY_SERIES = (
-    {"label": "step"},
-    {"label": "MAE vs mean", "stroke": "#2a9d3c", "width": 2, "points": {"show": True, "size": 7}},
-    {"label": "floor (mean)", "stroke": "#2a9d3c", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
-    {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
-    {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
-)
-EVIDENCE_SERIES = (
-    {"label": "x"},
-    {"label": "out-of-sample residual", "stroke": "#444444", "width": 0, "points": {"show": True, "size": 5, "fill": "#444444"}},
-    {"label": "candidate, fitted", "stroke": "#d62728", "width": 2, "points": {"show": False}},
-)
-
-
-def parameter_text(name: str, value: float, unit: str) -> str:
-    """'amplitude_arcsec', 0.95, 'arcsec' -> 'amplitude 0.95 arcsec'; 'cycles_per_rev', 22, '1/rev' -> 'cycles per rev 22'."""
-    label = name
-    written = unit.replace("/", "_per_")  # 'um/h' is spelled 'um_per_h' in parameter names
-    if unit and label.endswith("_" + written):
-        label = label[: -len(written) - 1]
-    elif unit == "1/rev" and label.endswith("per_rev"):
-        unit = ""  # 'cycles per rev' says it
-    return f"{label.replace('_', ' ')} {value:.3g}" + (f" {unit}" if unit else "")
-
-
-def parameters_text(params: Mapping[str, float], units: Mapping[str, str]) -> str:
-    return ", ".join(parameter_text(k, float(v), units.get(k, "")) for k, v in params.items())
-
-
-def step_label(added: Sequence[str], baseline: str) -> str:
-    return f"baseline ({baseline})" if not added else "+ " + " + ".join(added)
-
-
-def history_data(steps: Sequence[Any]) -> tuple[NDArray[np.float64], ...]:
-    """uPlot data of the error history: per step, MAE and floor against the mean and single repetitions."""
-    x = np.arange(len(steps), dtype=float)
-    get = lambda attr, ref: np.array([float(getattr(s, attr)[ref]) for s in steps])
-    return (x, get("mae_um", "mean"), get("noise_floor_um", "mean"), get("mae_um", "single"), get("noise_floor_um", "single"))
-
-
-def candidates_html(candidates: Sequence[Any], units: Mapping[str, Mapping[str, str]], limit: int = 8) -> str:
-    """The ranked candidates: explained share, fall of the held-out error, what noise explains, significance."""
-    cell = "padding:2px 4px;"
-    head = (
-        '<table style="width:100%;border-collapse:collapse;font-size:0.75em;line-height:1.3em;table-layout:fixed">'
-        '<colgroup><col style="width:49%"><col style="width:17%"><col style="width:15%"><col style="width:13%">'
-        '<col style="width:6%"></colgroup>'
-        f'<tr style="border-bottom:1px solid #bbb;text-align:right"><th style="text-align:left;{cell}">effect</th>'
-        f'<th style="{cell}" title="share of the out-of-sample residual it explains">explains</th>'
-        f'<th style="{cell}" title="fall of the held-out rms error against the reference that exposes it">error&nbsp;&darr;</th>'
-        f'<th style="{cell}" title="the most the same scan explains on pure noise">noise</th><th></th></tr>'
-    )
-    rows = []
-    for rank, c in enumerate(candidates[:limit], 1):
-        style = "font-weight:600;" if c.significant else "color:#777;"
-        params = ""
-        if c.significant:  # a non-significant fit's parameters describe noise: not shown as findings
-            params = f'<div style="font-weight:400;color:#1f6f2f">{parameters_text(c.params, units.get(c.effect, {}))}</div>'
-        mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
-        rows.append(
-            f'<tr style="border-bottom:1px solid #eee;text-align:right;vertical-align:top;{style}">'
-            f'<td style="text-align:left;{cell}overflow-wrap:anywhere">{rank}. {c.effect}{params}</td>'
-            f'<td style="{cell}">{100.0 * c.explained_fraction:.1f}&nbsp;%</td>'
-            f'<td style="{cell}">{100.0 * c.error_reduction:.0f}&nbsp;%</td>'
-            f'<td style="{cell}">{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td style="{cell}">{mark}</td></tr>'
-        )
-    more = f'<div style="font-size:0.75em;color:#777">… and {len(candidates) - limit} more</div>' if len(candidates) > limit else ""
-    legend = (
-        '<div style="font-size:0.72em;color:#666;margin-top:3px">explains: share of what the baseline cannot predict '
-        "out of sample; error &darr;: fall of the check-ring rms error; noise: the most the same scan explains on "
-        "pure noise; &#10004;: significant.</div>"
-    )
-    return head + "".join(rows) + "</table>" + more + legend
-
-
-class PhysicsPanel:
-    """Diagnose -> add an effect -> refit -> the error falls; reveal the hidden effect.
-
-    Formats what ph_explorer.diagnosis returns (Diagnosis, Candidate, Step); computes nothing.
-    """
-
-    def __init__(self, gui: Any, effect_names: Mapping[str, str]) -> None:
-        self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
-        self.status = gui.add_markdown("")
-        self.progress = gui.add_progress_bar(0.0, visible=False)
-        self.summary = gui.add_markdown("")
-        self.candidates = gui.add_html("")
-        self.verdict = gui.add_markdown("")
-        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
-        self.evidence = gui.add_uplot(
-            (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
-            EVIDENCE_SERIES,
-            title="Evidence",
-            aspect=1.6,
-            scales={"x": {"time": False}},
-            axes=({"label": "x"}, {"label": "um"}),
-            visible=False,
-        )
-        self.evidence_text = gui.add_markdown("")
-        self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
-        # Labelled by id (as in the candidates table): the panel's label column is narrow.
-        self.effects = {
-            effect_id: gui.add_checkbox(effect_id, False, hint=f"{name}: add it to the hybrid's physical terms")
-            for effect_id, name in effect_names.items()
-        }
-        self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
-        self.refit_progress = gui.add_progress_bar(0.0, visible=False)
-        self.refit_status = gui.add_markdown("")
-        self.history = gui.add_uplot(
-            (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
-            HISTORY_SERIES,
-            title="Check-ring MAE per step (um), dashed: noise floor",
-            aspect=1.5,
-            scales={"x": {"time": False, "range": [-0.5, 0.5]}},
-            axes=({"label": "step"}, {"label": "um"}),
-            visible=False,
-        )
-        self.history_table = gui.add_markdown("")
-        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
-        self.revealed = gui.add_markdown("")
-        self.effect_names = dict(effect_names)
-
-    def clear(self) -> None:
-        """New data: the diagnosis and history of the old data no longer apply."""
-        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
-            handle.content = ""
-        self.candidates.content = ""
-        self.progress.visible = self.refit_progress.visible = False
-        self.evidence.visible = self.evidence_of.visible = self.history.visible = False
-        self.evidence_of.options = (NO_CHOICE,)
-        for effect_id, box in self.effects.items():
-            box.label = effect_id
-            box.value = False
-
-    def show_progress(self, text: str, fraction: float | None, refit: bool = False) -> None:
-        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
-        bar.visible = True
-        bar.animated = fraction is None
-        if fraction is not None:
-            bar.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
-        status.content = f"_{text}_"
-
-    def done(self, text: str, refit: bool = False) -> None:
-        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
-        bar.value = 100.0
-        bar.visible = False
-        status.content = text
-
-    def show_diagnosis(self, result: Any, units: Mapping[str, Mapping[str, str]]) -> None:
-        floor, base = result.noise_floor_um, result.baseline_mae_um
-        n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
-        self.summary.content = (
-            f"**Where it fails:** {n_fail} of {len(result.failing)} orientations are worse than their noise floor "
-            f"(out of sample). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
-            f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
-            f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
-        )
-        self.candidates.content = candidates_html(result.candidates, units)
-        if result.verdict == "missing":
-            best = result.candidates[0]
-            self.verdict.content = (
-                f"**Verdict: a missing effect — {best.name} ({best.effect})**, "
-                f"{parameters_text(best.params, units.get(best.effect, {}))}.\n\n_{best.teaching}_\n\nTick it below and refit."
-            )
-        else:
-            self.verdict.content = (
-                "**Verdict: no missing effect found** — no candidate explains more than noise would "
-                "and lowers the held-out error materially."
-            )
-        for c in result.candidates:
-            box = self.effects.get(c.effect)
-            if box is not None:
-                box.label = c.effect + (" ✔" if c.significant else "")
-        options = tuple(c.effect for c in result.candidates if c.evidence.get("x"))
-        self.evidence_of.options = options or (NO_CHOICE,)
-        self.evidence_of.visible = bool(options)
-
-    def show_evidence(self, candidate: Any, units: Mapping[str, str]) -> None:
-        ev = candidate.evidence
-        if not ev.get("x"):
-            self.evidence.visible = False
-            self.evidence_text.content = ""
-            return
-        data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
-        self.evidence.title = f"{candidate.effect}: residual and fit, {ev['y_label']}"
-        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
-        self.evidence.data = data
-        self.evidence.visible = True
-        flag = "significant" if candidate.significant else "not significant"
-        self.evidence_text.content = (
-            f"**{candidate.name}** ({flag}): {parameters_text(candidate.params, units)}. "
-            f"Every touch's out-of-sample residual, binned against {ev['x_label']}.\n\n_{candidate.teaching}_"
-        )
-
-    def show_history(self, steps: Sequence[Any], baseline: str) -> None:
-        """The error history: MAE against the mean and single repetitions per step, each with its floor."""
-        if not steps:
-            self.history.visible = False
-            self.history_table.content = ""
-            return
-        self.history.data = history_data(steps)
-        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
-        self.history.axes = ({"label": "step", "splits": tuple(float(k) for k in range(len(steps)))}, {"label": "um"})
-        self.history.visible = True
-        lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
-        for k, s in enumerate(steps):
-            lines.append(
-                f"| {k}: {step_label(s.added, baseline)} | {s.mae_um['mean']:.3f} ({s.noise_floor_um['mean']:.3f}) | "
-                f"{s.mae_um['single']:.3f} ({s.noise_floor_um['single']:.3f}) |"
-            )
-        last = steps[-1]
-        ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
-        lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
-        self.history_table.content = "\n".join(lines)
-
-    def selected_effects(self) -> list[str]:
-        return [e for e, box in self.effects.items() if box.value]

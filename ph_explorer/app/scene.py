@@ -1,4 +1,5 @@
-"""Scene objects of one browser: the PH20 head, the ring with its magnified curves, the error field.
+"""Scene objects of one browser: the PH20 head and the ring with its magnified curves (the error
+field is in field.py), their colours and the cameras that look at them.
 
 Each object owns its viser handles (created in that client's scene) and updates them from plain
 arrays; the caller groups the updates of one slider move in one `client.atomic()` batch.
@@ -9,13 +10,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Callable, Mapping
+from typing import Mapping
 
 import numpy as np
 import trimesh
+import viser
 from numpy.typing import NDArray
+from viser.transforms import SO3
 
-from ph_explorer.geometry import Geometry, joint_angles, point_angles_deg, stylus_direction
+from ph_explorer.geometry import Geometry, point_angles_deg, stylus_direction
 
 # One color per curve (RGB 0-255), shared by the scene, the legend and the charts.
 CURVE_COLORS: dict[str, tuple[int, int, int]] = {
@@ -41,28 +44,22 @@ def hex_color(rgb: tuple[int, int, int]) -> str:
     return "#%02x%02x%02x" % tuple(int(c) for c in rgb)
 
 
-# -- rotations as quaternions (viser wants wxyz) -------------------------------------------------------
+# -- rotations (viser wants wxyz quaternions; viser.transforms composes them) -------------------------
 
 
-def quat_z(angle_deg: float) -> NDArray[np.float64]:
-    h = np.radians(angle_deg) / 2.0
-    return np.array([np.cos(h), 0.0, 0.0, np.sin(h)])
+def b_joint(b_deg: float) -> SO3:
+    """The B joint's rotation: about z."""
+    return SO3.from_z_radians(np.radians(b_deg))
 
 
-def quat_x(angle_deg: float) -> NDArray[np.float64]:
-    h = np.radians(angle_deg) / 2.0
-    return np.array([np.cos(h), np.sin(h), 0.0, 0.0])
+def a_joint(a_deg: float) -> SO3:
+    """The A joint's rotation: about x, in the frame the B joint turned."""
+    return SO3.from_x_radians(np.radians(a_deg))
 
 
-def quat_mul(p: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
-    w1, v1 = p[0], p[1:]
-    w2, v2 = q[0], q[1:]
-    return np.concatenate([[w1 * w2 - v1 @ v2], w1 * v2 + w2 * v1 + np.cross(v1, v2)])
-
-
-def quat_head(a_deg: float, b_deg: float) -> NDArray[np.float64]:
-    """Quaternion of Rz(B) Rx(A) = geometry.head_rotation(A, B) = geometry.ring_frame(A, B)."""
-    return quat_mul(quat_z(b_deg), quat_x(a_deg))
+def head_orientation(a_deg: float, b_deg: float) -> SO3:
+    """Rz(B) Rx(A) = geometry.head_rotation(A, B) = geometry.ring_frame(A, B)."""
+    return b_joint(b_deg) @ a_joint(a_deg)
 
 
 # -- where to look from ----------------------------------------------------------------------------------
@@ -163,12 +160,12 @@ def head_parts(pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) ->
 class HeadScene:
     """The PH20 head: /head (fixed), /head/B turning about z, /head/B/A turning about x."""
 
-    def __init__(self, scene: Any, geometry: Geometry) -> None:
+    def __init__(self, scene: viser.SceneApi, geometry: Geometry) -> None:
         self.scene = scene
         self.root = scene.add_frame("/head", show_axes=False)
         self.b_frame = scene.add_frame("/head/B", show_axes=False)
         self.a_frame = scene.add_frame("/head/B/A", show_axes=False)
-        self.parts: dict[str, Any] = {}
+        self.parts: dict[str, viser.MeshHandle] = {}
         for part in head_parts(geometry.pivot_to_ball_mm, geometry.ball_diameter_mm):
             self.parts[part.name] = scene.add_mesh_simple(
                 f"/head/{part.name}",
@@ -179,8 +176,8 @@ class HeadScene:
             )
 
     def update(self, a_deg: float, b_deg: float) -> None:
-        self.b_frame.wxyz = quat_z(b_deg)
-        self.a_frame.wxyz = quat_x(a_deg)
+        self.b_frame.wxyz = b_joint(b_deg).wxyz
+        self.a_frame.wxyz = a_joint(a_deg).wxyz
 
 
 # -- the ring and its curves ------------------------------------------------------------------------------
@@ -214,7 +211,7 @@ class RingScene:
 
     CURVES = ("measured", "network", "trilinear", "hybrid")
 
-    def __init__(self, scene: Any, geometry: Geometry) -> None:
+    def __init__(self, scene: viser.SceneApi, geometry: Geometry) -> None:
         self.scene = scene
         self.geometry = geometry
         self.bore_radius = 0.5 * geometry.bore_diameter_mm
@@ -242,7 +239,7 @@ class RingScene:
             thickness=1.0,
             thickness_units="screen",
         )
-        self.curves: dict[str, Any] = {}
+        self.curves: dict[str, viser.LineSegmentsHandle] = {}
         for name in self.CURVES:
             self.curves[name] = scene.add_line_segments(
                 f"/ring/curves/{name}",
@@ -260,7 +257,7 @@ class RingScene:
             thickness_units="screen",
             visible=False,
         )
-        self.band: Any = None
+        self.band: viser.MeshHandle | None = None
         self.band_model: str | None = None
         self.labels = [
             scene.add_label(
@@ -279,7 +276,7 @@ class RingScene:
 
     def place(self, a_deg: float, b_deg: float) -> None:
         """Ring axis along s(A0, B0) through the pivot, its measuring plane at the ball's depth."""
-        self.frame.wxyz = quat_head(a_deg, b_deg)
+        self.frame.wxyz = head_orientation(a_deg, b_deg).wxyz
         self.frame.position = self.geometry.axial_distance_mm * stylus_direction(a_deg, b_deg)
 
     def update(
@@ -336,136 +333,3 @@ class RingScene:
         else:
             self.band.vertices = vertices.astype(np.float32)
             self.band.visible = True
-
-
-# -- the error field over the stylus directions ---------------------------------------------------------
-
-# A few stops of the viridis colormap (0..1 -> RGB): perceptually uniform, colour-blind safe.
-_VIRIDIS = np.array(
-    [
-        [68, 1, 84],
-        [72, 40, 120],
-        [62, 74, 137],
-        [49, 104, 142],
-        [38, 130, 142],
-        [31, 158, 137],
-        [53, 183, 121],
-        [109, 205, 89],
-        [180, 222, 44],
-        [253, 231, 37],
-    ],
-    dtype=float,
-)
-
-
-def colormap(values: NDArray[np.float64], low: float, high: float) -> NDArray[np.uint8]:
-    """Viridis colours (n, 3) uint8 for values scaled from [low, high]; NaN -> grey."""
-    v = np.asarray(values, dtype=float)
-    t = np.clip((v - low) / (high - low if high > low else 1.0), 0.0, 1.0)
-    x = t * (len(_VIRIDIS) - 1)
-    i = np.clip(np.floor(x).astype(int), 0, len(_VIRIDIS) - 2)
-    w = (x - i)[..., None]
-    rgb = (1 - w) * _VIRIDIS[i] + w * _VIRIDIS[i + 1]
-    rgb = np.where(np.isfinite(v)[..., None], rgb, 170.0)
-    return rgb.astype(np.uint8)
-
-
-@lru_cache(maxsize=2)
-def _hemisphere(radius: float, a_max_deg: float = 118.0) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """An icosphere cut to the stylus directions the head reaches (A <= a_max), vertices and faces."""
-    sphere = trimesh.creation.icosphere(subdivisions=4, radius=radius)
-    a, _ = joint_angles(sphere.vertices)
-    keep = (a[sphere.faces] <= a_max_deg).all(axis=1)
-    mesh = trimesh.Trimesh(sphere.vertices, sphere.faces[keep], process=False)
-    mesh.remove_unreferenced_vertices()
-    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
-
-
-class ErrorField:
-    """A hemisphere of stylus directions around the head coloured by a per-orientation figure.
-
-    The colour of a direction is the value of the nearest measured orientation (a Voronoi map: no
-    interpolation is invented). Measured orientations are markers (held-out ones larger); the
-    current orientation is a highlighted marker where the stylus points.
-    """
-
-    def __init__(self, scene: Any, radius_mm: float = 300.0, opacity: float = 0.22) -> None:
-        self.scene = scene
-        self.opacity = opacity
-        self.radius = radius_mm
-        self.vertices, self.faces = _hemisphere(radius_mm)
-        self.vertex_dirs = self.vertices / np.linalg.norm(self.vertices, axis=1, keepdims=True)
-        self.surface: Any = None
-        self.markers: Any = None
-        self.orientations = np.zeros((0, 2))
-        self.values = np.zeros(0)
-        self.range = (0.0, 1.0)
-        marker = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
-        self._marker = marker
-        self.current = scene.add_icosphere("/field/current", radius=7.0, color=(220, 30, 30), subdivisions=3)
-        self.current_line = scene.add_line_segments(
-            "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen"
-        )
-        self.visible = True
-        self._on_pick: Callable[[float, float], None] | None = None
-
-    def on_pick(self, callback: Callable[[float, float], None]) -> None:
-        self._on_pick = callback
-
-    def set_values(self, orientations: NDArray[np.float64], values: NDArray[np.float64], held_out: NDArray[np.bool_]) -> None:
-        """Recolour the surface and the markers for a new figure or a new campaign."""
-        self.orientations = np.asarray(orientations, dtype=float)
-        self.values = np.asarray(values, dtype=float)
-        finite = self.values[np.isfinite(self.values)]
-        self.range = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-        dirs = stylus_direction(self.orientations[:, 0], self.orientations[:, 1])
-        nearest = np.argmax(self.vertex_dirs @ dirs.T, axis=1)
-        colors = colormap(self.values[nearest], *self.range)
-        mesh = trimesh.Trimesh(self.vertices, self.faces, process=False)
-        # Translucent and double-sided so the head and the ring stay visible through the field.
-        material = trimesh.visual.material.PBRMaterial(
-            baseColorFactor=[255, 255, 255, int(255 * self.opacity)], alphaMode="BLEND", doubleSided=True, roughnessFactor=0.9
-        )
-        mesh.visual = trimesh.visual.TextureVisuals(material=material)
-        mesh.visual.vertex_attributes["color"] = np.column_stack([colors, np.full(len(colors), 255)]).astype(np.uint8)
-        if self.surface is not None:
-            self.surface.remove()
-        self.surface = self.scene.add_mesh_trimesh("/field/surface", mesh, visible=self.visible, cast_shadow=False, receive_shadow=False)
-        positions = dirs * self.radius * 1.01
-        scales = np.where(np.asarray(held_out, dtype=bool), 6.0, 3.5)
-        if self.markers is not None:
-            self.markers.remove()
-        self.markers = self.scene.add_batched_meshes_simple(
-            "/field/markers",
-            self._marker.vertices,
-            self._marker.faces,
-            batched_wxyzs=np.tile([1.0, 0.0, 0.0, 0.0], (len(positions), 1)),
-            batched_positions=positions,
-            batched_scales=scales,
-            batched_colors=colormap(self.values, *self.range),
-            visible=self.visible,
-        )
-
-        @self.markers.on_click
-        def _(event: Any) -> None:
-            i = event.instance_index
-            if i is not None and self._on_pick is not None and 0 <= i < len(self.orientations):
-                self._on_pick(float(self.orientations[i, 0]), float(self.orientations[i, 1]))
-
-    def pick(self, index: int) -> None:
-        """What a click on marker `index` does (also used by tests)."""
-        if self._on_pick is not None:
-            self._on_pick(float(self.orientations[index, 0]), float(self.orientations[index, 1]))
-
-    def set_visible(self, visible: bool) -> None:
-        self.visible = visible
-        for handle in (self.surface, self.markers):
-            if handle is not None:
-                handle.visible = visible
-        self.current.visible = visible
-        self.current_line.visible = visible
-
-    def highlight(self, a_deg: float, b_deg: float, ball_distance_mm: float) -> None:
-        s = stylus_direction(a_deg, b_deg)
-        self.current.position = s * self.radius * 1.01
-        self.current_line.points = np.array([[s * ball_distance_mm, s * self.radius]], dtype=np.float32)

@@ -1,0 +1,222 @@
+"""The Physics tab of one browser: diagnose -> tick effects -> refit -> the error history.
+
+Formats what ph_explorer.diagnosis returns (Diagnosis, Candidate, Step); computes nothing. Fitted
+parameters are written by their effect (`Effect.parameters_text`), so a user's own effect is shown
+like a built-in one.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import viser
+from numpy.typing import NDArray
+
+from ph_explorer.app.panels import NO_CHOICE
+from ph_explorer.diagnosis import Candidate, Diagnosis, Step
+from ph_explorer.effects import Catalog
+
+# Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
+HISTORY_SERIES = (
+    {"label": "step"},
+    {"label": "MAE vs mean", "stroke": "#2a9d3c", "width": 2, "points": {"show": True, "size": 7}},
+    {"label": "floor (mean)", "stroke": "#2a9d3c", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
+    {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
+    {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
+)
+EVIDENCE_SERIES = (
+    {"label": "x"},
+    {"label": "out-of-sample residual", "stroke": "#444444", "width": 0, "points": {"show": True, "size": 5, "fill": "#444444"}},
+    {"label": "candidate, fitted", "stroke": "#d62728", "width": 2, "points": {"show": False}},
+)
+
+
+def step_label(added: Sequence[str], baseline: str) -> str:
+    return f"baseline ({baseline})" if not added else "+ " + " + ".join(added)
+
+
+def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
+    """uPlot data of the error history: per step, MAE and floor against the mean and single repetitions."""
+    x = np.arange(len(steps), dtype=float)
+
+    def per_step(attr: str, reference: str) -> NDArray[np.float64]:
+        return np.array([float(getattr(s, attr)[reference]) for s in steps])
+
+    return (x, per_step("mae_um", "mean"), per_step("noise_floor_um", "mean"), per_step("mae_um", "single"), per_step("noise_floor_um", "single"))
+
+
+def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: int = 8) -> str:
+    """The ranked candidates: explained share, fall of the held-out error, what noise explains, significance."""
+    cell = "padding:2px 4px;"
+    head = (
+        '<table style="width:100%;border-collapse:collapse;font-size:0.75em;line-height:1.3em;table-layout:fixed">'
+        '<colgroup><col style="width:49%"><col style="width:17%"><col style="width:15%"><col style="width:13%">'
+        '<col style="width:6%"></colgroup>'
+        f'<tr style="border-bottom:1px solid #bbb;text-align:right"><th style="text-align:left;{cell}">effect</th>'
+        f'<th style="{cell}" title="share of the out-of-sample residual it explains">explains</th>'
+        f'<th style="{cell}" title="fall of the held-out rms error against the reference that exposes it">error&nbsp;&darr;</th>'
+        f'<th style="{cell}" title="the most the same scan explains on pure noise">noise</th><th></th></tr>'
+    )
+    rows = []
+    for rank, c in enumerate(candidates[:limit], 1):
+        style = "font-weight:600;" if c.significant else "color:#777;"
+        params = ""
+        if c.significant:  # a non-significant fit's parameters describe noise: not shown as findings
+            params = f'<div style="font-weight:400;color:#1f6f2f">{catalog[c.effect].parameters_text(c.params)}</div>'
+        mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
+        rows.append(
+            f'<tr style="border-bottom:1px solid #eee;text-align:right;vertical-align:top;{style}">'
+            f'<td style="text-align:left;{cell}overflow-wrap:anywhere">{rank}. {c.effect}{params}</td>'
+            f'<td style="{cell}">{100.0 * c.explained_fraction:.1f}&nbsp;%</td>'
+            f'<td style="{cell}">{100.0 * c.error_reduction:.0f}&nbsp;%</td>'
+            f'<td style="{cell}">{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td style="{cell}">{mark}</td></tr>'
+        )
+    more = f'<div style="font-size:0.75em;color:#777">… and {len(candidates) - limit} more</div>' if len(candidates) > limit else ""
+    legend = (
+        '<div style="font-size:0.72em;color:#666;margin-top:3px">explains: share of what the baseline cannot predict '
+        "out of sample; error &darr;: fall of the check-ring rms error; noise: the most the same scan explains on "
+        "pure noise; &#10004;: significant.</div>"
+    )
+    return head + "".join(rows) + "</table>" + more + legend
+
+
+class PhysicsPanel:
+    """Diagnose -> add an effect -> refit -> the error falls; reveal the hidden effect."""
+
+    def __init__(self, gui: viser.GuiApi, catalog: Catalog) -> None:
+        self.catalog = catalog
+        self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
+        self.status = gui.add_markdown("")
+        self.progress = gui.add_progress_bar(0.0, visible=False)
+        self.summary = gui.add_markdown("")
+        self.candidates = gui.add_html("")
+        self.verdict = gui.add_markdown("")
+        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
+        self.evidence = gui.add_uplot(
+            (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
+            EVIDENCE_SERIES,
+            title="Evidence",
+            aspect=1.6,
+            scales={"x": {"time": False}},
+            axes=({"label": "x"}, {"label": "um"}),
+            visible=False,
+        )
+        self.evidence_text = gui.add_markdown("")
+        self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
+        # Labelled by id (as in the candidates table): the panel's label column is narrow.
+        self.effects: dict[str, viser.GuiCheckboxHandle] = {
+            effect_id: gui.add_checkbox(effect_id, False, hint=f"{cls.name}: add it to the hybrid's physical terms")
+            for effect_id, cls in catalog.candidates().items()
+        }
+        self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
+        self.refit_progress = gui.add_progress_bar(0.0, visible=False)
+        self.refit_status = gui.add_markdown("")
+        self.history = gui.add_uplot(
+            (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
+            HISTORY_SERIES,
+            title="Check-ring MAE per step (um), dashed: noise floor",
+            aspect=1.5,
+            scales={"x": {"time": False, "range": [-0.5, 0.5]}},
+            axes=({"label": "step"}, {"label": "um"}),
+            visible=False,
+        )
+        self.history_table = gui.add_markdown("")
+        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
+        self.revealed = gui.add_markdown("")
+
+    def clear(self) -> None:
+        """New data: the diagnosis and history of the old data no longer apply."""
+        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
+            handle.content = ""
+        self.candidates.content = ""
+        self.progress.visible = self.refit_progress.visible = False
+        self.evidence.visible = self.evidence_of.visible = self.history.visible = False
+        self.evidence_of.options = (NO_CHOICE,)
+        for effect_id, box in self.effects.items():
+            box.label = effect_id
+            box.value = False
+
+    def show_progress(self, text: str, fraction: float | None, refit: bool = False) -> None:
+        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
+        bar.visible = True
+        bar.animated = fraction is None
+        if fraction is not None:
+            bar.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+        status.content = f"_{text}_"
+
+    def done(self, text: str, refit: bool = False) -> None:
+        bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
+        bar.value = 100.0
+        bar.visible = False
+        status.content = text
+
+    def show_diagnosis(self, result: Diagnosis) -> None:
+        floor, base = result.noise_floor_um, result.baseline_mae_um
+        n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
+        self.summary.content = (
+            f"**Where it fails:** {n_fail} of {len(result.failing)} orientations are worse than their noise floor "
+            f"(out of sample). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
+            f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
+        )
+        self.candidates.content = candidates_html(result.candidates, self.catalog)
+        if result.verdict == "missing":
+            best = result.candidates[0]
+            self.verdict.content = (
+                f"**Verdict: a missing effect — {best.name} ({best.effect})**, "
+                f"{self.catalog[best.effect].parameters_text(best.params)}.\n\n_{best.teaching}_\n\nTick it below and refit."
+            )
+        else:
+            self.verdict.content = (
+                "**Verdict: no missing effect found** — no candidate explains more than noise would "
+                "and lowers the held-out error materially."
+            )
+        for c in result.candidates:
+            box = self.effects.get(c.effect)
+            if box is not None:
+                box.label = c.effect + (" ✔" if c.significant else "")
+        options = tuple(c.effect for c in result.candidates if c.evidence.get("x"))
+        self.evidence_of.options = options or (NO_CHOICE,)
+        self.evidence_of.visible = bool(options)
+
+    def show_evidence(self, candidate: Candidate) -> None:
+        ev = candidate.evidence
+        if not ev.get("x"):
+            self.evidence.visible = False
+            self.evidence_text.content = ""
+            return
+        data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
+        self.evidence.title = f"{candidate.effect}: residual and fit, {ev['y_label']}"
+        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
+        self.evidence.data = data
+        self.evidence.visible = True
+        flag = "significant" if candidate.significant else "not significant"
+        self.evidence_text.content = (
+            f"**{candidate.name}** ({flag}): {self.catalog[candidate.effect].parameters_text(candidate.params)}. "
+            f"Every touch's out-of-sample residual, binned against {ev['x_label']}.\n\n_{candidate.teaching}_"
+        )
+
+    def show_history(self, steps: Sequence[Step], baseline: str) -> None:
+        """The error history: MAE against the mean and single repetitions per step, each with its floor."""
+        if not steps:
+            self.history.visible = False
+            self.history_table.content = ""
+            return
+        self.history.data = history_data(steps)
+        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
+        self.history.axes = ({"label": "step", "splits": tuple(float(k) for k in range(len(steps)))}, {"label": "um"})
+        self.history.visible = True
+        lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
+        for k, s in enumerate(steps):
+            lines.append(
+                f"| {k}: {step_label(s.added, baseline)} | {s.mae_um['mean']:.3f} ({s.noise_floor_um['mean']:.3f}) | "
+                f"{s.mae_um['single']:.3f} ({s.noise_floor_um['single']:.3f}) |"
+            )
+        last = steps[-1]
+        ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
+        lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
+        self.history_table.content = "\n".join(lines)
+
+    def selected_effects(self) -> list[str]:
+        return [e for e, box in self.effects.items() if box.value]

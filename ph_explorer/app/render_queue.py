@@ -1,0 +1,279 @@
+"""The render scheduler of `ph-explorer serve`, as plain threading code (no viser, no numpy).
+
+Why it exists: a browser's slider event must return at once; renders are Python under the
+interpreter lock, so ONE render thread per app beats one render per callback thread; and of the
+moves that arrive before a session's turn only the latest is worth drawing. Hence:
+
+* `RenderState`, one per session: whether its values changed since a render last took them
+  (dirty, and since when), whether a thread is drawing it, and how long renders took;
+* `RenderQueue`, one per app: the single render thread, which draws the dirty states in the
+  order they became dirty, each with its latest values; a state that moved again while it was
+  being drawn goes to the back, so one busy session cannot starve the others;
+* `RenderStats`, one per app: the render figures of all its states (for benchmarks).
+
+Values set by the server itself (scripts, tests) are drawn in the caller's thread (`render_now`)::
+
+    queue = RenderQueue()
+    state = RenderState(draw, on_timed=lambda render_s, latency_s: ...)
+    queue.request(state, since=event_time)  # a browser's event: returns at once
+    state.render_now()                      # a script's change: returns once it is drawn
+    state.wait_rendered(10.0); state.close(); queue.stop()
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import traceback
+from collections import deque
+from typing import Callable
+
+Clock = Callable[[], float]
+TimedHook = Callable[[float, float], None]
+
+
+class RenderState:
+    """One session's render bookkeeping; all its flags are guarded by one condition.
+
+    `render()` draws the session's latest values (it reads them itself, so requests only need to
+    say "changed"). `clock` stamps events (time.time, as viser stamps a browser's updates) and
+    `timer` measures renders; both can be injected to make latencies deterministic in tests.
+    After every successful render `on_timed(render_s, latency_s)` is called (so an app can also
+    aggregate the times of all its sessions), in the rendering thread, without any lock held.
+    """
+
+    def __init__(
+        self,
+        render: Callable[[], None],
+        on_timed: TimedHook | None = None,
+        clock: Clock = time.time,
+        timer: Clock = time.perf_counter,
+    ) -> None:
+        self.render = render
+        self.on_timed = on_timed
+        self.clock = clock
+        self.timer = timer
+        self.render_count = 0  # successful renders
+        self.render_times: deque[float] = deque(maxlen=10_000)  # seconds per render
+        # Seconds from the oldest event a render drew to the end of that render (on `clock`).
+        self.latency_times: deque[float] = deque(maxlen=10_000)
+        self._cond = threading.Condition()  # notified whenever a render ends, and on close
+        self._dirty = False  # values changed since a render last took them
+        self._rendering = False  # a thread (the queue's or a caller) is drawing this state
+        self._renderer: int | None = None  # that thread's ident
+        self._since: float | None = None  # clock time of the oldest event not yet taken
+        self._closed = False
+
+    @property
+    def idle(self) -> bool:
+        """Nothing pending and nothing being drawn: the latest values are on screen."""
+        with self._cond:
+            return not (self._dirty or self._rendering)
+
+    @property
+    def needs_render(self) -> bool:
+        """Dirty, open and nobody drawing it: the render queue must (still) hold it."""
+        with self._cond:
+            return self._dirty and not self._rendering and not self._closed
+
+    def _mark(self, since: float | None) -> None:
+        """Under _cond: values changed at `since`; the oldest pending event is what latency counts."""
+        since = self.clock() if since is None else float(since)
+        self._dirty = True
+        if self._since is None or since < self._since:
+            self._since = since
+
+    def _take(self) -> float:
+        """Under _cond: this thread starts drawing the latest values; returns since when they wait."""
+        since = self._since if self._since is not None else self.clock()
+        self._dirty, self._since = False, None
+        self._rendering, self._renderer = True, threading.get_ident()
+        return since
+
+    def _release(self) -> None:
+        """Under _cond: the render ended (drawn or failed); wake the waiters."""
+        self._rendering, self._renderer = False, None
+        self._cond.notify_all()
+
+    def _timed(self, since: float) -> None:
+        start = self.timer()
+        self.render()
+        render_s = self.timer() - start
+        latency_s = max(0.0, self.clock() - since)
+        self.render_count += 1  # only the thread holding _rendering gets here
+        self.render_times.append(render_s)
+        self.latency_times.append(latency_s)
+        if self.on_timed is not None:
+            self.on_timed(render_s, latency_s)
+
+    def request(self, since: float | None = None) -> bool:
+        """Values changed at `since` (default: now); never blocks on a render.
+
+        Returns whether the caller must schedule this state on the render queue: not while a
+        thread draws it (that thread renders again, or re-queues it at the back), not once closed.
+        """
+        with self._cond:
+            if self._closed:
+                return False
+            self._mark(since)
+            return not self._rendering
+
+    def render_now(self, wait: bool = True, timeout: float = 30.0) -> bool:
+        """Draw the latest values in this thread, looping until nothing is pending.
+
+        If another thread is drawing this state: with `wait`, wait (up to `timeout`) for it to end,
+        then draw what is still pending, so the caller returns with its values drawn; without
+        `wait`, leave them to that thread. Returns whether the caller's values are drawn (False:
+        left to another thread, timed out, or closed). A failed render raises here.
+        """
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            if self._closed:
+                return False
+            self._mark(None)
+            if self._renderer == threading.get_ident():
+                return False  # called from inside this state's render: its renderer draws it next
+            while self._rendering:
+                remaining = deadline - time.monotonic()
+                if not wait or remaining <= 0:
+                    return False
+                self._cond.wait(remaining)
+            if self._closed:
+                return False
+            if not self._dirty:
+                return True  # another thread took (and drew) these values meanwhile
+            since = self._take()
+        try:
+            while True:
+                self._timed(since)
+                with self._cond:
+                    if not self._dirty or self._closed:
+                        self._release()
+                        return True
+                    since = self._take()
+        except BaseException:
+            with self._cond:
+                self._release()
+            raise
+
+    def render_queued(self) -> bool:
+        """The render thread's turn: draw the latest values once.
+
+        Skips a state that is clean, closed or being drawn by another thread. Returns whether it
+        moved again meanwhile and must go to the back of the queue. A failed render raises (its
+        values are dropped); `needs_render` then says whether newer values wait.
+        """
+        with self._cond:
+            if self._rendering or not self._dirty or self._closed:
+                return False
+            since = self._take()
+        try:
+            self._timed(since)
+        finally:
+            with self._cond:
+                self._release()
+                again = self._dirty and not self._closed
+        return again
+
+    def wait_rendered(self, timeout: float = 10.0) -> bool:
+        """Wait until the latest values are drawn (or the state is closed); False on timeout."""
+        with self._cond:
+            return self._cond.wait_for(lambda: not (self._dirty or self._rendering), timeout)
+
+    def close(self) -> None:
+        """No more renders: pending values are dropped (a render in progress still ends)."""
+        with self._cond:
+            self._closed = True
+            self._dirty, self._since = False, None
+            self._cond.notify_all()
+
+
+class RenderStats:
+    """Render figures over many states (an app's sessions; benchmarks read them): seconds per
+    render, seconds from the oldest event to the end of its render, successful and failed renders.
+
+    `rendered` is a RenderState's `on_timed` hook; `failed` is called by whoever sees a render fail.
+    """
+
+    def __init__(self) -> None:
+        self.render_times: deque[float] = deque(maxlen=10_000)
+        self.latency_times: deque[float] = deque(maxlen=10_000)
+        self.render_count = 0
+        self.error_count = 0
+        self.last_error: str | None = None
+        self._lock = threading.Lock()  # renders end in the render thread and in callers' threads
+
+    def rendered(self, render_s: float, latency_s: float) -> None:
+        with self._lock:
+            self.render_count += 1
+            self.render_times.append(render_s)
+            self.latency_times.append(latency_s)
+
+    def failed(self, error: Exception) -> None:
+        with self._lock:
+            self.error_count += 1
+            self.last_error = f"{type(error).__name__}: {error}"
+
+
+class RenderQueue:
+    """The app's single render thread and its FIFO of dirty states, each queued at most once."""
+
+    def __init__(self, name: str = "ph-explorer-render") -> None:
+        self._queue: deque[RenderState] = deque()
+        self._queued: set[RenderState] = set()  # the states in _queue (identity)
+        self._cond = threading.Condition()
+        self._stopping = False
+        self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
+        self._thread.start()
+
+    @property
+    def thread(self) -> threading.Thread:
+        return self._thread
+
+    def request(self, state: RenderState, since: float | None = None) -> None:
+        """A browser's event: mark `state` dirty and queue it if needed; returns at once."""
+        if state.request(since):
+            self.schedule(state)
+
+    def schedule(self, state: RenderState) -> None:
+        """Queue `state` at the back, unless it is queued already (it keeps its place) or stopped."""
+        with self._cond:
+            if self._stopping or state in self._queued:
+                return
+            self._queued.add(state)
+            self._queue.append(state)
+            self._cond.notify()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._stopping:
+                    self._cond.wait()
+                if self._stopping:
+                    return
+                state = self._queue.popleft()
+                self._queued.discard(state)
+            try:
+                again = state.render_queued()
+            except Exception:  # one session's failed render must not stop the others'
+                traceback.print_exc()
+                again = state.needs_render
+            if again:
+                self.schedule(state)
+
+    def stop(self, timeout: float = 10.0) -> bool:
+        """End the thread after its current render (queued states are dropped); True once it ended."""
+        with self._cond:
+            self._stopping = True
+            self._queue.clear()
+            self._queued.clear()
+            self._cond.notify_all()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def __enter__(self) -> RenderQueue:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -1,0 +1,333 @@
+"""One browser of `ph-explorer serve`: its sliders, view, data, physics loop and render bookkeeping.
+
+The callbacks only translate GUI events into calls: a slider move asks for a render, a button
+submits a job of the physics loop or a data load to this session's worker thread. Renders follow
+render_queue.py: a browser's move only marks the session dirty and the app's one render thread
+draws it; values set by the server itself (`go_to`, tests, scripts) are drawn in the caller's
+thread, and `go_to` returns once its orientation is drawn.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+import viser
+
+from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
+from ph_explorer.app.field import ErrorField
+from ph_explorer.app.panels import (
+    PAPER_PRESETS,
+    ChartsPanel,
+    ControlsPanel,
+    DataPanel,
+    FieldPanel,
+    TablesPanel,
+    orientation_label,
+)
+from ph_explorer.app.physics import PhysicsLoop
+from ph_explorer.app.physics_panel import PhysicsPanel
+from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
+from ph_explorer.app.scene import HeadScene, RingScene, axis_camera, ring_camera
+from ph_explorer.effects import Catalog
+from ph_explorer.errors import InputError
+from ph_explorer.geometry import wrap_deg
+
+INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
+# The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
+FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
+# The longest a render by the server itself (go_to) waits for the render thread to finish this session's render.
+RENDER_WAIT_S = 30.0
+
+
+@dataclass(frozen=True)
+class Shared:
+    """What the sessions of one app share."""
+
+    renders: RenderQueue  # the one render thread
+    heavy: threading.BoundedSemaphore  # diagnoses, refits and loads running at once over all sessions
+    catalog: Catalog  # the effects a session diagnoses and fits with
+    scenarios: Mapping[str, str]  # shipped scenario name -> description
+    geometry_overrides: Mapping[str, float] = field(default_factory=dict)  # applied to uploaded files
+    stats: RenderStats = field(default_factory=RenderStats)
+
+
+def wrap_b(b_deg: float) -> float:
+    """B into [-180, 180), keeping 180 as written (both ends of the slider)."""
+    return 180.0 if b_deg == 180.0 else float(wrap_deg(b_deg))
+
+
+class Session:
+    """One browser: its sliders, its view, its data, its hybrid model and history."""
+
+    def __init__(self, shared: Shared, client: viser.ClientHandle, dataset: Dataset) -> None:
+        self.shared = shared
+        self.catalog = shared.catalog
+        self.client = client
+        self.dataset = dataset
+        self.jobs: list[Future[None]] = []
+        self.view = dataset.view(*INITIAL_ORIENTATION)  # the last view drawn
+        self.render_state = RenderState(self._render, on_timed=shared.stats.rendered)
+        # This browser's heavy jobs run in order on its own thread; shared.heavy bounds them overall.
+        self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-{client.client_id}")
+        self._moving = False  # sliders being set together (go_to): render once at the end
+        self._field_token = 0  # the latest field request; older computations do not draw
+        self._camera_at: tuple[float, float] | None = None
+        self._camera_view = "ring + head"
+
+        scene, gui = client.scene, client.gui
+        geometry = dataset.campaign.geometry
+        a0, b0 = INITIAL_ORIENTATION
+        with client.atomic():
+            self.head = HeadScene(scene, geometry)
+            self.ring = RingScene(scene, geometry)
+            self.field = ErrorField(scene)
+            self.field.on_pick(self.go_to)
+            self.controls = ControlsPanel(gui, a0, b0, dataset.a_range)
+            tabs = gui.add_tab_group()
+            with tabs.add_tab("Tables 1-3", icon=viser.Icon.TABLE):
+                self.tables = TablesPanel(gui)
+            with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
+                self.charts = ChartsPanel(gui, self.view, self.controls.shown())
+            with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
+                self.physics = PhysicsPanel(gui, self.catalog)
+            with tabs.add_tab("Field", icon=viser.Icon.WORLD):
+                self.field_panel = FieldPanel(gui, dataset.figure_names())
+            with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
+                self.data_panel = DataPanel(gui, list(shared.scenarios))
+        self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset)
+        self._wire()
+        self.set_dataset(dataset)
+
+    # -- wiring: GUI events -> calls, nothing else ---------------------------------------------------
+    def _wire(self) -> None:
+        c, p, data = self.controls, self.physics, self.data_panel
+        for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, *c.show.values()):
+            handle.on_update(self._control_changed)
+        c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
+        c.view_ring.on_click(lambda event: self.look(event.target.value))
+        self.field_panel.figure.on_update(lambda _: self.refresh_field())
+        self.field_panel.show.on_update(lambda _: self.field.set_visible(bool(self.field_panel.show.value)))
+        data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
+        p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
+        p.refit.on_click(lambda _: self.submit(self.loop.refit))
+        p.reveal.on_click(lambda _: self.loop.reveal())
+        p.evidence_of.on_update(lambda _: self.loop.show_evidence(p.evidence_of.value))
+
+        @c.worst.on_update
+        def _(_: viser.GuiEvent) -> None:
+            if c.worst.value in c.worst_targets:
+                self.go_to(*c.worst_targets[c.worst.value])
+
+        @c.follow.on_update
+        def _(_: viser.GuiEvent) -> None:
+            if c.follow.value:  # back to following: the ring's view, even after "whole field"
+                self.look("ring + head" if self._camera_view == "whole field" else self._camera_view)
+
+        @data.scenario.on_update
+        def _(_: viser.GuiEvent) -> None:
+            if data.scenario.value in self.shared.scenarios:
+                self.submit(self.load_scenario, data.scenario.value)
+
+    def _control_changed(self, event: viser.GuiEvent) -> None:
+        if event.client is not None:
+            # A browser's message: viser stamped the value when its event loop applied it.
+            self.shared.renders.request(self.render_state, since=event.target.update_timestamp)
+        elif not self._moving:  # set by the server (a test, a script): draw it in this thread
+            self.render_state.render_now(wait=False, timeout=RENDER_WAIT_S)
+
+    # -- orientation and camera ------------------------------------------------------------------------
+    @property
+    def orientation(self) -> tuple[float, float]:
+        return float(self.controls.a.value), float(self.controls.b.value)
+
+    def go_to(self, a_deg: float, b_deg: float) -> None:
+        """Move both sliders (a preset, a marker click), then render once; returns once it is drawn."""
+        self._moving = True
+        try:
+            self.controls.a.value = float(np.clip(a_deg, self.controls.a.min, self.controls.a.max))
+            self.controls.b.value = wrap_b(b_deg)
+        finally:
+            self._moving = False
+        self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
+
+    def look(self, view: str) -> None:
+        """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
+        a, b = self.orientation
+        axial = self.dataset.campaign.geometry.axial_distance_mm
+        if view == "along the axis":
+            position, look_at = axis_camera(a, b, axial)
+        elif view == "whole field":
+            position, look_at = np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"])
+        else:
+            position, look_at = ring_camera(a, b, axial)
+        with self.client.atomic():  # position first: viser moves look_at along with it
+            self.client.camera.position = position
+            self.client.camera.look_at = look_at
+        self._camera_at = (a, b)
+        self._camera_view = view  # the view a following camera keeps
+
+    # -- rendering ---------------------------------------------------------------------------------
+    @property
+    def render_count(self) -> int:
+        return self.render_state.render_count
+
+    @property
+    def render_times(self) -> deque[float]:
+        """Server seconds per render of this session."""
+        return self.render_state.render_times
+
+    @property
+    def latency_times(self) -> deque[float]:
+        """Seconds from the oldest slider event a render drew to the end of that render."""
+        return self.render_state.latency_times
+
+    def wait_rendered(self, timeout: float = 10.0) -> bool:
+        """Wait until this session's latest values are drawn; False on timeout."""
+        return self.render_state.wait_rendered(timeout)
+
+    def _render(self) -> None:
+        try:
+            self._draw()
+        except Exception as error:  # counted for the benchmarks, then reported by the render queue
+            self.shared.stats.failed(error)
+            raise
+
+    def _draw(self) -> None:
+        """Draw this session's latest values: head, ring and curves, field marker, tables, charts."""
+        a, b = self.orientation
+        ds = self.dataset
+        view = ds.view(a, b)
+        shown = self.controls.shown()
+        band_model = self.controls.band.value
+        band = (band_model, *ds.monte_carlo_band(band_model, a, b)) if band_model in ds.models else None
+        if view.measured:
+            title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"
+        else:
+            title = f"{orientation_label(a, b)} — prediction (not measured)"
+        c = self.controls
+        with self.client.atomic():
+            self.head.update(a, b)
+            self.ring.place(a, b)
+            self.ring.update(view.curves, shown, float(c.magnification.value), view.repetitions, bool(c.repetitions.value), band, title)
+            self.field.highlight(a, b, ds.campaign.geometry.pivot_to_ball_mm)
+            self.tables.update(view, ds)
+            self.charts.update(view, shown)
+            c.status.content = f"**{title}**"
+            if c.follow.value and self._camera_at != (a, b) and self._camera_view != "whole field":
+                self.look(self._camera_view)
+        self.view = view
+
+    # -- data ----------------------------------------------------------------------------------------
+    def set_dataset(self, dataset: Dataset) -> None:
+        """Show another campaign (or the same with a new model or figure) in this browser."""
+        geometry_changed = dataset.campaign.geometry != self.dataset.campaign.geometry
+        self.dataset = dataset
+        if geometry_changed:
+            with self.client.atomic():
+                self.ring.frame.remove()
+                self.head.root.remove()
+                self.head = HeadScene(self.client.scene, dataset.campaign.geometry)
+                self.ring = RingScene(self.client.scene, dataset.campaign.geometry)
+        self._moving = True  # a value clipped into the new A range is drawn below, once
+        try:
+            self.controls.set_a_range(*dataset.a_range)
+        finally:
+            self._moving = False
+        self.controls.set_models(dataset.model_names)
+        self.field_panel.set_names(dataset.figure_names())
+        self.data_panel.set_source(dataset)
+        self.refresh_field()
+        self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
+
+    def refresh_field(self) -> None:
+        """Recolour the error field; slow figures (leave-one-out refits) are computed on the worker."""
+        self._field_token += 1
+        token, dataset, name = self._field_token, self.dataset, self.field_panel.figure.value
+        if name not in dataset.figure_names():
+            return
+        if dataset.has_figure(name):
+            self._apply_field(dataset, name)
+            return
+        self.field_panel.set_scale(0.0, 0.0, "", computing=True)
+
+        def compute() -> None:
+            dataset.figure(name)
+            if token == self._field_token:
+                self._apply_field(dataset, name)
+
+        self.submit(compute)
+
+    def _apply_field(self, dataset: Dataset, name: str) -> None:
+        values, note = dataset.figure(name)
+        held_out = ~np.asarray(dataset.train_mask, dtype=bool)
+        with self.client.atomic():
+            self.field.set_values(dataset.campaign.orientations, values, held_out)
+            self.field.set_visible(bool(self.field_panel.show.value))
+            self.field_panel.set_scale(*self.field.range, note)
+            self.controls.set_worst(dataset.worst_orientations(name), name)
+        a, b = self.orientation
+        self.field.highlight(a, b, dataset.campaign.geometry.pivot_to_ball_mm)
+
+    def load_upload(self, name: str, content: bytes) -> None:
+        """A CSV from the browser: read by the core's reader; a bad file keeps the session's data."""
+        try:
+            campaign = read_uploaded_campaign(name, content, self.shared.geometry_overrides)
+        except InputError as error:
+            self.data_panel.show_error(error.line())
+            return
+        except ValueError as error:  # a campaign the core refuses (e.g. inconsistent shapes)
+            self.data_panel.show_error(f"{name}: {' '.join(str(error).split())}")
+            return
+        self.data_panel.show_info(f"Loaded **{campaign.source}**.")
+        self._new_data(dataset_for(campaign, f"uploaded {campaign.source}", None))
+
+    def load_scenario(self, name: str) -> None:
+        """A shipped scenario, simulated by the twin."""
+        self.data_panel.show_info(f"Simulating scenario **{name}**…")
+        try:
+            campaign = simulated_scenario(name)
+        except InputError as error:
+            self.data_panel.show_error(error.line())
+            return
+        self.data_panel.show_info(f"Scenario **{name}** simulated by the twin. {self.shared.scenarios.get(name, '')}")
+        self._new_data(dataset_for(campaign, f"scenario {name} (simulated by the twin)", None))
+
+    def _new_data(self, dataset: Dataset) -> None:
+        self.loop.clear()
+        self.set_dataset(dataset)
+
+    # -- worker jobs ---------------------------------------------------------------------------------
+    def submit(self, job: Callable[..., None], *args: object) -> Future[None]:
+        """Run heavy work off the callback thread: after this session's earlier jobs, a few at once overall."""
+        future = self._jobs.submit(self._guarded, job, *args)
+        self.jobs.append(future)
+        return future
+
+    def _guarded(self, job: Callable[..., None], *args: object) -> None:
+        with self.shared.heavy:
+            try:
+                job(*args)
+            except Exception as error:  # the browser shows one line; the server log keeps the rest
+                line = f"**Error** — {type(error).__name__}: {' '.join(str(error).split())}"
+                self.data_panel.show_info(line)
+                self.physics.done(line)
+                self.physics.done(line, refit=True)
+                raise
+
+    def wait(self, timeout: float = 60.0) -> None:
+        """Wait for this session's worker jobs, then for its latest values to be drawn (tests, scripts)."""
+        deadline = time.monotonic() + timeout
+        while self.jobs:
+            self.jobs.pop(0).result(timeout=max(0.1, deadline - time.monotonic()))
+        if not self.wait_rendered(timeout=max(0.1, deadline - time.monotonic())):
+            raise TimeoutError("the session's latest values were not drawn in time")
+
+    def close(self) -> None:
+        self.render_state.close()
+        self._jobs.shutdown(wait=False, cancel_futures=True)
