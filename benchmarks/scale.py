@@ -40,8 +40,8 @@ def percentile_ms(values: list[float], q: float) -> float | None:
 
 def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
     """Run the browsers process against the app; return server-side and client-side figures."""
-    app.render_times.clear()
-    app.latency_times.clear()
+    app.stats.render_times.clear()
+    app.stats.latency_times.clear()
     before_sessions = set(app.sessions)
     gc.collect()
     rss_before = rss_mb()
@@ -94,8 +94,8 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     else:
         browsers = json.loads(lines[-1])["browsers"]
         client_errors = [e for b in browsers for e in b["errors"]]
-    times = list(app.render_times)
-    latencies = list(app.latency_times)
+    times = list(app.stats.render_times)
+    latencies = list(app.stats.latency_times)
     per_session = [session.render_count for session in sessions] if connected else []
     time.sleep(0.5)
     gc.collect()
@@ -114,7 +114,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         # Renders per slider update sent: below 1 when moves were coalesced (the latest value drawn).
         "renders_per_update": round(renders / sent, 3) if sent else None,
         "renders_per_session": {"min": min(per_session), "median": float(np.median(per_session)), "max": max(per_session)} if per_session else None,
-        "renders_in_percentiles": len(times),  # app.render_times keeps the last 10 000
+        "renders_in_percentiles": len(times),  # app.stats.render_times keeps the last 10 000
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
         "latency_ms": {"p50": percentile_ms(latencies, 50), "p95": percentile_ms(latencies, 95), "max": percentile_ms(latencies, 100)},

@@ -298,7 +298,7 @@ def test_browser_moves_wait_for_the_one_render_thread_and_the_latest_value_wins(
     assert (s1.render_count, s2.render_count) == (renders[0] + 1, renders[1] + 1)  # the moves coalesced
     assert s1.view.a_deg == 23.0 and s2.view.a_deg == 62.0
     # Its latency covers the wait behind the held render; the render itself was not held.
-    assert s2.latency_times[-1] > s2.render_times[-1]
+    assert s2.render_state.latency_times[-1] > s2.render_state.render_times[-1]
 
 
 def test_a_bad_upload_keeps_the_data_and_shows_the_error(browser) -> None:
@@ -498,6 +498,6 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
         # An unseen orientation: the network predicts it.
         s.go_to(43.0, 100.0)
         assert not s.view.measured and s.ring.curves["network"].visible
-        assert len(s.render_times) >= 2 and all(t > 0 for t in s.render_times)
+        assert len(s.render_state.render_times) >= 2 and all(t > 0 for t in s.render_state.render_times)
     finally:
         fake.close()

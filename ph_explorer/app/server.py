@@ -16,9 +16,9 @@ For benchmarks and scripts (stable names; `ph-explorer serve` is ph_explorer/cli
     session = app.session()             # the first connected browser's Session (waits for one)
     session.go_to(43.0, 90.0)           # move that browser's sliders (renders once)
     session.controls.a.value = 50.0     # or one slider, as a user would
-    app.render_times                    # server seconds per render, every session (a deque)
-    app.latency_times                   # seconds from a slider event to the end of its render
-    session.render_times                # the same for one session (also session.latency_times)
+    app.stats.render_times              # server seconds per render, every session (a deque)
+    app.stats.latency_times             # seconds from a slider event to the end of its render
+    session.render_state.render_times   # the same for one session (also .latency_times)
     session.wait_rendered()             # until that browser's latest values are drawn
     app.stop()
 
@@ -85,16 +85,6 @@ class ExplorerApp:
         camera.far = 5000.0
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
-
-    @property
-    def render_times(self) -> deque[float]:
-        """Server seconds per render, every session (the last 10 000)."""
-        return self.stats.render_times
-
-    @property
-    def latency_times(self) -> deque[float]:
-        """Seconds from a slider event to the end of the render that drew it, every session."""
-        return self.stats.latency_times
 
     @property
     def host(self) -> str:

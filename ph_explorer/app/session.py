@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
@@ -176,16 +175,6 @@ class Session:
     @property
     def render_count(self) -> int:
         return self.render_state.render_count
-
-    @property
-    def render_times(self) -> deque[float]:
-        """Server seconds per render of this session."""
-        return self.render_state.render_times
-
-    @property
-    def latency_times(self) -> deque[float]:
-        """Seconds from the oldest slider event a render drew to the end of that render."""
-        return self.render_state.latency_times
 
     def wait_rendered(self, timeout: float = 10.0) -> bool:
         """Wait until this session's latest values are drawn; False on timeout."""

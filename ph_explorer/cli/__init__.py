@@ -11,6 +11,8 @@ and the error, exit 1; Ctrl-C is exit 130.
 
 from __future__ import annotations
 
+import functools
+from inspect import Parameter, signature as function_signature
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, Optional
@@ -38,10 +40,30 @@ BoreOpt = Annotated[Optional[float], typer.Option("--bore-diameter-mm", help="Ri
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
 
 
-def _geometry(pivot: float | None, ball: float | None, bore: float | None) -> dict[str, float]:
-    """The geometry options that were given, keyed as the sidecar's [geometry] keys."""
-    given = {"pivot_to_ball_mm": pivot, "ball_diameter_mm": ball, "bore_diameter_mm": bore}
-    return {k: v for k, v in given.items() if v is not None}
+GEOMETRY_OPTIONS = {"pivot_to_ball_mm": PivotOpt, "ball_diameter_mm": BallOpt, "bore_diameter_mm": BoreOpt}
+
+
+def with_geometry(command: Callable[..., None]) -> Callable[..., None]:
+    """Give a command the geometry options of every command that reads a campaign.
+
+    The command declares one parameter `geometry`; typer sees the three options in its place, and
+    the command receives the ones given as a dict keyed as the sidecar's [geometry] keys.
+    """
+    signature = function_signature(command, eval_str=True)
+    options = [
+        Parameter(name, Parameter.KEYWORD_ONLY, default=None, annotation=annotation)
+        for name, annotation in GEOMETRY_OPTIONS.items()
+    ]
+    parameters = [p for p in signature.parameters.values() if p.name != "geometry"] + options
+
+    @functools.wraps(command)
+    def wrapper(**given: Any) -> None:
+        values = {name: given.pop(name) for name in GEOMETRY_OPTIONS}
+        command(geometry={k: v for k, v in values.items() if v is not None}, **given)
+
+    wrapper.__signature__ = signature.replace(parameters=parameters)  # type: ignore[attr-defined]
+    wrapper.__annotations__ = {p.name: p.annotation for p in parameters}
+    return wrapper
 
 
 def _run(command: str, work: Callable[..., int | None], **options: Any) -> None:
@@ -63,18 +85,16 @@ def _run(command: str, work: Callable[..., int | None], **options: Any) -> None:
 
 
 @app.command("serve")
+@with_geometry
 def _serve(
     scenario: ScenarioOpt = None,
     data: Annotated[Optional[Path], typer.Option(help="A campaign CSV to explore.")] = None,
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder (default: model/paper).")] = None,
     host: Annotated[str, typer.Option(help="Address to bind; 127.0.0.1 keeps it on this machine.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="Port to bind (0 picks a free one).")] = 8080,
-    pivot_to_ball_mm: PivotOpt = None,
-    ball_diameter_mm: BallOpt = None,
-    bore_diameter_mm: BoreOpt = None,
+    geometry: dict[str, float] | None = None,
 ) -> None:
     """Start the 3D explorer in the browser (default: the shipped paper campaign and model/paper)."""
-    geometry = _geometry(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm)
     _run("serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, geometry=geometry)
 
 
@@ -90,6 +110,7 @@ def _simulate(
 
 
 @app.command("train")
+@with_geometry
 def _train(
     data: Annotated[Path, typer.Option(help="The campaign CSV to train on.")],
     out: Annotated[Path, typer.Option(help="The model folder to write (written atomically).")],
@@ -97,30 +118,26 @@ def _train(
         Optional[str], typer.Option(help="Held-out orientations 'A:B,A:B' (default: the sidecar's check rings, else the off-grid ones).")
     ] = None,
     seed: Annotated[int, typer.Option(help="Random seed of the network's training.")] = 0,
-    pivot_to_ball_mm: PivotOpt = None,
-    ball_diameter_mm: BallOpt = None,
-    bore_diameter_mm: BoreOpt = None,
+    geometry: dict[str, float] | None = None,
 ) -> None:
     """Train the paper's network and the trilinear + Monte Carlo model on a campaign."""
-    geometry = _geometry(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm)
     _run("train", train.train_command, data=data, out=out, holdout=holdout, seed=seed, geometry=geometry)
 
 
 @app.command("evaluate")
+@with_geometry
 def _evaluate(
     model: Annotated[Path, typer.Option(help="A trained model folder.")],
     data: Annotated[Path, typer.Option(help="The campaign CSV with the measurements to compare with.")],
     json_output: JsonOpt = False,
-    pivot_to_ball_mm: PivotOpt = None,
-    ball_diameter_mm: BallOpt = None,
-    bore_diameter_mm: BoreOpt = None,
+    geometry: dict[str, float] | None = None,
 ) -> None:
     """The paper's Tables 1-3 at every held-out orientation."""
-    geometry = _geometry(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm)
     _run("evaluate", evaluate.evaluate_command, model=model, data=data, json_output=json_output, geometry=geometry)
 
 
 @app.command("diagnose")
+@with_geometry
 def _diagnose(
     data: Annotated[Path, typer.Option(help="The campaign CSV to diagnose.")],
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder to start from.")] = None,
@@ -130,26 +147,21 @@ def _diagnose(
         str, typer.Option(help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained).")
     ] = "trilinear",
     json_output: JsonOpt = False,
-    pivot_to_ball_mm: PivotOpt = None,
-    ball_diameter_mm: BallOpt = None,
-    bore_diameter_mm: BoreOpt = None,
+    geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
-    geometry = _geometry(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm)
     options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output}
     _run("diagnose", diagnose.diagnose_command, data=data, geometry=geometry, **options)
 
 
 @app.command("inspect")
+@with_geometry
 def _inspect(
     file: Annotated[Path, typer.Argument(help="A campaign CSV.")],
     json_output: JsonOpt = False,
-    pivot_to_ball_mm: PivotOpt = None,
-    ball_diameter_mm: BallOpt = None,
-    bore_diameter_mm: BoreOpt = None,
+    geometry: dict[str, float] | None = None,
 ) -> None:
     """What a campaign holds: orientations, lattice, off-grid rings, noise."""
-    geometry = _geometry(pivot_to_ball_mm, ball_diameter_mm, bore_diameter_mm)
     _run("inspect", inspect.inspect_command, file=file, json_output=json_output, geometry=geometry)
 
 

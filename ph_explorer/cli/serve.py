@@ -4,27 +4,21 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from ph_explorer.errors import InputError
 
 
-def serve_command(
-    scenario: str | None = None,
-    data: Path | None = None,
-    model: Path | None = None,
-    host: str = "127.0.0.1",
-    port: int = 8080,
-    geometry: Mapping[str, float] | None = None,
-) -> int:
-    """Start the explorer on the data (default: the shipped paper campaign with model/paper)."""
+def serve_command(**options: Any) -> int:
+    """Start the explorer with build_server's options (scenario, data, model, host, port, geometry;
+    default: the shipped paper campaign with model/paper)."""
     # viser and torch: imported when the command runs, so that the CLI (and inspect) works without them.
     from ph_explorer.app.server import build_server
 
-    if scenario is not None and data is not None:
+    if options.get("scenario") is not None and options.get("data") is not None:
         raise InputError("give --scenario or --data, not both")
-    app = build_server(scenario=scenario, data=data, model=model, host=host, port=port, geometry=geometry)
+    app = build_server(**options)
     shown_host = "127.0.0.1" if app.host in ("0.0.0.0", "") else app.host
     print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
     for note in app.dataset.notes:
