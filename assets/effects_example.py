@@ -5,7 +5,8 @@ Use it with `ph-explorer diagnose --data CAMPAIGN.csv --effects effects_example.
 that catalog may use `id = "ball_form"` in its [[effects]] tables like any built-in effect.
 
 An effect is a subclass of ph_explorer.effects.base.Effect with an id, a name, a teaching text, its
-parameters (with units and defaults), the values a diagnosis should try for its non-linear
+parameters (with units, defaults and, for a magnitude, the plausible range of its size; for a phase,
+its period), the values a diagnosis should try for its non-linear
 parameters (`scan`), and a linear `basis` at the instance's own values of them; `forward` (the
 deviations it adds before the circle fit) defaults to `basis @ coefficients()`. Every array is shaped like the campaign's touches,
 (n_orientations, n_repetitions, n_points), with a trailing column axis for the basis.
@@ -30,8 +31,11 @@ class BallForm(Effect):
         "point. Modelled as one harmonic of psi, `lobes` per turn of the ball."
     )
     parameters = (
-        Parameter("amplitude_um", "um", 0.05, "amplitude of the ball's radius error"),
-        Parameter("phase_deg", "deg", 0.0, "azimuth of the first high point in the probe frame, times lobes"),
+        # plausible: the range of |amplitude| a real ball can have ("sphericity 0.08-0.25 um by grade",
+        # generous by 1.5x at the top); a fit outside it is reported as implausible, never accepted.
+        Parameter("amplitude_um", "um", 0.05, "amplitude of the ball's radius error", plausible=(0.0, 0.4)),
+        # period: a phase repeats every 360 deg, so its uncertainty wraps around.
+        Parameter("phase_deg", "deg", 0.0, "azimuth of the first high point in the probe frame, times lobes", period=360.0),
         Parameter("lobes", "UPR", 2.0, "undulations of the ball's radius per turn of psi"),
     )
     scan = {"lobes": (2.0, 3.0, 4.0, 5.0)}

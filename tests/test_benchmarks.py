@@ -95,5 +95,28 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert scale["errors"] == 0 and scale["renders"] > 0
     for key in ("p50", "p95"):
         assert scale["server_update_ms"][key] > 0
-    for png in ("data_efficiency.png", "speed.png"):
+    calibration = results["diagnosis_calibration"]
+    assert calibration["mode"] == "quick"
+    verdicts = {"none", "missing", "partial", "unexplained"}
+    for part in [calibration["false_alarm"], *calibration["designs"].values()]:
+        assert verdicts <= set(part["verdicts"]) and sum(part["verdicts"].values()) == part["n"] == len(part["seeds"])
+        assert 0 <= part["false_alarm_ci95"][0] <= part["false_alarm_rate"] <= part["false_alarm_ci95"][1] <= 1
+        assert 0 < part["stability"] <= 1 and part["most_common"]
+    assert len(calibration["false_alarm"]["seeds"]) == 3
+    assert set(calibration["designs"]) == {"repetitions_5", "no_touch_times", "pivot_100mm", "b_step_30"}
+    effect = calibration["stability_with_effect"]
+    for key in ("share_missing", "share_found_b_axis_22", "stability", "verdicts"):
+        assert key in effect, key
+    for name in ("amplitude_arcsec", "phase_deg"):
+        assert {"true", "covered", "of", "coverage", "coverage_ci95"} <= set(effect[name])
+    assert effect["true_effect"]["cycles_per_rev"] == 22
+    curve = calibration["power"]["curve"]
+    assert len(curve) == 1 and len(calibration["power"]["seeds"]) == 1
+    for point in curve:
+        assert {"amplitude_arcsec", "power", "power_ci95", "failure_detected", "verdicts"} <= set(point)
+        assert 0 <= point["power"] <= point["failure_detected"] <= 1
+    seconds = calibration["seconds_per_diagnosis"]
+    assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
+    assert calibration["errors"] == []
+    for png in ("data_efficiency.png", "speed.png", "calibration.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -10,21 +10,22 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis import diagnose
-from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.diagnosis import diagnose, verdict_text
+from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.paths import assets_dir
-from ph_explorer.twin import load_scenario, simulate
+from ph_explorer.paths import assets_dir, scenarios_dir
+from ph_explorer.twin import load_scenario, scenario_from_dict, simulate
 
 # Each teaching scenario, its hidden effect, and the reference that exposes it.
 TEACHING = {
@@ -87,6 +88,10 @@ def test_hidden_effect_is_found_added_and_the_error_falls(diagnoses, name, sidec
     for key, value in truth.params.items():
         if key.startswith("amplitude") or key.endswith("lost_motion_arcsec"):
             assert best.params[key] == pytest.approx(value, rel=0.2), key
+            # The truth lies within the expanded uncertainty (k = 2) of the fit.
+            assert abs(best.params[key] - value) <= best.params_u[key], (key, best.params[key], best.params_u[key])
+    # With the effect found, every ring is within noise.
+    assert result.within_noise["baseline"].fails and not result.within_noise["after"].fails
 
     baseline, final = result.steps[0], result.steps[-1]
     assert final.added[0] == effect_id
@@ -108,12 +113,13 @@ def test_nothing_hidden_in_the_paper_scenario(diagnoses, sidecar):
 
 @pytest.mark.slow
 def test_where_it_fails_points_at_the_rings_the_hidden_effect_spoils(diagnoses):
-    # The aliased 24/rev A error is invisible on the grid and shows off it: the failing rings are off-grid.
+    # The aliased 24/rev A error is invisible on the grid and shows off it: the failing rings are
+    # off-grid (those whose error exceeds their noise significantly; the weakest may not).
     result = diagnoses[("a_axis_24", True)]
     campaign = simulate(load_scenario("a_axis_24"))
     off_grid = campaign.off_grid_mask()
-    assert result.failing[off_grid].mean() > 0.8
-    assert result.failing[~off_grid].mean() < 0.1
+    assert result.failing[off_grid].mean() > 0.6
+    assert not result.failing[~off_grid].any()
 
 
 def test_out_of_sample_smoother_predicts_a_ring_from_the_others_only():
@@ -191,7 +197,7 @@ def test_cli_add_takes_the_users_choice_and_user_effects(b22_csv):
     # The text report names the verdict and the history.
     text = run_cli("diagnose", "--data", str(b22_csv), "--add", "b_axis_cyclic")
     assert text.returncode == 0, text.stderr
-    assert "Verdict: a missing effect: b_axis_cyclic" in text.stdout
+    assert "Verdict: missing" in text.stdout and "Found: b_axis_cyclic (amplitude" in text.stdout
     assert "+ b_axis_cyclic" in text.stdout
 
 
@@ -249,7 +255,17 @@ def test_a_campaign_on_another_lattice_and_geometry(hidden):
 
 @pytest.mark.slow
 def test_nothing_hidden_on_another_lattice_and_geometry():
-    assert diagnose(other_campaign(None)).verdict == "none"
+    # Nothing is hidden, but the 30-deg B lattice (60 deg when a ring is left out) cannot follow the
+    # background's own 4/rev B-axis error where its lever is longest (A 80-90): the model fails
+    # beyond noise at a few rings, and the diagnosis names exactly that background effect, at its
+    # true period and amplitude, and nothing else.
+    result = diagnose(other_campaign(None))
+    background = {e["cycles_per_rev"]: e["amplitude_arcsec"] for e in tomllib.loads((scenarios_dir() / "paper.toml").read_text())["effects"] if e["id"] == "b_axis_cyclic"}
+    assert result.verdict in ("none", "missing")
+    for found in result.found:
+        assert found.effect == "b_axis_cyclic" and found.settings["cycles_per_rev"] in background
+        truth = background[found.settings["cycles_per_rev"]]
+        assert abs(found.params["amplitude_arcsec"] - truth) <= found.params_u["amplitude_arcsec"]
 
 
 @pytest.mark.slow
@@ -309,3 +325,38 @@ def test_evidence_of_a_cyclic_error_is_a_sine_of_its_phase(diagnoses):
     sine = np.column_stack([np.sin(phase), np.cos(phase)])
     fit = sine @ np.linalg.lstsq(sine, residual, rcond=None)[0]
     assert np.corrcoef(fit, residual)[0, 1] > 0.95
+
+
+def catalog_without(effect_id: str) -> Catalog:
+    return Catalog([cls for cls in BUILTIN_EFFECTS if cls.id != effect_id])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(TEACHING))
+def test_a_hidden_effect_the_catalog_lacks_is_unexplained(name):
+    # What a real machine does: the missing effect is in no catalog. The model fails beyond noise
+    # and the tool says so, instead of "none" or a wrong name.
+    effect_id, _ = TEACHING[name]
+    result = diagnose(simulate(load_scenario(name)), catalog=catalog_without(effect_id))
+    test = result.within_noise["baseline"]
+    assert result.verdict == "unexplained" and not result.found
+    assert test.fails and test.failing_rings >= test.critical_rings >= 2
+    headline, lines = verdict_text(result, catalog_without(effect_id))
+    assert headline.startswith("Verdict: unexplained") and any("rings exceed their noise" in line for line in lines)
+
+
+@pytest.mark.slow
+def test_a_second_effect_the_catalog_lacks_leaves_the_verdict_partial():
+    # Two hidden effects, one of them outside the catalog: the one it knows is found, and the
+    # model still fails beyond noise with it.
+    data = tomllib.loads((scenarios_dir() / "b_axis_22.toml").read_text())
+    second = tomllib.loads((scenarios_dir() / "a_axis_24.toml").read_text())
+    data["effects"] += [e for e in second["effects"] if e.get("hidden")]
+    campaign = simulate(scenario_from_dict(data))
+    partial = diagnose(campaign, catalog=catalog_without("a_axis_cyclic"))
+    assert partial.verdict == "partial" and [c.effect for c in partial.found] == ["b_axis_cyclic"]
+    assert partial.within_noise["after"].fails
+    # With the full catalog both are found, in turn, and the model is within noise.
+    full = diagnose(campaign)
+    assert full.verdict == "missing"
+    assert [(c.effect, c.settings["cycles_per_rev"]) for c in full.found] == [("b_axis_cyclic", 22), ("a_axis_cyclic", 24)]

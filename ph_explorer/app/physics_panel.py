@@ -14,7 +14,7 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
-from ph_explorer.diagnosis import Candidate, Diagnosis, Step
+from ph_explorer.diagnosis import Candidate, Diagnosis, Step, verdict_text
 from ph_explorer.effects import Catalog
 
 # Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
@@ -63,7 +63,7 @@ def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: in
         style = "font-weight:600;" if c.significant else "color:#777;"
         params = ""
         if c.significant:  # a non-significant fit's parameters describe noise: not shown as findings
-            params = f'<div style="font-weight:400;color:#1f6f2f">{catalog[c.effect].parameters_text(c.params)}</div>'
+            params = f'<div style="font-weight:400;color:#1f6f2f">{catalog[c.effect].parameters_text(c.params, c.params_u)}</div>'
         mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
         rows.append(
             f'<tr style="border-bottom:1px solid #eee;text-align:right;vertical-align:top;{style}">'
@@ -155,23 +155,15 @@ class PhysicsPanel:
         floor, base = result.noise_floor_um, result.baseline_mae_um
         n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
         self.summary.content = (
-            f"**Where it fails:** {n_fail} of {len(result.failing)} orientations are worse than their noise floor "
-            f"(out of sample). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"**Where it fails:** {n_fail} of {len(result.failing)} orientations exceed their noise "
+            f"(out of sample, the within-noise test). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
             f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
         self.candidates.content = candidates_html(result.candidates, self.catalog)
-        if result.verdict == "missing":
-            best = result.candidates[0]
-            self.verdict.content = (
-                f"**Verdict: a missing effect — {best.name} ({best.effect})**, "
-                f"{self.catalog[best.effect].parameters_text(best.params)}.\n\n_{best.teaching}_\n\nTick it below and refit."
-            )
-        else:
-            self.verdict.content = (
-                "**Verdict: no missing effect found** — no candidate explains more than noise would "
-                "and lowers the held-out error materially."
-            )
+        headline, lines = verdict_text(result, self.catalog)
+        advice = "\n\nTick the effects found below and refit." if result.found else ""
+        self.verdict.content = f"**{headline}**\n\n" + "\n\n".join(lines) + advice
         for c in result.candidates:
             box = self.effects.get(c.effect)
             if box is not None:
@@ -193,7 +185,7 @@ class PhysicsPanel:
         self.evidence.visible = True
         flag = "significant" if candidate.significant else "not significant"
         self.evidence_text.content = (
-            f"**{candidate.name}** ({flag}): {self.catalog[candidate.effect].parameters_text(candidate.params)}. "
+            f"**{candidate.name}** ({flag}): {self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
             f"Every touch's out-of-sample residual, binned against {ev['x_label']}.\n\n_{candidate.teaching}_"
         )
 

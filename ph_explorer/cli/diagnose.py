@@ -94,7 +94,7 @@ def format_diagnosis(result: Diagnosis, catalog: Catalog = DEFAULT_CATALOG) -> s
     """A plain-text report: where it fails, the ranked candidates, the verdict, the error history."""
     return "\n".join(
         _floor_and_baseline(result) + [""] + _where_it_fails(result) + [""] + _candidates(result, catalog) + [""]
-        + _verdict(result) + [""] + _history(result)
+        + _verdict(result, catalog) + [""] + _history(result)
     ) + "\n"
 
 
@@ -112,8 +112,8 @@ def _where_it_fails(result: Diagnosis) -> list[str]:
     """The count of failing orientations, then the worst five (by MAE over their own floor)."""
     mae, floor = result.out_of_sample_mae_um["mean"], result.out_of_sample_floor_um["mean"]
     lines = [
-        f"Where it fails: {int(result.failing.sum())} of {len(result.failing)} orientations are worse than their "
-        "noise floor by more than 4 standard errors (out of sample)."
+        f"Where it fails: {int(result.failing.sum())} of {len(result.failing)} orientations exceed their noise "
+        "(out of sample; the within-noise test, ring level 1 %)."
     ]
     for i in np.argsort(-(mae / floor))[:5]:
         if not result.failing[i]:
@@ -128,23 +128,23 @@ def _candidates(result: Diagnosis, catalog: Catalog) -> list[str]:
     lines = ["Candidate effects (best first): share of the out-of-sample residual explained, fall of the held-out error"]
     width = max([len(c.effect) for c in result.candidates] + [6])
     for c in result.candidates:
-        if c.note:
+        if c.note and not c.explained_fraction:
             lines.append(f"   {c.effect.ljust(width)}  not tested: {c.note}")
             continue
-        params = catalog[c.effect].parameters_text(c.params) if c.significant else ""
+        params = catalog[c.effect].parameters_text(c.params, c.params_u) if c.significant else ""
         flag = "*" if c.significant else " "
         lines.append(
             f" {flag} {c.effect.ljust(width)}  explains {100 * c.explained_fraction:5.1f} %  (noise alone {100 * c.noise_fraction:5.2f} %)"
-            f"  error -{100 * c.error_reduction:4.1f} %  {params}"
+            f"  error -{100 * c.error_reduction:4.1f} %  {params}" + (f"  ({c.note})" if c.note else "")
         )
     return lines
 
 
-def _verdict(result: Diagnosis) -> list[str]:
-    if result.verdict == "missing":
-        best = result.candidates[0]
-        return [f"Verdict: a missing effect: {best.effect} ({best.name}).", f"  {best.teaching}"]
-    return ["Verdict: no missing effect found: no candidate explains more than noise would and lowers the held-out error materially."]
+def _verdict(result: Diagnosis, catalog: Catalog) -> list[str]:
+    from ph_explorer.diagnosis import verdict_text  # torch-bound, like the command itself
+
+    headline, lines = verdict_text(result, catalog)
+    return [headline] + [f"  {line}" for line in lines]
 
 
 def _history(result: Diagnosis) -> list[str]:

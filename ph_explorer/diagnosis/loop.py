@@ -8,11 +8,13 @@
 2. Which effect is missing: ph_explorer.diagnosis.search.
 3. Add it: a HybridModel with the chosen effects + the data-driven part.
 4. Watch the error fall: the check-ring MAE of each step against both references and the floors.
+
+The verdict (VERDICTS) comes from the within-noise test (ph_explorer.diagnosis.noise_test) of
+the baseline's out-of-sample residual and of what the effects found leave of it.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -20,11 +22,13 @@ from numpy.typing import NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.noise_test import MIN_FAILING_RINGS, NoiseTest, within_noise
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
 from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models import design as least_squares
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import held_out_mae
 from ph_explorer.models.hybrid import DataModel, HybridModel
@@ -39,15 +43,6 @@ def repetition_sigma(campaign: Campaign, model: HybridModel | None = None) -> fl
     if model is None or not model.effects:
         return campaign.noise_sigma_um()
     return metrics.pooled_sigma(campaign.deviations - model.physical_part(campaign_touches(campaign)))
-
-
-def failing_orientations(mae: NDArray[np.float64], floor: NDArray[np.float64], n_points: int) -> NDArray[np.bool_]:
-    """Orientations whose MAE exceeds their floor by more than 4 standard errors of an N-point MAE.
-
-    For Gaussian errors |e| has relative spread sqrt(pi/2 - 1) ~ 0.76; the MAE of N points has
-    that spread over sqrt(N).
-    """
-    return mae > floor * (1.0 + 4.0 * math.sqrt(math.pi / 2.0 - 1.0) / math.sqrt(n_points))
 
 
 def out_of_sample_figures(
@@ -74,6 +69,59 @@ def out_of_sample_figures(
             mae[reference][held_out] = own[reference]
             floors[reference][held_out] = floor[reference]
     return mae, floors
+
+
+def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
+    """The within-noise test of what the effects, fitted through the smoother, leave."""
+    design = search.design(effects)
+    mean, within = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
+    changing = 0.0 if within is None else within
+    residual = search.residual - mean[:, None, :] - changing
+    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
+
+
+def accepts(
+    candidate: Candidate,
+    current: NoiseTest | None,
+    search: CandidateSearch,
+    campaign: Campaign,
+    chain: Sequence[Effect],
+    by_id: dict[str, Effect],
+    seed: int = 0,
+) -> bool | NoiseTest:
+    """Whether the search takes this candidate as the next effect found (the within-noise test
+    with it, when that decided; True or False otherwise).
+
+    A significant candidate (beyond noise, plausible, and lowering the check rings' error
+    materially) is taken. So is one that is beyond noise and plausible when the model fails
+    beyond noise and adding it brings at least MIN_FAILING_RINGS of the exceeding rings within
+    noise: a failure on the lattice rings the check rings do not see.
+    """
+    if candidate.significant:
+        return True
+    if not candidate.beyond_noise or current is None or not current.fails:
+        return False
+    trial = [*chain, by_id[candidate.effect].with_settings(**candidate.settings)]
+    test = within_noise_after(search, campaign, trial, seed)
+    if test is None or test.failing_rings > current.failing_rings - MIN_FAILING_RINGS:
+        return False
+    candidate.significant = True
+    candidate.note = (
+        f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
+        "their noise within it (the check rings alone do not show it)"
+    )
+    return test
+
+
+def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool) -> str:
+    """The verdict (see VERDICTS) from the within-noise tests before and after the effects found.
+
+    A campaign of one repetition has no noise to test against: found effects are "missing",
+    none found is "none", and the report says that "within noise" could not be tested.
+    """
+    if not found:
+        return "unexplained" if before is not None and before.fails else "none"
+    return "partial" if after is not None and after.fails else "missing"
 
 
 def add_effects(
@@ -138,39 +186,48 @@ def diagnose(
         baseline_name = baseline.name
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
-    # 1. where it fails: leave-one-out residuals at training rings, the training fit at check rings.
+    # 1. where it fails: leave-one-out residuals at training rings, the training fit at check rings;
+    # the within-noise test of that residual decides, ring by ring and for the campaign.
     search = CandidateSearch(campaign, train, seed)
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
-    failing = np.zeros(campaign.n_orientations, dtype=bool)
-    for reference in metrics.REFERENCES:
-        failing |= failing_orientations(mae[reference], floors[reference], campaign.n_points)
+    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
+    failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
 
-    # 2. which effect is missing
+    # 2. which effects are missing: the best significant candidate, the search again with it in
+    # the model, ... (the verdict's chain, whatever the user adds).
     candidates = rank_candidates(search, effects, progress=progress)
-    verdict = "missing" if candidates and candidates[0].significant else "none"
+    chain: list[Effect] = []
+    found: list[Candidate] = []
+    remaining, current, after = candidates, before, None
+    while remaining and len(chain) < max_steps:
+        pick, test = next(
+            ((c, t) for c in remaining for t in [accepts(c, current, search, campaign, chain, by_id, seed)] if t is not False),
+            (None, None),
+        )
+        if pick is None:
+            break
+        found.append(pick)
+        chain.append(by_id[pick.effect].with_settings(**pick.settings))
+        current = after = test if isinstance(test, NoiseTest) else within_noise_after(search, campaign, chain, seed)
+        # Search again with the chain in the model; an effect found may be found again at another
+        # setting (a second period of the same axis error).
+        remaining = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
+    verdict = decide(before, after, bool(chain))
 
-    # 3 + 4. add effects one at a time, each step refitted and measured on the check rings
+    # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
+    # on the check rings
     floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
     steps = [Step([], baseline_mae, floor)]
-    chosen: list[Effect] = []
-    hybrid = None
     scan = {c.effect: c for c in candidates}
-    remaining = list(candidates)
-    for position in range(len(add) if add is not None else max_steps):
-        if add is not None:
-            pick = scan.get(add[position]) or Candidate.untested(add[position], "", "")
-        else:
-            if not remaining or not remaining[0].significant:
-                break
-            pick = remaining[0]
-        chosen.append(by_id[pick.effect].with_settings(**pick.settings))
-        hybrid, step = add_effects(campaign, chosen, data_model)
+    if add is None:
+        chosen_steps = chain
+    else:
+        chosen_steps = [by_id[i].with_settings(**(scan[i].settings if i in scan else {})) for i in add]
+    hybrid = None
+    for count in range(1, len(chosen_steps) + 1):
+        hybrid, step = add_effects(campaign, chosen_steps[:count], data_model)
         steps.append(step)
-        if add is None:
-            # Search again with the chosen columns in the model.
-            others = [e for e in effects if e.id not in {c.id for c in chosen}]
-            remaining = rank_candidates(search, others, fixed=search.design(chosen), progress=progress)
 
     return Diagnosis(
         # The touch noise once the modelled effects that change between repetitions are taken out.
@@ -179,6 +236,8 @@ def diagnose(
         baseline_mae_um=baseline_mae,
         candidates=candidates,
         verdict=verdict,
+        found=found,
+        within_noise={"baseline": before, "after": after},
         steps=steps,
         orientations=campaign.orientations,
         out_of_sample_mae_um=mae,

@@ -12,9 +12,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.diagnosis.noise_test import NoiseTest
+from ph_explorer.effects import Catalog
 from ph_explorer.models.hybrid import HybridModel
 
 DIGITS = 5
+# What the diagnosis can say of a campaign, and what each means.
+VERDICTS = {
+    "none": "the model predicts every ring within what its noise explains",
+    "missing": "catalog effects found, and with them the model is within noise",
+    "partial": "catalog effects found, but the model still fails beyond noise with them",
+    "unexplained": "the model fails beyond noise and no plausible catalog effect explains it",
+}
 
 
 @dataclass
@@ -28,21 +37,24 @@ class Candidate:
     noise_fraction: float  # the largest share the same scan explains on pure noise
     significant: bool
     params: dict[str, float]
+    params_u: dict[str, float]  # expanded uncertainty (k = 2, jackknife over orientations) of each parameter
     settings: dict[str, Any]  # the chosen values of the effect's scanned parameters
     teaching: str
     evidence: dict[str, Any] = field(default_factory=dict)
-    note: str = ""  # why the effect could not be tested on this campaign, if it could not
+    note: str = ""  # why the effect could not be tested on this campaign, or why its fit is not the explanation
+    beyond_noise: bool = False  # explains more than noise would, with a plausible fit (material or not)
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> "Candidate":
         """An effect that explains nothing here (or could not be tested: note says why)."""
-        return cls(effect_id, name, 0.0, 0.0, 0.0, False, {}, {}, teaching, note=note)
+        return cls(effect_id, name, 0.0, 0.0, 0.0, False, {}, {}, {}, teaching, note=note)
 
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
         for key in ("explained_fraction", "error_reduction", "noise_fraction"):
             out[key] = round(out[key], DIGITS)
         out["params"] = rounded(self.params)
+        out["params_u"] = rounded(self.params_u)
         return out
 
 
@@ -62,7 +74,9 @@ class Diagnosis:
     baseline_model: str
     baseline_mae_um: dict[str, float]
     candidates: list[Candidate]
-    verdict: str  # "missing" or "none"
+    verdict: str  # a key of VERDICTS
+    found: list[Candidate]  # the effects found, in the order the search added them (each re-ranked)
+    within_noise: dict[str, NoiseTest | None]  # "baseline" and "after" (the effects found); None: untestable
     steps: list[Step]
     orientations: NDArray[np.float64]
     out_of_sample_mae_um: dict[str, NDArray[np.float64]]  # per orientation: "mean", "single"
@@ -78,6 +92,8 @@ class Diagnosis:
             "baseline": {"model": self.baseline_model, "mae_um": rounded(self.baseline_mae_um)},
             "candidates": [c.as_dict() for c in self.candidates],
             "verdict": self.verdict,
+            "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings")} for c in self.found],
+            "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "steps": [
                 {"added": s.added, "mae_um": rounded(s.mae_um), "noise_floor_um": rounded(s.noise_floor_um), "params": s.params}
                 for s in self.steps
@@ -94,6 +110,31 @@ class Diagnosis:
                 if self.failing[i]
             ],
         }
+
+
+def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
+    """The verdict as a headline and its explanation, in words (the CLI and the app show the same)."""
+    before, after = result.within_noise["baseline"], result.within_noise["after"]
+    found = "; ".join(f"{c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)})" for c in result.found)
+    headline = f"Verdict: {result.verdict} - {VERDICTS[result.verdict]}."
+    lines = []
+    if result.verdict in ("missing", "partial"):
+        lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
+    test = after if result.verdict in ("missing", "partial") else before
+    if test is None:
+        lines.append("One repetition: no repetition spread, so 'within noise' could not be tested.")
+    else:
+        model = "with them" if result.verdict in ("missing", "partial") else "the baseline"
+        lines.append(
+            f"Within-noise test ({model}): {test.failing_rings} of {len(test.ring_p_value)} rings exceed their noise; "
+            f"the campaign fails from {test.critical_rings} (false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)."
+        )
+    if result.verdict == "unexplained":
+        implausible = [f"{c.effect}: {c.note}" for c in result.candidates if c.note.startswith("best catalog fit implausible")]
+        lines += implausible or ["No candidate explains more than noise would and lowers the held-out error materially."]
+    if result.verdict in ("missing", "partial") and result.found:
+        lines.append(result.found[0].teaching)
+    return headline, lines
 
 
 def rounded(figures: dict[str, float]) -> dict[str, float | None]:

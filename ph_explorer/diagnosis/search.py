@@ -29,6 +29,7 @@ from ph_explorer.models import design as least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.design import Design
 from ph_explorer.models.hybrid import fitted_basis
+from ph_explorer.models.uncertainty import jackknife_parameters
 
 # Monte Carlo draws of pure noise for the significance of a candidate's scan.
 NULL_DRAWS = 39
@@ -116,17 +117,25 @@ class CandidateSearch:
         explained, settings, reduction, design, joint = chosen
         own = least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0]
         found = effect.with_settings(**settings)
+        every_ring = np.arange(self.campaign.n_orientations)
+        without = least_squares.jackknife(joint, self.targets, every_ring)[:, -design.n_columns :]
+        params, params_u = jackknife_parameters(found, without, own)
+        implausible = found.implausible(params)
         return Candidate(
             effect=effect.id,
             name=effect.name,
             explained_fraction=explained / max(total, 1e-300),
             error_reduction=reduction,
             noise_fraction=float(null_best.max() / max(total, 1e-300)),
-            significant=bool(explained > threshold and reduction >= MATERIAL_REDUCTION),
-            params={k: float(v) for k, v in found.from_coefficients(own).items()},
+            # A fit outside the effect's plausible range is never the explanation.
+            significant=bool(explained > threshold and reduction >= MATERIAL_REDUCTION and not implausible),
+            params={k: float(v) for k, v in params.items()},
+            params_u={k: float(v) for k, v in params_u.items()},
             settings=settings,
             teaching=effect.teaching,
             evidence=self.evidence(found, design, own),
+            note="best catalog fit implausible: " + "; ".join(implausible) if implausible else "",
+            beyond_noise=bool(explained > threshold and not implausible),
         )
 
     def check_residual(self, design: Design | None) -> tuple[NDArray, NDArray]:

@@ -38,7 +38,9 @@ every Effect subclass defined in that file joins the catalog under its `id`
         id = "stylus_bending"
         name = "Stylus bending under the probing force"
         teaching = "The stylus bends by the trigger force; it adds pre-travel along the force ..."
-        parameters = (Parameter("amplitude_um", "um", 0.1, "extra pre-travel at full lateral share"),)
+        parameters = (
+            Parameter("amplitude_um", "um", 0.1, "extra pre-travel at full lateral share", plausible=(0.0, 0.3)),
+        )
 
         def basis(self, touches):
             lateral = np.sin(np.radians(touches.beta_deg))            # (n_o, 1, n_pt)
@@ -51,6 +53,15 @@ effect does not change between repetitions); units are um for deviations; `forwa
 linear effect only needs `basis`; a non-linear or random one overrides `forward`. Free non-linear
 parameters a diagnosis should scan are parameters too, listed in `scan` as {name: tuple of values};
 `basis` reads them from `self.params`.
+
+Plausible ranges: a `Parameter` may declare `plausible=(low, high)`, the range of its *magnitude*
+that a real PH20/TP20-class head can have (take the magnitudes of your teaching text, generous by
+about 1.5x at the top, and 0 at the bottom: a small value is never implausible, only not
+significant). A fit whose |value| falls outside is never accepted as the explanation, and the
+report says so (`Effect.implausible(params)`: "amplitude 15 arcsec, plausible 0-3 arcsec").
+Leave it None (the default) for what has no physical bound: phases, seeds, scanned settings.
+A phase or any other angle that repeats declares `period=` (360.0 for a phase in degrees, 120.0
+for the azimuth of three seats), so that its uncertainty and comparisons wrap around.
 """
 
 from __future__ import annotations
@@ -74,12 +85,46 @@ UM_PER_MM = 1000.0
 
 @dataclass(frozen=True)
 class Parameter:
-    """A physical parameter of an effect, with its unit and default value."""
+    """A physical parameter of an effect, with its unit and default value.
+
+    plausible: (low, high), the range of the parameter's magnitude |value| for a PH20/TP20-class
+    head (None: no bound, e.g. phases, seeds, scanned periods); a fit outside it is implausible.
+    period: the value repeats with this period (360.0 for a phase in degrees): differences, and so
+    uncertainties, wrap around it (None: not periodic).
+    """
 
     name: str
     unit: str
     default: float
     description: str
+    plausible: tuple[float, float] | None = None
+    period: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.plausible is not None:
+            low, high = (float(v) for v in self.plausible)
+            if not (0.0 <= low <= high and np.isfinite(high)):
+                raise ValueError(f"parameter {self.name!r}: plausible must be (low, high) with 0 <= low <= high, got {self.plausible!r}")
+            object.__setattr__(self, "plausible", (low, high))
+        if self.period is not None:
+            period = float(self.period)
+            if not (np.isfinite(period) and period > 0.0):
+                raise ValueError(f"parameter {self.name!r}: period must be positive, got {self.period!r}")
+            object.__setattr__(self, "period", period)
+
+    def admits(self, value: float) -> bool:
+        """Whether |value| lies in the plausible range (always, when there is none); NaN never does."""
+        if self.plausible is None:
+            return True
+        low, high = self.plausible
+        return bool(low <= abs(float(value)) <= high)
+
+    def range_text(self) -> str:
+        """'0-3 arcsec': the plausible range of the magnitude, with the unit ('' when there is none)."""
+        if self.plausible is None:
+            return ""
+        low, high = self.plausible
+        return f"{low:g}-{high:g}" + (f" {self.unit}" if self.unit else "")
 
 
 class Effect:
@@ -89,6 +134,9 @@ class Effect:
     `scan` is the grid of its non-linear parameters a diagnosis tries (their chosen values are
     the instance's `settings()`), `needs` what a campaign must hold for it to be tested, `candidate`
     whether a model can add it at all, and `evidence` the variable its signature is read against.
+    Each of its `parameters` may declare the plausible range of its magnitude
+    (`Parameter(..., plausible=(0.0, 3.0))`) and a period (`period=360.0` for a phase);
+    `implausible(params)` names the fitted values outside their ranges.
     """
 
     id: ClassVar[str] = ""
@@ -178,10 +226,31 @@ class Effect:
         return {"id": self.id, **self.params}
 
     @classmethod
-    def parameters_text(cls, params: Mapping[str, float]) -> str:
-        """'amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev': fitted parameters with their units."""
+    def parameters_text(cls, params: Mapping[str, float], uncertainties: Mapping[str, float] | None = None) -> str:
+        """'amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev': fitted parameters with their units,
+        each with '+- U' where an uncertainty is given and not zero (scanned settings have none)."""
         units = {p.name: p.unit for p in cls.parameters}
-        return ", ".join(parameter_text(k, float(v), units.get(k, "")) for k, v in params.items())
+        u = uncertainties or {}
+        return ", ".join(parameter_text(k, float(v), units.get(k, ""), u.get(k)) for k, v in params.items())
+
+    @classmethod
+    def implausible(cls, params: Mapping[str, float]) -> list[str]:
+        """One line per parameter whose magnitude lies outside its plausible range, e.g.
+        ['amplitude 15 arcsec, plausible 0-3 arcsec']; [] when every value is plausible.
+
+        Names that are not parameters of the effect (derived outputs of from_coefficients, such
+        as lobing's ratio_6_to_3) and parameters without a range are not judged. A negative value
+        is judged by its magnitude, and the line says so.
+        """
+        declared = {p.name: p for p in cls.parameters}
+        out = []
+        for name, value in params.items():
+            parameter = declared.get(name)
+            if parameter is None or parameter.admits(value):
+                continue
+            what = "plausible magnitude" if float(value) < 0 else "plausible"
+            out.append(f"{parameter_text(name, float(value), parameter.unit)}, {what} {parameter.range_text()}")
+        return out
 
 
 class EffectSum:
@@ -208,11 +277,13 @@ class EffectSum:
         return radial
 
 
-def parameter_text(name: str, value: float, unit: str) -> str:
-    """'amplitude_arcsec', 0.95, 'arcsec' -> 'amplitude 0.95 arcsec'; 'cycles_per_rev', 22, 'cycles/rev' -> '22 cycles/rev'."""
+def parameter_text(name: str, value: float, unit: str, uncertainty: float | None = None) -> str:
+    """'amplitude_arcsec', 0.95, 'arcsec' -> 'amplitude 0.95 arcsec' ('amplitude 0.95 +- 0.06 arcsec'
+    with an uncertainty); 'cycles_per_rev', 22, 'cycles/rev' -> '22 cycles/rev'."""
     written = unit.replace("/", "_per_")  # units are spelled with _per_ in parameter names ('um/h' -> 'um_per_h')
     label = name[: -len(written)].rstrip("_") if unit and name.endswith(written) else name
-    number = f"{value:.3g}" + (f" {unit}" if unit else "")
+    spread = f" +- {uncertainty:.2g}" if uncertainty and np.isfinite(uncertainty) else ""
+    number = f"{value:.3g}{spread}" + (f" {unit}" if unit else "")
     return f"{label.replace('_', ' ')} {number}" if label else number
 
 

@@ -12,6 +12,15 @@ from ph_explorer.kinematics import Touches
 SECONDS_PER_HOUR = 3600.0
 DRIFT_TIME_CONSTANTS_S = (300.0, 600.0, 1200.0, 1800.0, 3600.0, 7200.0)
 DRIFT_CYCLE_PERIODS_S = (600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0)
+# Plausible magnitudes of thermal growth, from the drift teaching text's 1.15 um per kelvin for
+# 50 mm of aluminium (2.3 um/K on a 100 mm head body): a ramp of up to ~2 K/h (4.6 um/h) and a
+# warm-up of up to ~2 K (4.6 um), rounded up to 5; the room cycle "+-0.3 K on 100 mm of aluminium
+# is +-0.7 um", generous by 1.5x at the top.
+DRIFT_RATE_PLAUSIBLE_UM_PER_H = (0.0, 5.0)
+DRIFT_STEP_PLAUSIBLE_UM = (0.0, 5.0)
+DRIFT_CYCLE_PLAUSIBLE_UM = (0.0, 1.0)
+# "a grade-0 20 mm ring has ~0.2 um of form": 1 um admits worse grades, not a damaged gauge.
+RING_FORM_PLAUSIBLE_UM = (0.0, 1.0)
 
 
 class Drift(Effect):
@@ -30,13 +39,27 @@ class Drift(Effect):
         "orientation can predict it: it raises the error against single repetitions."
     )
     parameters = (
-        Parameter("stylus_rate_um_per_h", "um/h", 0.0, "steady growth of the stylus along its axis"),
-        Parameter("stylus_step_um", "um", 0.0, "total warm-up growth of the stylus along its axis"),
-        Parameter("stylus_cycle_um", "um", 0.0, "amplitude of the stylus growth that follows the room's temperature cycle"),
-        Parameter("head_rate_um_per_h", "um/h", 0.0, "steady growth of the head body, moving the pivot down"),
-        Parameter("head_step_um", "um", 0.0, "total warm-up growth of the head body, moving the pivot down"),
-        Parameter("head_cycle_um", "um", 0.0, "amplitude of the head body growth that follows the room's temperature cycle"),
-        Parameter("cycle_phase_deg", "deg", 0.0, "phase of the temperature cycle at t = 0"),
+        Parameter(
+            "stylus_rate_um_per_h", "um/h", 0.0, "steady growth of the stylus along its axis",
+            plausible=DRIFT_RATE_PLAUSIBLE_UM_PER_H,
+        ),
+        Parameter("stylus_step_um", "um", 0.0, "total warm-up growth of the stylus along its axis", plausible=DRIFT_STEP_PLAUSIBLE_UM),
+        Parameter(
+            "stylus_cycle_um", "um", 0.0, "amplitude of the stylus growth that follows the room's temperature cycle",
+            plausible=DRIFT_CYCLE_PLAUSIBLE_UM,
+        ),
+        Parameter(
+            "head_rate_um_per_h", "um/h", 0.0, "steady growth of the head body, moving the pivot down",
+            plausible=DRIFT_RATE_PLAUSIBLE_UM_PER_H,
+        ),
+        Parameter(
+            "head_step_um", "um", 0.0, "total warm-up growth of the head body, moving the pivot down", plausible=DRIFT_STEP_PLAUSIBLE_UM
+        ),
+        Parameter(
+            "head_cycle_um", "um", 0.0, "amplitude of the head body growth that follows the room's temperature cycle",
+            plausible=DRIFT_CYCLE_PLAUSIBLE_UM,
+        ),
+        Parameter("cycle_phase_deg", "deg", 0.0, "phase of the temperature cycle at t = 0", period=360.0),
         Parameter("tau_s", "s", 1200.0, "time constant of the warm-up"),
         Parameter("cycle_period_s", "s", 1800.0, "period of the room's temperature cycle (air conditioning)"),
     )
@@ -107,7 +130,7 @@ class RingForm(Effect):
         "model learns it; it is not an error of the head and should be subtracted before judging the head."
     )
     parameters = (
-        Parameter("form_um", "um", 0.2, "peak-to-valley form of the ring (harmonics upr_min..upr_max)"),
+        Parameter("form_um", "um", 0.2, "peak-to-valley form of the ring (harmonics upr_min..upr_max)", plausible=RING_FORM_PLAUSIBLE_UM),
         Parameter("shape_seed", "", 1.0, "seed of the (fixed) random phases and weights of the form's harmonics"),
         Parameter("upr_min", "UPR", 2.0, "lowest harmonic of the form"),
         Parameter("upr_max", "UPR", 15.0, "highest harmonic of the form"),
