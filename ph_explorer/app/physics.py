@@ -15,6 +15,7 @@ from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
+from ph_explorer.models.folder import MODEL_TYPES, baseline_of
 
 DIAGNOSIS_FIGURE = "diagnosis: out-of-sample MAE / its floor"
 
@@ -37,7 +38,7 @@ class PhysicsLoop:
         self.panel.clear()
 
     def diagnose(self) -> None:
-        """Where the trilinear baseline fails out of sample, and which effect is missing (none added)."""
+        """Where the loaded baseline fails out of sample, and which effect is missing (none added)."""
         p, ds = self.panel, self.current()
         n_effects = len(self.catalog.candidates())
         seen: list[str] = []
@@ -48,7 +49,9 @@ class PhysicsLoop:
 
         p.show_progress("out-of-sample residuals of the baseline (leave one orientation out)…", 0.02)
         try:
-            result = diagnosis.diagnose(ds.campaign, add=[], catalog=self.catalog, progress=progress)
+            # The loaded model is the baseline, as in the command line.
+            baseline = baseline_of({k: v for k, v in ds.models.items() if k in MODEL_TYPES})
+            result = diagnosis.diagnose(ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress)
         except InputError as error:
             p.done(f"**Cannot diagnose** — {error.line()}")
             return
@@ -67,7 +70,7 @@ class PhysicsLoop:
         )
         self.show(ds)
         self.steps = [result.steps[0]]
-        p.show_history(self.steps, result.baseline_model)
+        p.show_history(self.steps)
         p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned.")
 
     def show_evidence(self, effect_id: str) -> None:
@@ -100,7 +103,7 @@ class PhysicsLoop:
         if ds.campaign is not self.current().campaign:
             return  # the data changed meanwhile
         self.steps.append(step)
-        p.show_history(self.steps, "trilinear")
+        p.show_history(self.steps)
         fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
         p.done(
             f"Hybrid ({label}): check-ring MAE **{step.mae_um['mean']:.3f} um** vs mean, "

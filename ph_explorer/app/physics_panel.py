@@ -32,8 +32,8 @@ EVIDENCE_SERIES = (
 )
 
 
-def step_label(added: Sequence[str], baseline: str) -> str:
-    return f"baseline ({baseline})" if not added else "+ " + " + ".join(added)
+def step_label(step: Step) -> str:
+    return f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
 
 
 def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
@@ -86,7 +86,7 @@ class PhysicsPanel:
 
     def __init__(self, gui: viser.GuiApi, catalog: Catalog) -> None:
         self.catalog = catalog
-        self.diagnose = gui.add_button("Diagnose", hint="where the trilinear baseline fails out of sample, and which catalog effect is missing")
+        self.diagnose = gui.add_button("Diagnose", hint="where the loaded model fails out of sample, and which catalog effect is missing")
         self.status = gui.add_markdown("")
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.summary = gui.add_markdown("")
@@ -186,10 +186,12 @@ class PhysicsPanel:
         flag = "significant" if candidate.significant else "not significant"
         self.evidence_text.content = (
             f"**{candidate.name}** ({flag}): {self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
-            f"Every touch's out-of-sample residual, binned against {ev['x_label']}.\n\n_{candidate.teaching}_"
+            f"The plot: every touch's residual with this term put back, and the term, both after the circle "
+            f"fit, binned against {ev['x_label']}; the curve reaches {ev['fitted_peak']:.3g} "
+            f"({ev['y_label']}), the circle fit having removed part of the term the parameters describe.\n\n_{candidate.teaching}_"
         )
 
-    def show_history(self, steps: Sequence[Step], baseline: str) -> None:
+    def show_history(self, steps: Sequence[Step]) -> None:
         """The error history: MAE against the mean and single repetitions per step, each with its floor."""
         if not steps:
             self.history.visible = False
@@ -202,7 +204,7 @@ class PhysicsPanel:
         lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
         for k, s in enumerate(steps):
             lines.append(
-                f"| {k}: {step_label(s.added, baseline)} | {s.mae_um['mean']:.3f} ({s.noise_floor_um['mean']:.3f}) | "
+                f"| {k}: {step_label(s)} | {s.mae_um['mean']:.3f} ({s.noise_floor_um['mean']:.3f}) | "
                 f"{s.mae_um['single']:.3f} ({s.noise_floor_um['single']:.3f}) |"
             )
         last = steps[-1]

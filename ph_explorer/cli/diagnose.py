@@ -33,7 +33,7 @@ def diagnose_command(
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON."""
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
     from ph_explorer.diagnosis import diagnose
-    from ph_explorer.models.folder import load_models
+    from ph_explorer.models.folder import baseline_of, load_models
     from ph_explorer.models.network import FourierNetwork
 
     if data_part not in DATA_PARTS:
@@ -43,8 +43,7 @@ def diagnose_command(
     campaign = read_campaign(Path(data), geometry or {})
     baseline = None
     if model is not None:
-        trained = load_models(Path(model))
-        baseline = trained.get("network") or next(iter(trained.values()))
+        baseline = baseline_of(load_models(Path(model)))
     with Progress(transient=True, disable=json_output) as bar:
         task = bar.add_task("scanning candidate effects", total=None)
         data_model: str | Callable[[], DeviationModel] = data_part
@@ -131,11 +130,13 @@ def _candidates(result: Diagnosis, catalog: Catalog) -> list[str]:
         if c.note and not c.explained_fraction:
             lines.append(f"   {c.effect.ljust(width)}  not tested: {c.note}")
             continue
-        params = catalog[c.effect].parameters_text(c.params, c.params_u) if c.significant else ""
+        shown = c.significant or c.beyond_noise  # a fit of noise describes nothing
+        params = catalog[c.effect].parameters_text(c.params, c.params_u) if shown else ""
         flag = "*" if c.significant else " "
         lines.append(
             f" {flag} {c.effect.ljust(width)}  explains {100 * c.explained_fraction:5.1f} %  (noise alone {100 * c.noise_fraction:5.2f} %)"
-            f"  error -{100 * c.error_reduction:4.1f} %  {params}" + (f"  ({c.note})" if c.note else "")
+            f"  error -{100 * c.error_reduction:4.1f} %  {c.status}" + (f": {params}" if params else "")
+            + (f"  ({c.note})" if c.note and c.status != "not significant" else "")
         )
     return lines
 
@@ -150,9 +151,9 @@ def _verdict(result: Diagnosis, catalog: Catalog) -> list[str]:
 def _history(result: Diagnosis) -> list[str]:
     lines = ["Error history on the held-out rings (MAE / um, and the noise floor):"]
     for step in result.steps:
-        name = "baseline" if not step.added else "+ " + " + ".join(step.added)
+        name = f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
         lines.append(
-            f"  {name:40s} mean {step.mae_um['mean']:.3f} (floor {step.noise_floor_um['mean']:.3f})   "
+            f"  {name:50s} mean {step.mae_um['mean']:.3f} (floor {step.noise_floor_um['mean']:.3f})   "
             f"single {step.mae_um['single']:.3f} (floor {step.noise_floor_um['single']:.3f})"
         )
     return lines

@@ -36,10 +36,14 @@ def binned_evidence(evidence: Evidence, residual: NDArray[np.float64], fitted: N
         return np.round(sums[used] / norm[used], DIGITS).tolist()
 
     centre = 0.5 * (edges[:-1] + edges[1:])
+    curve = binned(np.broadcast_to(fitted, shape))
     return {
         "x_label": evidence.x_label,
         "y_label": evidence.y_label,
         "x": np.round(centre[used], 3).tolist(),
         "residual": binned(residual),
-        "fitted": binned(np.broadcast_to(fitted, shape)),
+        "fitted": curve,
+        # What the plot's curve reaches: the circle fit removes part of any term, so it may be less
+        # than the amplitude the parameters state (which is the term before the fit).
+        "fitted_peak": float(np.max(np.abs(curve), initial=0.0)),
     }

@@ -139,7 +139,8 @@ def add_effects(
     held_out = campaign.holdout_mask()
     hybrid = HybridModel(list(effects), data_model, progress=progress).fit(campaign, ~held_out)
     floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
-    step = Step([e.id for e in effects], held_out_mae(hybrid, campaign, held_out), floor, hybrid.effect_parameters())
+    model = f"hybrid, {hybrid.data_model.name} data part" if effects else hybrid.data_model.name
+    step = Step([e.id for e in effects], held_out_mae(hybrid, campaign, held_out), floor, hybrid.effect_parameters(), model)
     return hybrid, step
 
 
@@ -218,7 +219,7 @@ def diagnose(
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
     floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
-    steps = [Step([], baseline_mae, floor)]
+    steps = [Step([], baseline_mae, floor, model=baseline_name)]
     scan = {c.effect: c for c in candidates}
     if add is None:
         chosen_steps = chain

@@ -17,6 +17,7 @@ from ph_explorer.effects import Catalog
 from ph_explorer.models.hybrid import HybridModel
 
 DIGITS = 5
+NULL_MARGIN = 2.0  # a candidate is beyond noise when it explains more than this multiple of the noise null
 # What the diagnosis can say of a campaign, and what each means.
 VERDICTS = {
     "none": "the model predicts every ring within what its noise explains",
@@ -49,8 +50,21 @@ class Candidate:
         """An effect that explains nothing here (or could not be tested: note says why)."""
         return cls(effect_id, name, 0.0, 0.0, 0.0, False, {}, {}, {}, teaching, note=note)
 
+    @property
+    def status(self) -> str:
+        """In words: found (significant), present but already captured by the data model (beyond
+        noise and plausible, not material), implausible, not significant, or not tested."""
+        if self.significant:
+            return "found"
+        if self.beyond_noise:
+            return "present, already captured by the data model"
+        if self.note.startswith("best catalog fit implausible") and self.explained_fraction > NULL_MARGIN * self.noise_fraction:
+            return "implausible"
+        return "not tested" if self.note and not self.explained_fraction else "not significant"
+
     def as_dict(self) -> dict[str, Any]:
         out = asdict(self)
+        out["status"] = self.status
         for key in ("explained_fraction", "error_reduction", "noise_fraction"):
             out[key] = round(out[key], DIGITS)
         out["params"] = rounded(self.params)
@@ -66,6 +80,7 @@ class Step:
     mae_um: dict[str, float]
     noise_floor_um: dict[str, float]
     params: list[dict[str, Any]] = field(default_factory=list)
+    model: str = ""  # the model this step measures: the baseline's name, or the hybrid and its data part
 
 
 @dataclass
@@ -95,7 +110,13 @@ class Diagnosis:
             "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings")} for c in self.found],
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "steps": [
-                {"added": s.added, "mae_um": rounded(s.mae_um), "noise_floor_um": rounded(s.noise_floor_um), "params": s.params}
+                {
+                    "added": s.added,
+                    "model": s.model,
+                    "mae_um": rounded(s.mae_um),
+                    "noise_floor_um": rounded(s.noise_floor_um),
+                    "params": s.params,
+                }
                 for s in self.steps
             ],
             "where_it_fails": [

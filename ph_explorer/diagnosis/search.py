@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
-from ph_explorer.diagnosis.results import Candidate
+from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.effects import Effect
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import campaign_touches
@@ -33,9 +33,8 @@ from ph_explorer.models.uncertainty import jackknife_parameters
 
 # Monte Carlo draws of pure noise for the significance of a candidate's scan.
 NULL_DRAWS = 39
-# A candidate must explain more than this multiple of the most that pure noise explained in the
+# A candidate must explain more than NULL_MARGIN times the most that pure noise explained in the
 # same scan (a look-elsewhere-corrected significance test) ...
-NULL_MARGIN = 2.0
 # ... and lower the out-of-sample rms error against the reference that exposes it by at least this
 # fraction: less is within what a user would see as the model's normal scatter, not a missing effect.
 MATERIAL_REDUCTION = 0.15
@@ -159,10 +158,13 @@ class CandidateSearch:
         return float(max(by_mean, by_single, 0.0))
 
     def evidence(self, effect: Effect, design: Design, coef: NDArray[np.float64]) -> dict[str, Any]:
-        """The residual and the candidate's fitted terms, binned against the effect's own variable."""
+        """The candidate's whole fitted term and what the data say of it, binned against the effect's
+        own variable: the residual plus the part of the term the baseline already predicts, so that
+        the plot shows the effect at the size its parameters state."""
         mean, within = design.apply(coef)
-        fitted = mean[:, None, :] + (0.0 if within is None else within)
-        return binned_evidence(effect.evidence(self.touches), self.residual, fitted)
+        out_of_sample = mean[:, None, :] + (0.0 if within is None else within)
+        whole = fitted_basis(effect, self.touches)[0] @ coef
+        return binned_evidence(effect.evidence(self.touches), self.residual + whole - out_of_sample, whole)
 
 
 def rank_candidates(

@@ -68,6 +68,12 @@ def load_card(directory: Path) -> dict[str, Any]:
         raise InputError(f"unreadable model card: {error}", file=str(path)) from None
 
 
+def baseline_of(models: Mapping[str, DeviationModel]) -> DeviationModel | None:
+    """The model a diagnosis starts from: the first of MODEL_TYPES (the network, then the
+    trilinear tables) among these models; the CLI and the app take the same one."""
+    return next((models[name] for name in MODEL_TYPES if name in models), None)
+
+
 def load_models(directory: Path) -> dict[str, DeviationModel]:
     """The models of a folder written by train (name -> model), in MODEL_TYPES order."""
     directory = Path(directory)
