@@ -74,3 +74,52 @@ def speed_plot(results: dict[str, Any], path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def calibration_plot(results: dict[str, Any], path: Path) -> Path:
+    """The diagnosis's detection power against the hidden B 22/rev amplitude, and the false-alarm rate per design."""
+    calibration = results["diagnosis_calibration"]
+    power = calibration["power"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), gridspec_kw={"width_ratios": [3, 2]})
+    ax = axes[0]
+    curve = power["curve"]
+    amplitudes = [p["amplitude_arcsec"] for p in curve]
+    for key, label, color, shift in (
+        ("power", "found b_axis_cyclic 22/rev (missing or partial)", "tab:green", -0.01),
+        ("failure_detected", "any verdict but none", "tab:blue", 0.01),
+    ):
+        values = [p[key] for p in curve]
+        low = [v - p[f"{key}_ci95"][0] for v, p in zip(values, curve)]
+        high = [p[f"{key}_ci95"][1] - v for v, p in zip(values, curve)]
+        ax.errorbar([a + shift for a in amplitudes], values, yerr=[low, high], fmt="o-", color=color, capsize=3, label=label)
+        ax.plot([0.0 + shift], [power["at_zero"][key]], "s", color=color, mfc="white")
+    ax.axhline(calibration["targets"]["false_alarm_rate_max"], color="red", ls="--", lw=1, label="5 % (false-alarm target)")
+    ax.set_xlim(-0.05, max(amplitudes + [0.1]) + 0.1)
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xlabel("hidden B-axis 22/rev amplitude (arcsec); squares: the paper campaigns, nothing hidden")
+    ax.set_ylabel(f"share of seeds ({len(power['seeds'])} per amplitude, 95 % CI)")
+    ax.set_title("detection power")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="center right")
+
+    ax = axes[1]
+    rows = [("paper", calibration["false_alarm"])] + list(calibration["designs"].items())
+    names = [name for name, _ in rows]
+    rates = [r["false_alarm_rate"] for _, r in rows]
+    low = [rate - r["false_alarm_ci95"][0] for rate, (_, r) in zip(rates, rows)]
+    high = [r["false_alarm_ci95"][1] - rate for rate, (_, r) in zip(rates, rows)]
+    ax.barh(names, rates, xerr=[low, high], color="tab:orange", capsize=3)
+    for i, (_, r) in enumerate(rows):
+        # Beside the interval, or inside the bar's left end when the interval reaches the right edge.
+        x = r["false_alarm_ci95"][1] + 0.02 if r["false_alarm_ci95"][1] < 0.85 else 0.02
+        ax.text(x, i, f"{r['n'] - r['verdicts'].get('none', 0)} of {r['n']}", va="center", ha="left", fontsize=8)
+    ax.axvline(calibration["targets"]["false_alarm_rate_max"], color="red", ls="--", lw=1, label="target 5 %")
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("false-alarm rate (verdict not none, 95 % CI)")
+    ax.set_title("nothing hidden: false alarms per design")
+    ax.legend(fontsize=8, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,8 +1,9 @@
-"""`python -m benchmarks [--quick] [--out DIR]`: every benchmark of issue 7, one JSON and PNG plots.
+"""`python -m benchmarks [--quick] [--out DIR]`: every benchmark of issues 7 and 13, one JSON and PNG plots.
 
-Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png.
-The full run takes a few minutes on 2 cores (the scale test alone runs 60 s); --quick is a
-smoke-test mode (two subsets, a short network, 2 browsers for 2 s) that keeps every key.
+Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
+DIR/calibration.png. The full run takes several minutes on 2 cores (the scale test alone runs
+60 s, the diagnosis calibration a few minutes); --quick is a smoke-test mode (two subsets, a
+short network, 2 browsers for 2 s, a few diagnoses) that keeps every key.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 
 import torch
 
-from benchmarks import data_efficiency, plots, scale, speed
+from benchmarks import calibration, data_efficiency, plots, scale, speed
 from ph_explorer.app.server import build_server
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
@@ -41,6 +42,8 @@ def main(argv: list[str] | None = None) -> int:
         results = json.loads((args.out / "results.json").read_text())
         plots.data_efficiency_plot(results, args.out / "data_efficiency.png")
         plots.speed_plot(results, args.out / "speed.png")
+        if "diagnosis_calibration" in results:
+            plots.calibration_plot(results, args.out / "calibration.png")
         return 0
     quick: bool = args.quick
     out: Path = args.out
@@ -130,9 +133,14 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         app.stop()
 
+    # 4. diagnosis calibration: false alarms, stability, coverage, power (issue 13)
+    log("diagnosis calibration")
+    results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+
     results["total_seconds"] = round(time.perf_counter() - started, 1)
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
     plots.data_efficiency_plot(results, out / "data_efficiency.png")
     plots.speed_plot(results, out / "speed.png")
+    plots.calibration_plot(results, out / "calibration.png")
     log(f"wrote {out / 'results.json'} and the PNGs in {results['total_seconds']} s")
     return 0

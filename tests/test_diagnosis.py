@@ -119,7 +119,7 @@ def test_where_it_fails_points_at_the_rings_the_hidden_effect_spoils(diagnoses):
     campaign = simulate(load_scenario("a_axis_24"))
     off_grid = campaign.off_grid_mask()
     assert result.failing[off_grid].mean() > 0.6
-    assert not result.failing[~off_grid].any()
+    assert result.failing[~off_grid].mean() < 0.05  # a ring in a hundred exceeds its noise by chance
 
 
 def test_out_of_sample_smoother_predicts_a_ring_from_the_others_only():
@@ -340,7 +340,7 @@ def test_a_hidden_effect_the_catalog_lacks_is_unexplained(name):
     result = diagnose(simulate(load_scenario(name)), catalog=catalog_without(effect_id))
     test = result.within_noise["baseline"]
     assert result.verdict == "unexplained" and not result.found
-    assert test.fails and test.failing_rings >= test.critical_rings >= 2
+    assert test.fails and test.failing_rings >= 2 and test.statistic > test.critical
     headline, lines = verdict_text(result, catalog_without(effect_id))
     assert headline.startswith("Verdict: unexplained") and any("rings exceed their noise" in line for line in lines)
 

@@ -73,12 +73,9 @@ class PhysicsLoop:
         p.show_history(self.steps)
         p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned.")
 
-    def show_evidence(self, effect_id: str) -> None:
-        if self.diagnosis is None:
-            return
-        for candidate in self.diagnosis.candidates:
-            if candidate.effect == effect_id:
-                self.panel.show_evidence(candidate)
+    def show_evidence(self, label: str) -> None:
+        if self.diagnosis is not None:
+            self.panel.show_evidence(label)
 
     def refit(self) -> None:
         """The hybrid with the ticked effects, fitted and measured on the check rings by diagnosis.add_effects."""

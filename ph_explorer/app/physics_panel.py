@@ -14,7 +14,7 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
-from ph_explorer.diagnosis import Candidate, Diagnosis, Step, verdict_text
+from ph_explorer.diagnosis import Candidate, Diagnosis, Step, signature_text, verdict_text
 from ph_explorer.effects import Catalog
 
 # Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
@@ -92,7 +92,8 @@ class PhysicsPanel:
         self.summary = gui.add_markdown("")
         self.candidates = gui.add_html("")
         self.verdict = gui.add_markdown("")
-        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms")
+        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms, or what is left")
+        self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
         self.evidence = gui.add_uplot(
             (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
             EVIDENCE_SERIES,
@@ -133,6 +134,7 @@ class PhysicsPanel:
         self.progress.visible = self.refit_progress.visible = False
         self.evidence.visible = self.evidence_of.visible = self.history.visible = False
         self.evidence_of.options = (NO_CHOICE,)
+        self.evidence_items = {}
         for effect_id, box in self.effects.items():
             box.label = effect_id
             box.value = False
@@ -168,28 +170,43 @@ class PhysicsPanel:
             box = self.effects.get(c.effect)
             if box is not None:
                 box.label = c.effect + (" ✔" if c.significant else "")
-        options = tuple(c.effect for c in result.candidates if c.evidence.get("x"))
+        # Each candidate's evidence, then what is left (the signature), by the label shown in the dropdown.
+        self.evidence_items = {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
+        for entry in result.signature:
+            if entry["significant"] and entry["evidence"].get("x"):
+                label = "left: " + signature_text(entry)
+                caption = (
+                    f"**What is left**, {signature_text(entry)}: the residual the catalog does not explain, binned "
+                    f"against {entry['evidence']['x_label']}, and this term fitted to it. Write an effect with this signature "
+                    "(README, 'Your own effect') and diagnose again with it."
+                )
+                self.evidence_items[label] = (label, caption, entry["evidence"])
+        options = tuple(self.evidence_items)
         self.evidence_of.options = options or (NO_CHOICE,)
         self.evidence_of.visible = bool(options)
 
-    def show_evidence(self, candidate: Candidate) -> None:
+    def _candidate_caption(self, candidate: Candidate) -> str:
         ev = candidate.evidence
-        if not ev.get("x"):
-            self.evidence.visible = False
-            self.evidence_text.content = ""
-            return
-        data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
-        self.evidence.title = f"{candidate.effect}: residual and fit, {ev['y_label']}"
-        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
-        self.evidence.data = data
-        self.evidence.visible = True
-        flag = "significant" if candidate.significant else "not significant"
-        self.evidence_text.content = (
-            f"**{candidate.name}** ({flag}): {self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
+        return (
+            f"**{candidate.name}** ({candidate.status}): "
+            f"{self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
             f"The plot: every touch's residual with this term put back, and the term, both after the circle "
             f"fit, binned against {ev['x_label']}; the curve reaches {ev['fitted_peak']:.3g} "
             f"({ev['y_label']}), the circle fit having removed part of the term the parameters describe.\n\n_{candidate.teaching}_"
         )
+
+    def show_evidence(self, label: str) -> None:
+        """The evidence plot and its caption for a dropdown entry (a candidate, or what is left)."""
+        title, caption, ev = self.evidence_items.get(label, ("", "", {}))
+        if not ev.get("x"):
+            self.evidence.visible = False
+            self.evidence_text.content = ""
+            return
+        self.evidence.title = f"{title}: residual and fit, {ev['y_label']}"
+        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
+        self.evidence.data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
+        self.evidence.visible = True
+        self.evidence_text.content = caption
 
     def show_history(self, steps: Sequence[Step]) -> None:
         """The error history: MAE against the mean and single repetitions per step, each with its floor."""

@@ -6,7 +6,7 @@ candidate's signature binned against its own variable), loop (diagnose, add_effe
 
 from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, repetition_sigma
 from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
-from ph_explorer.diagnosis.results import VERDICTS, Candidate, Diagnosis, Step, verdict_text
+from ph_explorer.diagnosis.results import VERDICTS, Candidate, Diagnosis, Step, signature_text, verdict_text
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "add_effects",
     "diagnose",
     "decide",
+    "signature_text",
     "verdict_text",
     "within_noise",
     "rank_candidates",

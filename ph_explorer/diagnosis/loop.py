@@ -22,9 +22,10 @@ from numpy.typing import NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.noise_test import MIN_FAILING_RINGS, NoiseTest, within_noise
+from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
 from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.signature import signature
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
@@ -80,6 +81,11 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
     return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
 
 
+# A candidate that is not material on the check rings is still taken when it brings at least this
+# many of the rings that exceed their noise within it: more than one, so that no single ring decides.
+RINGS_BROUGHT_WITHIN = 2
+
+
 def accepts(
     candidate: Candidate,
     current: NoiseTest | None,
@@ -94,7 +100,7 @@ def accepts(
 
     A significant candidate (beyond noise, plausible, and lowering the check rings' error
     materially) is taken. So is one that is beyond noise and plausible when the model fails
-    beyond noise and adding it brings at least MIN_FAILING_RINGS of the exceeding rings within
+    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN of the exceeding rings within
     noise: a failure on the lattice rings the check rings do not see.
     """
     if candidate.significant:
@@ -103,7 +109,7 @@ def accepts(
         return False
     trial = [*chain, by_id[candidate.effect].with_settings(**candidate.settings)]
     test = within_noise_after(search, campaign, trial, seed)
-    if test is None or test.failing_rings > current.failing_rings - MIN_FAILING_RINGS:
+    if test is None or test.failing_rings > current.failing_rings - RINGS_BROUGHT_WITHIN:
         return False
     candidate.significant = True
     candidate.note = (
@@ -215,6 +221,8 @@ def diagnose(
         # setting (a second period of the same axis error).
         remaining = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
     verdict = decide(before, after, bool(chain))
+    # What is left, in the head's own variables, when the catalog does not explain it all.
+    left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
@@ -238,6 +246,7 @@ def diagnose(
         candidates=candidates,
         verdict=verdict,
         found=found,
+        signature=left,
         within_noise={"baseline": before, "after": after},
         steps=steps,
         orientations=campaign.orientations,

@@ -16,17 +16,19 @@ statistics:
 - within: the share of its within-ring scatter (each repetition minus the ring's mean) in
   harmonics 2-8. Pure touch noise spreads evenly over the harmonics; repetitions that differ
   systematically (a scan direction that alternates, drift in time) put their difference into
-  the low harmonics. The share does not depend on sigma, so its null is the same for every ring.
+  the low harmonics. The share does not depend on sigma; for iid noise it is a Beta variable, so
+  its p-value is exact (within_p_value).
   No tolerance here: no model indexed by orientation predicts differences between repetitions,
   so interpolation leaves nothing in this statistic.
 
-A ring "exceeds" when the smaller of its two Monte Carlo p-values, doubled (Bonferroni over the
-two statistics), is below RING_LEVEL. No single ring decides: the campaign fails when the number
-of exceeding rings reaches the count that pure noise reaches with probability at most
-FALSE_ALARM (the look-elsewhere correction over all rings, calibrated on the same null draws),
-and at least MIN_FAILING_RINGS, and when, with the worst ring's influence on its neighbours'
-predictions undone and that ring left out, at least one ring fewer still exceeds (a single wrong
-ring spoils the rings it is interpolated into, which is not a failure several rings share).
+A ring "exceeds" when the smaller of its two p-values, doubled (Bonferroni over the two
+statistics), is below RING_LEVEL. The campaign's statistic is how far the rings exceed, summed:
+sum of log(RING_LEVEL / p) over the exceeding rings, with the worst ring left out and its share
+in its neighbours' predictions undone, so that no single ring decides (a wrong ring also spoils
+the rings it is interpolated into, which is not a failure several rings share). The campaign
+fails when the statistic is above what pure noise gives with probability FALSE_ALARM: the
+look-elsewhere correction over all rings, from the same null draws (a continuous statistic, so
+the level is FALSE_ALARM, not the lower level a count of rings would give).
 """
 
 from __future__ import annotations
@@ -37,18 +39,18 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from ph_explorer.harmonics import remove_size_and_centre
 
 # Pure-noise draws of every ring's mean residual (the campaign-level null) ...
 MEAN_DRAWS = 399
-# ... and of one ring's within-ring scatter (the same null for every ring).
-WITHIN_DRAWS = 2000
+# ... and of the campaign's statistic (see within_noise).
+STATISTIC_DRAWS = 20000
 WITHIN_HARMONICS = (2, 8)  # the low harmonics where systematic repetition differences show
 MEAN_TOLERANCE = 2.0  # a ring's mean residual may hold as much systematic error as noise
 RING_LEVEL = 0.01  # a ring exceeds below this p-value
 FALSE_ALARM = 0.05  # the campaign fails with at most this probability on pure noise
-MIN_FAILING_RINGS = 2  # no single ring decides
 
 
 @dataclass
@@ -56,9 +58,10 @@ class NoiseTest:
     """The outcome of the within-noise test of one model on one campaign."""
 
     ring_p_value: NDArray[np.float64]  # (n_o,) each ring's combined p-value
-    failing_rings: int  # rings whose p-value is below RING_LEVEL
-    critical_rings: int  # the count at which the campaign fails
-    p_value: float  # chance that pure noise gives at least as many exceeding rings
+    failing_rings: int  # rings whose p-value is below RING_LEVEL (they exceed their noise)
+    statistic: float  # how far the rings but the worst exceed their noise, summed (see within_noise)
+    critical: float  # the statistic pure noise exceeds with probability FALSE_ALARM
+    p_value: float  # chance that pure noise gives at least this statistic
     fails: bool
 
     @property
@@ -69,7 +72,8 @@ class NoiseTest:
         return {
             "fails": self.fails,
             "failing_rings": self.failing_rings,
-            "critical_rings": self.critical_rings,
+            "statistic": round(self.statistic, 4),
+            "critical": round(self.critical, 4),
             "p_value": round(self.p_value, 5),
             "ring_level": RING_LEVEL,
             "mean_tolerance": MEAN_TOLERANCE,
@@ -82,12 +86,37 @@ def ring_sigma(deviations: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.sqrt(deviations.var(axis=1, ddof=1).mean(axis=1))
 
 
-def low_harmonic_share(within: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Share of the scatter (..., n_rep, n_pt) in harmonics WITHIN_HARMONICS of all harmonics >= 2, (...,)."""
-    power = np.abs(np.fft.rfft(within, axis=-1)) ** 2
+def _harmonics(n_points: int) -> tuple[int, int, int]:
+    """(low, high, top): the low band WITHIN_HARMONICS and the highest harmonic below Nyquist.
+
+    The Nyquist harmonic of an even N is left out: its power has twice the variance per degree
+    of freedom, and the share below must be a ratio of equal-variance terms.
+    """
+    top = (n_points - 1) // 2
     low, high = WITHIN_HARMONICS
-    total = power[..., 2:].sum(axis=(-1, -2))
+    return low, min(high, top - 1), top
+
+
+def low_harmonic_share(within: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Share of the scatter (..., n_rep, n_pt) in the low harmonics of all harmonics 2..top, (...,)."""
+    low, high, top = _harmonics(within.shape[-1])
+    power = np.abs(np.fft.rfft(within, axis=-1)) ** 2
+    total = power[..., 2 : top + 1].sum(axis=(-1, -2))
     return power[..., low : high + 1].sum(axis=(-1, -2)) / np.maximum(total, 1e-300)
+
+
+def within_p_value(share: NDArray[np.float64], n_repetitions: int, n_points: int) -> NDArray[np.float64]:
+    """P(share >= observed) for iid Gaussian touch noise, exactly.
+
+    After each repetition's circle fit, harmonics 2..top of iid noise are independent Gaussians of
+    equal variance, two per harmonic; taking out the ring's mean over repetitions leaves n_rep - 1
+    of each. The low band's power over the whole is then X / (X + Y) with X, Y chi-square, a Beta
+    variable: Beta(a / 2, b / 2) with a and b their degrees of freedom.
+    """
+    low, high, top = _harmonics(n_points)
+    a = 2 * (high - low + 1) * (n_repetitions - 1)
+    b = 2 * (top - high) * (n_repetitions - 1)
+    return stats.beta.sf(share, a / 2.0, b / 2.0)
 
 
 def _upper_p(values: NDArray[np.float64], null: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -123,32 +152,41 @@ def within_noise(
     mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)
     p_mean = _upper_p(mean_stat, MEAN_TOLERANCE * null_stat)
 
-    # within: one pooled null of the low-harmonic share of iid scatter.
-    pool = remove_size_and_centre(rng.standard_normal((WITHIN_DRAWS, n_rep, n_pt)))
-    null_share = np.sort(low_harmonic_share(pool - pool.mean(axis=1, keepdims=True)))
+    # within: the low-harmonic share of each ring's scatter, against its exact null.
     share = low_harmonic_share(residual - residual.mean(axis=1, keepdims=True))
-    p_within = _upper_p(share, null_share)
+    p_within = within_p_value(share, n_rep, n_pt)
 
-    ring_p = np.minimum(1.0, 2.0 * np.minimum(p_mean, p_within))
+    ring_p = _combined(p_mean, p_within)
     failing = int((ring_p < RING_LEVEL).sum())
-    # No single ring decides: a wrong ring also spoils the predictions of the neighbours it is
-    # interpolated into. Undo the worst ring's share in them (its residual times its weight) and
-    # leave it out: a failure that several rings share still counts at least critical - 1 rings.
-    worst = int(np.argmax(mean_stat / null_stat.mean(axis=1)))  # p-values tie at the extreme
+    # No single ring decides: the worst ring is left out, and the share of its error that it put
+    # into the predictions of the neighbours it is interpolated into (its residual times its
+    # weight there) is undone; what the other rings exceed by is the campaign's statistic.
+    worst = int(np.lexsort((-mean_stat / null_stat.mean(axis=1), ring_p))[0])
     mean_residual = residual.mean(axis=1)
     undone = mean_residual + weights[:, worst, None] * mean_residual[worst]
     p_undone = _upper_p((undone**2).mean(axis=-1), MEAN_TOLERANCE * null_stat)
-    others = np.arange(n_o) != worst
-    shared = int((np.minimum(1.0, 2.0 * np.minimum(p_undone, p_within)) < RING_LEVEL)[others].sum())
+    statistic = float(np.delete(_excess(_combined(p_undone, p_within)), worst).sum())
 
-    # The campaign-level null: each mean draw judged against the other draws, each ring's within
-    # share drawn from the pool (rings' scatters are independent).
-    p_mean_null = _upper_p(null_stat, MEAN_TOLERANCE * null_stat[:, None, :])  # each draw against all
-    picked = null_share[rng.integers(0, WITHIN_DRAWS, size=(n_o, MEAN_DRAWS))]
-    p_within_null = (1.0 + (WITHIN_DRAWS - np.searchsorted(null_share, picked, side="left"))) / (WITHIN_DRAWS + 1.0)
-    null_counts = (np.minimum(1.0, 2.0 * np.minimum(p_mean_null, p_within_null)) < RING_LEVEL).sum(axis=0)
-    critical = MIN_FAILING_RINGS
-    while np.mean(null_counts >= critical) > FALSE_ALARM:
-        critical += 1
-    p_value = float((1.0 + (null_counts >= failing).sum()) / (MEAN_DRAWS + 1.0))
-    return NoiseTest(ring_p, failing, critical, p_value, failing >= critical and shared >= critical - 1)
+    # The campaign-level null, from the same draws: each mean draw judged against the others (the
+    # count includes the draw itself, which stands in for the +1 of a p-value); each ring's within
+    # p-value is uniform under the null (exact), and rings' scatters are independent.
+    # The within p-values cost nothing to draw, so the null statistic takes STATISTIC_DRAWS draws,
+    # each pairing a mean draw (a whole column: rings share neighbours' noise) with fresh uniforms:
+    # its 95th percentile is then known to well under a percent.
+    p_mean_null = (MEAN_TOLERANCE * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1) / MEAN_DRAWS
+    columns = np.arange(STATISTIC_DRAWS) % MEAN_DRAWS
+    excess_null = _excess(_combined(p_mean_null[:, columns], rng.uniform(size=(n_o, STATISTIC_DRAWS))))
+    null_statistic = excess_null.sum(axis=0) - excess_null.max(axis=0)  # the worst ring left out
+    critical = float(np.quantile(null_statistic, 1.0 - FALSE_ALARM, method="higher"))
+    p_value = float((1.0 + (null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
+    return NoiseTest(ring_p, failing, statistic, critical, p_value, statistic > critical)
+
+
+def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:
+    """A ring's p-value from its two statistics (Bonferroni)."""
+    return np.minimum(1.0, 2.0 * np.minimum(p_mean, p_within))
+
+
+def _excess(ring_p: NDArray[np.float64]) -> NDArray[np.float64]:
+    """How far each ring is beyond RING_LEVEL, log(RING_LEVEL / p), zero for a ring within it."""
+    return np.maximum(0.0, np.log(RING_LEVEL / np.maximum(ring_p, 1e-300)))

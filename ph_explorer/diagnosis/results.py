@@ -91,6 +91,7 @@ class Diagnosis:
     candidates: list[Candidate]
     verdict: str  # a key of VERDICTS
     found: list[Candidate]  # the effects found, in the order the search added them (each re-ranked)
+    signature: list[dict[str, Any]]  # what is left, in the head's variables (partial, unexplained)
     within_noise: dict[str, NoiseTest | None]  # "baseline" and "after" (the effects found); None: untestable
     steps: list[Step]
     orientations: NDArray[np.float64]
@@ -108,6 +109,7 @@ class Diagnosis:
             "candidates": [c.as_dict() for c in self.candidates],
             "verdict": self.verdict,
             "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings")} for c in self.found],
+            "signature": self.signature,
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "steps": [
                 {
@@ -148,14 +150,39 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         model = "with them" if result.verdict in ("missing", "partial") else "the baseline"
         lines.append(
             f"Within-noise test ({model}): {test.failing_rings} of {len(test.ring_p_value)} rings exceed their noise; "
-            f"the campaign fails from {test.critical_rings} (false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)."
+            f"by how much, summed over all rings but the worst: {test.statistic:.1f}, and the campaign fails above "
+            f"{test.critical:.1f} (p = {test.p_value:.3g}; false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)."
         )
     if result.verdict == "unexplained":
         implausible = [f"{c.effect}: {c.note}" for c in result.candidates if c.note.startswith("best catalog fit implausible")]
         lines += implausible or ["No candidate explains more than noise would and lowers the held-out error materially."]
+    significant = [entry for entry in result.signature if entry["significant"]]
+    if result.verdict in ("partial", "unexplained"):
+        lines.append(
+            "What is left, in the head's own variables (share of the residual explained; noise alone): "
+            + ("; ".join(signature_text(entry) for entry in significant[:5]) if significant else "nothing beyond noise in any single variable")
+            + "."
+        )
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def signature_text(entry: dict[str, Any]) -> str:
+    """'b_joint_deg periodic, 22 cycles/rev, 8.4 % (0.07 %)': one entry of a signature in words."""
+    setting = {
+        "cycles_per_rev": "{:g} cycles/rev",
+        "cycles_per_span": "{:g} cycles over its span",
+        "centre_deg": "at {:g} deg",
+        "centre_s": "at {:g} s",
+        "centre_touch": "at touch {:g}",
+        "joint": "{} joint",
+    }
+    where = ", ".join(text.format(entry[key]) for key, text in setting.items() if key in entry)
+    return (
+        f"{entry['variable']} {entry['kind']}, {where}, {100 * entry['explained_fraction']:.1f} % "
+        f"({100 * entry['noise_fraction']:.2f} %)"
+    )
 
 
 def rounded(figures: dict[str, float]) -> dict[str, float | None]:
