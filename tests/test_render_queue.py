@@ -33,6 +33,16 @@ class Session:
         self._hold = (threading.Event(), threading.Event())
         return self._hold
 
+    def held_render(self, queue: RenderQueue, value: int | None = None) -> threading.Event:
+        """Queue a render (of `value`, if given) and wait until the render thread is inside it;
+        returns the Event that releases it."""
+        started, release = self.hold()
+        if value is not None:
+            self.value = value
+        queue.request(self.state)
+        assert started.wait(TIMEOUT)
+        return release
+
     def render(self) -> None:
         value = self.value
         hold, self._hold = self._hold, None
@@ -73,10 +83,7 @@ def drain(queue: RenderQueue, log: list) -> None:
 def hold_queue(queue: RenderQueue, log: list) -> tuple[Session, threading.Event]:
     """Keep the render thread busy drawing a blocker; returns it and the Event that releases it."""
     blocker = Session("blocker", log)
-    started, release = blocker.hold()
-    queue.request(blocker.state)
-    assert started.wait(TIMEOUT)
-    return blocker, release
+    return blocker, blocker.held_render(queue)
 
 
 def names(log: list) -> list[str]:
@@ -85,10 +92,7 @@ def names(log: list) -> list[str]:
 
 def test_moves_during_a_render_are_coalesced_and_the_latest_wins(queue: RenderQueue, log: list) -> None:
     a = Session("a", log)
-    started, release = a.hold()
-    a.value = 1
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue, 1)
     for value in range(2, 101):  # a browser dragging a slider while its first render runs
         a.value = value
         assert a.state.request() is False  # being drawn: its renderer re-queues it
@@ -125,10 +129,7 @@ def test_oldest_dirty_session_first_and_a_queued_session_keeps_its_place(queue: 
 
 def test_a_session_that_moves_during_its_render_goes_to_the_back(queue: RenderQueue, log: list) -> None:
     a, b, c = Session("a", log), Session("b", log), Session("c", log)
-    started, release = a.hold()
-    a.value = 1
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue, 1)
     b.value = c.value = 1
     queue.request(b.state)
     queue.request(c.state)
@@ -166,10 +167,7 @@ def test_render_now_returns_once_its_values_are_drawn_even_during_a_queued_rende
     queue: RenderQueue, log: list
 ) -> None:
     a = Session("a", log)
-    started, release = a.hold()
-    a.value = 1
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue, 1)
     done, result = threading.Event(), []
 
     def script() -> None:  # the server sets a value (go_to) while the render thread draws `a`
@@ -201,10 +199,7 @@ def test_render_now_draws_in_the_callers_thread(log: list) -> None:
 
 def test_render_now_without_wait_leaves_the_values_to_the_render_thread(queue: RenderQueue, log: list) -> None:
     a = Session("a", log)
-    started, release = a.hold()
-    a.value = 1
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue, 1)
     a.value = 2
     assert a.state.render_now(wait=False, timeout=TIMEOUT) is False  # returns at once
     assert a.drawn() == []
@@ -225,9 +220,7 @@ def test_render_now_called_from_inside_its_own_render_does_not_deadlock(log: lis
 
 def test_wait_rendered_times_out_while_a_render_is_held(queue: RenderQueue, log: list) -> None:
     a = Session("a", log)
-    started, release = a.hold()
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue)
     assert a.state.wait_rendered(0.05) is False and not a.state.idle
     release.set()
     assert a.state.wait_rendered(TIMEOUT) is True and a.state.idle
@@ -247,10 +240,7 @@ def test_closed_sessions_are_not_rendered(queue: RenderQueue, log: list) -> None
 
 def test_closing_during_a_render_lets_it_end_but_not_requeue(queue: RenderQueue, log: list) -> None:
     a = Session("a", log)
-    started, release = a.hold()
-    a.value = 1
-    queue.request(a.state)
-    assert started.wait(TIMEOUT)
+    release = a.held_render(queue, 1)
     a.value = 2
     queue.request(a.state)
     a.state.close()
