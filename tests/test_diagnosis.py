@@ -360,3 +360,24 @@ def test_a_second_effect_the_catalog_lacks_leaves_the_verdict_partial():
     full = diagnose(campaign)
     assert full.verdict == "missing"
     assert [(c.effect, c.settings["cycles_per_rev"]) for c in full.found] == [("b_axis_cyclic", 22), ("a_axis_cyclic", 24)]
+
+
+@pytest.mark.slow
+def test_the_stylus_ball_form_next_to_lobing_is_reported_as_confounded():
+    # A 3-lobe ball form fixed in the probe frame (the example user effect) and the seat lobing are
+    # the same columns over head touches: the campaign (a coarse A lattice, so that A0-only terms
+    # show at the off-grid rings) cannot tell them apart, and the report says so instead of
+    # crediting one silently.
+    catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
+    data = tomllib.loads((scenarios_dir() / "paper.toml").read_text())
+    off_grid = [[a, b] for a in (15, 45, 75) for b in (-140, -20, 100)]
+    data.update(check_orientations=off_grid, orientations={"a_deg": [0, 90, 30], "b_deg": [-160, 180, 20], "off_grid": off_grid})
+    data["effects"].append({"id": "ball_form", "hidden": True, "amplitude_um": 0.3, "lobes": 3.0, "phase_deg": 20.0})
+    result = diagnose(simulate(scenario_from_dict(data, catalog=catalog)), catalog=catalog)
+    best = result.candidates[0]
+    assert best.effect in ("lobing", "ball_form") and best.significant
+    partner = "ball_form" if best.effect == "lobing" else "lobing"
+    shared = {o["effect"]: o["shared"] for o in best.confounded_with}
+    assert shared.get(partner, 0.0) > 0.9
+    assert f"cannot be told apart from {partner}" in "\n".join(verdict_text(result, catalog)[1])
+    assert result.as_dict()["candidates"][0]["confounded_with"]

@@ -24,7 +24,7 @@ from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
-from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import CandidateSearch, confounding, rank_candidates
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -117,6 +117,17 @@ def accepts(
         "their noise within it (the check rings alone do not show it)"
     )
     return test
+
+
+def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate], found: Sequence[str]) -> None:
+    """A candidate beyond noise in the first ranking only because it took a share of what an
+    effect found explains is not "present": judged again in the last ranking, with the effects
+    found in the model."""
+    last = {c.effect: c for c in final}
+    for candidate in candidates:
+        if candidate.beyond_noise and not candidate.significant and not getattr(last.get(candidate.effect), "beyond_noise", False):
+            candidate.beyond_noise = False
+            candidate.note = candidate.note or f"beyond noise only with {', '.join(found)} left out of the model"
 
 
 def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool) -> str:
@@ -221,6 +232,9 @@ def diagnose(
         # setting (a second period of the same axis error).
         remaining = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
     verdict = decide(before, after, bool(chain))
+    if chain:
+        settle_presence(candidates, remaining, [c.effect for c in found])
+    confounding(search, candidates, by_id)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
 

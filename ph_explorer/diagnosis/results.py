@@ -44,6 +44,8 @@ class Candidate:
     evidence: dict[str, Any] = field(default_factory=dict)
     note: str = ""  # why the effect could not be tested on this campaign, or why its fit is not the explanation
     beyond_noise: bool = False  # explains more than noise would, with a plausible fit (material or not)
+    # Other candidates this campaign cannot tell it from: [{"effect": id, "shared": squared canonical correlation}]
+    confounded_with: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> "Candidate":
@@ -163,6 +165,13 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
             + ("; ".join(signature_text(entry) for entry in significant[:5]) if significant else "nothing beyond noise in any single variable")
             + "."
         )
+    for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
+        if candidate.confounded_with:
+            shared = ", ".join(f"{o['effect']} ({100 * o['shared']:.0f} % shared)" for o in candidate.confounded_with)
+            lines.append(
+                f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to "
+                "split; other orientations (off-grid rings, other A0), another scan direction or touch times may separate them."
+            )
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines

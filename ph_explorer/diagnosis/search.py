@@ -181,3 +181,39 @@ def rank_candidates(
         out.append(search.score(effect, fixed))
     out.sort(key=lambda c: (c.significant, c.explained_fraction), reverse=True)
     return out
+
+
+# Two candidates whose columns share more than this (squared canonical correlation over every
+# touch, through the smoother) cannot be told apart by this campaign.
+CONFOUNDED = 0.8
+
+
+def shared_variance(a: Design, b: Design) -> float:
+    """The largest squared canonical correlation between two designs' columns over all touches."""
+
+    def basis(design: Design, within_rows: int) -> NDArray[np.float64]:
+        mean, within = design.flat()
+        rows = [np.sqrt(design.n_rep) * mean, within if within is not None else np.zeros((within_rows, mean.shape[1]))]
+        u, singular, _ = np.linalg.svd(np.concatenate(rows), full_matrices=False)
+        return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
+
+    within_rows = a.mean.shape[0] * a.n_rep * a.mean.shape[1]
+    qa, qb = basis(a, within_rows), basis(b, within_rows)
+    if not qa.shape[1] or not qb.shape[1]:
+        return 0.0
+    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max() ** 2)
+
+
+def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> None:
+    """Name, on each candidate beyond noise, the others it cannot be told from on this campaign
+    (their columns at the chosen settings share more than CONFOUNDED), with how much they share."""
+    scored = [c for c in candidates if c.beyond_noise or c.significant]
+    others = [c for c in candidates if c.evidence.get("x")]
+    designs = {id(c): search.design([by_id[c.effect].with_settings(**c.settings)]) for c in {id(c): c for c in scored + others}.values()}
+    for candidate in scored:
+        for other in others:
+            if other is candidate:
+                continue
+            shared = shared_variance(designs[id(candidate)], designs[id(other)])
+            if shared > CONFOUNDED:
+                candidate.confounded_with.append({"effect": other.effect, "shared": round(shared, 3)})
