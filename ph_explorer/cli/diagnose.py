@@ -111,7 +111,7 @@ def _where_it_fails(result: Diagnosis) -> list[str]:
     """The count of failing orientations, then the worst five (by MAE over their own floor)."""
     mae, floor = result.out_of_sample_mae_um["mean"], result.out_of_sample_floor_um["mean"]
     lines = [
-        f"Where it fails: {int(result.failing.sum())} of {len(result.failing)} orientations exceed their noise "
+        f"Rings that exceed their noise: {int(result.failing.sum())} of {len(result.failing)} orientations "
         "(out of sample; the within-noise test, ring level 1 %)."
     ]
     for i in np.argsort(-(mae / floor))[:5]:

@@ -61,7 +61,7 @@ class _AxisCyclic(Effect):
             np.mod(m * joint_angle_deg(touches, self.axis), 360.0),
             edges=np.linspace(0.0, 360.0, 37),
             weight=rotation_deviation_um_per_arcsec(touches, self.axis),
-            y_label="angular error after the circle fit (arcsec)",
+            y_label="angular error (arcsec)",
         )
 
 

@@ -300,7 +300,7 @@ class Evidence:
     x: NDArray[np.float64]  # broadcastable to the touches' shape
     edges: NDArray[np.float64] | None = None  # bin edges; None: 48 bins over the range of x
     weight: NDArray[np.float64] | None = None
-    y_label: str = "deviation after the circle fit (um)"
+    y_label: str = "deviation (um)"
 
 
 # What an effect may need of a campaign: key -> (what to tell the user, test on the touches).
