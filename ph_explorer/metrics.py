@@ -14,6 +14,7 @@ against the mean of n repetitions.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -31,10 +32,19 @@ def pooled_sigma(deviations: ArrayLike) -> float:
     return float(np.sqrt(np.mean(d.var(axis=1, ddof=1))))
 
 
-def noise_floor(sigma_um: float, n_repetitions: int) -> dict[str, float]:
-    """The lowest MAE (um) a perfect model can reach against the mean of n repetitions and a single one."""
+def noise_floor(sigma_um: float, n_repetitions: int, neighbour_weights_sq: ArrayLike | None = None) -> dict[str, Any]:
+    """The lowest MAE (um) a perfect model can reach against the mean of n repetitions and a single one.
+
+    neighbour_weights_sq: for a prediction made of other rings' means (an out-of-sample one), the
+    sum of its squared weights per ring: the prediction carries their noise too, so the floor is
+    E|e| of both together (arrays per ring then).
+    """
     single = MEAN_ABS_PER_SIGMA * float(sigma_um)
-    return {"mean": single / math.sqrt(max(int(n_repetitions), 1)), "single": single}
+    n = max(int(n_repetitions), 1)
+    if neighbour_weights_sq is None:
+        return {"mean": single / math.sqrt(n), "single": single}
+    w = np.asarray(neighbour_weights_sq, dtype=float)
+    return {"mean": single * np.sqrt((1 + w) / n), "single": single * np.sqrt(1 + w / n)}
 
 
 def ring_mae(predicted: ArrayLike, measured: ArrayLike) -> dict[str, NDArray[np.float64]]:

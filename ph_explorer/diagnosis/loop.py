@@ -55,13 +55,8 @@ def out_of_sample_figures(
     itself at the check rings; None when the baseline is the interpolator itself.
     """
     sigma, n_rep = campaign.noise_sigma_um(), campaign.n_repetitions
-    # A prediction made of neighbours carries their noise: E|e| of both together is the floor.
-    weights_sq = (search.smoother.weights**2).sum(axis=1)
     mae = metrics.ring_mae(campaign.deviations - search.residual, campaign.deviations)
-    floors = {
-        "mean": metrics.MEAN_ABS_PER_SIGMA * sigma * np.sqrt((1 + weights_sq) / n_rep),
-        "single": metrics.MEAN_ABS_PER_SIGMA * sigma * np.sqrt(1 + weights_sq / n_rep),
-    }
+    floors = metrics.noise_floor(sigma, n_rep, neighbour_weights_sq=(search.smoother.weights**2).sum(axis=1))
     if baseline is not None:
         rings = np.flatnonzero(held_out)
         own = metrics.ring_mae(baseline.predict_held_out(campaign, rings), campaign.deviations[rings])
@@ -86,37 +81,37 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
 RINGS_BROUGHT_WITHIN = 2
 
 
-def accepts(
-    candidate: Candidate,
+def next_found(
+    ranked: Sequence[Candidate],
     current: NoiseTest | None,
     search: CandidateSearch,
     campaign: Campaign,
     chain: Sequence[Effect],
     by_id: dict[str, Effect],
     seed: int = 0,
-) -> bool | NoiseTest:
-    """Whether the search takes this candidate as the next effect found (the within-noise test
-    with it, when that decided; True or False otherwise).
+) -> tuple[Candidate, NoiseTest | None] | None:
+    """The next effect the search takes, best ranked first, with the within-noise test of the
+    chain with it; None when no candidate is taken.
 
     A significant candidate (beyond noise, plausible, and lowering the check rings' error
     materially) is taken. So is one that is beyond noise and plausible when the model fails
     beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN of the exceeding rings within
     noise: a failure on the lattice rings the check rings do not see.
     """
-    if candidate.significant:
-        return True
-    if not candidate.beyond_noise or current is None or not current.fails:
-        return False
-    trial = [*chain, by_id[candidate.effect].with_settings(**candidate.settings)]
-    test = within_noise_after(search, campaign, trial, seed)
-    if test is None or test.failing_rings > current.failing_rings - RINGS_BROUGHT_WITHIN:
-        return False
-    candidate.significant = True
-    candidate.note = (
-        f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
-        "their noise within it (the check rings alone do not show it)"
-    )
-    return test
+    for candidate in ranked:
+        if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
+            continue
+        test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
+        if candidate.significant:
+            return candidate, test
+        if test is not None and test.failing_rings <= current.failing_rings - RINGS_BROUGHT_WITHIN:
+            candidate.significant = True
+            candidate.note = (
+                f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
+                "their noise within it (the check rings alone do not show it)"
+            )
+            return candidate, test
+    return None
 
 
 def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate], found: Sequence[str]) -> None:
@@ -219,15 +214,13 @@ def diagnose(
     found: list[Candidate] = []
     remaining, current, after = candidates, before, None
     while remaining and len(chain) < max_steps:
-        pick, test = next(
-            ((c, t) for c in remaining for t in [accepts(c, current, search, campaign, chain, by_id, seed)] if t is not False),
-            (None, None),
-        )
-        if pick is None:
+        taken = next_found(remaining, current, search, campaign, chain, by_id, seed)
+        if taken is None:
             break
+        pick, current = taken
+        after = current
         found.append(pick)
         chain.append(by_id[pick.effect].with_settings(**pick.settings))
-        current = after = test if isinstance(test, NoiseTest) else within_noise_after(search, campaign, chain, seed)
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
         remaining = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)

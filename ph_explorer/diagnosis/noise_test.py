@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import stats
 
-from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.models.base import draw_repetitions
 
 # Pure-noise draws of every ring's mean residual (the campaign-level null) ...
 MEAN_DRAWS = 399
@@ -142,11 +142,9 @@ def within_noise(
         return None
     rng = np.random.default_rng(seed)
     sigma = ring_sigma(spread)
-    inflate = math.sqrt(n_pt / max(n_pt - 3, 1))  # the circle fit's shrinkage, undone
 
     # mean: each ring's repetition-mean noise through the circle fit and the smoother.
-    draws = rng.standard_normal((n_o, MEAN_DRAWS, n_pt)) * (sigma * inflate / math.sqrt(n_rep))[:, None, None]
-    draws = remove_size_and_centre(draws)
+    draws = draw_repetitions(np.zeros((n_o, n_pt)), (sigma / math.sqrt(n_rep))[:, None], MEAN_DRAWS, rng)
     null_mean = draws - np.tensordot(weights, draws, axes=(1, 0))
     null_stat = (null_mean**2).mean(axis=-1)  # (n_o, draws)
     mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)

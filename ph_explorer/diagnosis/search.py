@@ -12,7 +12,6 @@ lowers the out-of-sample rms error against the reference that exposes it materia
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -23,9 +22,9 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.effects import Effect
-from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import design as least_squares
+from ph_explorer.models.base import draw_repetitions
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.design import Design
 from ph_explorer.models.hybrid import fitted_basis
@@ -61,10 +60,9 @@ class CandidateSearch:
         sigma = campaign.noise_sigma_um()
         self.sigma = sigma if np.isfinite(sigma) and sigma > 0 else float(np.std(self.residual))
         n_o, n_rep, n_pt = campaign.deviations.shape
-        rng = np.random.default_rng(seed)
         # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother.
-        inflate = math.sqrt(n_pt / max(n_pt - 3, 1))
-        noise = remove_size_and_centre(rng.standard_normal((n_o, n_rep, NULL_DRAWS, n_pt)) * self.sigma * inflate)
+        noise = draw_repetitions(np.zeros((n_o, n_pt)), self.sigma, n_rep * NULL_DRAWS, np.random.default_rng(seed))
+        noise = noise.reshape(n_o, n_rep, NULL_DRAWS, n_pt)
         noise = np.moveaxis(self.smoother.residual(noise), 2, -1)  # (n_o, n_rep, n_pt, draws)
         # Column 0: the data's residual; the others: what noise alone would leave.
         self.targets = Design(np.concatenate([self.residual[..., None], noise], axis=-1), None)
@@ -207,13 +205,12 @@ def shared_variance(a: Design, b: Design) -> float:
 def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> None:
     """Name, on each candidate beyond noise, the others it cannot be told from on this campaign
     (their columns at the chosen settings share more than CONFOUNDED), with how much they share."""
-    scored = [c for c in candidates if c.beyond_noise or c.significant]
-    others = [c for c in candidates if c.evidence.get("x")]
-    designs = {id(c): search.design([by_id[c.effect].with_settings(**c.settings)]) for c in {id(c): c for c in scored + others}.values()}
-    for candidate in scored:
-        for other in others:
-            if other is candidate:
-                continue
-            shared = shared_variance(designs[id(candidate)], designs[id(other)])
+    # Each effect once in the ranking: its columns at the settings it was scored at.
+    designs = {c.effect: search.design([by_id[c.effect].with_settings(**c.settings)]) for c in candidates if c.evidence.get("x")}
+    for candidate in candidates:
+        if not (candidate.beyond_noise or candidate.significant) or candidate.effect not in designs:
+            continue
+        for other, design in designs.items():
+            shared = shared_variance(designs[candidate.effect], design) if other != candidate.effect else 0.0
             if shared > CONFOUNDED:
-                candidate.confounded_with.append({"effect": other.effect, "shared": round(shared, 3)})
+                candidate.confounded_with.append({"effect": other, "shared": round(shared, 3)})
