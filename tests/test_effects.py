@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, EffectSum, load_user_effects
-from ph_explorer.effects.base import RAD_PER_ARCSEC, Effect
+from ph_explorer.effects.base import AXES, KINDS, RAD_PER_ARCSEC, Effect
 from ph_explorer.effects.probe import support_fourier
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY
@@ -40,6 +40,8 @@ def test_catalog_has_the_issue_ids_with_documented_parameters():
             assert p.unit is not None and p.description
         for key in cls.scan:
             assert key in {p.name for p in cls.parameters}
+        # Described in the ISO 230 vocabulary: where it sits and what kind of error it is.
+        assert cls.axis in (*AXES, None) and cls.kind in KINDS, cls.id
     # Only pure noise is no candidate: every other effect is something a model can add.
     assert set(DEFAULT_CATALOG) - set(DEFAULT_CATALOG.candidates()) == {"noise"}
 

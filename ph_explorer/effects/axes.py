@@ -67,6 +67,8 @@ class _AxisCyclic(Effect):
 
 class AAxisCyclic(_AxisCyclic):
     id = "a_axis_cyclic"
+    kind = "angular_positioning"
+    symbol = "EAA"
     name = "A-axis cyclic angular error"
     axis = "A"
     teaching = (
@@ -85,6 +87,8 @@ class AAxisCyclic(_AxisCyclic):
 
 class BAxisCyclic(_AxisCyclic):
     id = "b_axis_cyclic"
+    kind = "angular_positioning"
+    symbol = "ECB"
     name = "B-axis cyclic angular error"
     axis = "B"
     teaching = (
@@ -100,6 +104,7 @@ class BAxisCyclic(_AxisCyclic):
 
 class Direction(Effect):
     id = "direction"
+    kind = "lost_motion"
     name = "Lost motion by direction of approach"
     teaching = (
         "Backlash or wind-up in a joint's drive: the joint settles a little short of its reading, on the "

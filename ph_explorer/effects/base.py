@@ -83,6 +83,15 @@ RAD_PER_ARCSEC = np.pi / (180.0 * ARCSEC_PER_DEG)
 UM_PER_MM = 1000.0
 
 
+# Where an effect sits, and the kinds of error (ISO 230-1 for a rotary axis's location errors and
+# error motions; the rest for the probe, the ring and the environment).
+AXES = ("A", "B", "probe", "ring", "environment")
+KINDS = (
+    "location", "angular_positioning", "radial_motion", "axial_motion", "tilt_motion", "lost_motion",
+    "probe", "thermal", "form", "noise",
+)
+
+
 @dataclass(frozen=True)
 class Parameter:
     """A physical parameter of an effect, with its unit and default value.
@@ -150,6 +159,12 @@ class Effect:
     needs: ClassVar[frozenset[str]] = frozenset()
     # False for what no model can add (pure noise): never a candidate of the diagnosis.
     candidate: ClassVar[bool] = True
+    # Where the mechanism sits (one of AXES, None for one spanning both joints) and what kind of
+    # error it is (one of KINDS), in the vocabulary of ISO 230-1 for the axes; symbol: its ISO 230-1
+    # style symbol adapted to the head's axes (README, "Effects"), "" when ISO 230 names none.
+    axis: ClassVar[str | None] = None
+    kind: ClassVar[str] = "probe"
+    symbol: ClassVar[str] = ""
 
     def __init__(self, **params: float) -> None:
         known = {p.name: p for p in self.parameters}

@@ -25,6 +25,8 @@ RING_FORM_PLAUSIBLE_UM = (0.0, 1.0)
 
 class Drift(Effect):
     id = "drift"
+    axis = "environment"
+    kind = "thermal"
     name = "Thermal drift of the head with time"
     teaching = (
         "The stylus and the head body grow with temperature, alpha L dT: 1.15 um per kelvin for 50 mm of "
@@ -122,6 +124,8 @@ class Drift(Effect):
 
 class RingForm(Effect):
     id = "ring_form"
+    axis = "ring"
+    kind = "form"
     name = "Form of the reference ring"
     teaching = (
         "The ring is not perfectly round: a grade-0 20 mm ring has ~0.2 um of form, a few harmonics from "

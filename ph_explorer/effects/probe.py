@@ -91,6 +91,8 @@ def lateral_gravity(touches: Touches) -> NDArray[np.float64]:
 
 class Noise(Effect):
     id = "noise"
+    axis = "probe"
+    kind = "noise"
     name = "Touch repeatability (noise)"
     teaching = (
         "Each trigger of the TP20 scatters by its unidirectional repeatability: 0.35 um (2 sigma) in the "
@@ -118,6 +120,8 @@ class Noise(Effect):
 
 class Lobing(Effect):
     id = "lobing"
+    axis = "probe"
+    kind = "probe"
     name = "Kinematic-seat lobing of the TP20"
     teaching = (
         "The TP20 module sits on three kinematic seats at 120 deg. The lateral probing force needed to "
@@ -159,6 +163,8 @@ class Lobing(Effect):
 
 class Gravity(Effect):
     id = "gravity"
+    axis = "probe"
+    kind = "probe"
     name = "Gravity on the probe's seats"
     teaching = (
         "The weight of the stylus assembly acts on the kinematic seats. In the probe frame gravity depends "
