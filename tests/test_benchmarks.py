@@ -115,7 +115,13 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     for point in curve:
         assert {"amplitude_arcsec", "power", "power_ci95", "failure_detected", "verdicts"} <= set(point)
         assert 0 <= point["power"] <= point["failure_detected"] <= 1
+    # Nested vs check-ring "after" errors side by side, from the seeds where effects were found.
+    after = calibration["after_errors"]
+    assert {"check_rings", "nested", "seeds_with_effects_found"} <= set(after)
+    if after["seeds_with_effects_found"]:
+        assert after["nested"]["after"] > 0 and after["check_rings"]["after"] > 0
     seconds = calibration["seconds_per_diagnosis"]
+    assert seconds["b_axis_22"]["max"] > 0
     assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
     assert calibration["errors"] == []
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):

@@ -16,7 +16,7 @@ from ph_explorer.io import read_campaign
 from ph_explorer.models.base import DeviationModel
 
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
-    from ph_explorer.diagnosis import Diagnosis
+    from ph_explorer.diagnosis import Candidate, Diagnosis
 
 DATA_PARTS = ("trilinear", "network")
 
@@ -124,9 +124,25 @@ def _where_it_fails(result: Diagnosis) -> list[str]:
 
 
 def _candidates(result: Diagnosis, catalog: Catalog) -> list[str]:
+    from ph_explorer.diagnosis.nested import effect_label  # torch-bound, like the command itself
+
     lines = ["Candidate effects (best first): share of the out-of-sample residual explained, fall of the held-out error"]
-    width = max([len(c.effect) for c in result.candidates] + [6])
-    for c in result.candidates:
+    lines += _ranking(result.candidates, catalog)
+    chain: list[str] = []
+    for found, ranking in zip(result.found, result.rankings[1:]):
+        chain.append(effect_label(catalog[found.effect]().with_settings(**found.settings)))
+        lines += ["", f"Re-ranked with {' + '.join(chain)} in the model (top {RERANKED_SHOWN}):"]
+        lines += _ranking(ranking[:RERANKED_SHOWN], catalog)
+    return lines
+
+
+RERANKED_SHOWN = 5  # rows of each table re-ranked after a step
+
+
+def _ranking(candidates: list[Candidate], catalog: Catalog) -> list[str]:
+    lines = []
+    width = max([len(c.effect) for c in candidates] + [6])
+    for c in candidates:
         if c.note and not c.explained_fraction:
             lines.append(f"   {c.effect.ljust(width)}  not tested: {c.note}")
             continue
@@ -152,8 +168,23 @@ def _history(result: Diagnosis) -> list[str]:
     lines = ["Error history on the held-out rings (MAE / um, and the noise floor):"]
     for step in result.steps:
         name = f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
-        lines.append(
-            f"  {name:50s} mean {step.mae_um['mean']:.3f} (floor {step.noise_floor_um['mean']:.3f})   "
-            f"single {step.mae_um['single']:.3f} (floor {step.noise_floor_um['single']:.3f})"
-        )
+        lines.append(f"  {name:50s} " + _mae_text(step.mae_um, step.noise_floor_um))
+    nested = result.nested
+    if nested is not None:
+        lines += [
+            f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
+            f"cross-validation over the {nested.rings} training rings; the check rings above took part in the choice):",
+            f"  {'before':50s} " + _mae_text(nested.before_um, nested.noise_floor_um),
+            f"  {'after':50s} " + _mae_text(nested.after_um, nested.noise_floor_um),
+        ]
+        counts: dict[str, int] = {}
+        for fold in nested.chosen:
+            for label in fold:
+                counts[label] = counts.get(label, 0) + 1
+        chosen = ", ".join(f"{label} ({n} of {nested.folds})" for label, n in counts.items()) or "nothing"
+        lines.append(f"  chosen in the folds: {chosen}")
     return lines
+
+
+def _mae_text(mae: dict[str, float], floor: dict[str, float]) -> str:
+    return f"mean {mae['mean']:.3f} (floor {floor['mean']:.3f})   single {mae['single']:.3f} (floor {floor['single']:.3f})"

@@ -22,14 +22,15 @@ from numpy.typing import NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
+from ph_explorer.diagnosis.choice import choose_effects
+from ph_explorer.diagnosis.nested import nested_after
+from ph_explorer.diagnosis.noise_test import NoiseTest
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
-from ph_explorer.diagnosis.search import CandidateSearch, confounding, rank_candidates
+from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models import design as least_squares
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import held_out_mae
 from ph_explorer.models.hybrid import DataModel, HybridModel
@@ -65,53 +66,6 @@ def out_of_sample_figures(
             mae[reference][held_out] = own[reference]
             floors[reference][held_out] = floor[reference]
     return mae, floors
-
-
-def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
-    """The within-noise test of what the effects, fitted through the smoother, leave."""
-    design = search.design(effects)
-    mean, within = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
-    changing = 0.0 if within is None else within
-    residual = search.residual - mean[:, None, :] - changing
-    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
-
-
-# A candidate that is not material on the check rings is still taken when it brings at least this
-# many of the rings that exceed their noise within it: more than one, so that no single ring decides.
-RINGS_BROUGHT_WITHIN = 2
-
-
-def next_found(
-    ranked: Sequence[Candidate],
-    current: NoiseTest | None,
-    search: CandidateSearch,
-    campaign: Campaign,
-    chain: Sequence[Effect],
-    by_id: dict[str, Effect],
-    seed: int = 0,
-) -> tuple[Candidate, NoiseTest | None] | None:
-    """The next effect the search takes, best ranked first, with the within-noise test of the
-    chain with it; None when no candidate is taken.
-
-    A significant candidate (beyond noise, plausible, and lowering the check rings' error
-    materially) is taken. So is one that is beyond noise and plausible when the model fails
-    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN of the exceeding rings within
-    noise: a failure on the lattice rings the check rings do not see.
-    """
-    for candidate in ranked:
-        if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
-            continue
-        test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
-        if candidate.significant:
-            return candidate, test
-        if test is not None and test.failing_rings <= current.failing_rings - RINGS_BROUGHT_WITHIN:
-            candidate.significant = True
-            candidate.note = (
-                f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
-                "their noise within it (the check rings alone do not show it)"
-            )
-            return candidate, test
-    return None
 
 
 def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate], found: Sequence[str]) -> None:
@@ -165,6 +119,7 @@ def diagnose(
     max_steps: int = 3,
     progress: Callable[[str], None] | None = None,
     seed: int = 0,
+    nested: bool = True,
 ) -> Diagnosis:
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
@@ -173,6 +128,8 @@ def diagnose(
     baseline: a trained model to start from (default: the trilinear model fitted on the training
     orientations).
     catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
+    nested: when the search finds effects, measure them on rings that took no part in choosing
+    them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
     """
     held_out = campaign.holdout_mask()
     train = ~held_out
@@ -199,37 +156,20 @@ def diagnose(
         baseline_name = baseline.name
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
-    # 1. where it fails: leave-one-out residuals at training rings, the training fit at check rings;
-    # the within-noise test of that residual decides, ring by ring and for the campaign.
-    search = CandidateSearch(campaign, train, seed)
+    # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
+    choice = choose_effects(campaign, train, effects, max_steps, seed, progress)
+    search, before, candidates, found, chain = choice.search, choice.before, choice.candidates, choice.found, choice.chain
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
-    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
     failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
-
-    # 2. which effects are missing: the best significant candidate, the search again with it in
-    # the model, ... (the verdict's chain, whatever the user adds).
-    candidates = rank_candidates(search, effects, progress=progress)
-    chain: list[Effect] = []
-    found: list[Candidate] = []
-    remaining, current, after = candidates, before, None
-    while remaining and len(chain) < max_steps:
-        taken = next_found(remaining, current, search, campaign, chain, by_id, seed)
-        if taken is None:
-            break
-        pick, current = taken
-        after = current
-        found.append(pick)
-        chain.append(by_id[pick.effect].with_settings(**pick.settings))
-        # Search again with the chain in the model; an effect found may be found again at another
-        # setting (a second period of the same axis error).
-        remaining = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
-    verdict = decide(before, after, bool(chain))
+    verdict = decide(before, choice.after, bool(chain))
     if chain:
-        settle_presence(candidates, remaining, [c.effect for c in found])
+        settle_presence(candidates, choice.remaining, [c.effect for c in found])
     confounding(search, candidates, by_id)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
+
+    honest = nested_after(campaign, effects, data_model, (), max_steps, seed) if nested and found else None
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
@@ -254,7 +194,9 @@ def diagnose(
         verdict=verdict,
         found=found,
         signature=left,
-        within_noise={"baseline": before, "after": after},
+        within_noise={"baseline": before, "after": choice.after},
+        rankings=choice.rankings,
+        nested=honest,
         steps=steps,
         orientations=campaign.orientations,
         out_of_sample_mae_um=mae,

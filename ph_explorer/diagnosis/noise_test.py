@@ -29,6 +29,12 @@ the rings it is interpolated into, which is not a failure several rings share). 
 fails when the statistic is above what pure noise gives with probability FALSE_ALARM: the
 look-elsewhere correction over all rings, from the same null draws (a continuous statistic, so
 the level is FALSE_ALARM, not the lower level a count of rings would give).
+
+Why FALSE_ALARM is 2 % and not 5 %: the null is exact for touch noise, so a 5 % test raises a
+false alarm on 5 % of noise-only campaigns by construction (measured: 5.0 % of 300), and a real
+head's usual background adds to that (drift within a ring). The tool promises at most 5 % for
+every verdict together; at 2 % the measured rate (benchmarks, diagnosis_calibration) keeps that
+promise with its confidence interval, not only on average.
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ STATISTIC_DRAWS = 20000
 WITHIN_HARMONICS = (2, 8)  # the low harmonics where systematic repetition differences show
 MEAN_TOLERANCE = 2.0  # a ring's mean residual may hold as much systematic error as noise
 RING_LEVEL = 0.01  # a ring exceeds below this p-value
-FALSE_ALARM = 0.05  # the campaign fails with at most this probability on pure noise
+FALSE_ALARM = 0.02  # the campaign fails with at most this probability on pure noise (see below)
 
 
 @dataclass

@@ -86,6 +86,28 @@ class Step:
 
 
 @dataclass
+class NestedAfter:
+    """Before and after the search's effects, each fold's rings predicted by what the others chose."""
+
+    folds: int
+    rings: int  # training rings predicted (each once)
+    before_um: dict[str, float]  # MAE of the starting model, {"mean", "single"}
+    after_um: dict[str, float]  # MAE with the effects each fold's search chose
+    noise_floor_um: dict[str, float]
+    chosen: list[list[str]] = field(default_factory=list)  # per fold, the effects chosen ("id 22/rev")
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "folds": self.folds,
+            "rings": self.rings,
+            "before_um": rounded(self.before_um),
+            "after_um": rounded(self.after_um),
+            "noise_floor_um": rounded(self.noise_floor_um),
+            "chosen": self.chosen,
+        }
+
+
+@dataclass
 class Diagnosis:
     noise_floor_um: dict[str, float]
     baseline_model: str
@@ -102,6 +124,9 @@ class Diagnosis:
     failing: NDArray[np.bool_]  # orientations significantly worse than their floor
     held_out: NDArray[np.bool_]
     hybrid: HybridModel | None = None
+    # The candidate table before every step of the search and after its last (the first is `candidates`).
+    rankings: list[list[Candidate]] = field(default_factory=list)
+    nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
 
     def as_dict(self) -> dict[str, Any]:
         """The diagnose --json object."""
@@ -113,6 +138,7 @@ class Diagnosis:
             "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings")} for c in self.found],
             "signature": self.signature,
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
+            "nested_after": None if self.nested is None else self.nested.as_dict(),
             "steps": [
                 {
                     "added": s.added,

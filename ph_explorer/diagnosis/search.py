@@ -55,6 +55,7 @@ class CandidateSearch:
         # Every ring's out-of-sample residual: leave-one-out at training rings, the whole training
         # set at held-out rings (whose measurements never enter a data-driven fit).
         self.touches = campaign_touches(campaign)
+        self._designs: dict[tuple[str, tuple], Design] = {}
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
         sigma = campaign.noise_sigma_um()
@@ -69,8 +70,19 @@ class CandidateSearch:
 
     def design(self, effects: Sequence[Effect]) -> Design:
         """The effects' fitted basis columns, side by side, through the smoother."""
-        columns = [fitted_basis(effect, self.touches)[0] for effect in effects]
-        return Design(np.concatenate(columns, axis=-1), self.smoother)
+        designs = [self._design(effect) for effect in effects]
+        joint = designs[0]
+        for other in designs[1:]:
+            joint = joint.stacked(other)
+        return joint
+
+    def _design(self, effect: Effect) -> Design:
+        """One effect's design at its settings, made once per search (every ranking and every
+        step of the chain asks for the same scan values again)."""
+        key = (effect.id, tuple(sorted(effect.settings().items())))
+        if key not in self._designs:
+            self._designs[key] = Design(fitted_basis(effect, self.touches)[0], self.smoother)
+        return self._designs[key]
 
     def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:
         """The candidate's best scan value, beyond the columns `fixed` already in the model.

@@ -1,0 +1,119 @@
+"""The search's choice: which catalog effects to add, one at a time, and the tests around it.
+
+`choose_effects` runs on any campaign and training set: the diagnosis runs it on the whole
+campaign, and the nested cross-validation (ph_explorer.diagnosis.nested) on each fold's campaign.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
+from ph_explorer.diagnosis.results import Candidate
+from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.effects import Effect
+from ph_explorer.models import design as least_squares
+
+
+def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
+    """The within-noise test of what the effects, fitted through the smoother, leave."""
+    design = search.design(effects)
+    mean, within = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
+    changing = 0.0 if within is None else within
+    residual = search.residual - mean[:, None, :] - changing
+    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
+
+
+# A candidate that is not material on the check rings is still taken when it brings at least this
+# many of the rings that exceed their noise within it: more than one, so that no single ring decides.
+RINGS_BROUGHT_WITHIN = 2
+
+
+def next_found(
+    ranked: Sequence[Candidate],
+    current: NoiseTest | None,
+    search: CandidateSearch,
+    campaign: Campaign,
+    chain: Sequence[Effect],
+    by_id: dict[str, Effect],
+    seed: int = 0,
+) -> tuple[Candidate, NoiseTest | None] | None:
+    """The next effect the search takes, best ranked first, with the within-noise test of the
+    chain with it; None when no candidate is taken.
+
+    A significant candidate (beyond noise, plausible, and lowering the check rings' error
+    materially) is taken. So is one that is beyond noise and plausible when the model fails
+    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN of the exceeding rings within
+    noise: a failure on the lattice rings the check rings do not see.
+    """
+    for candidate in ranked:
+        if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
+            continue
+        test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
+        if candidate.significant:
+            return candidate, test
+        if test is not None and test.failing_rings <= current.failing_rings - RINGS_BROUGHT_WITHIN:
+            candidate.significant = True
+            candidate.note = (
+                f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
+                "their noise within it (the check rings alone do not show it)"
+            )
+            return candidate, test
+    return None
+
+
+@dataclass
+class Choice:
+    """What the search chose on one campaign: the tests before and after, and every ranking."""
+
+    search: CandidateSearch
+    before: NoiseTest | None  # the baseline's within-noise test
+    candidates: list[Candidate]  # the first ranking
+    found: list[Candidate]  # the effects taken, in order
+    chain: list[Effect]  # start + the effects taken, at their chosen settings
+    after: NoiseTest | None  # the test with the chain in the model (None: nothing in it)
+    rankings: list[list[Candidate]]  # the ranking before every step and after the last
+
+    @property
+    def remaining(self) -> list[Candidate]:
+        return self.rankings[-1]
+
+
+def choose_effects(
+    campaign: Campaign,
+    train: NDArray[np.bool_],
+    effects: Sequence[Effect],
+    max_steps: int = 3,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+    start: Sequence[Effect] = (),
+) -> Choice:
+    """The search's chain on the training rings: the best candidate taken (next_found), the search
+    again with it in the model, ... at most max_steps effects beyond `start` (effects already in
+    the model, e.g. a resumed study's)."""
+    by_id = {e.id: e for e in effects}
+    # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
+    search = CandidateSearch(campaign, train, seed)
+    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
+    chain = list(start)
+    current = within_noise_after(search, campaign, chain, seed) if chain else before
+    after = current if chain else None
+    rankings = [rank_candidates(search, effects, fixed=search.design(chain) if chain else None, progress=progress)]
+    found: list[Candidate] = []
+    while rankings[-1] and len(found) < max_steps:
+        taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
+        if taken is None:
+            break
+        pick, current = taken
+        after = current
+        found.append(pick)
+        chain.append(by_id[pick.effect].with_settings(**pick.settings))
+        # Search again with the chain in the model; an effect found may be found again at another
+        # setting (a second period of the same axis error).
+        rankings.append(rank_candidates(search, effects, fixed=search.design(chain), progress=progress))
+    return Choice(search, before, rankings[0], found, chain, after, rankings)

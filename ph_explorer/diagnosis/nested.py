@@ -1,0 +1,73 @@
+"""An honest "after": the error of the effects found, on rings that played no part in finding them.
+
+The check rings choose an effect and its period (an effect is taken only when it lowers their
+error materially), so the check-ring error after a step is optimistic: it is the figure the choice
+was made on. Here the choice itself is cross-validated. The training rings are split into
+NESTED_FOLDS folds at random (seeded); for each fold the whole search (choose_effects: baseline,
+ranking, within-noise tests, the chain) runs on the campaign without that fold's rings, the hybrid
+with the chain it chose is fitted on the remaining training rings, and the fold's rings are
+predicted. Beside it, the model the step started from, fitted on the same rings, predicts the
+same rings: "before" and "after" on rings that neither the fit nor the choice saw.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+import numpy as np
+
+from ph_explorer import metrics
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.choice import choose_effects
+from ph_explorer.diagnosis.results import NestedAfter
+from ph_explorer.effects import Effect
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models.hybrid import DataModel, HybridModel
+
+NESTED_FOLDS = 5
+
+
+def effect_label(effect: Effect) -> str:
+    """'b_axis_cyclic 22 cycles/rev': an effect with its scanned settings, as a step names it."""
+    settings = effect.settings()
+    units = {p.name: p.unit for p in effect.parameters}
+    return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
+
+
+def nested_after(
+    campaign: Campaign,
+    effects: Sequence[Effect],
+    data_model: DataModel = "trilinear",
+    start: Sequence[Effect] = (),
+    max_steps: int = 3,
+    seed: int = 0,
+    folds: int = NESTED_FOLDS,
+) -> NestedAfter | None:
+    """The cross-validated before/after of the search (module docstring); None with too few rings."""
+    held_out = campaign.holdout_mask()
+    train = np.flatnonzero(~held_out)
+    if train.size < 4 * folds:
+        return None
+    rng = np.random.default_rng(seed)
+    predicted, before, after, chosen = [], [], [], []
+    for fold in np.array_split(rng.permutation(train), folds):
+        fold = np.sort(fold)
+        keep = np.ones(campaign.n_orientations, dtype=bool)
+        keep[fold] = False
+        sub = campaign.subset(keep)
+        sub_train = ~sub.holdout_mask()
+        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start)
+        touches = campaign_touches(campaign.subset(fold))
+        for model_effects, out in ((list(start), before), (choice.chain, after)):
+            out.append(HybridModel(list(model_effects), data_model).fit(sub, sub_train).predict_touches(touches))
+        chosen.append([effect_label(e) for e in choice.chain[len(start) :]])
+        predicted.append(fold)
+    rings = np.concatenate(predicted)
+    measured = campaign.deviations[rings]
+    return NestedAfter(
+        folds=folds,
+        rings=int(rings.size),
+        before_um=metrics.mae(np.concatenate(before), measured),
+        after_um=metrics.mae(np.concatenate(after), measured),
+        noise_floor_um=metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions),
+        chosen=chosen,
+    )
