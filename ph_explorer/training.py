@@ -7,7 +7,6 @@ the folder; cli/train.py is the command (options, progress bar, printing).
 
 from __future__ import annotations
 
-import hashlib
 import tempfile
 import time
 from collections.abc import Mapping
@@ -19,6 +18,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.evaluation import evaluation_report, mean_mae
+from ph_explorer.io.files import file_sha256
 from ph_explorer.models import network as network_module
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.folder import CARD_FORMAT, load_models
@@ -44,14 +44,6 @@ def train_models(
     network = FourierNetwork(config, progress=progress).fit(campaign, train)
     seconds["network"] = time.perf_counter() - start
     return {"network": network, "trilinear": trilinear}, seconds
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
 
 
 def as_saved(models: Mapping[str, DeviationModel]) -> dict[str, DeviationModel]:

@@ -67,7 +67,7 @@ def diagnoses(tmp_path_factory) -> dict[tuple[str, bool], object]:
         out[(name, True)] = diagnose(campaign)
         foreign = read_campaign(write_like_another_program(campaign, folder / f"{name}.csv"))
         assert foreign.check_orientations is None
-        out[(name, False)] = diagnose(foreign)
+        out[(name, False)] = diagnose(foreign, nested=False)  # the nested figures: from the sidecar runs
     return out
 
 
@@ -199,6 +199,52 @@ def test_cli_add_takes_the_users_choice_and_user_effects(b22_csv):
     assert text.returncode == 0, text.stderr
     assert "Verdict: missing" in text.stdout and "Found: b_axis_cyclic (amplitude" in text.stdout
     assert "+ b_axis_cyclic" in text.stdout
+
+
+@pytest.mark.slow
+def test_the_after_error_is_also_measured_on_rings_that_took_no_part_in_the_choice(diagnoses):
+    result = diagnoses[("b_axis_22", True)]
+    nested = result.nested
+    assert nested is not None and nested.folds == 5
+    assert nested.rings == int((~result.held_out).sum())  # every training ring predicted once
+    # Each fold's own search, without its rings, chose the hidden effect at its period ...
+    assert all("b_axis_cyclic 22 cycles/rev" in fold for fold in nested.chosen)
+    # ... and on those rings the error falls, towards the floor, though less than the optimistic check-ring figure says.
+    assert nested.after_um["mean"] < 0.85 * nested.before_um["mean"]
+    assert nested.after_um["mean"] < 1.6 * nested.noise_floor_um["mean"]
+    assert result.as_dict()["nested_after"]["after_um"]["mean"] == pytest.approx(nested.after_um["mean"], abs=1e-5)
+    # Nothing found, nothing to cross-validate.
+    assert diagnoses[("paper", True)].nested is None
+
+
+@pytest.mark.slow
+def test_a_study_is_saved_resumed_and_refused_on_another_campaign(b22_csv, tmp_path):
+    study = tmp_path / "study.json"
+    done = run_cli("diagnose", "--data", str(b22_csv), "--save", str(study))
+    assert done.returncode == 0, done.stderr
+    # The report re-ranks the candidates with the effect found in the model.
+    assert "Re-ranked with b_axis_cyclic 22 cycles/rev in the model" in done.stdout
+    saved = json.loads(study.read_text())
+    assert saved["format"] == "ph-explorer study 1" and saved["verdict"] == "missing"
+    assert [(e["effect"], e["settings"]) for e in saved["chain"]] == [("b_axis_cyclic", {"cycles_per_rev": 22.0})]
+    assert set(saved["chain"][0]["params_u"]) >= {"amplitude_arcsec", "phase_deg"}
+    assert len(saved["campaign"]["sha256"]) == 64 and len(saved["runs"]) == 1
+    resumed = run_cli("diagnose", "--data", str(b22_csv), "--resume", str(study), "--json")
+    assert resumed.returncode == 0, resumed.stderr
+    report = json.loads(resumed.stdout)
+    again = json.loads(study.read_text())
+    # The search continued from the study's model: the same steps, one more run, the chain kept.
+    assert [s["added"] for s in report["steps"]][:2] == [[], ["b_axis_cyclic"]]
+    assert again["steps"][:2] == saved["steps"][:2] and again["chain"][0]["settings"] == saved["chain"][0]["settings"]
+    assert [r["started_from"] for r in again["runs"]] == [0, 1]
+    # Another campaign, or a file that is not a study: one line, exit 2, the study untouched.
+    other = tmp_path / "other.csv"
+    other.write_text(b22_csv.read_text().replace("\n", "\n", 1) + "\n")
+    for args in (["--data", str(other), "--resume", str(study)], ["--data", str(b22_csv), "--resume", str(b22_csv)]):
+        refused = run_cli("diagnose", *args)
+        assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+        assert "Traceback" not in refused.stderr
+    assert json.loads(study.read_text()) == again
 
 
 def test_cli_rejects_an_unknown_effect_in_one_line(b22_csv):

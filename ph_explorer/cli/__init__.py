@@ -144,13 +144,18 @@ def _diagnose(
     add: Annotated[Optional[str], typer.Option(help="Effects to add, 'ID[,ID]' (default: the best candidate, if any).")] = None,
     effects: Annotated[Optional[Path], typer.Option(help="A Python file defining your own effects.")] = None,
     data_part: Annotated[
-        str, typer.Option(help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained).")
-    ] = "trilinear",
+        Optional[str],
+        typer.Option(help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained). Default: trilinear, or the study's."),
+    ] = None,
+    save: Annotated[Optional[Path], typer.Option(help="Write the study (every step, its effects and errors, the verdict) to this JSON file.")] = None,
+    resume: Annotated[
+        Optional[Path], typer.Option(help="Continue a study of this campaign from the model it reached; saved back to it unless --save names another file.")
+    ] = None,
     json_output: JsonOpt = False,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
-    options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output}
+    options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output, "save": save, "resume": resume}
     _run("diagnose", diagnose.diagnose_command, data=data, geometry=geometry, **options)
 
 

@@ -12,7 +12,7 @@ from rich.progress import Progress
 
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.errors import InputError
-from ph_explorer.io import read_campaign
+from ph_explorer.io import file_sha256, read_campaign, read_json_object, write_json_object
 from ph_explorer.models.base import DeviationModel
 
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
@@ -28,18 +28,30 @@ def diagnose_command(
     effects: Path | None = None,
     json_output: bool = False,
     geometry: dict[str, float] | None = None,
-    data_part: str = "trilinear",
+    data_part: str | None = None,
+    save: Path | None = None,
+    resume: Path | None = None,
 ) -> int:
-    """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON."""
+    """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
+    with --save or --resume, write the study."""
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
     from ph_explorer.diagnosis import diagnose
+    from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain, study_record
     from ph_explorer.models.folder import baseline_of, load_models
     from ph_explorer.models.network import FourierNetwork
 
+    previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
+    data_part = data_part or (previous["data_part"] if previous else "trilinear")
     if data_part not in DATA_PARTS:
         raise InputError(f"unknown data-driven part {data_part!r} (trilinear or network)", option="--data-part")
+    if save is not None and save.is_dir():
+        raise InputError("is a folder: give the study's file name (e.g. study.json)", option="--save")
     catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     ids = parse_add(add, catalog)
+    start = study_chain(previous, catalog, str(resume)) if previous else []
+    sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
+    if previous:
+        check_campaign(previous, sha256, str(resume), str(data))
     campaign = read_campaign(Path(data), geometry or {})
     baseline = None
     if model is not None:
@@ -65,7 +77,13 @@ def diagnose_command(
             data_model=data_model,
             catalog=catalog,
             progress=lambda effect_id: bar.update(task, description=f"scanning {effect_id}"),
+            start=start,
         )
+    target = save if save is not None else resume
+    if target is not None:
+        described = {"file": Path(data).name, "sha256": sha256, "orientations": campaign.n_orientations, "repetitions": campaign.n_repetitions}
+        study = study_record(result, result.chain, described, data_part, None if effects is None else str(effects), previous)
+        write_json_object(target, study)
     if json_output:
         print(json.dumps(result.as_dict()))
     else:
@@ -124,7 +142,7 @@ def _where_it_fails(result: Diagnosis) -> list[str]:
 
 
 def _candidates(result: Diagnosis, catalog: Catalog) -> list[str]:
-    from ph_explorer.diagnosis.nested import effect_label  # torch-bound, like the command itself
+    from ph_explorer.diagnosis.results import effect_label  # torch-bound, like the command itself
 
     lines = ["Candidate effects (best first): share of the out-of-sample residual explained, fall of the held-out error"]
     lines += _ranking(result.candidates, catalog)

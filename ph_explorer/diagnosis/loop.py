@@ -120,6 +120,7 @@ def diagnose(
     progress: Callable[[str], None] | None = None,
     seed: int = 0,
     nested: bool = True,
+    start: Sequence[Effect] = (),
 ) -> Diagnosis:
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
@@ -130,6 +131,8 @@ def diagnose(
     catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
     nested: when the search finds effects, measure them on rings that took no part in choosing
     them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
+    start: effects already in the model, each at its settings (a resumed study's chain): the
+    search continues from them, and the steps begin with them.
     """
     held_out = campaign.holdout_mask()
     train = ~held_out
@@ -157,7 +160,7 @@ def diagnose(
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
-    choice = choose_effects(campaign, train, effects, max_steps, seed, progress)
+    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start)
     search, before, candidates, found, chain = choice.search, choice.before, choice.candidates, choice.found, choice.chain
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
@@ -169,7 +172,7 @@ def diagnose(
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
 
-    honest = nested_after(campaign, effects, data_model, (), max_steps, seed) if nested and found else None
+    honest = nested_after(campaign, effects, data_model, start, max_steps, seed) if nested and found else None
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
@@ -179,7 +182,7 @@ def diagnose(
     if add is None:
         chosen_steps = chain
     else:
-        chosen_steps = [by_id[i].with_settings(**(scan[i].settings if i in scan else {})) for i in add]
+        chosen_steps = [*start, *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) for i in add)]
     hybrid = None
     for count in range(1, len(chosen_steps) + 1):
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_model)
@@ -197,6 +200,8 @@ def diagnose(
         within_noise={"baseline": before, "after": choice.after},
         rankings=choice.rankings,
         nested=honest,
+        chain=chosen_steps,
+        started_from=len(start),
         steps=steps,
         orientations=campaign.orientations,
         out_of_sample_mae_um=mae,

@@ -18,19 +18,12 @@ import numpy as np
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
-from ph_explorer.diagnosis.results import NestedAfter
+from ph_explorer.diagnosis.results import NestedAfter, effect_label
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import DataModel, HybridModel
 
 NESTED_FOLDS = 5
-
-
-def effect_label(effect: Effect) -> str:
-    """'b_axis_cyclic 22 cycles/rev': an effect with its scanned settings, as a step names it."""
-    settings = effect.settings()
-    units = {p.name: p.unit for p in effect.parameters}
-    return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
 
 
 def nested_after(

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.noise_test import NoiseTest
-from ph_explorer.effects import Catalog
+from ph_explorer.effects import Catalog, Effect
 from ph_explorer.models.hybrid import HybridModel
 
 DIGITS = 5
@@ -127,6 +127,8 @@ class Diagnosis:
     # The candidate table before every step of the search and after its last (the first is `candidates`).
     rankings: list[list[Candidate]] = field(default_factory=list)
     nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
+    chain: list[Effect] = field(default_factory=list)  # the last step's effects, at their settings
+    started_from: int = 0  # how many of them were in the model before this run (a resumed study)
 
     def as_dict(self) -> dict[str, Any]:
         """The diagnose --json object."""
@@ -163,13 +165,23 @@ class Diagnosis:
         }
 
 
+def effect_label(effect: Effect) -> str:
+    """'b_axis_cyclic 22 cycles/rev': an effect with its scanned settings, as a step names it."""
+    settings = effect.settings()
+    units = {p.name: p.unit for p in effect.parameters}
+    return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
+
+
 def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     """The verdict as a headline and its explanation, in words (the CLI and the app show the same)."""
     before, after = result.within_noise["baseline"], result.within_noise["after"]
     found = "; ".join(f"{c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)})" for c in result.found)
     headline = f"Verdict: {result.verdict} - {VERDICTS[result.verdict]}."
     lines = []
-    if result.verdict in ("missing", "partial"):
+    if result.started_from:
+        already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
+        lines.append(f"Resumed with {already} in the model; the search continued from there.")
+    if result.verdict in ("missing", "partial") and result.found:
         lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
     test = after if result.verdict in ("missing", "partial") else before
     if test is None:

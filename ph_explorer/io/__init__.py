@@ -2,12 +2,24 @@
 
 reader.py reads and validates a CSV (every problem one line: file, row, column), sidecar.py reads
 and writes NAME.toml beside NAME.csv, writer.py writes both atomically and deterministically,
-summary.py says what a campaign holds (the `inspect --json` object).
+summary.py says what a campaign holds (the `inspect --json` object), files.py checksums files and
+reads and writes JSON documents (a diagnosis's study) atomically.
 """
 
+from ph_explorer.io.files import file_sha256, read_json_object, write_json_object
 from ph_explorer.io.reader import KNOWN_COLUMNS, REQUIRED_COLUMNS, read_campaign
 from ph_explorer.io.sidecar import sidecar_path
 from ph_explorer.io.summary import campaign_summary
 from ph_explorer.io.writer import write_campaign
 
-__all__ = ["KNOWN_COLUMNS", "REQUIRED_COLUMNS", "campaign_summary", "read_campaign", "sidecar_path", "write_campaign"]
+__all__ = [
+    "KNOWN_COLUMNS",
+    "REQUIRED_COLUMNS",
+    "campaign_summary",
+    "file_sha256",
+    "read_campaign",
+    "read_json_object",
+    "sidecar_path",
+    "write_campaign",
+    "write_json_object",
+]

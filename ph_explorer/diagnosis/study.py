@@ -1,0 +1,134 @@
+"""A study: the history of a diagnosis that lasts beyond one run, to be continued later.
+
+A study is one JSON object (`diagnose --save STUDY`, `--resume STUDY`, and the app's study
+buttons):
+
+    {"format": "ph-explorer study 1",
+     "campaign": {"file": "ring.csv", "sha256": "...", "orientations": 135, "repetitions": 10},
+     "baseline": "trilinear", "data_part": "trilinear", "effects_file": null,
+     "chain": [{"effect": "b_axis_cyclic", "settings": {"cycles_per_rev": 22},
+                "params": {...}, "params_u": {...}}],
+     "verdict": "missing", "steps": [...], "within_noise": {...}, "nested_after": {...},
+     "runs": [{"date": "2026-11-23T17:40:00", "started_from": 0, "added": ["b_axis_cyclic 22 cycles/rev"],
+               "verdict": "missing"}]}
+
+`chain` is the model the study has reached: the effects in the order they were added, each at
+its scanned settings; resuming starts the search from that model. `steps`, `verdict`,
+`within_noise` and `nested_after` are those of the last run (the `diagnose --json` keys);
+`runs` lists every run. A study belongs to one campaign: its sha256 must match to resume.
+"""
+
+from __future__ import annotations
+
+import datetime
+from typing import Any
+
+from ph_explorer.diagnosis.results import effect_label
+from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.effects import Catalog, Effect
+from ph_explorer.errors import InputError
+
+STUDY_FORMAT = "ph-explorer study 1"
+STUDY_KEYS = ("format", "campaign", "baseline", "data_part", "chain", "runs")
+
+
+def study_record(
+    result: Diagnosis,
+    chain: list[Effect],
+    campaign: dict[str, Any],
+    data_part: str,
+    effects_file: str | None = None,
+    previous: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The study after this run: the chain the run reached (start + what it added), its figures,
+    and the runs before it (from `previous`, the study it resumed, if any)."""
+    figures = result.as_dict()
+    # Parameters: the joint fit of the whole chain (the last step); their uncertainty from the
+    # search that found each effect (this run's, or the study's it resumed).
+    joint = result.steps[-1].params if result.steps[-1].added else []
+    def key(effect_id: str, settings: dict[str, Any]) -> tuple:
+        return effect_id, tuple(sorted((k, float(v)) for k, v in settings.items()))
+
+    uncertainty = {key(e["effect"], e.get("settings", {})): e.get("params_u", {}) for e in (previous or {}).get("chain", [])}
+    uncertainty.update({key(c.effect, c.settings): c.params_u for c in result.found})
+    entries = []
+    for index, effect in enumerate(chain):
+        settings = {k: float(v) for k, v in effect.settings().items()}
+        entries.append(
+            {
+                "effect": effect.id,
+                "settings": settings,
+                "params": joint[index]["params"] if index < len(joint) else {},
+                "params_u": uncertainty.get(key(effect.id, settings), {}),
+            }
+        )
+    started_from = 0 if previous is None else len(previous["chain"])
+    run = {
+        "date": datetime.datetime.now().isoformat(timespec="seconds"),
+        "started_from": started_from,
+        "added": [effect_label(e) for e in chain[started_from:]],
+        "verdict": result.verdict,
+    }
+    return {
+        "format": STUDY_FORMAT,
+        "campaign": campaign,
+        "baseline": result.baseline_model,
+        "data_part": data_part,
+        "effects_file": effects_file,
+        "chain": entries,
+        "verdict": result.verdict,
+        "steps": figures["steps"],
+        "within_noise": figures["within_noise"],
+        "nested_after": figures["nested_after"],
+        "runs": [*(previous or {}).get("runs", []), run],
+    }
+
+
+def check_study(study: dict[str, Any], source: str) -> dict[str, Any]:
+    """The study if it is one (every key, the format, a well-formed chain); else an InputError line."""
+    for key in STUDY_KEYS:
+        if key not in study:
+            raise InputError(f"not a study: no {key!r} key", file=source)
+    if study["format"] != STUDY_FORMAT:
+        raise InputError(f"format {study['format']!r} is not {STUDY_FORMAT!r}", file=source, column="format")
+    campaign = study["campaign"]
+    if not isinstance(campaign, dict) or not isinstance(campaign.get("sha256"), str):
+        raise InputError("campaign must be an object with the campaign file's sha256", file=source, column="campaign")
+    if not isinstance(study["chain"], list) or not isinstance(study["runs"], list):
+        raise InputError("chain and runs must be lists", file=source, column="chain")
+    for index, entry in enumerate(study["chain"]):
+        where = f"chain[{index}]"
+        if not isinstance(entry, dict) or not isinstance(entry.get("effect"), str) or not isinstance(entry.get("settings", {}), dict):
+            raise InputError("each entry must be {'effect': id, 'settings': {name: value}}", file=source, column=where)
+        for name, value in entry.get("settings", {}).items():
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise InputError(f"setting {name!r} must be a number, got {value!r}", file=source, column=where)
+    return study
+
+
+def study_chain(study: dict[str, Any], catalog: Catalog, source: str) -> list[Effect]:
+    """The effects of a (checked) study's chain, each at its settings, from the catalog."""
+    candidates = catalog.candidates()
+    chain = []
+    for index, entry in enumerate(study["chain"]):
+        effect_id = entry["effect"]
+        if effect_id not in candidates:
+            hint = " (the study was made with --effects " + str(study["effects_file"]) + ")" if study.get("effects_file") else ""
+            raise InputError(f"effect {effect_id!r} is not a candidate of the catalog{hint}", file=source, column=f"chain[{index}]")
+        effect = candidates[effect_id]()
+        known = {p.name for p in effect.parameters}
+        unknown = sorted(set(entry.get("settings", {})) - known)
+        if unknown:
+            raise InputError(f"effect {effect_id!r} has no parameter {unknown[0]!r}", file=source, column=f"chain[{index}]")
+        chain.append(effect.with_settings(**entry.get("settings", {})))
+    return chain
+
+
+def check_campaign(study: dict[str, Any], sha256: str, source: str, data: str) -> None:
+    """A study continues only on the campaign it was made on (the same bytes)."""
+    if study["campaign"]["sha256"] != sha256:
+        made_on = study["campaign"].get("file") or "another campaign"
+        raise InputError(
+            f"the study was made on {made_on} (sha256 {study['campaign']['sha256'][:12]}), not on {data} (sha256 {sha256[:12]})",
+            file=source,
+        )

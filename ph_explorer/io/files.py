@@ -1,0 +1,41 @@
+"""Files as a whole: their checksum, and JSON documents written atomically and read with one clear line per problem."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any
+
+from ph_explorer.errors import InputError
+from ph_explorer.io.writer import atomic_write
+
+
+def file_sha256(path: Path) -> str:
+    """The sha256 of a file's bytes, hex."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def read_json_object(path: Path, what: str) -> dict[str, Any]:
+    """A JSON object from a file, or an InputError naming the file and what is wrong with it."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"no such {what} file", file=str(path))
+    try:
+        document = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"not a {what}: not UTF-8 text", file=str(path)) from None
+    except json.JSONDecodeError as error:
+        raise InputError(f"not a {what}: invalid JSON at line {error.lineno}, column {error.colno}", file=str(path)) from None
+    if not isinstance(document, dict):
+        raise InputError(f"not a {what}: the file holds a JSON {type(document).__name__}, not an object", file=str(path))
+    return document
+
+
+def write_json_object(path: Path, document: dict[str, Any]) -> None:
+    """Write a JSON object atomically: the old file stays whole until the new one is complete."""
+    atomic_write([(Path(path), json.dumps(document, indent=1) + "\n")])
