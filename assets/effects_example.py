@@ -2,7 +2,11 @@
 
 Use it with `ph-explorer diagnose --data CAMPAIGN.csv --effects effects_example.py`, or in Python with
 `catalog = ph_explorer.effects.DEFAULT_CATALOG.with_file("effects_example.py")`; a scenario read with
-that catalog may use `id = "ball_form"` in its [[effects]] tables like any built-in effect.
+that catalog may use `id = "my_ball_form"` in its [[effects]] tables like any built-in effect.
+
+It writes the same mechanism as the built-in `ball_form` (ph_explorer/effects/stylus.py), so that
+you can compare the two: copy this file, change the id (an id must not repeat a built-in one: the
+catalog refuses the file with one line saying so) and write your own mechanism in `basis`.
 
 An effect is a subclass of ph_explorer.effects.base.Effect with an id, a name, a teaching text, its
 parameters (with units, defaults and, for a magnitude, the plausible range of its size; for a phase,
@@ -21,9 +25,9 @@ from ph_explorer.effects.base import Effect, Parameter, full_shape
 from ph_explorer.kinematics import Touches
 
 
-class BallForm(Effect):
-    id = "ball_form"
-    name = "Form error of the stylus ball"
+class MyBallForm(Effect):
+    id = "my_ball_form"
+    name = "Form error of the stylus ball (user example)"
     teaching = (
         "The stylus ball is not a perfect sphere (sphericity 0.08-0.25 um by grade). The wall touches the "
         "ball at the point opposite the probing force, fixed in the probe frame by the force azimuth psi: "
@@ -44,7 +48,7 @@ class BallForm(Effect):
         k = self.params["lobes"]
         psi = np.radians(touches.psi_deg)  # (n_o, 1, n_pt): the same at every repetition
         columns = -np.stack([np.cos(k * psi), np.sin(k * psi)], axis=-1)
-        return full_shape(columns, touches), [f"ball_cos{k:g}psi", f"ball_sin{k:g}psi"]
+        return full_shape(columns, touches), [f"my_ball_cos{k:g}psi", f"my_ball_sin{k:g}psi"]
 
     def coefficients(self) -> NDArray[np.float64]:
         phase = np.radians(self.params["phase_deg"])

@@ -189,11 +189,11 @@ def test_cli_json_adds_the_best_candidate_by_default(b22_csv):
 @pytest.mark.slow
 def test_cli_add_takes_the_users_choice_and_user_effects(b22_csv):
     example = assets_dir() / "effects_example.py"
-    done = run_cli("diagnose", "--data", str(b22_csv), "--add", "ball_form", "--effects", str(example), "--json")
+    done = run_cli("diagnose", "--data", str(b22_csv), "--add", "my_ball_form", "--effects", str(example), "--json")
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
-    assert "ball_form" in [c["effect"] for c in report["candidates"]]
-    assert [s["added"] for s in report["steps"]] == [[], ["ball_form"]]
+    assert "my_ball_form" in [c["effect"] for c in report["candidates"]]
+    assert [s["added"] for s in report["steps"]] == [[], ["my_ball_form"]]
     # The text report names the verdict and the history.
     text = run_cli("diagnose", "--data", str(b22_csv), "--add", "b_axis_cyclic")
     assert text.returncode == 0, text.stderr
@@ -410,11 +410,11 @@ def test_a_second_effect_the_catalog_lacks_leaves_the_verdict_partial():
 
 @pytest.mark.slow
 def test_the_stylus_ball_form_next_to_lobing_is_reported_as_confounded():
-    # A 3-lobe ball form fixed in the probe frame (the example user effect) and the seat lobing are
+    # A 3-lobe ball form fixed in the probe frame (the built-in ball_form) and the seat lobing are
     # the same columns over head touches: the campaign (a coarse A lattice, so that A0-only terms
     # show at the off-grid rings) cannot tell them apart, and the report says so instead of
     # crediting one silently.
-    catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
+    catalog = DEFAULT_CATALOG
     data = tomllib.loads((scenarios_dir() / "paper.toml").read_text())
     off_grid = [[a, b] for a in (15, 45, 75) for b in (-140, -20, 100)]
     data.update(check_orientations=off_grid, orientations={"a_deg": [0, 90, 30], "b_deg": [-160, 180, 20], "off_grid": off_grid})

@@ -310,10 +310,10 @@ def test_bad_parameters_are_input_errors():
 # -- user effects ---------------------------------------------------------------------------------
 def test_user_effect_file_makes_a_new_catalog_and_leaves_the_default_alone():
     catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
-    assert list(catalog)[: len(DEFAULT_CATALOG)] == list(DEFAULT_CATALOG) and "ball_form" in catalog
-    assert "ball_form" not in DEFAULT_CATALOG and "ball_form" in catalog.candidates()
-    assert [c.id for c in load_user_effects(assets_dir() / "effects_example.py")] == ["ball_form"]
-    effect = catalog.make({"id": "ball_form", "amplitude_um": 0.1, "lobes": 2, "phase_deg": 30.0})
+    assert list(catalog)[: len(DEFAULT_CATALOG)] == list(DEFAULT_CATALOG) and "my_ball_form" in catalog
+    assert "my_ball_form" not in DEFAULT_CATALOG and "my_ball_form" in catalog.candidates()
+    assert [c.id for c in load_user_effects(assets_dir() / "effects_example.py")] == ["my_ball_form"]
+    effect = catalog.make({"id": "my_ball_form", "amplitude_um": 0.1, "lobes": 2, "phase_deg": 30.0})
     t = touches_at(grid([0.0, 45.0, 90.0]), n_rep=2)
     d = after_fit(effect, t)
     # Fixed in the probe frame: invisible where psi stays put (A0 = 0), 2 UPR where psi sweeps (A0 = 90).

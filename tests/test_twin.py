@@ -153,10 +153,10 @@ def test_scenario_from_a_user_path_with_a_user_effect(tmp_path):
     path.write_text(
         'name = "mine"\ndescription = "ball form only"\nseed = 3\nrepetitions = 2\n'
         "[orientations]\na_deg = [0, 90, 45]\nb_deg = [0, 90, 90]\n"
-        '[[effects]]\nid = "ball_form"\namplitude_um = 0.1\n'
+        '[[effects]]\nid = "my_ball_form"\namplitude_um = 0.1\n'
     )
     # The user's effect is known only to the catalog that was given its file.
-    with pytest.raises(InputError, match="unknown effect 'ball_form'"):
+    with pytest.raises(InputError, match="unknown effect 'my_ball_form'"):
         load_scenario(path)
     catalog = DEFAULT_CATALOG.with_file(assets_dir() / "effects_example.py")
     campaign = simulate(load_scenario(path, catalog=catalog))

@@ -1,4 +1,4 @@
-"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, serve.
+"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, serve.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
 command is in its own module (cli/inspect.py, ...). A command module imports the torch- or
@@ -19,7 +19,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from ph_explorer.cli import diagnose, evaluate, inspect, serve, simulate, train
+from ph_explorer.cli import diagnose, effects, evaluate, inspect, serve, simulate, train
 from ph_explorer.errors import InputError
 
 app = typer.Typer(
@@ -157,6 +157,19 @@ def _diagnose(
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
     options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output, "save": save, "resume": resume}
     _run("diagnose", diagnose.diagnose_command, data=data, geometry=geometry, **options)
+
+
+@app.command("effects")
+@with_geometry
+def _effects(
+    data: Annotated[Optional[Path], typer.Option(help="A campaign CSV: what its design lets head touches see of each effect.")] = None,
+    effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
+    json_output: JsonOpt = False,
+    geometry: dict[str, float] | None = None,
+) -> None:
+    """Every effect of the catalog (id, ISO 230-1 style symbol, axis, kind, parameters); with --data, which
+    the campaign can see, which the circle fit absorbs, which the data model learns, which are confounded."""
+    _run("effects", effects.effects_command, data=data, effects=effects_file, json_output=json_output, geometry=geometry)
 
 
 @app.command("inspect")

@@ -18,9 +18,12 @@ from ph_explorer.effects.axes import AAxisCyclic, BAxisCyclic, Direction
 from ph_explorer.effects.base import Effect
 from ph_explorer.effects.environment import Drift, RingForm
 from ph_explorer.effects.probe import Gravity, Lobing, Noise
+from ph_explorer.effects.stylus import BallForm, StylusBending
 from ph_explorer.errors import InputError
 
-BUILTIN_EFFECTS: tuple[type[Effect], ...] = (Noise, Lobing, Gravity, AAxisCyclic, BAxisCyclic, Direction, Drift, RingForm)
+BUILTIN_EFFECTS: tuple[type[Effect], ...] = (
+    Noise, Lobing, Gravity, BallForm, StylusBending, AAxisCyclic, BAxisCyclic, Direction, Drift, RingForm,
+)
 # Keys of a scenario's effect table that are not parameters of the effect.
 SPEC_KEYS = ("id", "hidden", "note")
 

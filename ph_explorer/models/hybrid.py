@@ -36,6 +36,10 @@ from ph_explorer.models.design import Design
 from ph_explorer.models.folder import MODEL_TYPES
 
 
+# A basis column whose part left by the circle fit is below this fraction of its size is absorbed.
+ABSORBED_RTOL = 1e-9
+
+
 def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     """An effect's basis columns as they appear in deviations: after each repetition's circle fit.
 
@@ -44,8 +48,14 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     columns, names = effect.basis(touches)
     columns = np.broadcast_to(columns, touches.shape + columns.shape[3:])
     # The circle fit acts along the points: move the column axis out of the way and back.
-    fitted = remove_size_and_centre(np.moveaxis(columns, -1, -2))
-    return np.moveaxis(fitted, -2, -1), list(names)
+    fitted = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
+    # A column the fit removes entirely (harmonics 0 and 1 at every ring: a stylus's sag, a
+    # constant offset) leaves rounding noise ~1e-16 of its size; a least squares would fit that
+    # noise with absurd coefficients. It is zero in the deviations: make it exactly zero.
+    before = np.sqrt((columns**2).sum(axis=(0, 1, 2)))
+    after = np.sqrt((fitted**2).sum(axis=(0, 1, 2)))
+    fitted = np.where(after <= ABSORBED_RTOL * before, 0.0, fitted)
+    return fitted, list(names)
 
 
 SUBFOLDER = "hybrid"
