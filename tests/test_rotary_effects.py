@@ -295,3 +295,26 @@ def test_a_tilt_motion_about_z_grows_like_the_b_lever_and_about_y_has_none_at_a0
     peak = np.abs(screw[..., 5]).max(axis=-1)[:, 0]
     np.testing.assert_allclose(peak, AXIAL_MM * UM_PER_MM * RAD_PER_ARCSEC * np.sin(np.radians([0.0, 30.0, 90.0])), atol=1e-12)
     assert np.abs(screw[0, ..., 4]).max() < 1e-12 and np.abs(screw[1, ..., 4]).max() > 0.15
+
+
+# -- the teaching scenarios that hide them --------------------------------------------------------
+@pytest.mark.parametrize("name", ["near_vertical", "head_2"])
+def test_teaching_scenarios_hide_a_rotary_effect_the_design_can_see_without_naming_it(name):
+    from ph_explorer.models.crossval import OutOfSampleSmoother
+    from ph_explorer.twin import load_scenario
+
+    scenario = load_scenario(name)
+    (hidden,) = [e for e, h in zip(scenario.effects, scenario.hidden) if h]
+    cls = type(hidden)
+    assert cls.kind in ("location", "radial_motion", "tilt_motion") and all(p.admits(hidden.params[p.name]) for p in cls.parameters)
+    # Spoiler-free: the one-line description names neither the effect nor its axis, kind or symbols.
+    words = {cls.id, *cls.id.split("_"), cls.kind, *cls.kind.split("_"), *cls.symbol.split(", "), *cls.name.lower().split()}
+    text = scenario.description.lower()
+    named = [w for w in words if len(w) > 2 and w.lower() not in {"axis", "the", "from"} and re.search(rf"\b{re.escape(w.lower())}\b", text)]
+    assert not named and "axis" not in text, named
+    # What the hidden effect leaves out of sample at the held-out rings, well above the floor of the
+    # mean of 10 repetitions (0.044 um).
+    held = np.array([any(np.allclose(o, c) for c in scenario.check_orientations) for o in scenario.orientations])
+    touches = touch_kinematics(scenario.orientations, scenario.geometry, 1)
+    residual = OutOfSampleSmoother(scenario.orientations, ~held).residual(after_fit(hidden, touches))
+    assert np.mean(np.abs(residual[held])) > 0.055
