@@ -77,7 +77,8 @@ class BAxisPosition(_Location):
         "0.34 um rms near A0 = 7, 0.15 at 15, 0.04-0.06 at 45, and at A0 = 90 0.04 along the stylus's lean "
         "(YOB), nothing along the A axis (XOB); mostly 2 UPR. It is exactly the part of a 1/rev radial error "
         "motion that turns with B. Smooth in A0 above 15 deg: a lattice model learns it, only rings between "
-        "A0 = 0 and 15 deg can show it."
+        "A0 = 0 and 15 deg can show it, and there it is the B axis's tilt (1 arcsec ~ 0.39 um: 99 % shared); "
+        "over all A0 they differ by ~30 %, and a second stylus length separates them."
     )
 
 
@@ -97,7 +98,8 @@ class BAxisOrientation(_Location):
         "the same at every B0 (A0 only). At A0 = 0 the full B turn per ring carries the tilt round with the "
         "point: size and centre only, invisible. Per arcsec 0.08 um rms near A0 = 8, 0.055 at 15, 0.015-0.022 "
         "at 45, 0-0.015 at 90, mostly 2 UPR. It is the part of a 1/rev tilt error motion that turns with B. "
-        "Smooth in A0 above 15 deg: a lattice model learns it; only rings at small A0 show it."
+        "Smooth in A0 above 15 deg: a lattice model learns it; only rings at small A0 show it, where it "
+        "is an offset of the B line by L times the tilt (99 % shared): one stylus length cannot tell them apart."
     )
 
 
