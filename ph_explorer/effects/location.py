@@ -78,7 +78,7 @@ class BAxisPosition(_Location):
         "(YOB), nothing along the A axis (XOB); mostly 2 UPR. It is exactly the part of a 1/rev radial error "
         "motion that turns with B. Smooth in A0 above 15 deg: a lattice model learns it, only rings between "
         "A0 = 0 and 15 deg can show it, and there it is the B axis's tilt (1 arcsec ~ 0.39 um: 99 % shared); "
-        "over all A0 they differ by ~30 %, and a second stylus length separates them."
+        "over all A0 they differ by ~30 % rms, and a second stylus length separates them."
     )
 
 
