@@ -1,17 +1,19 @@
-"""Effects of the head's two rotary axes: cyclic angular errors and lost motion."""
+"""Effects of the head's two rotary axes: cyclic angular errors (the angular positioning members of
+the error motions, `effects/motions.py`) and lost motion."""
 
 from __future__ import annotations
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.motions import ABOUT_X, ABOUT_Z, ANGULAR_MOTION_PLAUSIBLE_ARCSEC, CYCLES_PER_REV, _ErrorMotion
 from ph_explorer.kinematics import Touches
 
-CYCLES_PER_REV = tuple(range(1, 41))
+__all__ = ["AAxisCyclic", "BAxisCyclic", "CYCLES_PER_REV", "Direction"]
 # Plausible magnitude of a residual cyclic error after mapping: the teaching texts' "0.3-2 arcsec",
-# generous by 1.5x at the top.
-CYCLIC_PLAUSIBLE_ARCSEC = (0.0, 3.0)
+# generous by 1.5x at the top (the same as every angular error motion).
+CYCLIC_PLAUSIBLE_ARCSEC = ANGULAR_MOTION_PLAUSIBLE_ARCSEC
 # Plausible lost motion of a joint. The teaching text estimates <= 0.1 um at the ball for a servo
 # head (~0.5 arcsec), but the shipped direction_alternating scenario hides 1.6 arcsec as "a worn or
 # loosely tuned drive" that a user should be told about, not told is impossible; 3 arcsec (+-0.58 um
@@ -20,49 +22,16 @@ CYCLIC_PLAUSIBLE_ARCSEC = (0.0, 3.0)
 LOST_MOTION_PLAUSIBLE_ARCSEC = (0.0, 3.0)
 
 
-class _AxisCyclic(Effect):
-    """eps(angle) = amplitude_arcsec * sin(m * angle + phase) at each touch's actual joint angle."""
+class _AxisCyclic(_ErrorMotion):
+    """eps(angle) = amplitude_arcsec * sin(m * angle + phase) at each touch's actual joint angle: the
+    angular positioning member of the error motions (a rotation about the axis itself)."""
 
-    axis = "A"
+    unit = "arcsec"
     parameters = (
         Parameter("amplitude_arcsec", "arcsec", 1.0, "amplitude of the angular error", plausible=CYCLIC_PLAUSIBLE_ARCSEC),
         Parameter("phase_deg", "deg", 0.0, "phase of the error at joint angle 0", period=360.0),
         Parameter("cycles_per_rev", "cycles/rev", 3.0, "cycles per revolution of the joint"),
     )
-    scan = {"cycles_per_rev": CYCLES_PER_REV}
-
-    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
-        m = self.params["cycles_per_rev"]
-        angle = m * np.radians(joint_angle_deg(touches, self.axis))
-        lever = rotation_deviation_um_per_arcsec(touches, self.axis)
-        cols = np.stack([np.sin(angle) * lever, np.cos(angle) * lever], axis=-1)
-        tag = f"{self.id}_{m:g}"
-        return full_shape(cols, touches), [f"{tag}_sin", f"{tag}_cos"]
-
-    def coefficients(self) -> NDArray[np.float64]:
-        amp, phase = self.params["amplitude_arcsec"], np.radians(self.params["phase_deg"])
-        # sin(m x + phi) = cos(phi) sin(m x) + sin(phi) cos(m x)
-        return np.array([amp * np.cos(phase), amp * np.sin(phase)])
-
-    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
-        c_sin, c_cos = np.asarray(coef, dtype=float)[:2]
-        return {
-            "amplitude_arcsec": float(np.hypot(c_sin, c_cos)),
-            "phase_deg": float(np.degrees(np.arctan2(c_cos, c_sin)) % 360.0),
-            "cycles_per_rev": self.params["cycles_per_rev"],
-        }
-
-    def evidence(self, touches: Touches) -> Evidence:
-        """An angle against its phase: each bin's angular error (arcsec) is the lever-weighted least
-        squares of the radial residual (a touch's lever: um of deviation per arcsec)."""
-        m = self.params["cycles_per_rev"]
-        return Evidence(
-            f"{m:g} x {self.axis} joint angle, mod 360 (deg)",
-            np.mod(m * joint_angle_deg(touches, self.axis), 360.0),
-            edges=np.linspace(0.0, 360.0, 37),
-            weight=rotation_deviation_um_per_arcsec(touches, self.axis),
-            y_label="angular error (arcsec)",
-        )
 
 
 class AAxisCyclic(_AxisCyclic):
@@ -71,6 +40,7 @@ class AAxisCyclic(_AxisCyclic):
     symbol = "EAA"
     name = "A-axis cyclic angular error"
     axis = "A"
+    directions = (("", ABOUT_X, "angular error"),)
     teaching = (
         "The A joint's true angle differs from its reading by eps(A) = sum_m a_m sin(m A + phi_m): encoder "
         "eccentricity (1/rev), ovality (2/rev), mounting (3-8/rev), gear or motor-pole cycles at higher "
@@ -91,6 +61,7 @@ class BAxisCyclic(_AxisCyclic):
     symbol = "ECB"
     name = "B-axis cyclic angular error"
     axis = "B"
+    directions = (("", ABOUT_Z, "angular error"),)
     teaching = (
         "The B joint's true angle differs from its reading by eps(B) = sum_m a_m sin(m B + phi_m) "
         "(0.3-2 arcsec after mapping). B turns about the vertical, so the tip moves by eps times its "

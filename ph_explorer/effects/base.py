@@ -335,22 +335,46 @@ def ball_centre_mm(touches: Touches) -> NDArray[np.float64]:
     return ball_centres(touches.orientations, touches.geometry)[:, None]
 
 
-def rotation_deviation_um_per_arcsec(touches: Touches, axis: str) -> NDArray[np.float64]:
-    """Deviation (um) of each touch per arcsec of rotation error of a head axis, (n_o, 1, n_pt).
+def axis_frame(touches: Touches, axis: str) -> NDArray[np.float64]:
+    """Columns x, y, z of the frame a head axis sits in, in the machine frame, (n_o, 1, n_pt, 3, 3).
 
-    A small rotation eps about a unit axis n through the pivot moves the ball by eps (n x c_k); the
-    touch reads -eps (n x c_k) . u_k. B turns about machine z, so its lever is the ball's distance
-    from z (~ L sin A); A turns about the head's x axis Rz(B_k) x, a lever of the full L.
+    B sits in the machine frame (it turns about z); A sits in the frame carried by B, Rz(B_k), and
+    turns about its x axis. Error motions and location errors of an axis are given in this frame.
     """
-    c = ball_centre_mm(touches)
     if axis == "B":
-        n = np.broadcast_to(np.array([0.0, 0.0, 1.0]), c.shape)
-    elif axis == "A":
-        n = rot_z(touches.b_deg)[..., :, 0]  # (n_o, 1, n_pt, 3): Rz(B_k) x
-    else:
-        raise ValueError("axis must be 'A' or 'B'")
-    moved = np.cross(n, c)
-    return -np.einsum("...i,...i->...", moved, radial_unit(touches)) * RAD_PER_ARCSEC * UM_PER_MM
+        return np.broadcast_to(np.eye(3), touches.b_deg.shape + (3, 3))
+    if axis == "A":
+        return rot_z(touches.b_deg)
+    raise ValueError("axis must be 'A' or 'B'")
+
+
+def screw_deviation(touches: Touches, axis: str) -> NDArray[np.float64]:
+    """Deviation of each touch per unit component of a small-displacement screw of an axis, (n_o, 1, n_pt, 6).
+
+    The screw (delta, eps) displaces the body the axis carries, given in the axis's frame
+    (axis_frame) at the pivot, where both nominal axis lines pass. It moves the ball centre by
+    d = delta + eps x c_k; by the sign rule the touch reads -d . u_k = -delta . u_k - eps . (c_k x u_k).
+    Columns 0-2: per um of translation along the frame's x, y, z; columns 3-5: per arcsec of
+    rotation about them (1 arcsec at 1 mm = 4.85e-3 um). Only the part of eps across the ring axis
+    has a lever, the axial distance sqrt(L^2 - rho^2): c_k x u_k = sqrt(L^2 - rho^2) s0 x u_k.
+    """
+    frame = axis_frame(touches, axis)
+    u = radial_unit(touches)
+    lever = np.cross(ball_centre_mm(touches), u)
+    # Components in the axis frame are frame^T v.
+    per_um = -np.einsum("...ji,...j->...i", frame, u)
+    per_arcsec = -np.einsum("...ji,...j->...i", frame, lever) * RAD_PER_ARCSEC * UM_PER_MM
+    return np.concatenate([per_um, per_arcsec], axis=-1)
+
+
+def rotation_deviation_um_per_arcsec(touches: Touches, axis: str) -> NDArray[np.float64]:
+    """Deviation (um) of each touch per arcsec of angular positioning error of a head axis, (n_o, 1, n_pt).
+
+    The screw_deviation column of a rotation about the axis itself: B turns about machine z, so its
+    lever is the ball's distance from z (~ L sin A); A turns about the head's x axis Rz(B_k) x, a
+    lever of the full L.
+    """
+    return screw_deviation(touches, axis)[..., 5 if axis == "B" else 3]
 
 
 def joint_angle_deg(touches: Touches, axis: str) -> NDArray[np.float64]:

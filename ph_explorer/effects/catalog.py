@@ -17,12 +17,24 @@ from typing import Any
 from ph_explorer.effects.axes import AAxisCyclic, BAxisCyclic, Direction
 from ph_explorer.effects.base import Effect
 from ph_explorer.effects.environment import Drift, RingForm
+from ph_explorer.effects.location import AAxisPosition, AAxisSquareness, BAxisOrientation, BAxisPosition
+from ph_explorer.effects.motions import (
+    AAxisAxialMotion,
+    AAxisRadialMotion,
+    AAxisTiltMotion,
+    BAxisAxialMotion,
+    BAxisRadialMotion,
+    BAxisTiltMotion,
+)
 from ph_explorer.effects.probe import Gravity, Lobing, Noise
 from ph_explorer.effects.stylus import BallForm, StylusBending
 from ph_explorer.errors import InputError
 
 BUILTIN_EFFECTS: tuple[type[Effect], ...] = (
     Noise, Lobing, Gravity, BallForm, StylusBending, AAxisCyclic, BAxisCyclic, Direction, Drift, RingForm,
+    # The rotary axes in the ISO 230-1 vocabulary: location errors, then error motions.
+    BAxisPosition, BAxisOrientation, AAxisPosition, AAxisSquareness,
+    BAxisRadialMotion, BAxisAxialMotion, BAxisTiltMotion, AAxisRadialMotion, AAxisAxialMotion, AAxisTiltMotion,
 )
 # Keys of a scenario's effect table that are not parameters of the effect.
 SPEC_KEYS = ("id", "hidden", "note")
