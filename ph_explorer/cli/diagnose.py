@@ -191,7 +191,7 @@ def _history(result: Diagnosis) -> list[str]:
     if nested is not None:
         lines += [
             f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
-            f"cross-validation over the {nested.rings} training rings; the check rings above took part in the choice):",
+            f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):",
             f"  {'before':50s} " + _mae_text(nested.before_um, nested.noise_floor_um),
             f"  {'after':50s} " + _mae_text(nested.after_um, nested.noise_floor_um),
         ]

@@ -130,6 +130,14 @@ class Diagnosis:
     chain: list[Effect] = field(default_factory=list)  # the last step's effects, at their settings
     started_from: int = 0  # how many of them were in the model before this run (a resumed study)
 
+    @staticmethod
+    def steps_dict(steps: list[Step]) -> list[dict[str, Any]]:
+        """Steps as the JSON gives them."""
+        return [
+            {"added": s.added, "model": s.model, "mae_um": rounded(s.mae_um), "noise_floor_um": rounded(s.noise_floor_um), "params": s.params}
+            for s in steps
+        ]
+
     def as_dict(self) -> dict[str, Any]:
         """The diagnose --json object."""
         return {
@@ -141,16 +149,7 @@ class Diagnosis:
             "signature": self.signature,
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "nested_after": None if self.nested is None else self.nested.as_dict(),
-            "steps": [
-                {
-                    "added": s.added,
-                    "model": s.model,
-                    "mae_um": rounded(s.mae_um),
-                    "noise_floor_um": rounded(s.noise_floor_um),
-                    "params": s.params,
-                }
-                for s in self.steps
-            ],
+            "steps": self.steps_dict(self.steps),
             "where_it_fails": [
                 {
                     "A_deg": float(a),

@@ -13,6 +13,7 @@ lowers the out-of-sample rms error against the reference that exposes it materia
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -39,6 +40,18 @@ NULL_DRAWS = 39
 MATERIAL_REDUCTION = 0.15
 # Significant scan values of one effect tried for materiality, most explained first.
 MAX_MATERIAL_TRIALS = 8
+
+
+@dataclass
+class Scan:
+    """One effect's scan: what each scan value explains of the data (best first), and the most
+    any scan value explains of each pure-noise draw."""
+
+    effect: Effect
+    fixed: Design | None
+    total: float  # the data's sum of squares left by `fixed`
+    scanned: list[tuple[float, dict[str, Any]]]
+    null_best: NDArray[np.float64]  # (NULL_DRAWS,)
 
 
 def _rms(x: NDArray[np.float64]) -> float:
@@ -84,20 +97,14 @@ class CandidateSearch:
             self._designs[key] = Design(fitted_basis(effect, self.touches)[0], self.smoother)
         return self._designs[key]
 
-    def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:
-        """The candidate's best scan value, beyond the columns `fixed` already in the model.
-
-        Every scan value is tested against pure noise; among the significant ones (most explained
-        first, at most MAX_MATERIAL_TRIALS) the first that also lowers the held-out error
-        materially is chosen, so that a large but harmless component of the same effect (a
-        low-order cyclic error the grid resolves) does not hide a short-period one that it does not.
-        """
+    def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
+        """What every scan value of the effect explains of the data and of each pure-noise draw,
+        beyond the columns `fixed` already in the model; an untested Candidate when it cannot be."""
         unmet = effect.unmet_needs(self.touches)
         if unmet:
             return Candidate.untested(effect.id, effect.name, effect.teaching, note=f"the {effect.id} effect {'; '.join(unmet)}")
         total_all = self.targets.total()
         base = least_squares.fit(fixed, self.targets)[1] if fixed is not None else np.zeros_like(total_all)
-        total = float(total_all[0] - base[0])
         scanned: list[tuple[float, dict[str, Any]]] = []
         null_best = np.zeros(NULL_DRAWS)
         for settings in effect.scan_grid():
@@ -111,7 +118,24 @@ class CandidateSearch:
         if not scanned:
             return Candidate.untested(effect.id, effect.name, effect.teaching)
         scanned.sort(key=lambda item: item[0], reverse=True)
-        threshold = NULL_MARGIN * float(null_best.max())
+        return Scan(effect, fixed, float(total_all[0] - base[0]), scanned, null_best)
+
+    def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:
+        """One candidate judged on its own null (rank_candidates judges every candidate against
+        the null of the whole family)."""
+        scanned = self.scan(effect, fixed)
+        return scanned if isinstance(scanned, Candidate) else self.judge(scanned, float(scanned.null_best.max()))
+
+    def judge(self, scan: Scan, null_level: float) -> Candidate:
+        """The candidate's best scan value: beyond noise when it explains more than NULL_MARGIN
+        times null_level (what pure noise explains at most in the look-elsewhere family, in this
+        effect's units); among those (most explained first, at most MAX_MATERIAL_TRIALS) the
+        first that also lowers the held-out error materially is chosen, so that a large but
+        harmless component of the same effect (a low-order cyclic error the grid resolves) does
+        not hide a short-period one that it does not.
+        """
+        effect, fixed, total, scanned = scan.effect, scan.fixed, scan.total, scan.scanned
+        threshold = NULL_MARGIN * null_level
         trials = [item for item in scanned if item[0] > threshold][:MAX_MATERIAL_TRIALS] or scanned[:1]
         before = self.check_residual(fixed)
         chosen = None
@@ -135,7 +159,7 @@ class CandidateSearch:
             name=effect.name,
             explained_fraction=explained / max(total, 1e-300),
             error_reduction=reduction,
-            noise_fraction=float(null_best.max() / max(total, 1e-300)),
+            noise_fraction=float(null_level / max(total, 1e-300)),
             # A fit outside the effect's plausible range is never the explanation.
             significant=bool(explained > threshold and reduction >= MATERIAL_REDUCTION and not implausible),
             params={k: float(v) for k, v in params.items()},
@@ -183,13 +207,26 @@ def rank_candidates(
     fixed: Design | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[Candidate]:
-    """Every given effect scored, best first (significant ones, then by the share of the residual it explains)."""
-    out = []
+    """Every given effect scored, best first: significant ones, then by what each explains beyond
+    what pure noise explains with its own columns and scan (so that of two effects that explain
+    the same, the one with fewer columns and scan values comes first).
+
+    Look-elsewhere over the whole family: each effect's noise maxima are put on a common scale
+    (divided by their median over the draws); the family's null in each draw is the largest of
+    them over every candidate and every scanned value, and a candidate is beyond noise only when
+    it explains more than NULL_MARGIN times the largest family null, on its own scale.
+    """
+    scans: list[Scan | Candidate] = []
     for effect in effects:
         if progress is not None:
             progress(effect.id)
-        out.append(search.score(effect, fixed))
-    out.sort(key=lambda c: (c.significant, c.explained_fraction), reverse=True)
+        scans.append(search.scan(effect, fixed))
+    tested = [s for s in scans if isinstance(s, Scan)]
+    scales = [max(float(np.median(s.null_best)), 1e-300) for s in tested]
+    family = max((float((s.null_best / scale).max()) for s, scale in zip(tested, scales)), default=0.0)
+    levels = {id(s): family * scale for s, scale in zip(tested, scales)}
+    out = [s if isinstance(s, Candidate) else search.judge(s, levels[id(s)]) for s in scans]
+    out.sort(key=lambda c: (c.significant, c.explained_fraction - c.noise_fraction), reverse=True)
     return out
 
 
@@ -226,3 +263,4 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
             shared = shared_variance(designs[candidate.effect], design) if other != candidate.effect else 0.0
             if shared > CONFOUNDED:
                 candidate.confounded_with.append({"effect": other, "shared": round(shared, 3)})
+        candidate.confounded_with.sort(key=lambda o: -o["shared"])  # the closest first

@@ -24,7 +24,7 @@ import datetime
 from typing import Any
 
 from ph_explorer.diagnosis.results import effect_label
-from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.diagnosis.results import Diagnosis, Step
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 
@@ -39,13 +39,22 @@ def study_record(
     data_part: str,
     effects_file: str | None = None,
     previous: dict[str, Any] | None = None,
+    steps: list[Step] | None = None,
 ) -> dict[str, Any]:
     """The study after this run: the chain the run reached (start + what it added), its figures,
-    and the runs before it (from `previous`, the study it resumed, if any)."""
+    and the runs before it (from `previous`, the study it resumed, if any).
+
+    steps: the error history when it is not the diagnosis's own (the app's refits); its last
+    step's parameters are the chain's.
+    """
     figures = result.as_dict()
+    if steps is not None:
+        figures["steps"] = Diagnosis.steps_dict(steps)
+    else:
+        steps = result.steps
     # Parameters: the joint fit of the whole chain (the last step); their uncertainty from the
     # search that found each effect (this run's, or the study's it resumed).
-    joint = result.steps[-1].params if result.steps[-1].added else []
+    joint = steps[-1].params if steps and steps[-1].added else []
     def key(effect_id: str, settings: dict[str, Any]) -> tuple:
         return effect_id, tuple(sorted((k, float(v)) for k, v in settings.items()))
 
