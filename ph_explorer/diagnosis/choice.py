@@ -6,6 +6,8 @@ campaign, and the nested cross-validation (ph_explorer.diagnosis.nested) on each
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -30,8 +32,12 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
 
 
 # A candidate that is not material on the check rings is still taken when it brings at least this
-# many of the rings that exceed their noise within it: more than one, so that no single ring decides.
+# many of the rings that exceed their noise within it: more than one, so that no single ring decides,
+# and at least this share of them, so that it explains a material part of the failure (as the
+# check rings' 15 % does; with a catalog of many effects a couple of rings is what one of them
+# takes from a failure it does not explain).
 RINGS_BROUGHT_WITHIN = 2
+SHARE_BROUGHT_WITHIN = 0.25
 
 
 def next_found(
@@ -48,8 +54,8 @@ def next_found(
 
     A significant candidate (beyond noise, plausible, and lowering the check rings' error
     materially) is taken. So is one that is beyond noise and plausible when the model fails
-    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN of the exceeding rings within
-    noise: a failure on the lattice rings the check rings do not see.
+    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN, and SHARE_BROUGHT_WITHIN, of
+    the exceeding rings within noise: a failure on the lattice rings the check rings do not see.
     """
     for candidate in ranked:
         if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
@@ -57,7 +63,8 @@ def next_found(
         test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
         if candidate.significant:
             return candidate, test
-        if test is not None and test.failing_rings <= current.failing_rings - RINGS_BROUGHT_WITHIN:
+        brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
+        if test is not None and test.failing_rings <= current.failing_rings - brought:
             candidate.significant = True
             candidate.note = (
                 f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
@@ -92,13 +99,15 @@ def choose_effects(
     seed: int = 0,
     progress: Callable[[str], None] | None = None,
     start: Sequence[Effect] = (),
+    detail: bool = True,
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
-    the model, e.g. a resumed study's)."""
+    the model, e.g. a resumed study's); detail: the candidates' uncertainties and evidence (a
+    search that only chooses needs neither)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
-    search = CandidateSearch(campaign, train, seed)
+    search = CandidateSearch(campaign, train, seed, detail)
     before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
     chain = list(start)
     current = within_noise_after(search, campaign, chain, seed) if chain else before

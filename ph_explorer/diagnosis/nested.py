@@ -53,7 +53,7 @@ def nested_after(
         keep[fold] = False
         sub = campaign.subset(keep)
         sub_train = ~sub.holdout_mask()
-        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start)
+        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start, detail=False)
         touches = campaign_touches(campaign.subset(fold))
         before, after = (
             HybridModel(list(chain), NESTED_DATA_PART).fit(sub, sub_train).predict_touches(touches) for chain in (start, choice.chain)

@@ -61,8 +61,11 @@ def _rms(x: NDArray[np.float64]) -> float:
 class CandidateSearch:
     """Scores candidate effects against what the baseline cannot predict out of sample."""
 
-    def __init__(self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0) -> None:
+    def __init__(self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, detail: bool = True) -> None:
         self.campaign = campaign
+        # detail: each candidate with its parameters' uncertainty (a jackknife over rings) and its
+        # evidence; a search that only chooses (a nested fold's) needs neither.
+        self.detail = detail
         self.train = np.asarray(train, dtype=bool)
         self.held_out = np.flatnonzero(~self.train)
         # Every ring's out-of-sample residual: leave-one-out at training rings, the whole training
@@ -93,9 +96,12 @@ class CandidateSearch:
         """One effect's design at its settings, made once per search (every ranking and every
         step of the chain asks for the same scan values again)."""
         key = (effect.id, tuple(sorted(effect.settings().items())))
-        if key not in self._designs:
-            self._designs[key] = Design(fitted_basis(effect, self.touches)[0], self.smoother)
-        return self._designs[key]
+        if key in self._designs:
+            return self._designs[key]
+        design = Design(fitted_basis(effect, self.touches)[0], self.smoother)
+        if design.within is None:  # one that changes between repetitions is n_rep times larger: made again
+            self._designs[key] = design
+        return design
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,
@@ -150,23 +156,26 @@ class CandidateSearch:
         explained, settings, reduction, design, joint = chosen
         own = least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0]
         found = effect.with_settings(**settings)
-        every_ring = np.arange(self.campaign.n_orientations)
-        without = least_squares.jackknife(joint, self.targets, every_ring)[:, -design.n_columns :]
-        params, params_u = jackknife_parameters(found, without, own)
+        if self.detail:
+            every_ring = np.arange(self.campaign.n_orientations)
+            without = least_squares.jackknife(joint, self.targets, every_ring)[:, -design.n_columns :]
+            params, params_u = jackknife_parameters(found, without, own)
+        else:
+            params, params_u = found.from_coefficients(own), {}
         implausible = found.implausible(params)
         return Candidate(
             effect=effect.id,
             name=effect.name,
             explained_fraction=explained / max(total, 1e-300),
             error_reduction=reduction,
-            noise_fraction=float(null_level / max(total, 1e-300)),
+            noise_fraction=float((null_level if np.isfinite(null_level) else scan.null_best.max()) / max(total, 1e-300)),
             # A fit outside the effect's plausible range is never the explanation.
             significant=bool(explained > threshold and reduction >= MATERIAL_REDUCTION and not implausible),
             params={k: float(v) for k, v in params.items()},
             params_u={k: float(v) for k, v in params_u.items()},
             settings=settings,
             teaching=effect.teaching,
-            evidence=self.evidence(found, design, own),
+            evidence=self.evidence(found, design, own) if self.detail else {},
             note="best catalog fit implausible: " + "; ".join(implausible) if implausible else "",
             beyond_noise=bool(explained > threshold and not implausible),
         )
@@ -212,7 +221,7 @@ def rank_candidates(
     the same, the one with fewer columns and scan values comes first).
 
     Look-elsewhere over the whole family: each effect's noise maxima are put on a common scale
-    (divided by their median over the draws); the family's null in each draw is the largest of
+    (divided by their mean over the draws); the family's null in each draw is the largest of
     them over every candidate and every scanned value, and a candidate is beyond noise only when
     it explains more than NULL_MARGIN times the largest family null, on its own scale.
     """
@@ -221,11 +230,14 @@ def rank_candidates(
         if progress is not None:
             progress(effect.id)
         scans.append(search.scan(effect, fixed))
-    tested = [s for s in scans if isinstance(s, Scan)]
-    scales = [max(float(np.median(s.null_best)), 1e-300) for s in tested]
+    # An effect that explains (next to) nothing of pure noise has no free direction left beyond
+    # `fixed` and the smoother: it cannot be told from noise at all, and takes no part in the scale.
+    tested = [s for s in scans if isinstance(s, Scan) and s.null_best.mean() > 1e-9 * max(s.total, 1e-300)]
+    scales = [float(s.null_best.mean()) for s in tested]
     family = max((float((s.null_best / scale).max()) for s, scale in zip(tested, scales)), default=0.0)
     levels = {id(s): family * scale for s, scale in zip(tested, scales)}
-    out = [s if isinstance(s, Candidate) else search.judge(s, levels[id(s)]) for s in scans]
+    untestable = float("inf")
+    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), untestable)) for s in scans]
     out.sort(key=lambda c: (c.significant, c.explained_fraction - c.noise_fraction), reverse=True)
     return out
 
