@@ -431,3 +431,7 @@ def test_the_stylus_ball_form_next_to_lobing_is_reported_as_confounded():
     assert shared.get(partner, 0.0) > 0.9
     assert f"cannot be told apart from {partner}" in "\n".join(verdict_text(result, catalog)[1])
     assert result.as_dict()["candidates"][0]["confounded_with"]
+    # ... and what would separate them: the seats and a 3-lobe ball are the same over any head touches.
+    closest = best.confounded_with[0]
+    assert closest["effect"] == partner and closest["separated_by"]["measurement"] == ""
+    assert f"To tell {best.effect} from {partner}: none of the measurements tried" in "\n".join(verdict_text(result, catalog)[1])

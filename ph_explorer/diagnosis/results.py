@@ -205,13 +205,28 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
         if candidate.confounded_with:
             shared = ", ".join(f"{o['effect']} ({100 * o['shared']:.0f} % shared)" for o in candidate.confounded_with)
-            lines.append(
-                f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to "
-                "split; other orientations (off-grid rings, other A0), another scan direction or touch times may separate them."
-            )
+            lines.append(f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to split.")
+            lines += [text for other in candidate.confounded_with if (text := separation_text(candidate.effect, other))]
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def separation_text(effect: str, other: dict[str, Any]) -> str:
+    """What would tell an effect from a confounded one (search.confounding, diagnosis.separation)."""
+    separated = other.get("separated_by")
+    if separated is None:
+        return ""
+    now = f"{100 * separated['shared_now']:.0f} %"
+    if not separated["measurement"]:
+        return (
+            f"To tell {effect} from {other['effect']}: none of the measurements tried (rings near A0 = 0, off-grid rings, "
+            f"a reversed scan, a longer stylus) lowers what their columns share over the touches alone ({now})."
+        )
+    return (
+        f"To tell {effect} from {other['effect']}: measure {separated['measurement']}; over the touches alone their "
+        f"columns would share {100 * separated['shared']:.0f} % instead of {now}."
+    )
 
 
 def signature_text(entry: dict[str, Any]) -> str:

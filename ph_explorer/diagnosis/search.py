@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
+from ph_explorer.diagnosis.separation import separating_measurements
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import design as least_squares
@@ -245,6 +246,7 @@ def rank_candidates(
 # Two candidates whose columns share more than this (squared canonical correlation over every
 # touch, through the smoother) cannot be told apart by this campaign.
 CONFOUNDED = 0.8
+SEPARATIONS = 3  # the closest partners of each candidate told what would separate them
 
 
 def shared_variance(a: Design, b: Design) -> float:
@@ -267,7 +269,8 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
     """Name, on each candidate beyond noise, the others it cannot be told from on this campaign
     (their columns at the chosen settings share more than CONFOUNDED), with how much they share."""
     # Each effect once in the ranking: its columns at the settings it was scored at.
-    designs = {c.effect: search.design([by_id[c.effect].with_settings(**c.settings)]) for c in candidates if c.evidence.get("x")}
+    at = {c.effect: by_id[c.effect].with_settings(**c.settings) for c in candidates if c.evidence.get("x")}
+    designs = {effect_id: search.design([effect]) for effect_id, effect in at.items()}
     for candidate in candidates:
         if not (candidate.beyond_noise or candidate.significant) or candidate.effect not in designs:
             continue
@@ -276,3 +279,8 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
             if shared > CONFOUNDED:
                 candidate.confounded_with.append({"effect": other, "shared": round(shared, 3)})
         candidate.confounded_with.sort(key=lambda o: -o["shared"])  # the closest first
+        # ... and what would tell it from its closest partners.
+        closest = candidate.confounded_with[:SEPARATIONS]
+        pairs = [(at[candidate.effect], at[o["effect"]]) for o in closest]
+        for entry, separated in zip(closest, separating_measurements(pairs, search.campaign)):
+            entry["separated_by"] = separated

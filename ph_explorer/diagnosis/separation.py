@@ -1,0 +1,114 @@
+"""What measurement would separate two candidates this campaign cannot tell apart.
+
+Two effects whose columns over the campaign's touches are nearly the same (search.confounding)
+split the signal between them, and no fit can say which it is. Another measurement can: more
+touches at orientations, in an order or with a set-up where their signatures differ. Each
+MEASUREMENTS entry adds such touches to the campaign's own, and the two effects' shared variance
+(the largest squared canonical correlation of their columns after the circle fit) is computed over
+the union; the measurement that lowers it most is named, with the share it would leave.
+
+The share here is that of the columns after the circle fit, without the out-of-sample smoother:
+what head touches can tell apart in principle once the effect is in the model; the diagnosis's own
+`shared` is through the smoother, on this campaign. Nothing is simulated: the columns are the
+effects' bases at the touches' kinematics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.campaign import Campaign, lattice_axes
+from ph_explorer.effects import Effect
+from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
+from ph_explorer.models.hybrid import fitted_basis
+
+LONGER_STYLUS_MM = 20.0  # a second stylus this much longer than the campaign's
+NEAR_VERTICAL_A_DEG = (5.0, 10.0)  # rings between A0 = 0 and the first lattice row
+SEPARATES = 0.02  # a measurement that lowers the shared variance by less separates nothing
+
+
+def _columns(effect: Effect, touch_sets: Sequence[Touches]) -> NDArray[np.float64]:
+    """An effect's fitted columns over several sets of touches, as (rows, columns)."""
+    parts = []
+    for touches in touch_sets:
+        columns = fitted_basis(effect, touches)[0]
+        parts.append(columns.reshape(-1, columns.shape[-1]))
+    return np.concatenate(parts)
+
+
+def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
+    """The largest squared canonical correlation of two effects' columns over the touch sets."""
+
+    def orthonormal(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        u, singular, _ = np.linalg.svd(x, full_matrices=False)
+        return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
+
+    qa, qb = orthonormal(_columns(a, touch_sets)), orthonormal(_columns(b, touch_sets))
+    if not qa.shape[1] or not qb.shape[1]:
+        return 0.0
+    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max() ** 2)
+
+
+def _near_vertical(campaign: Campaign) -> Touches | None:
+    _, b_grid = lattice_axes(campaign.orientations)
+    rows = [(a, b) for a in NEAR_VERTICAL_A_DEG for b in b_grid]
+    return touch_kinematics(rows, campaign.geometry, 1) if rows else None
+
+
+def _half_steps(campaign: Campaign) -> Touches | None:
+    a_grid, b_grid = lattice_axes(campaign.orientations)
+    if a_grid.size < 2 or b_grid.size < 2:
+        return None
+    a_mid = 0.5 * (a_grid[1:] + a_grid[:-1])
+    b_mid = 0.5 * (b_grid + np.roll(b_grid, -1) + np.where(np.roll(b_grid, -1) < b_grid, 360.0, 0.0))
+    rows = [(a, (b + 180.0) % 360.0 - 180.0) for a in a_mid for b in b_mid]
+    return touch_kinematics(rows, campaign.geometry, 1)
+
+
+def _alternating(campaign: Campaign) -> Touches:
+    """The campaign's rings scanned twice, the second time backwards, two seconds a touch."""
+    n_o, n_pt = campaign.n_orientations, campaign.n_points
+    step = np.arange(n_pt, dtype=float)
+    forward = np.arange(n_o)[:, None] * 4.0 * n_pt + step[None, :]
+    backward = forward + n_pt + step[::-1][None, :] - step[None, :]
+    times = 2.0 * np.stack([forward, backward], axis=1)
+    return touch_kinematics(campaign.orientations, campaign.geometry, 2, times)
+
+
+def _longer_stylus(campaign: Campaign) -> Touches:
+    geometry = replace(campaign.geometry, pivot_to_ball_mm=campaign.geometry.pivot_to_ball_mm + LONGER_STYLUS_MM)
+    return touch_kinematics(campaign.orientations, geometry, 1)
+
+
+# Each: (what a user would measure, the touches it adds); None where it adds nothing new.
+MEASUREMENTS: tuple[tuple[str, Callable[[Campaign], Touches | None]], ...] = (
+    (f"rings between A0 = 0 and the first lattice row (A0 = {NEAR_VERTICAL_A_DEG[0]:g}, {NEAR_VERTICAL_A_DEG[1]:g} deg)", _near_vertical),
+    ("off-grid rings at the half steps of the lattice", _half_steps),
+    ("the rings again with the scan direction reversed", _alternating),
+    (f"the rings again with a stylus {LONGER_STYLUS_MM:g} mm longer", _longer_stylus),
+)
+
+
+def separating_measurements(pairs: Sequence[tuple[Effect, Effect]], campaign: Campaign) -> list[dict[str, float | str]]:
+    """For each pair, {"measurement": what to measure best, "shared": the share it would leave,
+    "shared_now": the share over this campaign's touches}, both over the touches alone ("measurement"
+    is "" when none of MEASUREMENTS lowers it by SEPARATES or more). Each measurement's touches are
+    made once for all pairs."""
+    own = campaign_touches(campaign)
+    extras = [(text, make(campaign)) for text, make in MEASUREMENTS]
+    out = []
+    for a, b in pairs:
+        now = shared_over(a, b, [own])
+        best: tuple[float, str] = (now, "")
+        for text, touches in extras:
+            if touches is None or a.unmet_needs(touches) or b.unmet_needs(touches):  # e.g. drift without touch times
+                continue
+            shared = shared_over(a, b, [own, touches])
+            if shared <= best[0] - SEPARATES:
+                best = (shared, text)
+        out.append({"measurement": best[1], "shared": round(best[0], 3), "shared_now": round(now, 3)})
+    return out
