@@ -25,8 +25,9 @@ def serve_command(**options: Any) -> int:
         print(f"  - {note}")
     if app.study is not None:
         saved = app.study.current()
-        runs = f"{len(saved['runs'])} runs so far" if saved is not None else "new: written on the first Save study"
-        print(f"ph-explorer: study {app.study.path} ({runs}); the only file this server writes")
+        count = 0 if saved is None else len(saved["runs"])
+        runs = f"{count} run{'s' if count != 1 else ''} so far" if saved is not None else "new: written on the first Save study"
+        print(f"ph-explorer: study {app.study.path} ({runs}); Save study writes this file and no other")
     since_start = seconds_since_process_start()
     # Benchmarks read this line in both forms.
     ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"
