@@ -4,6 +4,10 @@ Each step is one call of ph_explorer.diagnosis, run on the session's worker thre
 callback thread); the Physics tab (physics_panel.py) shows its progress and results. The loop
 reads the session's data through `current()` and hands a changed Dataset back through `show()`,
 so it never holds the session itself.
+
+With a study (serve --study), the loop continues it: the history starts with the study's steps,
+Diagnose searches on from the model the study reached (its chain), Refit fits that chain + the
+ticked effects, and Save study writes the next run to the operator's file (app/study.py).
 """
 
 from __future__ import annotations
@@ -13,7 +17,10 @@ from typing import Callable
 from ph_explorer import diagnosis
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.effects import Catalog
+from ph_explorer.app.study import APP_DATA_PART, StudyFile, chain_of, study_steps
+from ph_explorer.diagnosis.results import effect_label
+from ph_explorer.diagnosis.study import study_record
+from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
 
@@ -23,19 +30,54 @@ DIAGNOSIS_FIGURE = "diagnosis: out-of-sample MAE / its floor"
 class PhysicsLoop:
     """The diagnosis, the error history (baseline, + effects, ...) and the hybrid of one session."""
 
-    def __init__(self, panel: PhysicsPanel, catalog: Catalog, current: Callable[[], Dataset], show: Callable[[Dataset], None]) -> None:
+    def __init__(
+        self,
+        panel: PhysicsPanel,
+        catalog: Catalog,
+        current: Callable[[], Dataset],
+        show: Callable[[Dataset], None],
+        study: StudyFile | None = None,
+    ) -> None:
         self.panel = panel
         self.catalog = catalog  # the effects this session diagnoses and fits with
         self.current = current  # the Dataset the session shows now
         self.show = show  # show another Dataset (one with a new model or figure)
         self.diagnosis: diagnosis.Diagnosis | None = None
         self.steps: list[diagnosis.Step] = []
+        # The study this session continues: as opened or last saved (`previous` of the next save),
+        # the chain it reached, and the effects of the last refit since then (the next save's chain).
+        self.study = study
+        self.previous = study.current() if study is not None else None
+        self.chain: list[Effect] = chain_of(self.previous, catalog, str(study.path)) if study is not None else []
+        self.refitted: list[Effect] | None = None
+        self.diagnosed = False  # a diagnosis since the study was opened or last saved: a run to save
+        # The study applies while this session shows the campaign it belongs to (until new data).
+        self.study_open = study is not None
+
+    def open_study(self) -> None:
+        """Show the study: its line, and its steps as the start of the history."""
+        if self.study is None:
+            return
+        self.steps = study_steps(self.previous, str(self.study.path))
+        self.panel.show_history(self.steps)
+        self._show_study_line()
+
+    def _show_study_line(self) -> None:
+        if self.study is None:
+            return
+        study = self.previous or {}
+        chain = [effect_label(e) for e in self.chain]
+        self.panel.show_study(self.study.name, len(study.get("runs", [])), chain, study.get("verdict"), applies=self.study_open)
 
     def clear(self) -> None:
-        """New data: the diagnosis and history of the old data no longer apply."""
+        """New data: the diagnosis and history of the old data no longer apply, nor does the study."""
         self.diagnosis = None
         self.steps = []
         self.panel.clear()
+        # The study belongs to the served campaign only; reloading the page opens it again.
+        self.study_open = False
+        self.refitted = None
+        self._show_study_line()
 
     def diagnose(self) -> None:
         """Where the loaded baseline fails out of sample, and which effect is missing (none added)."""
@@ -48,10 +90,14 @@ class PhysicsLoop:
             p.show_progress(f"scanning {effect_id} against the out-of-sample residual…", len(seen) / (n_effects + 1))
 
         p.show_progress("out-of-sample residuals of the baseline (leave one orientation out)…", 0.02)
+        # A study continues from the model it reached, as `diagnose --resume` does.
+        start = list(self.chain) if self.study_open else []
         try:
-            # The loaded model is the baseline, as in the command line.
+            # The loaded model is the baseline, as in the command line. The nested cross-validation
+            # (the honest "after") runs as in the command line too: a saved run records it, and the
+            # worker thread keeps the sliders live meanwhile.
             baseline = baseline_of({k: v for k, v in ds.models.items() if k in MODEL_TYPES})
-            result = diagnosis.diagnose(ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress)
+            result = diagnosis.diagnose(ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start)
         except InputError as error:
             p.done(f"**Cannot diagnose** — {error.line()}")
             return
@@ -69,9 +115,12 @@ class PhysicsLoop:
             "x the floor of each ring; training rings by leave-one-out, check rings by the baseline (ph_explorer.diagnosis)",
         )
         self.show(ds)
-        self.steps = [result.steps[0]]
+        if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
+            self.steps = list(result.steps[: 1 + len(start)])
         p.show_history(self.steps)
-        p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned.")
+        self.diagnosed = self.study_open
+        continued = f", continuing the study from {' + '.join(effect_label(e) for e in start)}" if start else ""
+        p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned{continued}.")
 
     def show_evidence(self, label: str) -> None:
         if self.diagnosis is not None:
@@ -83,7 +132,12 @@ class PhysicsLoop:
         ids = p.selected_effects()
         scanned = {c.effect: c for c in (self.diagnosis.candidates if self.diagnosis is not None else [])}
         # At the settings the diagnosis found (e.g. 22 cycles per revolution), else the effect's own.
-        effects = [self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
+        ticked = [self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
+        # A study's chain stays in the model; a ticked effect already in it (same settings) is not added twice.
+        chain = list(self.chain) if self.study_open else []
+        in_chain = {effect_label(e) for e in chain}
+        effects = chain + [e for e in ticked if effect_label(e) not in in_chain]
+        ids = [effect_label(e) for e in effects]
         if not ds.campaign.holdout_mask().any():
             p.done("**Cannot refit** — no held-out ring to measure the error on.", refit=True)
             return
@@ -99,6 +153,8 @@ class PhysicsLoop:
         )
         if ds.campaign is not self.current().campaign:
             return  # the data changed meanwhile
+        if self.study_open:
+            self.refitted = effects  # the next save's chain
         self.steps.append(step)
         p.show_history(self.steps)
         fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
@@ -109,6 +165,32 @@ class PhysicsLoop:
         )
         # No physical term ticked: the hybrid would be the baseline again; draw no separate curve.
         self.show(ds.with_model("hybrid", hybrid) if ids else ds.without_model("hybrid"))
+
+    def save_study(self) -> None:
+        """Write this run to the study: the last refit's effects (else the study's chain), the
+        history, the last diagnosis's verdict; on top of the study as opened or last saved."""
+        p, study = self.panel, self.study
+        if study is None or not self.study_open:
+            p.study_status.content = "**Cannot save** — no study of the data shown is open."
+            return
+        if self.diagnosis is None or not self.diagnosed:
+            p.study_status.content = "**Cannot save** — diagnose first: each saved run records one diagnosis (its verdict and uncertainties)."
+            return
+        chain = self.refitted if self.refitted is not None else self.chain
+        record = study_record(self.diagnosis, chain, study.campaign, APP_DATA_PART, None, self.previous, steps=self.steps)
+        try:
+            study.save(record, self.previous)
+        except InputError as error:
+            p.study_status.content = f"**Cannot save** — {error.line()}"
+            return
+        except OSError as error:  # disk full, permissions: the study on disk stays whole (atomic write)
+            p.study_status.content = f"**Cannot save** — {study.path}: {' '.join(str(error.strerror or error).split())}"
+            return
+        self.previous, self.chain, self.refitted, self.diagnosed = record, list(chain), None, False
+        for box in p.effects.values():
+            box.value = False  # what was ticked is in the study's chain now
+        p.study_status.content = f"Saved: run {len(record['runs'])} to {study.name} (model: {' + '.join(effect_label(e) for e in chain) or 'the baseline alone'})."
+        self._show_study_line()
 
     def reveal(self) -> None:
         """What a teaching scenario hid in its data (from the campaign's sidecar)."""

@@ -85,8 +85,10 @@ def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: in
 class PhysicsPanel:
     """Diagnose -> add an effect -> refit -> the error falls; reveal the hidden effect."""
 
-    def __init__(self, gui: viser.GuiApi, catalog: Catalog) -> None:
+    def __init__(self, gui: viser.GuiApi, catalog: Catalog, study: bool = False) -> None:
         self.catalog = catalog
+        # The operator's study (serve --study): which, how far it got; empty without one.
+        self.study_line = gui.add_markdown("")
         self.diagnose = gui.add_button("Diagnose", hint="where the loaded model fails out of sample, and which catalog effect is missing")
         self.status = gui.add_markdown("")
         self.progress = gui.add_progress_bar(0.0, visible=False)
@@ -124,12 +126,16 @@ class PhysicsPanel:
             visible=False,
         )
         self.history_table = gui.add_markdown("")
+        self.save_study = gui.add_button(
+            "Save study", visible=study, hint="write this run (the model refitted last, the history, the verdict) to the server's study file"
+        )
+        self.study_status = gui.add_markdown("")
         self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
         self.revealed = gui.add_markdown("")
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
-        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed):
+        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed, self.study_status):
             handle.content = ""
         self.candidates.content = ""
         self.progress.visible = self.refit_progress.visible = False
@@ -166,6 +172,13 @@ class PhysicsPanel:
         self.candidates.content = candidates_html(result.candidates, self.catalog)
         headline, lines = verdict_text(result, self.catalog)
         advice = "\n\nTick the effects found below and refit." if result.found else ""
+        nested = result.nested
+        if nested is not None:  # the honest "after": the choice made without the rings it is measured on
+            lines.append(
+                f"Measured on rings that took no part in the choice ({nested.folds}-fold nested cross-validation over "
+                f"{nested.rings} training rings): MAE vs the mean {nested.before_um['mean']:.3f} um before, "
+                f"**{nested.after_um['mean']:.3f} um** after (floor {nested.noise_floor_um['mean']:.3f})."
+            )
         self.verdict.content = f"**{headline}**\n\n" + "\n\n".join(lines) + advice
         for c in result.candidates:
             box = self.effects.get(c.effect)
@@ -229,6 +242,25 @@ class PhysicsPanel:
         ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
         lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
         self.history_table.content = "\n".join(lines)
+
+    def show_study(self, name: str, runs: int, chain: Sequence[str], verdict: str | None, applies: bool = True) -> None:
+        """The study line: which study, how many runs, the chain it reached and its last verdict."""
+        if not applies:
+            self.study_line.content = (
+                f"**Study {name}** belongs to the campaign the server was started with; the data shown now is "
+                "another, so it is neither continued nor saved here (reload the page to continue it)."
+            )
+            self.save_study.visible = False
+            return
+        self.save_study.visible = True
+        if runs == 0:
+            self.study_line.content = f"**Study {name}** (new): the first **Save study** writes it, after a diagnosis."
+            return
+        reached = " + ".join(chain) if chain else "the baseline alone"
+        self.study_line.content = (
+            f"**Study {name}**: {runs} run{'s' if runs != 1 else ''}; the model it reached: **{reached}**; "
+            f"verdict of its last run: **{verdict}**. Diagnose continues from that model; Refit fits it + the ticked effects."
+        )
 
     def selected_effects(self) -> list[str]:
         return [e for e, box in self.effects.items() if box.value]

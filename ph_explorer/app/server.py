@@ -35,11 +35,14 @@ from typing import Mapping
 
 import viser
 
+from ph_explorer import paths
 from ph_explorer.app.dataset import Dataset, default_dataset, scenario_descriptions
 from ph_explorer.app.render_queue import RenderQueue, RenderStats
 from ph_explorer.app.scene import ring_camera
 from ph_explorer.app.session import INITIAL_ORIENTATION, Session, Shared
+from ph_explorer.app.study import StudyFile, open_study
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
+from ph_explorer.errors import InputError
 
 # Diagnoses and refits running at once over all browsers (the machine's cores; the rest queue).
 HEAVY_JOBS = 2
@@ -56,8 +59,10 @@ class ExplorerApp:
         geometry_overrides: Mapping[str, float] | None = None,
         verbose: bool = False,
         catalog: Catalog = DEFAULT_CATALOG,
+        study: StudyFile | None = None,
     ) -> None:
         self.dataset = dataset
+        self.study = study
         self.sessions: dict[int, Session] = {}
         self.startup_s = float("nan")  # set by build_server: from the call to a ready server
         self.stats = RenderStats()
@@ -69,6 +74,7 @@ class ExplorerApp:
             scenarios=scenario_descriptions(),
             geometry_overrides=dict(geometry_overrides or {}),
             stats=self.stats,
+            study=study,
         )
         self._sessions_lock = threading.Lock()
         # Warm the caches the first browser needs (the default view and field).
@@ -139,14 +145,24 @@ def build_server(
     port: int = 8080,
     geometry: Mapping[str, float] | None = None,
     verbose: bool = False,
+    study: Path | None = None,
 ) -> ExplorerApp:
     """Load the data and models, then start the server (port 0 picks a free port).
 
     With no data options: the shipped paper campaign with model/paper (measured mean, network,
     trilinear). The returned app's `startup_s` is the time this call took.
+    study: the operator's study file, of the served campaign's file (--data, or the shipped
+    paper.csv); checked here, before the server starts (InputError), and the only file the app writes.
     """
     start = time.perf_counter()
+    if study is not None and scenario is not None:
+        # A scenario is simulated anew in memory: there are no campaign bytes to tie a study to.
+        raise InputError("a study belongs to a campaign file: simulate the scenario to a CSV (simulate --out) and serve it with --data", option="--study")
     dataset = default_dataset(scenario=scenario, data=data, model=model, geometry=geometry)
-    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose)
+    opened = None
+    if study is not None:
+        data_file = Path(data) if data is not None else paths.assets_dir() / "data" / "paper.csv"
+        opened = open_study(Path(study), data_file, dataset.campaign, DEFAULT_CATALOG)
+    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, study=opened)
     app.startup_s = time.perf_counter() - start
     return app

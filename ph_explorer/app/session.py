@@ -33,6 +33,7 @@ from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
 from ph_explorer.app.scene import HeadScene, RingScene, axis_camera, ring_camera
+from ph_explorer.app.study import StudyFile
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
@@ -54,6 +55,7 @@ class Shared:
     scenarios: Mapping[str, str]  # shipped scenario name -> description
     geometry_overrides: Mapping[str, float] = field(default_factory=dict)  # applied to uploaded files
     stats: RenderStats = field(default_factory=RenderStats)
+    study: StudyFile | None = None  # the operator's study (serve --study), continued by every browser
 
 
 def wrap_b(b_deg: float) -> float:
@@ -94,14 +96,15 @@ class Session:
             with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
             with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
-                self.physics = PhysicsPanel(gui, self.catalog)
+                self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
             with tabs.add_tab("Field", icon=viser.Icon.WORLD):
                 self.field_panel = FieldPanel(gui, dataset.figure_names())
             with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
-        self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset)
+        self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
         self._wire()
         self.set_dataset(dataset)
+        self.loop.open_study()
 
     # -- wiring: GUI events -> calls, nothing else ---------------------------------------------------
     def _wire(self) -> None:
@@ -115,6 +118,7 @@ class Session:
         data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
         p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
+        p.save_study.on_click(lambda _: self.submit(self.loop.save_study))
         p.reveal.on_click(lambda _: self.loop.reveal())
         p.evidence_of.on_update(lambda _: self.loop.show_evidence(p.evidence_of.value))
 

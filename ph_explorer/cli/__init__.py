@@ -92,10 +92,14 @@ def _serve(
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder (default: model/paper).")] = None,
     host: Annotated[str, typer.Option(help="Address to bind; 127.0.0.1 keeps it on this machine.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="Port to bind (0 picks a free one).")] = 8080,
+    study: Annotated[
+        Optional[Path],
+        typer.Option(help="A study of the served campaign to open and continue (diagnose --save makes one; created on the first Save study if absent)."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Start the 3D explorer in the browser (default: the shipped paper campaign and model/paper)."""
-    _run("serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, geometry=geometry)
+    _run("serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, study=study, geometry=geometry)
 
 
 @app.command("simulate")

@@ -11,8 +11,8 @@ from ph_explorer.errors import InputError
 
 
 def serve_command(**options: Any) -> int:
-    """Start the explorer with build_server's options (scenario, data, model, host, port, geometry;
-    default: the shipped paper campaign with model/paper)."""
+    """Start the explorer with build_server's options (scenario, data, model, host, port, geometry,
+    study; default: the shipped paper campaign with model/paper)."""
     # viser and torch: imported when the command runs, so that the CLI (and inspect) works without them.
     from ph_explorer.app.server import build_server
 
@@ -23,6 +23,11 @@ def serve_command(**options: Any) -> int:
     print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
     for note in app.dataset.notes:
         print(f"  - {note}")
+    if app.study is not None:
+        saved = app.study.current()
+        count = 0 if saved is None else len(saved["runs"])
+        runs = f"{count} run{'s' if count != 1 else ''} so far" if saved is not None else "new: written on the first Save study"
+        print(f"ph-explorer: study {app.study.path} ({runs}); Save study writes this file and no other")
     since_start = seconds_since_process_start()
     # Benchmarks read this line in both forms.
     ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"

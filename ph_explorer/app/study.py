@@ -1,0 +1,117 @@
+"""The study the server's operator opened (`ph-explorer serve --study FILE`): checked before the
+server starts, continued by each browser's physics loop, written back to that one file only.
+
+A browser never names a path: the file is the operator's, the browser only asks to save. The
+file's study is shared by every browser of the app; a browser saves on top of the study it opened
+(or last saved), so a browser that opened an older version than the one on disk is refused
+rather than allowed to drop another browser's run.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis import Step
+from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain
+from ph_explorer.effects import Catalog, Effect
+from ph_explorer.errors import InputError
+from ph_explorer.io import file_sha256, read_json_object, write_json_object
+
+# The data-driven part every refit and diagnosis of the app uses (physics.py calls the core's defaults).
+APP_DATA_PART = "trilinear"
+
+
+class StudyFile:
+    """The operator's study file, the campaign it belongs to, and the study as last written."""
+
+    def __init__(self, path: Path, campaign: dict[str, Any], study: dict[str, Any] | None, catalog: Catalog) -> None:
+        self.path = path
+        self.campaign = campaign  # {"file", "sha256", "orientations", "repetitions"} of the served campaign
+        self.catalog = catalog
+        self._study = study  # None: the file does not exist yet (the first save creates it)
+        self._lock = threading.Lock()
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    def current(self) -> dict[str, Any] | None:
+        """The study as on disk now (as opened, or as a browser last saved it)."""
+        with self._lock:
+            return self._study
+
+    def save(self, study: dict[str, Any], previous: dict[str, Any] | None) -> None:
+        """Write the next study, made on top of `previous`; refused if another browser saved since."""
+        with self._lock:
+            if self._study is not previous:
+                runs = len((self._study or {}).get("runs", []))
+                raise InputError(
+                    f"another browser saved this study (now run {runs}) since this one opened it: reload the page to continue from it",
+                    file=str(self.path),
+                )
+            write_json_object(self.path, study)
+            self._study = study
+
+
+def open_study(path: Path, data_file: Path, campaign: Campaign, catalog: Catalog) -> StudyFile:
+    """The study at `path` if it is one of this campaign's (same bytes as data_file), else an
+    InputError line; a path that does not exist yet is a new study, written on the first save."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError("is a folder: give the study's file name (e.g. study.json)", option="--study")
+    folder = path.parent
+    if not folder.is_dir():
+        raise InputError("no such folder for the study file", file=str(folder), option="--study")
+    if not os.access(folder, os.W_OK):
+        raise InputError("the study's folder is not writable", file=str(folder), option="--study")
+    sha256 = file_sha256(Path(data_file))
+    described = {
+        "file": Path(data_file).name,
+        "sha256": sha256,
+        "orientations": campaign.n_orientations,
+        "repetitions": campaign.n_repetitions,
+    }
+    study = None
+    if path.exists():
+        source = str(path)
+        study = check_study(read_json_object(path, "study"), source)
+        check_campaign(study, sha256, source, str(data_file))
+        if study["data_part"] != APP_DATA_PART:
+            raise InputError(
+                f"the study's data part is {study['data_part']!r}; the explorer refits with the trilinear part "
+                "(continue this study with ph-explorer diagnose --resume)",
+                file=source,
+            )
+        study_chain(study, catalog, source)  # every effect of the chain is a candidate of this catalog
+        study_steps(study, source)  # and its history reads back
+    return StudyFile(path, described, study, catalog)
+
+
+def study_steps(study: dict[str, Any] | None, source: str = "study") -> list[Step]:
+    """The study's error history as the app's Step objects (the JSON's `steps`)."""
+    steps = []
+    for index, entry in enumerate((study or {}).get("steps", [])):
+        try:
+            steps.append(
+                Step(
+                    [str(e) for e in entry["added"]],
+                    {k: float(entry["mae_um"][k]) for k in ("mean", "single")},
+                    {k: float(entry["noise_floor_um"][k]) for k in ("mean", "single")},
+                    list(entry.get("params", [])),
+                    str(entry.get("model", "")),
+                )
+            )
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                "each step must hold added, mae_um {mean, single} and noise_floor_um {mean, single}", file=source, column=f"steps[{index}]"
+            ) from None
+    return steps
+
+
+def chain_of(study: dict[str, Any] | None, catalog: Catalog, source: str = "study") -> list[Effect]:
+    """The effects of the study's chain at their settings (none for a study not written yet)."""
+    return [] if study is None else study_chain(study, catalog, source)
