@@ -217,9 +217,10 @@ def rank_candidates(
     fixed: Design | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[Candidate]:
-    """Every given effect scored, best first: significant ones, then by what each explains beyond
-    what pure noise explains with its own columns and scan (so that of two effects that explain
-    the same, the one with fewer columns and scan values comes first).
+    """Every given effect scored, best first: significant ones, then by how far what each explains
+    is beyond its threshold of "beyond noise" (NULL_MARGIN times what pure noise explains with its
+    own columns and scan), so that of two effects that explain the same, the one with fewer
+    columns and scan values comes first.
 
     Look-elsewhere over the whole family: each effect's noise maxima are put on a common scale
     (divided by their mean over the draws); the family's null in each draw is the largest of
@@ -239,7 +240,7 @@ def rank_candidates(
     levels = {id(s): family * scale for s, scale in zip(tested, scales)}
     untestable = float("inf")
     out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), untestable)) for s in scans]
-    out.sort(key=lambda c: (c.significant, c.explained_fraction - c.noise_fraction), reverse=True)
+    out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
     return out
 
 
