@@ -19,7 +19,7 @@ from typing import Any
 
 import torch
 
-from benchmarks import calibration, data_efficiency, plots, scale, speed
+from benchmarks import calibration, data_efficiency, hidden_effects, plots, scale, speed
 from ph_explorer.app.server import build_server
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
@@ -136,6 +136,9 @@ def main(argv: list[str] | None = None) -> int:
     # 4. diagnosis calibration: false alarms, stability, coverage, power (issue 13)
     log("diagnosis calibration")
     results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+    # 5. each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
+    log("hidden effects")
+    results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
 
     results["total_seconds"] = round(time.perf_counter() - started, 1)
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")

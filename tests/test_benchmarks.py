@@ -124,5 +124,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert seconds["b_axis_22"]["max"] > 0
     assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
     assert calibration["errors"] == []
+    hidden = results["hidden_effects"]
+    assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
+    case = hidden["cases"]["b_axis_radial_motion"]
+    assert {"verdict", "named_first_at_its_period", "truth_within_u", "after_over_floor", "seconds"} <= set(case)
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -1,0 +1,94 @@
+"""Each rotary-axis error motion and the ball form hidden in the paper campaign: is it named? (issue 14)
+
+For each entry of CASES the paper scenario gets one more effect, hidden, at a size a real head
+can have; the campaign (the scenario's own seed) is diagnosed as a user would (`diagnose`, the
+default catalog). Recorded: the verdict, the effects found with their parameters and expanded
+uncertainties, whether the hidden effect is named first at its true period with every true
+amplitude and phase inside fit +- U, the candidates the top one is confounded with, the check-ring
+MAE (against the mean of the repetitions) before and after with the floor, the nested "after",
+and the seconds. `run(quick=True)` runs the first case only.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+import tomllib
+from collections.abc import Callable
+from typing import Any
+
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.paths import scenarios_dir
+from ph_explorer.twin import scenario_from_dict, simulate
+
+CASES: dict[str, dict[str, float]] = {
+    "b_axis_radial_motion": {"x_amplitude_um": 0.5, "x_phase_deg": 30.0, "y_amplitude_um": 0.3, "y_phase_deg": 120.0, "cycles_per_rev": 17},
+    "b_axis_axial_motion": {"amplitude_um": 0.6, "phase_deg": 60.0, "cycles_per_rev": 19},
+    "b_axis_tilt_motion": {"about_x_amplitude_arcsec": 1.0, "about_x_phase_deg": 10.0, "about_y_amplitude_arcsec": 0.5, "about_y_phase_deg": 200.0, "cycles_per_rev": 14},
+    "a_axis_radial_motion": {"y_amplitude_um": 0.6, "y_phase_deg": 50.0, "z_amplitude_um": 0.4, "z_phase_deg": 140.0, "cycles_per_rev": 23},
+    "a_axis_axial_motion": {"amplitude_um": 0.8, "phase_deg": 20.0, "cycles_per_rev": 21},
+    "a_axis_tilt_motion": {"about_y_amplitude_arcsec": 1.2, "about_y_phase_deg": 70.0, "about_z_amplitude_arcsec": 0.8, "about_z_phase_deg": 300.0, "cycles_per_rev": 25},
+    "ball_form": {"amplitude_um": 0.2, "phase_deg": 40.0, "lobes": 4.0},
+}
+
+
+def covered(effect_id: str, truth: dict[str, float], found: dict[str, Any]) -> bool:
+    """Every true parameter the fit reports within fit +- U (phases wrapped by their period)."""
+    periods = {p.name: p.period for p in DEFAULT_CATALOG[effect_id].parameters}
+    for name, value in truth.items():
+        if name not in found["params_u"] or name in found["settings"]:
+            continue
+        diff = found["params"][name] - value
+        period = periods.get(name)
+        if period:
+            diff = (diff + period / 2) % period - period / 2
+        if abs(diff) > found["params_u"][name]:
+            return False
+    return True
+
+
+def one(effect_id: str) -> dict[str, Any]:
+    data = copy.deepcopy(tomllib.loads((scenarios_dir() / "paper.toml").read_text(encoding="utf-8")))
+    data["name"] = f"paper+{effect_id}"
+    truth = CASES[effect_id]
+    data["effects"].append({"id": effect_id, "hidden": True, **truth})
+    campaign = simulate(scenario_from_dict(data))
+    start = time.perf_counter()
+    result = diagnose(campaign)
+    seconds = time.perf_counter() - start
+    found = [
+        {"effect": c.effect, "settings": {k: float(v) for k, v in c.settings.items()},
+         "params": {k: round(float(v), 4) for k, v in c.params.items()}, "params_u": {k: round(float(v), 4) for k, v in c.params_u.items()}}
+        for c in result.found
+    ]
+    scanned = {k: float(v) for k, v in truth.items() if k in DEFAULT_CATALOG[effect_id].scan}
+    first = found[0] if found else None
+    named_first = bool(first and first["effect"] == effect_id and all(first["settings"].get(k) == v for k, v in scanned.items()))
+    top = result.candidates[0]
+    return {
+        "hidden": {"effect": effect_id, **truth},
+        "verdict": result.verdict,
+        "found": found,
+        "named_first_at_its_period": named_first,
+        "truth_within_u": bool(named_first and covered(effect_id, truth, first)),
+        "top_confounded_with": [o["effect"] for o in top.confounded_with],
+        "check_rings_mae_mean_um": {"before": round(result.steps[0].mae_um["mean"], 4), "after": round(result.steps[-1].mae_um["mean"], 4)},
+        "noise_floor_mean_um": round(result.steps[-1].noise_floor_um["mean"], 4),
+        "after_over_floor": round(result.steps[-1].mae_um["mean"] / result.steps[-1].noise_floor_um["mean"], 3),
+        "nested_mae_mean_um": None if result.nested is None else {"before": round(result.nested.before_um["mean"], 4), "after": round(result.nested.after_um["mean"], 4)},
+        "seconds": round(seconds, 1),
+    }
+
+
+def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    cases = list(CASES)[:1] if quick else list(CASES)
+    out = {}
+    for effect_id in cases:
+        out[effect_id] = one(effect_id)
+        r = out[effect_id]
+        log(f"  {effect_id}: {r['verdict']}, named first {r['named_first_at_its_period']}, truth within U {r['truth_within_u']}, "
+            f"check MAE {r['check_rings_mae_mean_um']} (floor {r['noise_floor_mean_um']}), {r['seconds']} s")
+    return {"mode": "quick" if quick else "full", "scenario": "paper + one hidden effect (the scenario's seed)", "cases": out,
+            "named_first": sum(r["named_first_at_its_period"] for r in out.values()), "of": len(out),
+            "within_1_3_floor": sum(r["after_over_floor"] <= 1.3 for r in out.values())}
