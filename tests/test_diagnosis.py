@@ -237,6 +237,8 @@ def test_a_study_is_saved_resumed_and_refused_on_another_campaign(b22_csv, tmp_p
     assert [s["added"] for s in report["steps"]][:2] == [[], ["b_axis_cyclic"]]
     assert again["steps"][:2] == saved["steps"][:2] and again["chain"][0]["settings"] == saved["chain"][0]["settings"]
     assert [r["started_from"] for r in again["runs"]] == [0, 1]
+    # The resumed run chose nothing new: the study keeps the nested figures of the choice it holds.
+    assert again["nested_after"] == saved["nested_after"] is not None
     # Another campaign, or a file that is not a study: one line, exit 2, the study untouched.
     other = tmp_path / "other.csv"
     other.write_text(b22_csv.read_text().replace("\n", "\n", 1) + "\n")

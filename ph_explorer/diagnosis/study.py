@@ -88,7 +88,9 @@ def study_record(
         "verdict": result.verdict,
         "steps": figures["steps"],
         "within_noise": figures["within_noise"],
-        "nested_after": figures["nested_after"],
+        # A run that chose nothing new has no nested figures of its own: the chain's choice is still
+        # the one the study's last nested figures measured.
+        "nested_after": figures["nested_after"] if figures["nested_after"] is not None else (previous or {}).get("nested_after"),
         "runs": [*(previous or {}).get("runs", []), run],
     }
 
