@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
-from ph_explorer.diagnosis.separation import separating_measurements
+from ph_explorer.diagnosis.separation import canonical_share, separating_measurements
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import design as least_squares
@@ -253,17 +253,12 @@ SEPARATIONS = 3  # the closest partners of each candidate told what would separa
 def shared_variance(a: Design, b: Design) -> float:
     """The largest squared canonical correlation between two designs' columns over all touches."""
 
-    def basis(design: Design, within_rows: int) -> NDArray[np.float64]:
+    def rows(design: Design, within_rows: int) -> NDArray[np.float64]:
         mean, within = design.flat()
-        rows = [np.sqrt(design.n_rep) * mean, within if within is not None else np.zeros((within_rows, mean.shape[1]))]
-        u, singular, _ = np.linalg.svd(np.concatenate(rows), full_matrices=False)
-        return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
+        return np.concatenate([np.sqrt(design.n_rep) * mean, within if within is not None else np.zeros((within_rows, mean.shape[1]))])
 
     within_rows = a.mean.shape[0] * a.n_rep * a.mean.shape[1]
-    qa, qb = basis(a, within_rows), basis(b, within_rows)
-    if not qa.shape[1] or not qb.shape[1]:
-        return 0.0
-    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max() ** 2)
+    return canonical_share(rows(a, within_rows), rows(b, within_rows))
 
 
 def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> None:

@@ -40,17 +40,23 @@ def _columns(effect: Effect, touch_sets: Sequence[Touches]) -> NDArray[np.float6
     return np.concatenate(parts)
 
 
-def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
-    """The largest squared canonical correlation of two effects' columns over the touch sets."""
+def canonical_share(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
+    """The largest squared canonical correlation between the columns of x and y (rows, columns):
+    1 when some combination of one is a combination of the other, 0 when they are orthogonal."""
 
-    def orthonormal(x: NDArray[np.float64]) -> NDArray[np.float64]:
-        u, singular, _ = np.linalg.svd(x, full_matrices=False)
+    def orthonormal(m: NDArray[np.float64]) -> NDArray[np.float64]:
+        u, singular, _ = np.linalg.svd(m, full_matrices=False)
         return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
 
-    qa, qb = orthonormal(_columns(a, touch_sets)), orthonormal(_columns(b, touch_sets))
-    if not qa.shape[1] or not qb.shape[1]:
+    qx, qy = orthonormal(x), orthonormal(y)
+    if not qx.shape[1] or not qy.shape[1]:
         return 0.0
-    return float(np.linalg.svd(qa.T @ qb, compute_uv=False).max() ** 2)
+    return float(np.linalg.svd(qx.T @ qy, compute_uv=False).max() ** 2)
+
+
+def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
+    """The largest squared canonical correlation of two effects' columns over the touch sets."""
+    return canonical_share(_columns(a, touch_sets), _columns(b, touch_sets))
 
 
 def _near_vertical(campaign: Campaign) -> Touches | None:
