@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
 from ph_explorer.diagnosis.results import Candidate
-from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import CandidateSearch, FittedBases, rank_candidates
 from ph_explorer.effects import Effect
 from ph_explorer.models import design as least_squares
 
@@ -100,14 +100,16 @@ def choose_effects(
     progress: Callable[[str], None] | None = None,
     start: Sequence[Effect] = (),
     detail: bool = True,
+    bases: FittedBases | None = None,
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
     the model, e.g. a resumed study's); detail: the candidates' uncertainties and evidence (a
-    search that only chooses needs neither)."""
+    search that only chooses needs neither); bases: fitted columns shared with other searches on
+    subsets of the same touches (CandidateSearch)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
-    search = CandidateSearch(campaign, train, seed, detail)
+    search = CandidateSearch(campaign, train, seed, detail, bases)
     before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
     chain = list(start)
     current = within_noise_after(search, campaign, chain, seed) if chain else before

@@ -21,6 +21,7 @@ from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.results import NestedAfter, effect_label
+from ph_explorer.diagnosis.search import FittedBases
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
@@ -46,6 +47,8 @@ def nested_after(
     if train.size < 4 * folds:
         return None
     rng = np.random.default_rng(seed)
+    # Every fold searches the same effects over subsets of the same touches: columns made once.
+    bases = FittedBases(campaign_touches(campaign))
 
     def one_fold(fold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
         fold = np.sort(fold)
@@ -53,7 +56,7 @@ def nested_after(
         keep[fold] = False
         sub = campaign.subset(keep)
         sub_train = ~sub.holdout_mask()
-        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start, detail=False)
+        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start, detail=False, bases=bases.subset(np.flatnonzero(keep)))
         touches = campaign_touches(campaign.subset(fold))
         before, after = (
             HybridModel(list(chain), NESTED_DATA_PART).fit(sub, sub_train).predict_touches(touches) for chain in (start, choice.chain)

@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.separation import canonical_share, separating_measurements
 from ph_explorer.effects import Effect
-from ph_explorer.kinematics import campaign_touches
+from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models import design as least_squares
 from ph_explorer.models.base import draw_repetitions
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -55,6 +55,36 @@ class Scan:
     null_best: NDArray[np.float64]  # (NULL_DRAWS,)
 
 
+class FittedBases:
+    """Effects' fitted basis columns (fitted_basis) over one campaign's touches, each made once.
+
+    The nested folds' searches run on the campaign without some rings: their columns are the
+    whole campaign's, sliced (`subset`). That is also the touches as they were measured: the
+    approach of a fold's first touch at a ring comes from the touch before it in the campaign.
+    Columns that change between repetitions are n_rep times larger and made again when asked.
+    """
+
+    def __init__(self, touches: Touches) -> None:
+        self.touches = touches
+        self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
+        self._rings: NDArray[np.intp] | None = None
+
+    def subset(self, rings: NDArray[np.intp]) -> "FittedBases":
+        """The same columns at some rings only (indices into the campaign's orientations)."""
+        out = object.__new__(FittedBases)
+        out.touches, out._columns, out._rings = self.touches, self._columns, np.asarray(rings)
+        return out
+
+    def __call__(self, effect: Effect) -> NDArray[np.float64]:
+        key = (effect.id, tuple(sorted(effect.settings().items())))
+        columns = self._columns.get(key)
+        if columns is None:
+            columns = fitted_basis(effect, self.touches)[0]
+            if columns.strides[1] == 0:  # the same in every repetition: small, kept
+                self._columns[key] = columns
+        return columns if self._rings is None else columns[self._rings]
+
+
 def _rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2)))
 
@@ -62,7 +92,9 @@ def _rms(x: NDArray[np.float64]) -> float:
 class CandidateSearch:
     """Scores candidate effects against what the baseline cannot predict out of sample."""
 
-    def __init__(self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, detail: bool = True) -> None:
+    def __init__(
+        self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, detail: bool = True, bases: FittedBases | None = None
+    ) -> None:
         self.campaign = campaign
         # detail: each candidate with its parameters' uncertainty (a jackknife over rings) and its
         # evidence; a search that only chooses (a nested fold's) needs neither.
@@ -71,7 +103,9 @@ class CandidateSearch:
         self.held_out = np.flatnonzero(~self.train)
         # Every ring's out-of-sample residual: leave-one-out at training rings, the whole training
         # set at held-out rings (whose measurements never enter a data-driven fit).
-        self.touches = campaign_touches(campaign)
+        # bases: the fitted columns shared with other searches on subsets of the same touches (nested folds).
+        self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign))
+        self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
@@ -99,7 +133,7 @@ class CandidateSearch:
         key = (effect.id, tuple(sorted(effect.settings().items())))
         if key in self._designs:
             return self._designs[key]
-        design = Design(fitted_basis(effect, self.touches)[0], self.smoother)
+        design = Design(self.bases(effect), self.smoother)
         if design.within is None:  # one that changes between repetitions is n_rep times larger: made again
             self._designs[key] = design
         return design

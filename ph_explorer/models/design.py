@@ -23,11 +23,13 @@ class Design:
     def __init__(self, columns: NDArray[np.float64], smoother: OutOfSampleSmoother | None) -> None:
         columns = np.asarray(columns, dtype=float)
         self.n_rep = columns.shape[1]
-        mean = columns.mean(axis=1)
-        within = columns - mean[:, None]
+        # Columns broadcast over the repetitions (fitted_basis) are the same in every one: no within part.
+        broadcast = self.n_rep == 1 or columns.strides[1] == 0
+        mean = columns[:, 0] if broadcast else columns.mean(axis=1)
         self.mean = mean - smoother.predict(mean) if smoother is not None else mean  # (n_o, n_pt, c)
-        self.scale = float(np.abs(columns).max()) if columns.size else 0.0
-        changes = np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
+        self.scale = float(np.abs(mean if broadcast else columns).max()) if columns.size else 0.0
+        within = None if broadcast else columns - mean[:, None]
+        changes = within is not None and np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
         self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
         self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
 

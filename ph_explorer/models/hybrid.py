@@ -43,10 +43,14 @@ ABSORBED_RTOL = 1e-9
 def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     """An effect's basis columns as they appear in deviations: after each repetition's circle fit.
 
-    Returns (n_o, n_rep, n_pt, n_cols) and the column names.
+    Returns (n_o, n_rep, n_pt, n_cols) and the column names. Columns that are the same in every
+    repetition (most effects: they depend on the orientation and the point only) come back as a
+    read-only view broadcast over the repetitions: the circle fit is made once per ring.
     """
     columns, names = effect.basis(touches)
-    columns = np.broadcast_to(columns, touches.shape + columns.shape[3:])
+    columns = np.asarray(columns, dtype=float)
+    if columns.shape[1] != 1 and np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape)):
+        columns = columns[:, :1]
     # The circle fit acts along the points: move the column axis out of the way and back.
     fitted = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
     # A column the fit removes entirely (harmonics 0 and 1 at every ring: a stylus's sag, a
@@ -55,7 +59,7 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     before = np.sqrt((columns**2).sum(axis=(0, 1, 2)))
     after = np.sqrt((fitted**2).sum(axis=(0, 1, 2)))
     fitted = np.where(after <= ABSORBED_RTOL * before, 0.0, fitted)
-    return fitted, list(names)
+    return np.broadcast_to(fitted, touches.shape + fitted.shape[3:]), list(names)
 
 
 SUBFOLDER = "hybrid"
