@@ -172,6 +172,7 @@ def diagnose(
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
 
+    search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
     honest = nested_after(campaign, effects, start, max_steps, seed) if nested and found else None
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured

@@ -53,6 +53,7 @@ from ph_explorer.models.base import draw_repetitions
 MEAN_DRAWS = 399
 # ... and of the campaign's statistic (see within_noise).
 STATISTIC_DRAWS = 20000
+NULL_CHUNK = 50  # mean draws put through the smoother at a time
 WITHIN_HARMONICS = (2, 8)  # the low harmonics where systematic repetition differences show
 MEAN_TOLERANCE = 2.0  # a ring's mean residual may hold as much systematic error as noise
 RING_LEVEL = 0.01  # a ring exceeds below this p-value
@@ -151,8 +152,11 @@ def within_noise(
 
     # mean: each ring's repetition-mean noise through the circle fit and the smoother.
     draws = draw_repetitions(np.zeros((n_o, n_pt)), (sigma / math.sqrt(n_rep))[:, None], MEAN_DRAWS, rng)
-    null_mean = draws - np.tensordot(weights, draws, axes=(1, 0))
-    null_stat = (null_mean**2).mean(axis=-1)  # (n_o, draws)
+    null_stat = np.empty((n_o, MEAN_DRAWS))  # (n_o, draws)
+    for start in range(0, MEAN_DRAWS, NULL_CHUNK):  # a few draws at a time: a large campaign's draws are big
+        part = draws[:, start : start + NULL_CHUNK]
+        null_stat[:, start : start + NULL_CHUNK] = ((part - np.tensordot(weights, part, axes=(1, 0))) ** 2).mean(axis=-1)
+    del draws
     mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)
     p_mean = _upper_p(mean_stat, MEAN_TOLERANCE * null_stat)
 

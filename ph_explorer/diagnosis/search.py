@@ -64,15 +64,17 @@ class FittedBases:
     Columns that change between repetitions are n_rep times larger and made again when asked.
     """
 
-    def __init__(self, touches: Touches) -> None:
+    def __init__(self, touches: Touches, keep: bool = True) -> None:
         self.touches = touches
+        # keep: False for a search of its own, whose designs are kept instead (CandidateSearch).
+        self.keep = keep
         self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
         self._rings: NDArray[np.intp] | None = None
 
     def subset(self, rings: NDArray[np.intp]) -> "FittedBases":
         """The same columns at some rings only (indices into the campaign's orientations)."""
         out = object.__new__(FittedBases)
-        out.touches, out._columns, out._rings = self.touches, self._columns, np.asarray(rings)
+        out.touches, out.keep, out._columns, out._rings = self.touches, self.keep, self._columns, np.asarray(rings)
         return out
 
     def __call__(self, effect: Effect) -> NDArray[np.float64]:
@@ -80,9 +82,14 @@ class FittedBases:
         columns = self._columns.get(key)
         if columns is None:
             columns = fitted_basis(effect, self.touches)[0]
-            if columns.strides[1] == 0:  # the same in every repetition: small, kept
-                self._columns[key] = columns
-        return columns if self._rings is None else columns[self._rings]
+            if columns.strides[1] == 0:  # the same in every repetition: kept once, (n_o, 1, n_pt, c)
+                columns = columns[:, :1]
+                if self.keep:
+                    self._columns[key] = columns
+        if self._rings is not None:
+            columns = columns[self._rings]
+        # Broadcast over the repetitions again (a view: Design sees that it has no within part).
+        return np.broadcast_to(columns, columns.shape[:1] + self.touches.shape[1:2] + columns.shape[2:])
 
 
 def _rms(x: NDArray[np.float64]) -> float:
@@ -104,7 +111,7 @@ class CandidateSearch:
         # Every ring's out-of-sample residual: leave-one-out at training rings, the whole training
         # set at held-out rings (whose measurements never enter a data-driven fit).
         # bases: the fitted columns shared with other searches on subsets of the same touches (nested folds).
-        self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign))
+        self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
@@ -115,9 +122,13 @@ class CandidateSearch:
         # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother.
         noise = draw_repetitions(np.zeros((n_o, n_pt)), self.sigma, n_rep * NULL_DRAWS, np.random.default_rng(seed))
         noise = noise.reshape(n_o, n_rep, NULL_DRAWS, n_pt)
-        noise = np.moveaxis(self.smoother.residual(noise), 2, -1)  # (n_o, n_rep, n_pt, draws)
+        noise -= self.smoother.predict(noise.mean(axis=1))[:, None]  # smoother.residual, in place: it is big
         # Column 0: the data's residual; the others: what noise alone would leave.
-        self.targets = Design(np.concatenate([self.residual[..., None], noise], axis=-1), None)
+        columns = np.empty((n_o, n_rep, n_pt, 1 + NULL_DRAWS))
+        columns[..., 0] = self.residual
+        columns[..., 1:] = np.moveaxis(noise, 2, -1)  # (n_o, n_rep, n_pt, draws)
+        del noise
+        self.targets = Design(columns, None)
 
     def design(self, effects: Sequence[Effect]) -> Design:
         """The effects' fitted basis columns, side by side, through the smoother."""
@@ -134,9 +145,15 @@ class CandidateSearch:
         if key in self._designs:
             return self._designs[key]
         design = Design(self.bases(effect), self.smoother)
-        if design.within is None:  # one that changes between repetitions is n_rep times larger: made again
+        # One that changes between repetitions is n_rep times larger: made again. A search on shared
+        # bases (a nested fold's) keeps none: the bases are kept, and its designs are quick to make.
+        if design.within is None and not self.bases.keep:
             self._designs[key] = design
         return design
+
+    def forget_designs(self) -> None:
+        """Let the designs made so far go (their memory), e.g. before the nested folds' searches."""
+        self._designs.clear()
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,

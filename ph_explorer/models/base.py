@@ -43,6 +43,9 @@ def training_mask(campaign: Campaign, train: ArrayLike | None) -> NDArray[np.boo
     return mask
 
 
+DRAW_CHUNK_VALUES = 2**21  # values drawn per block by draw_repetitions (16 MiB)
+
+
 def draw_repetitions(
     systematic: NDArray[np.float64],
     sigma: ArrayLike,
@@ -61,8 +64,16 @@ def draw_repetitions(
     m, n_pt = systematic.shape
     s = np.broadcast_to(np.asarray(sigma, dtype=float), (m, n_pt))
     inflate = np.sqrt(n_pt / (n_pt - 3.0)) if n_pt > 3 else 1.0
-    noise = rng.standard_normal((m, n_repetitions, n_pt)) * (inflate * s)[:, None, :]
-    return systematic[:, None, :] + remove_size_and_centre(noise)
+    out = np.empty((m, n_repetitions, n_pt))
+    # A few orientations at a time: the same draws as one call (the generator's stream runs on in
+    # the same order), without the full-size temporaries of the circle fit (a diagnosis draws
+    # hundreds of repetitions of a large campaign).
+    rows = max(1, DRAW_CHUNK_VALUES // max(1, n_repetitions * n_pt))
+    for start in range(0, m, rows):
+        part = slice(start, min(m, start + rows))
+        noise = rng.standard_normal((part.stop - part.start, n_repetitions, n_pt)) * (inflate * s[part])[:, None, :]
+        out[part] = systematic[part, None, :] + remove_size_and_centre(noise)
+    return out
 
 
 class DeviationModel(ABC):

@@ -28,7 +28,7 @@ class Design:
         mean = columns[:, 0] if broadcast else columns.mean(axis=1)
         self.mean = mean - smoother.predict(mean) if smoother is not None else mean  # (n_o, n_pt, c)
         self.scale = float(np.abs(mean if broadcast else columns).max()) if columns.size else 0.0
-        within = None if broadcast else columns - mean[:, None]
+        within = None if broadcast else columns - mean[:, None]  # a new array: columns may be the caller's
         changes = within is not None and np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
         self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
         self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
