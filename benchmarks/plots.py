@@ -48,8 +48,15 @@ def speed_plot(results: dict[str, Any], path: Path) -> Path:
     speed, scale = results["speed"], results.get("scale", {})
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     labels, values = [], []
-    for key, label in (("network_training", "network training"), ("physics_refit", "physics refit"), ("diagnosis", "diagnosis"), ("serve_startup", "serve start-up")):
-        entry = speed.get(key) or {}
+    diagnosis = speed.get("diagnosis") or {}
+    entries = [
+        ("network training", speed.get("network_training") or {}),
+        ("physics refit", speed.get("physics_refit") or {}),
+        ("diagnosis, paper", {"seconds": (diagnosis.get("paper") or {}).get("seconds_median")}),
+        ("diagnosis, b_axis_22", {"seconds": (diagnosis.get("b_axis_22") or {}).get("seconds_median")}),
+        ("serve start-up", speed.get("serve_startup") or {}),
+    ]
+    for label, entry in entries:
         value = entry.get("seconds", entry.get("seconds_from_launch"))
         if value is not None:
             labels.append(label)

@@ -1,9 +1,11 @@
-"""`python -m benchmarks [--quick] [--out DIR]`: every benchmark of issues 7 and 13, one JSON and PNG plots.
+"""`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS]`: every benchmark, one JSON and PNG plots.
 
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
 DIR/calibration.png. The full run takes several minutes on 2 cores (the scale test alone runs
 60 s, the diagnosis calibration a few minutes); --quick is a smoke-test mode (two subsets, a
-short network, 2 browsers for 2 s, a few diagnoses) that keeps every key.
+short network, 2 browsers for 2 s, a few diagnoses) that keeps every key. --only runs some
+sections and updates them in the last run's results.json, each stamped under "updated" with its
+date and the code it was measured on.
 """
 
 from __future__ import annotations
@@ -21,8 +23,10 @@ import torch
 
 from benchmarks import calibration, data_efficiency, hidden_effects, plots, scale, speed
 from ph_explorer.app.server import build_server
+from ph_explorer.campaign import Campaign
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.twin import load_scenario, simulate
 
 HERE = Path(__file__).resolve().parent
 SCENARIOS = ("paper", "b_axis_22")
@@ -32,44 +36,23 @@ def log(text: str) -> None:
     print(text, flush=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
-    parser.add_argument("--out", type=Path, default=HERE, help="folder for results.json and the PNGs")
-    parser.add_argument("--replot", action="store_true", help="only redraw the PNGs from OUT/results.json")
-    args = parser.parse_args(argv)
-    if args.replot:
-        results = json.loads((args.out / "results.json").read_text())
-        plots.data_efficiency_plot(results, args.out / "data_efficiency.png")
-        plots.speed_plot(results, args.out / "speed.png")
-        if "diagnosis_calibration" in results:
-            plots.calibration_plot(results, args.out / "calibration.png")
-        return 0
-    quick: bool = args.quick
-    out: Path = args.out
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
+SECTIONS = ("data_efficiency", "speed", "scale", "diagnosis_calibration", "hidden_effects")
 
-    network_config = NetworkConfig(max_epochs=30, early_stopping_patience=10) if quick else NetworkConfig()
+
+def paper_campaign() -> Campaign:
+    scenario = load_scenario("paper")
+    return simulate(scenario, scenario.seed)
+
+
+def run_data_efficiency(quick: bool, network_config: NetworkConfig, results: dict[str, Any]) -> None:
     columns = (18, 3) if quick else data_efficiency.B_COLUMNS
-    results: dict[str, Any] = {
-        "date": datetime.date.today().isoformat(),
-        "mode": "quick" if quick else "full",
-        "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "torch_threads": 1, "platform": platform.platform()},
-    }
-
-    # 1. data efficiency
-    log("data efficiency")
     results["data_efficiency"], results["data_efficiency_details"] = {}, {}
-    paper_campaign = None
     for name in SCENARIOS:
         run = data_efficiency.run_scenario(name, network_config, columns, log=log)
         results["data_efficiency"][name] = run["curves"]
         details = run["details"]
         details["target"] = data_efficiency.target(run["curves"])
         results["data_efficiency_details"][name] = details
-        if name == "paper":
-            paper_campaign = run["campaign"]
     holds = {name: d["target"]["holds"] for name, d in results["data_efficiency_details"].items()}
     results["target"] = {
         "holds": all(holds.values()),
@@ -82,14 +65,15 @@ def main(argv: list[str] | None = None) -> int:
         ),
     }
 
-    # 2. speed
-    log("speed")
-    assert paper_campaign is not None
-    check = paper_campaign.holdout_mask()
+
+def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any], with_scale: bool) -> None:
+    """Speed figures; the one-browser slider figure and (with_scale) N browsers share one server."""
+    campaign = paper_campaign()
+    check = campaign.holdout_mask()
     s: dict[str, Any] = {"cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads()}
     s["simulate"] = speed.simulate_speed(2 if quick else 5)
     start = time.perf_counter()
-    network = FourierNetwork(network_config).fit(paper_campaign, ~check)
+    network = FourierNetwork(network_config).fit(campaign, ~check)
     s["network_training"] = {
         "seconds": round(time.perf_counter() - start, 2),
         "epochs": network.log.epochs,
@@ -97,14 +81,15 @@ def main(argv: list[str] | None = None) -> int:
         "training_orientations": int((~check).sum()),
         "config": "short (quick mode)" if quick else "the paper's (early stopping, patience 200)",
     }
-    trilinear = TrilinearModel().fit(paper_campaign, ~check)
-    s["physics_refit"], hybrid = speed.refit_speed(paper_campaign)
+    trilinear = TrilinearModel().fit(campaign, ~check)
+    s["physics_refit"], hybrid = speed.refit_speed(campaign)
     # Prediction and Monte Carlo of the hybrid use the refit's (lobing + b_axis_cyclic).
     models = {"network": network, "trilinear": trilinear, "hybrid": hybrid}
     s["hybrid_used_for_prediction"] = "lobing + b_axis_cyclic (2/rev), data part trilinear"
-    s["diagnosis"] = speed.diagnosis_speed(paper_campaign)
+    s["diagnosis"] = speed.diagnosis_speed(1 if quick else 3)
+    log(f"  diagnosis {s['diagnosis']}")
     s["predict_one_orientation_us"] = speed.prediction_speed(models, 30 if quick else 200)
-    s["monte_carlo_touches_per_s"] = speed.monte_carlo_speed(models, paper_campaign.orientations, 10, 1 if quick else 3)
+    s["monte_carlo_touches_per_s"] = speed.monte_carlo_speed(models, campaign.orientations, 10, 1 if quick else 3)
     s["serve_startup"] = speed.serve_startup()
     log(f"  serve start-up {s['serve_startup']}")
 
@@ -123,27 +108,82 @@ def main(argv: list[str] | None = None) -> int:
         s["slider_update_ms"]["holds"] = one["server_update_ms"]["p95"] is not None and one["server_update_ms"]["p95"] < 20
         results["speed"] = s
         log(f"  slider update (1 browser) {s['slider_update_ms']}")
-        log("scale")
-        n_browsers, seconds = (2, 2.0) if quick else (30, 60.0)
-        load = scale.drive(app, n_browsers, 20.0, seconds)
-        load["clients"] = "websocket clients on 127.0.0.1 speaking viser's protocol, in a separate process (benchmarks/browsers.py)"
-        load["p95_target_ms"] = 20
-        results["scale"] = load
-        log(f"  {json.dumps(load)}")
+        if with_scale:
+            log("scale")
+            n_browsers, seconds = (2, 2.0) if quick else (30, 60.0)
+            load = scale.drive(app, n_browsers, 20.0, seconds)
+            load["clients"] = "websocket clients on 127.0.0.1 speaking viser's protocol, in a separate process (benchmarks/browsers.py)"
+            load["p95_target_ms"] = 20
+            results["scale"] = load
+            log(f"  {json.dumps(load)}")
     finally:
         app.stop()
 
-    # 4. diagnosis calibration: false alarms, stability, coverage, power (issue 13)
-    log("diagnosis calibration")
-    results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
-    # 5. each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
-    log("hidden effects")
-    results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
 
-    results["total_seconds"] = round(time.perf_counter() - started, 1)
+def write_plots(results: dict[str, Any], out: Path) -> None:
+    if "data_efficiency" in results:
+        plots.data_efficiency_plot(results, out / "data_efficiency.png")
+    if "speed" in results:
+        plots.speed_plot(results, out / "speed.png")
+    if "diagnosis_calibration" in results:
+        plots.calibration_plot(results, out / "calibration.png")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
+    parser.add_argument("--out", type=Path, default=HERE, help="folder for results.json and the PNGs")
+    parser.add_argument("--replot", action="store_true", help="only redraw the PNGs from OUT/results.json")
+    parser.add_argument(
+        "--only",
+        default="",
+        help=f"run only these sections (comma-separated: {', '.join(SECTIONS)}) and update them in OUT/results.json",
+    )
+    args = parser.parse_args(argv)
+    out: Path = args.out
+    if args.replot:
+        write_plots(json.loads((out / "results.json").read_text()), out)
+        return 0
+    only = [name.strip() for name in args.only.split(",") if name.strip()]
+    unknown = [name for name in only if name not in SECTIONS]
+    if unknown:
+        parser.error(f"--only: unknown section {unknown[0]!r} (sections: {', '.join(SECTIONS)})")
+    sections = only or list(SECTIONS)
+    quick: bool = args.quick
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    network_config = NetworkConfig(max_epochs=30, early_stopping_patience=10) if quick else NetworkConfig()
+    stamp = {"date": datetime.date.today().isoformat(), "mode": "quick" if quick else "full"}
+    if only:
+        # A partial run updates its sections in the results of the last run, each stamped.
+        results: dict[str, Any] = json.loads((out / "results.json").read_text())
+        for name in sections:
+            results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version()}
+    else:
+        results = {**stamp, "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "torch_threads": 1, "platform": platform.platform()}}
+
+    if "data_efficiency" in sections:
+        log("data efficiency")
+        run_data_efficiency(quick, network_config, results)
+    if "speed" in sections or "scale" in sections:
+        log("speed")
+        run_speed(quick, network_config, results, with_scale="scale" in sections)
+    if "diagnosis_calibration" in sections:
+        # false alarms, stability, coverage, power (issue 13)
+        log("diagnosis calibration")
+        results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+    if "hidden_effects" in sections:
+        # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
+        log("hidden effects")
+        results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
+
+    seconds = round(time.perf_counter() - started, 1)
+    if only:
+        for name in sections:
+            results["updated"][name]["run_seconds"] = seconds  # the whole partial run
+    else:
+        results["total_seconds"] = seconds
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")
-    plots.data_efficiency_plot(results, out / "data_efficiency.png")
-    plots.speed_plot(results, out / "speed.png")
-    plots.calibration_plot(results, out / "calibration.png")
-    log(f"wrote {out / 'results.json'} and the PNGs in {results['total_seconds']} s")
+    write_plots(results, out)
+    log(f"wrote {out / 'results.json'} and the PNGs in {seconds} s")
     return 0

@@ -47,11 +47,32 @@ def refit_speed(campaign: Campaign) -> tuple[dict[str, Any], DeviationModel]:
     return figures, hybrid
 
 
-def diagnosis_speed(campaign: Campaign) -> dict[str, Any]:
-    start = time.perf_counter()
-    result = diagnose(campaign)
-    seconds = time.perf_counter() - start
-    return {"seconds": round(seconds, 2), "target_s": 60, "holds": seconds < 60, "verdict": result.verdict}
+DIAGNOSIS_TARGET_S = 30.0  # issue 13: a paper-size campaign diagnosed in under 30 s on 2 cores
+
+
+def diagnosis_speed(repeat: int = 3) -> dict[str, Any]:
+    """Seconds of one diagnose(campaign) alone on the machine (simulation excluded), median of
+    `repeat`: the paper campaign (nothing found) and b_axis_22 (an effect found, so the nested
+    cross-validation of the choice runs too: the longest path of a paper-size diagnosis)."""
+    out: dict[str, Any] = {"target_s": DIAGNOSIS_TARGET_S, "note": "one diagnosis at a time, nothing else running in the benchmark"}
+    for name in ("paper", "b_axis_22"):
+        scenario = load_scenario(name)
+        campaign = simulate(scenario, scenario.seed)
+        times, verdicts = [], set()
+        for _ in range(repeat):
+            start = time.perf_counter()
+            result = diagnose(campaign)
+            times.append(time.perf_counter() - start)
+            verdicts.add(result.verdict)
+        out[name] = {
+            "seconds_median": round(float(np.median(times)), 2),
+            "seconds": [round(t, 2) for t in times],
+            "verdict": "/".join(sorted(verdicts)),
+            "nested": result.nested is not None,
+            "touches": campaign.n_touches,
+        }
+    out["holds"] = all(out[name]["seconds_median"] < DIAGNOSIS_TARGET_S for name in ("paper", "b_axis_22"))
+    return out
 
 
 def prediction_speed(models: dict[str, DeviationModel], repeat: int = 200) -> dict[str, float]:

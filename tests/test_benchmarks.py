@@ -90,6 +90,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         assert key in speed, key
     assert speed["serve_startup"]["seconds_from_launch"] is not None
     assert set(speed["predict_one_orientation_us"]) == {"network", "trilinear", "hybrid"}
+    for name in ("paper", "b_axis_22"):
+        assert speed["diagnosis"][name]["seconds_median"] > 0
+    assert speed["diagnosis"]["b_axis_22"]["nested"] and speed["diagnosis"]["target_s"] == 30
     scale = results["scale"]
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
@@ -128,5 +131,29 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]
     assert {"verdict", "named_first_at_its_period", "truth_within_u", "after_over_floor", "seconds"} <= set(case)
+
+    # --only: one section run again and updated in place, stamped; every other section kept as it was.
+    again = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--quick", "--only", "hidden_effects", "--out", str(tmp_path)],
+        cwd=REPOSITORY,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert again.returncode == 0, again.stderr[-3000:]
+    updated = json.loads((tmp_path / "results.json").read_text())
+    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated")} == {k: v for k, v in results.items() if k != "hidden_effects"}
+    assert set(updated["updated"]) == {"hidden_effects"} and updated["updated"]["hidden_effects"]["code_sha256"]
+    assert updated["hidden_effects"]["cases"].keys() == hidden["cases"].keys()
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
+    """--only runs some sections and updates them in the last results.json, stamped; others are kept."""
+    previous = {"date": "2000-01-01", "mode": "full", "speed": {"kept": True}, "hidden_effects": {"old": True}}
+    (tmp_path / "results.json").write_text(json.dumps(previous))
+    bad = subprocess.run([sys.executable, "-m", "benchmarks", "--only", "nonsense", "--out", str(tmp_path)], cwd=REPOSITORY, capture_output=True, text=True)
+    assert bad.returncode == 2 and "--only: unknown section 'nonsense'" in bad.stderr
+    assert json.loads((tmp_path / "results.json").read_text()) == previous
+
