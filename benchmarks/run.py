@@ -1,4 +1,4 @@
-"""`python -m benchmarks [--quick] [--out DIR]`: every benchmark of issues 7 and 13, one JSON and PNG plots.
+"""`python -m benchmarks [--quick] [--out DIR]`: every benchmark of issues 7, 13, 14 and 17, one JSON and PNG plots.
 
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
 DIR/calibration.png. The full run takes several minutes on 2 cores (the scale test alone runs
@@ -19,7 +19,7 @@ from typing import Any
 
 import torch
 
-from benchmarks import calibration, data_efficiency, hidden_effects, plots, scale, speed
+from benchmarks import calibration, data_efficiency, hidden_effects, plots, scale, speed, uncertainty_coverage
 from ph_explorer.app.server import build_server
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
@@ -37,7 +37,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
     parser.add_argument("--out", type=Path, default=HERE, help="folder for results.json and the PNGs")
     parser.add_argument("--replot", action="store_true", help="only redraw the PNGs from OUT/results.json")
+    parser.add_argument(
+        "--only-uncertainty", action="store_true", help="run only the uncertainty_coverage section and update OUT/results.json with it"
+    )
     args = parser.parse_args(argv)
+    if args.only_uncertainty:
+        path = args.out / "results.json"
+        results = json.loads(path.read_text()) if path.is_file() else {}
+        log("uncertainty coverage")
+        results["uncertainty_coverage"] = {"date": datetime.date.today().isoformat(), **uncertainty_coverage.run(quick=args.quick, log=log)}
+        args.out.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(results, indent=2) + "\n")
+        return 0
     if args.replot:
         results = json.loads((args.out / "results.json").read_text())
         plots.data_efficiency_plot(results, args.out / "data_efficiency.png")
@@ -139,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     # 5. each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
     log("hidden effects")
     results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
+    # 6. the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
+    log("uncertainty coverage")
+    results["uncertainty_coverage"] = {"date": results["date"], **uncertainty_coverage.run(quick=quick, log=log)}
 
     results["total_seconds"] = round(time.perf_counter() - started, 1)
     (out / "results.json").write_text(json.dumps(results, indent=2) + "\n")

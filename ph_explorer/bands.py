@@ -46,6 +46,8 @@ class Sources:
     n_repetitions: int  # R: the mean band bounds the mean of R repetitions
     error: OutOfSampleError | None = None  # None: no model component
     parameters: ParameterSpread | None = None  # None: no parameters component
+    # Per (A, B, N): the model component's power and the parameters' root, made once, not per batch.
+    _cache: dict[tuple[float, float, int], tuple[Any, Any]] = field(default_factory=dict, repr=False, compare=False)
 
     def model_power(self, orientation: NDArray[np.float64]) -> NDArray[np.float64] | None:
         """The model component's power per harmonic: the out-of-sample error beyond the parameters."""
@@ -61,12 +63,16 @@ class Sources:
         o = as_orientations(orientation)
         sigma = self.model.repetition_sigma(o, n_points=n_points)
         zero = np.zeros((1, n_points))
-        power = self.model_power(o)
+        key = (float(o[0, 0]), float(o[0, 1]), n_points)
+        if key not in self._cache:
+            root = None if self.parameters is None else self.parameters.root(o, n_points)
+            self._cache[key] = (self.model_power(o), root)
+        power, root = self._cache[key]
         return {
             "repeatability": draw_repetitions(zero, sigma, n_trials, rng)[0],
             "repeatability_mean": draw_repetitions(zero, sigma / np.sqrt(self.n_repetitions), n_trials, rng)[0],
             "model": np.zeros((n_trials, n_points)) if power is None else random_phase_curves(power, n_trials, n_points, rng),
-            "parameters": np.zeros((n_trials, n_points)) if self.parameters is None else self.parameters.draw(o, n_trials, n_points, rng),
+            "parameters": np.zeros((n_trials, n_points)) if root is None else rng.standard_normal((n_trials, root.shape[1])) @ root.T,
         }
 
 

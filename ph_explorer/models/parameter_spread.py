@@ -47,19 +47,20 @@ class ParameterSpread:
             basis = basis - np.stack([t.predict(o, n_points=n_points) for t in self.absorbed], axis=-1)
         return basis
 
+    def root(self, orientation: ArrayLike, n_points: int) -> NDArray[np.float64]:
+        """(n_points, c) R with R R^T the covariance of the component's curve at one orientation:
+        a draw is R z, z ~ N(0, I) (an eigen-root: C may be singular, no Cholesky)."""
+        values, vectors = np.linalg.eigh(self.covariance)
+        return self.curves(orientation, n_points)[0] @ (vectors * np.sqrt(np.maximum(values, 0.0)))
+
     def draw(self, orientation: ArrayLike, n_trials: int, n_points: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """(n_trials, n_points) draws of the parameters' component at one orientation."""
-        g = self.curves(orientation, n_points)[0]  # (N, c)
-        values, vectors = np.linalg.eigh(self.covariance)  # C may be singular: no Cholesky
-        root = vectors * np.sqrt(np.maximum(values, 0.0))
-        return rng.standard_normal((n_trials, root.shape[1])) @ (g @ root).T
+        root = self.root(orientation, n_points)
+        return rng.standard_normal((n_trials, root.shape[1])) @ root.T
 
     def power(self, orientation: ArrayLike, n_points: int) -> NDArray[np.float64]:
         """(N//2 + 1,) expected power per harmonic of the component at one orientation, um^2."""
-        g = self.curves(orientation, n_points)[0]
-        values, vectors = np.linalg.eigh(self.covariance)
-        root = g @ (vectors * np.sqrt(np.maximum(values, 0.0)))  # (N, c): columns independent unit draws
-        return harmonic_power(root.T).sum(axis=0)
+        return harmonic_power(self.root(orientation, n_points).T).sum(axis=0)
 
 
 def parameter_spread(hybrid: HybridModel, campaign: Campaign) -> ParameterSpread | None:
