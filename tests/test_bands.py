@@ -48,11 +48,11 @@ def test_the_full_band_covers_held_out_rings_the_noise_band_does_not(twin, trili
     bands = model_bands(Sources(model, campaign.n_repetitions, error), campaign.orientations[check], rng=np.random.default_rng(1), ndig=1)
     full = band_coverage(bands, campaign.deviations[check])
     noise = band_coverage(bands, campaign.deviations[check], "repeatability")
-    # On a lattice twice as coarse as the paper's the interpolation error is several times the noise
-    # of a 5-repetition mean: the noise-only mean band misses most of it, the full band does not.
-    assert noise["mean"] < 0.8
-    assert 0.88 <= full["mean"] <= 1.0 and full["mean"] > noise["mean"] + 0.15
-    assert 0.9 <= full["touch"] <= 1.0 and full["touch"] >= noise["touch"]
+    # On a lattice twice as coarse as the paper's the interpolation error is larger than the noise
+    # of a 5-repetition mean: the noise-only bands miss it, the full band does not.
+    assert noise["mean"] < 0.9 and noise["touch"] < 0.92
+    assert 0.93 <= full["mean"] <= 1.0 and full["mean"] > noise["mean"] + 0.1
+    assert 0.92 <= full["touch"] <= 0.98 and full["touch"] > noise["touch"]
     for band in bands:
         assert np.all(band.lower["touch"] < band.prediction) and np.all(band.prediction < band.upper["touch"])
         assert np.all(band.upper["mean"] - band.lower["mean"] < band.upper["touch"] - band.lower["touch"])
@@ -122,14 +122,14 @@ def test_tolerance_and_stopping_rule():
 
 def test_adaptive_monte_carlo_runs_until_the_tolerance_is_met():
     def draw(m, rng):
-        return rng.normal(0.0, [0.0734, 1.0], (m, 2))
+        return rng.normal(0.0, [0.012, 0.15], (m, 2))
 
     coarse = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=1, trials_per_batch=1000)
     fine = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=2, trials_per_batch=1000)
     assert coarse.converged and fine.converged and coarse.batches >= 2
     assert fine.trials > coarse.trials
     # At convergence the endpoints sit within the tolerance of the exact ones.
-    assert np.all(np.abs(fine.upper - 1.959964 * np.array([0.0734, 1.0])) <= 2 * fine.tolerance)
+    assert np.all(np.abs(fine.upper - 1.959964 * np.array([0.012, 0.15])) <= 2 * fine.tolerance)
     capped = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=4, trials_per_batch=1000, max_trials=3000)
     assert not capped.converged and capped.trials == 3000
     with pytest.raises(ValueError):
