@@ -93,7 +93,7 @@ def test_bad_options_are_one_line_and_exit_2(folder: Path, args: list[str], opti
 def test_missing_folder_and_folder_without_errors(folder: Path, tmp_path: Path) -> None:
     missing = invoke("--model", str(tmp_path / "nope"), "--orientations", "15:-20", "--json")
     assert missing.exit_code == 2 and missing.stdout == ""
-    assert len(missing.stderr.strip().splitlines()) == 1 and "model folder not found" in missing.stderr
+    assert len(missing.stderr.strip().splitlines()) == 1 and "model folder not found" in missing.stderr and "option --model" in missing.stderr
     old = tmp_path / "old"
     shutil.copytree(folder, old)
     (old / FILE_NAME).unlink()

@@ -38,7 +38,9 @@ def uncertainty_report(model: Path, orientations: str, level: float = 0.95, seed
     from ph_explorer.task import task_uncertainty
 
     directory = Path(model)
-    models = load_models(directory)  # one line when the folder is missing or holds no model
+    if not directory.is_dir():
+        raise InputError("model folder not found", file=str(directory), option="--model")
+    models = load_models(directory)  # one line when the folder holds no model
     if not (directory / FILE_NAME).is_file():
         raise InputError(f"the model folder has no {FILE_NAME} (each model's out-of-sample error): retrain it with ph-explorer train", file=str(directory), option="--model")
     errors, repetitions = load_errors(directory)
