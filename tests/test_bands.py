@@ -4,12 +4,15 @@ up in quadrature, the hybrid's parameters, the adaptive Monte Carlo's stopping r
 from __future__ import annotations
 
 import copy
+import dataclasses
 import tomllib
 
 import numpy as np
 import pytest
 
 from ph_explorer.bands import Sources, band_coverage, model_bands, orientation_band
+from ph_explorer.geometry import point_angles_deg
+from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, out_of_sample_error, random_phase_curves, white_noise_power
 from ph_explorer.models.parameter_spread import parameter_spread
@@ -147,3 +150,15 @@ def test_task_uncertainty_and_normalised_error(twin, trilinear):
     measured = measured_task(campaign.deviations[i : i + 1])
     assert measured["value"].shape == (1, 15) and np.all(measured["U"] > 0)
     assert normalised_error([1.0, 1.0], [0.3, 0.0], [1.5, 1.0], [0.4, 0.1]).tolist() == pytest.approx([1.0, 0.0])
+
+
+def test_cross_validation_in_folds_never_fits_the_ring_it_predicts(twin):
+    _, campaign = twin
+    train = ~campaign.holdout_mask()
+    base = cross_val_predict(TrilinearModel, campaign, train, folds=5, strict=True)
+    ring = int(np.flatnonzero(train)[7])
+    deviations = campaign.deviations.copy()
+    deviations[ring] += np.cos(3 * np.radians(point_angles_deg(campaign.n_points)))  # 1 um of 3 UPR
+    after = cross_val_predict(TrilinearModel, dataclasses.replace(campaign, deviations=deviations), train, folds=5, strict=True)
+    assert np.allclose(after[ring], base[ring])  # the ring is never in its own fit
+    assert not np.allclose(after, base)  # but it is in the fits that predict the others
