@@ -90,7 +90,6 @@ class Band:
     budget_um: dict[str, float]
     trials: int
     converged: bool
-    extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """The JSON of `ph-explorer uncertainty` for this band (issue 17): bounds, R, budget."""
@@ -104,7 +103,6 @@ class Band:
             "mean_upper_um": _rounded(self.upper["mean"]),
             "mean_of_repetitions": self.n_repetitions,
             "budget_um": {k: round(v, 5) for k, v in self.budget_um.items()},
-            **self.extra,
         }
 
 
