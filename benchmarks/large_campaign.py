@@ -100,7 +100,7 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
     dense = large_scenario()
     if quick:
         dense["orientations"]["a_deg"] = [0, 90, 15]
-        dense["geometry"]["points_per_circle"] = 128
+        dense["geometry"]["points_per_circle"] = 64
     sizes: dict[str, Any] = {}
     for name, data in (("paper", paper), ("dense", dense)):
         (folder / f"{name}_scenario.toml").write_text(tomli_w.dumps(data), encoding="utf-8")
@@ -122,7 +122,7 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
     return {
         "design": "paper scenario, A every 7.5 deg x B every 10 deg + the paper's off-grid rings, 256 points, 10 repetitions"
         if not quick
-        else "quick: A every 15 deg x B every 10 deg, 128 points",
+        else "quick: A every 15 deg x B every 10 deg, 64 points",
         "touches": touches,
         "paper": sizes["paper"],
         "dense": sizes["dense"],

@@ -15,13 +15,14 @@ import datetime
 import json
 import os
 import platform
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from benchmarks import calibration, data_efficiency, hidden_effects, plots, scale, speed
+from benchmarks import calibration, data_efficiency, hidden_effects, large_campaign, plots, scale, speed, uncertainty_coverage
 from ph_explorer.app.server import build_server
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
@@ -36,7 +37,7 @@ def log(text: str) -> None:
     print(text, flush=True)
 
 
-SECTIONS = ("data_efficiency", "speed", "scale", "diagnosis_calibration", "hidden_effects")
+SECTIONS = ("data_efficiency", "speed", "scale", "diagnosis_calibration", "hidden_effects", "uncertainty_coverage", "large_campaign")
 
 
 def paper_campaign() -> Campaign:
@@ -176,6 +177,15 @@ def main(argv: list[str] | None = None) -> int:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         log("hidden effects")
         results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
+    if "uncertainty_coverage" in sections:
+        # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
+        log("uncertainty coverage")
+        results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(quick=quick, log=log)}
+    if "large_campaign" in sections:
+        # every command at the paper's size and at 16x its touches (issue 16)
+        log("large campaign")
+        with tempfile.TemporaryDirectory() as folder:
+            results["large_campaign"] = large_campaign.run(Path(folder), quick=quick, log=log)
 
     seconds = round(time.perf_counter() - started, 1)
     if only:

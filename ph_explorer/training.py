@@ -10,6 +10,7 @@ from __future__ import annotations
 import tempfile
 import time
 from collections.abc import Mapping
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ from ph_explorer.io.files import file_sha256
 from ph_explorer.models import network as network_module
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.folder import CARD_FORMAT, load_models
+from ph_explorer.models.model_error import OutOfSampleError, out_of_sample_error
 from ph_explorer.models.network import FourierNetwork, NetworkConfig, ProgressCallback
 from ph_explorer.models.trilinear import TrilinearModel
 
@@ -44,6 +46,18 @@ def train_models(
     network = FourierNetwork(config, progress=progress).fit(campaign, train)
     seconds["network"] = time.perf_counter() - start
     return {"network": network, "trilinear": trilinear}, seconds
+
+
+def model_errors(
+    campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, network_config: NetworkConfig | None = None
+) -> dict[str, OutOfSampleError]:
+    """Each model's own error out of sample (models.model_error: the cross-validation of the training
+    rings), for the model uncertainty of its Monte Carlo bands; the network is retrained per fold."""
+    config = NetworkConfig.from_dict({**(network_config or NetworkConfig()).as_dict(), "seed": seed})
+    return {
+        "network": out_of_sample_error(partial(FourierNetwork, config), campaign, train),
+        "trilinear": out_of_sample_error(TrilinearModel, campaign, train),
+    }
 
 
 def as_saved(models: Mapping[str, DeviationModel]) -> dict[str, DeviationModel]:

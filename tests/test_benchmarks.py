@@ -131,6 +131,22 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]
     assert {"verdict", "named_first_at_its_period", "truth_within_u", "after_over_floor", "seconds"} <= set(case)
+    coverage = results["uncertainty_coverage"]
+    assert coverage["mode"] == "quick" and coverage["target"] == [0.93, 0.97]
+    assert set(coverage["campaigns"]) == {"paper (shipped data and model)", "b_axis_22"}
+    for models in coverage["campaigns"].values():
+        assert set(models) == {"trilinear", "network", "hybrid"}
+        for figures in models.values():
+            for band in ("full_band", "noise_only_band"):
+                assert set(figures[band]) == {"touch", "mean"} and all(0.0 <= v <= 1.0 for v in figures[band].values())
+    task = coverage["task_paper_check_rings"]["trilinear"]
+    assert task["of_rings"] == 4 and 0 <= task["ront_E_n_at_most_1"] <= 4 and len(task["rings"]) == 4
+    large = results["large_campaign"]
+    assert large["touches"]["dense"] > large["touches"]["paper"] > 0
+    for size in ("paper", "dense"):
+        assert set(large[size]) == {"simulate", "train", "evaluate", "diagnose", "serve"}
+        assert all(figures["ok"] and figures["seconds"] > 0 and figures["peak_mib"] > 0 for figures in large[size].values()), large[size]
+    assert set(large["growth_exponent"]) == set(large["paper"]) and isinstance(large["diagnosis_holds"], bool)
 
     # --only: one section run again and updated in place, stamped; every other section kept as it was.
     again = subprocess.run(

@@ -36,7 +36,7 @@ def trained(data, tmp_path_factory) -> Path:
 
 
 def test_train_writes_the_model_folder_and_card(data, trained):
-    assert sorted(p.name for p in trained.iterdir()) == ["card.json", "network.safetensors", "trilinear.npz"]
+    assert sorted(p.name for p in trained.iterdir()) == ["card.json", "network.safetensors", "trilinear.npz", "uncertainty.npz"]
     card = load_card(trained)
     import hashlib
 

@@ -1,4 +1,4 @@
-"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, serve.
+"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, uncertainty, serve.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
 command is in its own module (cli/inspect.py, ...). A command module imports the torch- or
@@ -19,7 +19,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from ph_explorer.cli import diagnose, effects, evaluate, inspect, serve, simulate, train
+from ph_explorer.cli import diagnose, effects, evaluate, inspect, serve, simulate, train, uncertainty
 from ph_explorer.errors import InputError
 
 app = typer.Typer(
@@ -174,6 +174,19 @@ def _effects(
     """Every effect of the catalog (id, ISO 230-1 style symbol, axis, kind, parameters); with --data, which
     the campaign can see, which the circle fit absorbs, which the data model learns, which are confounded."""
     _run("effects", effects.effects_command, data=data, effects=effects_file, json_output=json_output, geometry=geometry)
+
+
+@app.command("uncertainty")
+def _uncertainty(
+    model: Annotated[Path, typer.Option(help="A trained model folder (with its uncertainty.npz).")],
+    orientations: Annotated[str, typer.Option(help="Orientations 'A:B[,A:B...]' in degrees, e.g. 15:-20,43:90.")],
+    level: Annotated[float, typer.Option(help="Coverage probability of the bands, in (0, 1).")] = 0.95,
+    seed: Annotated[Optional[int], typer.Option(help="Random seed of the Monte Carlo (default: fresh).")] = None,
+    json_output: JsonOpt = False,
+) -> None:
+    """Each model's Monte Carlo band with every component (repeatability, model, parameters), its budget
+    and the RONt of one measurement with U (k = 2), at the given orientations."""
+    _run("uncertainty", uncertainty.uncertainty_command, model=model, orientations=orientations, level=level, json_output=json_output, seed=seed)
 
 
 @app.command("inspect")

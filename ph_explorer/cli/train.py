@@ -35,7 +35,7 @@ def train_command(
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
     from ph_explorer.models.folder import save_models
     from ph_explorer.models.network import NetworkConfig
-    from ph_explorer.training import build_card, train_models
+    from ph_explorer.training import build_card, model_errors, train_models
 
     if Path(out).exists() and not Path(out).is_dir():
         raise InputError("must be a folder (it exists as a file)", file=str(out), option="--out")
@@ -51,7 +51,10 @@ def train_command(
     with progress_bar(config.max_epochs, quiet) as progress:
         models, seconds = train_models(campaign, ~mask, seed, progress, config)
     card = build_card(campaign, Path(data), mask, source, seed, models, seconds)
-    save_models(models, Path(out), card)
+    if not quiet:
+        print("estimating each model's out-of-sample error (5-fold cross-validation, the network retrained per fold)", file=sys.stderr)
+    errors = model_errors(campaign, ~mask, seed, config)
+    save_models(models, Path(out), card, errors)
     if not quiet:
         net = card["network"]
         print(
@@ -64,8 +67,8 @@ def train_command(
     return 0
 
 
-def parse_holdout(text: str, campaign: Campaign) -> NDArray[np.bool_]:
-    """The mask of the orientations named by --holdout 'A:B,A:B' (each must be in the campaign)."""
+def parse_orientations(text: str, option: str) -> list[tuple[float, float]]:
+    """The orientations of an option 'A:B,A:B' in degrees; InputError naming the option otherwise."""
     pairs = []
     for item in (s.strip() for s in text.split(",")):
         if not item:
@@ -78,10 +81,16 @@ def parse_holdout(text: str, campaign: Campaign) -> NDArray[np.bool_]:
             if not (np.isfinite(a) and np.isfinite(b)):
                 raise ValueError
         except ValueError:
-            raise InputError(f"{item!r} is not an orientation A:B in degrees (e.g. 43:91)", option="--holdout") from None
+            raise InputError(f"{item!r} is not an orientation A:B in degrees (e.g. 43:91)", option=option) from None
         pairs.append((a, b))
     if not pairs:
-        raise InputError("names no orientation (expected 'A:B,A:B', e.g. 15:-20,43:91)", option="--holdout")
+        raise InputError("names no orientation (expected 'A:B,A:B', e.g. 15:-20,43:91)", option=option)
+    return pairs
+
+
+def parse_holdout(text: str, campaign: Campaign) -> NDArray[np.bool_]:
+    """The mask of the orientations named by --holdout 'A:B,A:B' (each must be in the campaign)."""
+    pairs = parse_orientations(text, "--holdout")
     match = orientation_match(campaign.orientations, np.array(pairs))
     missing = [f"{a:g}:{b:g}" for (a, b), hit in zip(pairs, match.any(axis=0)) if not hit]
     if missing:

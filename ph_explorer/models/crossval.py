@@ -2,8 +2,11 @@
 
 In the spirit of scikit-learn's cross_val_predict with the orientation as the group: every
 training ring is predicted by the model fitted on the other training rings
-(leave-one-orientation-out), every held-out ring by the model fitted on all training rings (its
-measurements never enter a fit). What a model cannot predict of a ring out of sample is where a
+(leave-one-orientation-out, or with `folds` the training rings split into that many groups, every
+folds-th ring in measuring order, left out together: fewer fits for a model that trains for seconds),
+every held-out ring by the model fitted on all training rings (its measurements never enter a fit).
+With `strict`, a model is given only the rings it may learn from (`campaign.subset`): a hybrid
+otherwise fits its physical terms on every ring of the campaign it is given. What a model cannot predict of a ring out of sample is where a
 missing physical effect shows (docs/physics.md).
 
 A model that is linear in its data (the trilinear tables) also gives its out-of-sample weights W
@@ -32,6 +35,8 @@ def _out_of_sample(
     campaign: Campaign,
     train: ArrayLike,
     predict: Callable[[DeviationModel, NDArray[np.float64]], NDArray[np.float64]],
+    folds: int | None = None,
+    strict: bool = False,
 ) -> NDArray[np.float64]:
     """predict(model, orientations) at every ring, the model fitted without it (see the module docstring).
 
@@ -39,15 +44,23 @@ def _out_of_sample(
     """
     train = np.asarray(train, dtype=bool)
     o = campaign.orientations
+
+    def fitted(mask: NDArray[np.bool_]) -> DeviationModel:
+        if strict:
+            return make_model().fit(campaign.subset(mask))
+        return make_model().fit(campaign, mask)
+
     parts: list[tuple[NDArray[np.int64], NDArray[np.float64]]] = []
     held_out = np.flatnonzero(~train)
     if held_out.size and train.any():
-        parts.append((held_out, predict(make_model().fit(campaign, train), o[held_out])))
-    for i in np.flatnonzero(train):  # one fit per ring: a loop over rings, never over touches
+        parts.append((held_out, predict(fitted(train), o[held_out])))
+    rings = np.flatnonzero(train)
+    groups = [rings[i : i + 1] for i in range(rings.size)] if folds is None else [rings[f::folds] for f in range(min(folds, rings.size))]
+    for group in groups:  # one fit per group: a loop over rings, never over touches
         others = train.copy()
-        others[i] = False
+        others[group] = False
         if others.any():
-            parts.append((np.array([i]), predict(make_model().fit(campaign, others), o[i : i + 1])))
+            parts.append((group, predict(fitted(others), o[group])))
     width = parts[0][1].shape[1] if parts else campaign.n_points
     out = np.zeros((campaign.n_orientations, width))
     for rows, values in parts:
@@ -55,9 +68,11 @@ def _out_of_sample(
     return out
 
 
-def cross_val_predict(make_model: ModelFactory, campaign: Campaign, train: ArrayLike) -> NDArray[np.float64]:
+def cross_val_predict(
+    make_model: ModelFactory, campaign: Campaign, train: ArrayLike, folds: int | None = None, strict: bool = False
+) -> NDArray[np.float64]:
     """Each ring's out-of-sample systematic curve (n_o, n_points) in um (see the module docstring)."""
-    return _out_of_sample(make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points))
+    return _out_of_sample(make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points), folds, strict)
 
 
 def held_out_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike) -> dict[str, float]:

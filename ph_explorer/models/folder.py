@@ -1,8 +1,8 @@
 """A model folder: the trained models' files and their card, written atomically, read back by name.
 
-A folder written by `ph-explorer train` holds network.safetensors, trilinear.npz and card.json
+A folder written by `ph-explorer train` holds network.safetensors, trilinear.npz, card.json
 (the data's sha256, the holdout, hyperparameters, epochs, training times, geometry and the
-evaluation at the holdout). Writing goes to a temporary folder beside DIR, which then replaces
+evaluation at the holdout) and uncertainty.npz (each model's out-of-sample error, models.model_error). Writing goes to a temporary folder beside DIR, which then replaces
 DIR: an interrupted training leaves an existing DIR as it was.
 """
 
@@ -19,6 +19,7 @@ from typing import Any
 from ph_explorer.errors import InputError
 from ph_explorer.models import network, trilinear
 from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.model_error import OutOfSampleError, save_errors
 
 CARD_NAME = "card.json"
 CARD_FORMAT = 1
@@ -30,14 +31,22 @@ MODEL_TYPES: dict[str, tuple[type[DeviationModel], str]] = {
 }
 
 
-def save_models(models: Mapping[str, DeviationModel], out: Path, card: dict[str, Any]) -> Path:
-    """Write the models and the card into out, atomically (temp folder beside out, then a rename)."""
+def save_models(
+    models: Mapping[str, DeviationModel],
+    out: Path,
+    card: dict[str, Any],
+    errors: Mapping[str, OutOfSampleError] | None = None,
+) -> Path:
+    """Write the models, the card and (if given) the models' out-of-sample errors into out, atomically
+    (temp folder beside out, then a rename)."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
     try:
         for model in models.values():
             model.save(tmp)
+        if errors:
+            save_errors(errors, tmp, int(card["data"]["n_repetitions"]))
         (tmp / CARD_NAME).write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
         os.chmod(tmp, 0o755)  # mkdtemp's 0700 and safetensors' 0600 would hide a shipped model
         for path in tmp.iterdir():

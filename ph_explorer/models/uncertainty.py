@@ -80,3 +80,12 @@ def jackknife_standard_error(theta: NDArray[np.float64]) -> float:
     if np.ptp(theta) == 0.0:
         return 0.0
     return float(np.sqrt((n - 1) / n * np.sum((theta - theta.mean()) ** 2)))
+
+
+def jackknife_covariance(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(c, c) jackknife covariance (n - 1) / n sum_j (theta_j - mean)(theta_j - mean)^T of delete-one
+    values theta (n, c): the matrix whose diagonal is jackknife_standard_error squared."""
+    theta = np.asarray(theta, dtype=float)
+    n = theta.shape[0]
+    centred = theta - theta.mean(axis=0)
+    return (n - 1) / n * centred.T @ centred

@@ -1,0 +1,180 @@
+"""Monte Carlo bands with every component, their budget, and how often they hold measurements.
+
+A model's band at an orientation (JCGM 101 propagation of distributions, adaptive Monte Carlo of
+`ph_explorer.montecarlo`): one trial is the model's systematic curve plus three independent
+components, each a deviation curve after the circle fit, in um:
+
+- repeatability: touch noise with the model's repetition sigma (`DeviationModel.repetition_sigma`,
+  drawn by `models.base.draw_repetitions`, the draw of `simulate`); for the mean of R repetitions
+  the same with sigma / sqrt(R) (the circle fit is linear, so the mean of R fitted repetitions is
+  the fit of their mean);
+- model: the model's own error, estimated out of sample (`models.model_error`);
+- parameters: for a hybrid, the spread of its fitted physical parameters
+  (`models.parameter_spread`); the cross-validated error of a hybrid already holds the spread of
+  its refitted parameters, so the model component is what it leaves beyond them (per harmonic,
+  in variance).
+
+The "touch" band bounds one touch's deviation (prediction + repeatability + model + parameters),
+the "mean" band the mean curve of R repetitions (R of the training campaign). The budget lists each
+component's standard uncertainty (um, the rms over the points of its standard deviation): the
+components are independent, so the squares add up to the combined one's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer.models.base import DeviationModel, as_orientations, draw_repetitions
+from ph_explorer.models.model_error import OutOfSampleError, random_phase_curves
+from ph_explorer.models.parameter_spread import ParameterSpread
+from ph_explorer.montecarlo import MAX_TRIALS, adaptive_monte_carlo
+
+COMPONENTS = ("repeatability", "model", "parameters")
+# Order of the quantities of one trial: two bands and the components (repeatability twice: touch, mean).
+QUANTITIES = ("touch", "mean", "repeatability", "repeatability_mean", "model", "parameters")
+
+
+@dataclass(frozen=True)
+class Sources:
+    """What a model's Monte Carlo draws from at one orientation, beside the model itself."""
+
+    model: DeviationModel
+    n_repetitions: int  # R: the mean band bounds the mean of R repetitions
+    error: OutOfSampleError | None = None  # None: no model component
+    parameters: ParameterSpread | None = None  # None: no parameters component
+    # Per (A, B, N): the model component's power and the parameters' root, made once, not per batch.
+    _cache: dict[tuple[float, float, int], tuple[Any, Any]] = field(default_factory=dict, repr=False, compare=False)
+
+    def model_power(self, orientation: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """The model component's power per harmonic: the out-of-sample error beyond the parameters."""
+        if self.error is None:
+            return None
+        power = self.error.variance(orientation)[0]
+        if self.parameters is not None:
+            power = np.maximum(power - self.parameters.power(orientation, self.error.n_points), 0.0)
+        return power
+
+    def components(self, orientation: ArrayLike, n_trials: int, n_points: int, rng: np.random.Generator) -> dict[str, NDArray[np.float64]]:
+        """Draws (n_trials, n_points) of each component at one orientation, um, after the circle fit."""
+        o = as_orientations(orientation)
+        sigma = self.model.repetition_sigma(o, n_points=n_points)
+        zero = np.zeros((1, n_points))
+        key = (float(o[0, 0]), float(o[0, 1]), n_points)
+        if key not in self._cache:
+            root = None if self.parameters is None else self.parameters.root(o, n_points)
+            self._cache[key] = (self.model_power(o), root)
+        power, root = self._cache[key]
+        return {
+            "repeatability": draw_repetitions(zero, sigma, n_trials, rng)[0],
+            "repeatability_mean": draw_repetitions(zero, sigma / np.sqrt(self.n_repetitions), n_trials, rng)[0],
+            "model": np.zeros((n_trials, n_points)) if power is None else random_phase_curves(power, n_trials, n_points, rng),
+            "parameters": np.zeros((n_trials, n_points)) if root is None else rng.standard_normal((n_trials, root.shape[1])) @ root.T,
+        }
+
+
+@dataclass(frozen=True)
+class Band:
+    """One orientation's band (lower/upper arrays over the points, um), per component and in all."""
+
+    model: str
+    orientation: tuple[float, float]
+    level: float
+    n_repetitions: int
+    prediction: NDArray[np.float64]  # (N,)
+    lower: dict[str, NDArray[np.float64]]  # QUANTITIES -> (N,): prediction + that draw's lower quantile
+    upper: dict[str, NDArray[np.float64]]
+    budget_um: dict[str, float]
+    trials: int
+    converged: bool
+
+    def as_dict(self) -> dict[str, Any]:
+        """The JSON of `ph-explorer uncertainty` for this band (issue 17): bounds, R, budget."""
+        return {
+            "A_deg": self.orientation[0],
+            "B_deg": self.orientation[1],
+            "model": self.model,
+            "touch_lower_um": _rounded(self.lower["touch"]),
+            "touch_upper_um": _rounded(self.upper["touch"]),
+            "mean_lower_um": _rounded(self.lower["mean"]),
+            "mean_upper_um": _rounded(self.upper["mean"]),
+            "mean_of_repetitions": self.n_repetitions,
+            "budget_um": {k: round(v, 5) for k, v in self.budget_um.items()},
+        }
+
+
+def _rounded(values: NDArray[np.float64]) -> list[float]:
+    return [round(float(v), 5) for v in values]
+
+
+def orientation_band(
+    sources: Sources,
+    orientation: ArrayLike,
+    level: float = 0.95,
+    n_points: int | None = None,
+    rng: np.random.Generator | None = None,
+    ndig: int = 2,
+    max_trials: int = MAX_TRIALS,
+) -> Band:
+    """The band at one orientation, by adaptive Monte Carlo over every quantity of QUANTITIES."""
+    o = as_orientations(orientation)
+    n = sources.model.n_points if n_points is None else int(n_points)
+    prediction = sources.model.predict(o, n_points=n)[0]
+
+    def draw(n_trials: int, generator: np.random.Generator) -> NDArray[np.float64]:
+        c = sources.components(o, n_trials, n, generator)
+        shared = c["model"] + c["parameters"]
+        totals = [c["repeatability"] + shared, c["repeatability_mean"] + shared]
+        return np.concatenate(totals + [c[q] for q in QUANTITIES[2:]], axis=1)
+
+    result = adaptive_monte_carlo(draw, level, rng, ndig, max_trials=max_trials)
+    lower = {q: prediction + result.lower[i * n : (i + 1) * n] for i, q in enumerate(QUANTITIES)}
+    upper = {q: prediction + result.upper[i * n : (i + 1) * n] for i, q in enumerate(QUANTITIES)}
+    # Standard uncertainty of each quantity: the rms over the points of its standard deviation.
+    u = {q: float(np.sqrt(np.mean(result.sd[i * n : (i + 1) * n] ** 2))) for i, q in enumerate(QUANTITIES)}
+    budget = {
+        "repeatability": u["repeatability"],
+        "repeatability_mean": u["repeatability_mean"],
+        "model": u["model"],
+        "parameters": u["parameters"],
+        "combined_touch": u["touch"],
+        "combined_mean": u["mean"],
+    }
+    return Band(sources.model.name, (float(o[0, 0]), float(o[0, 1])), level, sources.n_repetitions, prediction,
+                lower, upper, budget, result.trials, result.converged)
+
+
+def model_bands(
+    sources: Sources,
+    orientations: ArrayLike,
+    level: float = 0.95,
+    n_points: int | None = None,
+    rng: np.random.Generator | None = None,
+    ndig: int = 2,
+    max_trials: int = MAX_TRIALS,
+) -> list[Band]:
+    """The band at every orientation (a loop over orientations: each has its own stopping rule)."""
+    rng = np.random.default_rng() if rng is None else rng
+    return [orientation_band(sources, o, level, n_points, rng, ndig, max_trials) for o in as_orientations(orientations)]
+
+
+def band_coverage(bands: list[Band], deviations: ArrayLike, band: str = "touch") -> dict[str, float]:
+    """Fractions of measured single touches and of measured mean-curve points inside the bands.
+
+    deviations: (m, R, N) the measurements at the bands' orientations. band: "touch" for the full
+    band (its mean counterpart "mean"), "repeatability" for the noise-only band of today.
+    """
+    d = np.asarray(deviations, dtype=float)
+    mean_key = "mean" if band == "touch" else f"{band}_mean"
+    lo_t = np.stack([b.lower[band] for b in bands])[:, None, :]
+    hi_t = np.stack([b.upper[band] for b in bands])[:, None, :]
+    lo_m = np.stack([b.lower[mean_key] for b in bands])
+    hi_m = np.stack([b.upper[mean_key] for b in bands])
+    mean = d.mean(axis=1)
+    return {
+        "touch": float(np.mean((d >= lo_t) & (d <= hi_t))),
+        "mean": float(np.mean((mean >= lo_m) & (mean <= hi_m))),
+    }

@@ -1,0 +1,164 @@
+"""Monte Carlo bands with every component (issue 17): coverage on a twin campaign, the budget adding
+up in quadrature, the hybrid's parameters, the adaptive Monte Carlo's stopping rule, the task."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import tomllib
+
+import numpy as np
+import pytest
+
+from ph_explorer.bands import Sources, band_coverage, model_bands, orientation_band
+from ph_explorer.geometry import point_angles_deg
+from ph_explorer.models.crossval import cross_val_predict
+from ph_explorer.models.hybrid import HybridModel
+from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, out_of_sample_error, random_phase_curves, white_noise_power
+from ph_explorer.models.parameter_spread import parameter_spread
+from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.montecarlo import adaptive_monte_carlo, batch_size, is_stable, numerical_tolerance
+from ph_explorer.paths import scenarios_dir
+from ph_explorer.task import measured_task, normalised_error, task_uncertainty
+from ph_explorer.twin import scenario_from_dict, simulate
+
+CHECKS = [[22, -130], [37, 150], [52, 10], [67, -70], [83, 110], [28, 50], [58, -150], [76, -10], [43, 90], [13, 30], [47, -100], [71, 170]]
+
+
+@pytest.fixture(scope="module")
+def twin():
+    """A small twin campaign: the paper's head on a coarse lattice (A step 30, B step 40), 5 repetitions, 32 points."""
+    data = copy.deepcopy(tomllib.loads((scenarios_dir() / "paper.toml").read_text(encoding="utf-8")))
+    data.update(name="small", repetitions=5, check_orientations=CHECKS)
+    data["orientations"] = {"a_deg": [0, 90, 30], "b_deg": [-160, 180, 40], "off_grid": CHECKS}
+    data.setdefault("geometry", {})["points_per_circle"] = 32
+    scenario = scenario_from_dict(data)
+    return scenario, simulate(scenario, 5)
+
+
+@pytest.fixture(scope="module")
+def trilinear(twin):
+    _, campaign = twin
+    train = ~campaign.holdout_mask()
+    return TrilinearModel().fit(campaign.subset(train)), out_of_sample_error(TrilinearModel, campaign, train)
+
+
+def test_the_full_band_covers_held_out_rings_the_noise_band_does_not(twin, trilinear):
+    _, campaign = twin
+    model, error = trilinear
+    check = campaign.holdout_mask()
+    assert check.sum() == len(CHECKS) and campaign.n_points == 32
+    bands = model_bands(Sources(model, campaign.n_repetitions, error), campaign.orientations[check], rng=np.random.default_rng(1), ndig=1)
+    full = band_coverage(bands, campaign.deviations[check])
+    noise = band_coverage(bands, campaign.deviations[check], "repeatability")
+    # On a lattice twice as coarse as the paper's the interpolation error is larger than the noise
+    # of a 5-repetition mean: the noise-only bands miss it, the full band does not.
+    assert noise["mean"] < 0.9 and noise["touch"] < 0.92
+    assert 0.93 <= full["mean"] <= 1.0 and full["mean"] > noise["mean"] + 0.1
+    assert 0.92 <= full["touch"] <= 0.98 and full["touch"] > noise["touch"]
+    for band in bands:
+        assert np.all(band.lower["touch"] < band.prediction) and np.all(band.prediction < band.upper["touch"])
+        assert np.all(band.upper["mean"] - band.lower["mean"] < band.upper["touch"] - band.lower["touch"])
+
+
+def test_budget_components_add_up_in_quadrature(twin, trilinear):
+    _, campaign = twin
+    model, error = trilinear
+    band = orientation_band(Sources(model, campaign.n_repetitions, error), (52.0, 10.0), rng=np.random.default_rng(2), ndig=2)
+    b = band.budget_um
+    assert b["model"] > 0.2 * b["repeatability"] and b["parameters"] == 0.0
+    assert b["combined_touch"] ** 2 == pytest.approx(b["repeatability"] ** 2 + b["model"] ** 2 + b["parameters"] ** 2, rel=0.02)
+    assert b["combined_mean"] ** 2 == pytest.approx(b["repeatability_mean"] ** 2 + b["model"] ** 2 + b["parameters"] ** 2, rel=0.02)
+    assert b["repeatability_mean"] == pytest.approx(b["repeatability"] / np.sqrt(campaign.n_repetitions), rel=0.02)
+    # Without the model's error the band is the noise-only one of `simulate`.
+    plain = orientation_band(Sources(model, campaign.n_repetitions), (52.0, 10.0), rng=np.random.default_rng(2), ndig=1)
+    assert plain.budget_um["model"] == 0.0
+    assert plain.budget_um["combined_touch"] == pytest.approx(plain.budget_um["repeatability"], rel=1e-9)
+    sims = model.simulate([(52.0, 10.0)], 20_000, np.random.default_rng(3))[0]
+    assert np.quantile(sims, 0.975, axis=0) == pytest.approx(plain.upper["touch"], abs=0.02)
+
+
+def test_the_hybrid_adds_its_parameters_and_they_add_up(twin):
+    scenario, campaign = twin
+    train = ~campaign.holdout_mask()
+    effects = [e for e in scenario.starting_effects if e.candidate and "touch_times" not in e.needs]
+    hybrid = HybridModel(effects, "trilinear").fit(campaign.subset(train))
+    spread = parameter_spread(hybrid, campaign.subset(train))
+    assert spread is not None and spread.covariance.shape[0] == hybrid.coefficients_.size
+    band = orientation_band(Sources(hybrid, campaign.n_repetitions, None, spread), (52.0, 10.0), rng=np.random.default_rng(4), ndig=2)
+    b = band.budget_um
+    assert b["parameters"] > 0.0
+    assert b["combined_mean"] ** 2 == pytest.approx(b["repeatability_mean"] ** 2 + b["parameters"] ** 2, rel=0.02)
+    # The parameters' power per harmonic is what their draws hold.
+    draws = spread.draw((52.0, 10.0), 20_000, campaign.n_points, np.random.default_rng(5))
+    assert harmonic_power(draws).mean(axis=0) == pytest.approx(spread.power((52.0, 10.0), campaign.n_points), rel=0.05, abs=1e-9)
+
+
+def test_model_error_spectrum_removes_the_noise_of_the_mean():
+    rng = np.random.default_rng(6)
+    n, rings, variance = 64, 4000, 0.01
+    # Pure white noise residuals: the model's error power is zero within sampling error.
+    residuals = rng.normal(0.0, np.sqrt(variance), (rings, n))
+    error = OutOfSampleError.from_residuals(np.column_stack([np.zeros(rings), np.zeros(rings)]), residuals, np.full(rings, variance))
+    assert abs(error.power.mean(axis=0)[2:].sum()) < 0.03 * variance
+    # A known error spectrum comes back, and draws have it.
+    power = np.zeros(n // 2 + 1)
+    power[[3, 7, n // 2]] = [0.02, 0.01, 0.005]
+    draws = random_phase_curves(power, 20_000, n, rng)
+    assert harmonic_power(draws).mean(axis=0) == pytest.approx(power, abs=1e-3)
+    assert white_noise_power(variance, n).sum() == pytest.approx(variance)  # Parseval
+    noisy = OutOfSampleError.from_residuals(np.zeros((2000, 2)), draws[:2000] + rng.normal(0, 0.1, (2000, n)), np.full(2000, 0.01))
+    assert noisy.variance([(0.0, 0.0)])[0] == pytest.approx(power, abs=2e-3)
+
+
+def test_tolerance_and_stopping_rule():
+    assert batch_size(0.95) == 10_000 and batch_size(0.999) == 100_000
+    assert numerical_tolerance(np.array([0.0734, 0.18, 0.0]), 2) == pytest.approx([0.0005, 0.005, 0.0])
+    assert numerical_tolerance(np.array([0.18]), 1) == pytest.approx([0.05])
+    delta = np.array([0.01, 0.0])  # the second quantity is left out (u = 0)
+    steady = np.tile(np.array([[1.0, 0.0], [0.1, 0.0], [0.8, 0.0], [1.2, 0.0]]), (3, 1, 1))
+    assert is_stable(steady, delta) and not is_stable(steady[:1], delta)  # one batch never suffices
+    jumpy = steady.copy()
+    jumpy[:, 2, 0] += np.array([0.0, 0.02, -0.02])  # y_low moves: s = 0.0115, 2 s > delta
+    assert not is_stable(jumpy, delta)
+
+
+def test_adaptive_monte_carlo_runs_until_the_tolerance_is_met():
+    def draw(m, rng):
+        return rng.normal(0.0, [0.012, 0.15], (m, 2))
+
+    coarse = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=1, trials_per_batch=1000)
+    fine = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=2, trials_per_batch=1000)
+    assert coarse.converged and fine.converged and coarse.batches >= 2
+    assert fine.trials > coarse.trials
+    # At convergence the endpoints sit within the tolerance of the exact ones.
+    assert np.all(np.abs(fine.upper - 1.959964 * np.array([0.012, 0.15])) <= 2 * fine.tolerance)
+    capped = adaptive_monte_carlo(draw, 0.95, np.random.default_rng(7), ndig=4, trials_per_batch=1000, max_trials=3000)
+    assert not capped.converged and capped.trials == 3000
+    with pytest.raises(ValueError):
+        adaptive_monte_carlo(draw, 1.0)
+
+
+def test_task_uncertainty_and_normalised_error(twin, trilinear):
+    _, campaign = twin
+    model, error = trilinear
+    i = int(np.flatnonzero(campaign.holdout_mask())[0])
+    task = task_uncertainty(Sources(model, campaign.n_repetitions, error), campaign.orientations[i], rng=np.random.default_rng(8))
+    assert task["converged"] and task["k"] == 2.0 and set(task["harmonics_um"]) == {str(h) for h in range(2, 16)}
+    ront = task["ront_um"]
+    assert 0 < ront["lower"] < ront["value"] < ront["upper"] and ront["U"] > 0
+    measured = measured_task(campaign.deviations[i : i + 1])
+    assert measured["value"].shape == (1, 15) and np.all(measured["U"] > 0)
+    assert normalised_error([1.0, 1.0], [0.3, 0.0], [1.5, 1.0], [0.4, 0.1]).tolist() == pytest.approx([1.0, 0.0])
+
+
+def test_cross_validation_in_folds_never_fits_the_ring_it_predicts(twin):
+    _, campaign = twin
+    train = ~campaign.holdout_mask()
+    base = cross_val_predict(TrilinearModel, campaign, train, folds=5, strict=True)
+    ring = int(np.flatnonzero(train)[7])
+    deviations = campaign.deviations.copy()
+    deviations[ring] += np.cos(3 * np.radians(point_angles_deg(campaign.n_points)))  # 1 um of 3 UPR
+    after = cross_val_predict(TrilinearModel, dataclasses.replace(campaign, deviations=deviations), train, folds=5, strict=True)
+    assert np.allclose(after[ring], base[ring])  # the ring is never in its own fit
+    assert not np.allclose(after, base)  # but it is in the fits that predict the others
