@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Effect
@@ -213,6 +214,7 @@ def design_ranks(defaults: list[Bases], touches: Touches, smoother: OutOfSampleS
     }
 
 
+@one_blas_thread
 def identifiability(
     campaign: Campaign, effects: Iterable[type[Effect]], train: NDArray[np.bool_] | None = None
 ) -> dict[str, Any]:

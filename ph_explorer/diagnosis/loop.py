@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import metrics
+from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
@@ -110,6 +111,7 @@ def add_effects(
     return hybrid, step
 
 
+@one_blas_thread
 def diagnose(
     campaign: Campaign,
     add: Sequence[str] | None = None,
