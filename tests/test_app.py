@@ -16,7 +16,7 @@ import pytest
 from fake_browser import FakeBrowser, open_session, wait_for
 from ph_explorer.app.dataset import Dataset, dataset_for
 from ph_explorer.app.render_queue import RenderState
-from ph_explorer.app.scene import a_joint, b_joint, head_orientation, magnified_radius
+from ph_explorer.app.scene import a_joint, b_joint, head_orientation
 from ph_explorer.app.server import ExplorerApp, build_server
 from ph_explorer.app.session import Session
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -93,11 +93,11 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
     np.testing.assert_allclose(
         s.ring.frame.position, s.dataset.campaign.geometry.axial_distance_mm * stylus_direction(43.0, 90.0), atol=1e-6
     )
-    # A43 B90 was measured: the measured mean and the trilinear curve are drawn, radius = R + m dev.
+    # A43 B90 was measured: the measured mean and the trilinear curve are drawn, radius = base + m dev.
     view = s.dataset.view(43.0, 90.0)
     assert view.measured and s.ring.curves["measured"].visible and s.ring.curves["trilinear"].visible
     radius = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1)
-    expected = magnified_radius(s.ring.bore_radius, s.controls.magnification.value, view.curves["measured"])
+    expected = s.ring.scale.base_mm + s.controls.magnification.value * 1e-3 * view.curves["measured"]
     np.testing.assert_allclose(radius, expected, rtol=1e-9)
     drawn = np.asarray(s.ring.curves["measured"].points)
     np.testing.assert_allclose(drawn[:, 0, :2], s.ring.points["measured"][:, :2], atol=1e-4)
@@ -109,38 +109,71 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
 
 
 def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
-    from ph_explorer.app.scene import axis_camera, ring_camera
+    from ph_explorer.app.scene import CAMERA_FOV_DEG, axis_camera, ring_camera
 
     s = browser
     axial = s.dataset.campaign.geometry.axial_distance_mm
     s.go_to(43.0, 90.0)
-    position, look_at = ring_camera(43.0, 90.0, axial)
+    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm)
     np.testing.assert_allclose(s.client.camera.position, position, atol=1e-6)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    assert s.head.root.visible
     s.look("along the axis")
     s.go_to(75.0, 40.0)  # the following camera keeps the chosen view
-    position, look_at = axis_camera(75.0, 40.0, axial)
+    position, look_at, up = axis_camera(75.0, 40.0, axial, s.ring.extent_mm)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
-    np.testing.assert_allclose(
-        (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position),
-        stylus_direction(75.0, 40.0),
-        atol=0.1,
-    )
+    view = (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position)
+    np.testing.assert_allclose(view, stylus_direction(75.0, 40.0), atol=1e-9)  # square to the ring plane: undistorted
+    # The head, between the camera and the ring, is hidden; the whole chart is inside the field
+    # of view; the ring's e2 is up, so theta turns counter-clockwise as on the panel's chart.
+    centre = axial * stylus_direction(75.0, 40.0)
+    distance = float(np.dot(centre - np.asarray(s.client.camera.position), view))
+    assert distance > 0.0 and not s.head.root.visible
+    half = np.tan(np.radians(0.5 * CAMERA_FOV_DEG))  # vertical; a 1440x900 window is 1.6 times wider
+    assert s.ring.extent_mm / distance < half
+    assert (np.linalg.norm(look_at - centre) + s.ring.extent_mm) / distance < 1.6 * half
+    np.testing.assert_allclose(s.client.camera.up_direction, rotation_of(s.ring.frame.wxyz)[:, 1], atol=1e-9)
     s.controls.follow.value = False
     s.go_to(15.0, -20.0)  # not following: the camera stays where the user put it
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
     s.controls.follow.value = True
     s.look("ring + head")
+    assert s.head.root.visible
 
 
-def test_magnification_scales_the_deviation_not_the_circle(browser) -> None:
+def test_magnification_scales_the_deviation_about_the_reference_circle(browser) -> None:
     s = browser
     s.go_to(15.0, -20.0)
     s.controls.magnification.value = 2000.0
-    r1 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.bore_radius
+    r1 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.scale.base_mm
     s.controls.magnification.value = 20000.0
-    r2 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.bore_radius
+    r2 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.scale.base_mm
     np.testing.assert_allclose(r2, 10.0 * r1, rtol=1e-9)
+    # The drawn reference circle is the chart's base circle.
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(s.ring.reference.points)[:, 0, :2], axis=1), s.ring.scale.base_mm, rtol=1e-5)
+    s.controls.magnification.value = 10000.0
+
+
+def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_circles(browser) -> None:
+    """At every offered magnification, with each repetition shown, nothing drawn reaches the centre;
+    each scale circle's label in the scene says the deviation its radius stands for."""
+    from ph_explorer.polar import INNER_CLEARANCE, offered_magnifications
+
+    s = browser
+    s.go_to(15.0, -20.0)
+    s.controls.repetitions.value = True
+    for m in offered_magnifications():
+        s.controls.magnification.value = float(m)
+        scale = s.ring.scale
+        assert scale.magnification == m
+        reps = np.asarray(s.ring.repetitions.points)[:, 0, :2]
+        assert np.linalg.norm(reps, axis=1).min() >= INNER_CLEARANCE * scale.base_mm - 1e-3
+        for handle, (text, radius) in zip(s.ring.scale_labels, scale.labelled_circles()):
+            value = float(handle.text.split(" um")[0])
+            assert handle.visible and np.isclose(np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5)
+        assert f"x{m:g}" in s.ring.caption.text and f"x{m:g}" in s.polar.plot.content
+    s.controls.repetitions.value = False
+    s.controls.magnification.value = 10000.0
 
 
 def test_unmeasured_orientation_is_labelled_a_prediction(browser) -> None:

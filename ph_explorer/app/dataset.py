@@ -28,6 +28,7 @@ from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.polar import deviation_bounds
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
 VIEW_CACHE = 512  # orientations whose views a dataset keeps (a slider sweep revisits them)
@@ -75,6 +76,8 @@ class Dataset:
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
+        # Every deviation of the campaign (each repetition): what a polar chart must keep off its centre.
+        self.deviation_bounds_um = np.array(deviation_bounds([self.campaign.deviations]))
         self.sigma_um = self.campaign.noise_sigma_um()
         # A campaign of single repetitions has no repetition spread: no floor to show.
         finite = np.isfinite(self.sigma_um)

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
+from ph_explorer.polar import MAGNIFICATION_RANGE, PolarScale, PolarSeries, polar_svg
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
     "A15 B-20": (15.0, -20.0),
@@ -47,7 +48,7 @@ class ControlsPanel:
             self.status = gui.add_markdown("")
         with gui.add_folder("Curves"):
             self.magnification = gui.add_slider(
-                "Magnification", 1000.0, 20000.0, 500.0, DEFAULT_MAGNIFICATION, hint="x: radial deviation scale"
+                "Magnification", *MAGNIFICATION_RANGE, DEFAULT_MAGNIFICATION, hint="x: chart mm per mm of radial deviation"
             )
             self.show = {
                 name: gui.add_checkbox(label, True)
@@ -86,7 +87,8 @@ class ControlsPanel:
         return {name: bool(box.value) and not box.disabled for name, box in self.show.items()}
 
 
-LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "circle R, ±1 um"}
+LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "LS reference circle (dashed: scale circles, um)"}
+CURVE_ORDER = ("measured", "network", "trilinear", "hybrid")
 
 
 def legend_html(names: Iterable[str]) -> str:
@@ -109,6 +111,43 @@ def legend_html(names: Iterable[str]) -> str:
         )
         items.append(f'<div style="white-space:nowrap">Monte Carlo 95 % band:{swatches}</div>')
     return '<div style="font-size:0.8em;line-height:1.8em">' + "".join(items) + "</div>"
+
+
+class PolarPanel:
+    """The flat polar chart of the current orientation, always facing the user (an SVG)."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.plot = gui.add_html("")
+
+    def update(
+        self,
+        scale: PolarScale,
+        view: OrientationView,
+        shown: Mapping[str, bool],
+        show_repetitions: bool,
+        band: tuple[str, NDArray, NDArray] | None,
+        title: str,
+    ) -> None:
+        self.plot.content = polar_chart(scale, view, shown, show_repetitions, band, title)
+
+
+def polar_chart(
+    scale: PolarScale,
+    view: OrientationView,
+    shown: Mapping[str, bool],
+    show_repetitions: bool,
+    band: tuple[str, NDArray, NDArray] | None,
+    title: str,
+) -> str:
+    """The SVG of the shown curves (the same colours as the 3D scene), repetitions under them."""
+    series = []
+    if show_repetitions and view.repetitions is not None:
+        series.append(PolarSeries(LEGEND_LABELS["repetitions"], view.repetitions, hex_color(curve_color("repetitions")), 0.8, 0.6))
+    for name in CURVE_ORDER:
+        if name in view.curves and shown.get(name, True):
+            series.append(PolarSeries(LEGEND_LABELS.get(name, name), view.curves[name], hex_color(curve_color(name)), 2.5 if name == "measured" else 2.0))
+    drawn_band = (band[0], band[1], band[2], hex_color(BAND_COLORS.get(band[0], (200, 200, 200)))) if band is not None else None
+    return polar_svg(scale, series, title, drawn_band)
 
 
 class TablesPanel:
@@ -155,7 +194,7 @@ def tables_markdown(view: OrientationView, dataset: Dataset) -> str:
 
 def deviation_chart_data(view: OrientationView, shown: Mapping[str, bool]) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
     """uPlot data and series: deviation (um) against point number for the shown curves."""
-    names = [n for n in ("measured", "network", "trilinear", "hybrid") if n in view.curves and shown.get(n, True)]
+    names = [n for n in CURVE_ORDER if n in view.curves and shown.get(n, True)]
     n_pt = next(iter(view.curves.values())).size if view.curves else 64
     x = np.arange(n_pt, dtype=float)
     data = (x, *(np.asarray(view.curves[n], dtype=float) for n in names))
@@ -172,7 +211,7 @@ def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_up
     uPlot has no bar renderer without JavaScript callbacks, so each bar is drawn as a filled
     rectangle path (0 -> a -> a -> 0) on a shared x axis where the other curves sit at 0.
     """
-    names = [n for n in ("measured", "network", "trilinear", "hybrid") if n in view.spectra and shown.get(n, True)]
+    names = [n for n in CURVE_ORDER if n in view.spectra and shown.get(n, True)]
     if not names:
         x = np.array([2.0, float(max_upr)])
         return (x, np.zeros(2)), ({"label": "UPR"}, {"label": "no curve shown", "stroke": "#bbbbbb"})

@@ -26,17 +26,20 @@ from ph_explorer.app.panels import (
     ControlsPanel,
     DataPanel,
     FieldPanel,
+    PolarPanel,
     TablesPanel,
     orientation_label,
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
-from ph_explorer.app.scene import HeadScene, RingScene, axis_camera, ring_camera
+from ph_explorer.app.ring import RingScene
+from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
 from ph_explorer.app.study import StudyFile
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
+from ph_explorer.polar import polar_scale
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
 # The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
@@ -80,6 +83,7 @@ class Session:
         self._field_token = 0  # the latest field request; older computations do not draw
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
+        self._camera_extent = 0.0  # the chart's size the camera was placed for
 
         scene, gui = client.scene, client.gui
         geometry = dataset.campaign.geometry
@@ -91,6 +95,8 @@ class Session:
             self.field.on_pick(self.go_to)
             self.controls = ControlsPanel(gui, a0, b0, dataset.a_range)
             tabs = gui.add_tab_group()
+            with tabs.add_tab("Polar plot", icon=viser.Icon.CIRCLE_DOTTED):
+                self.polar = PolarPanel(gui)
             with tabs.add_tab("Tables 1-3", icon=viser.Icon.TABLE):
                 self.tables = TablesPanel(gui)
             with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
@@ -163,16 +169,22 @@ class Session:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
         a, b = self.orientation
         axial = self.dataset.campaign.geometry.axial_distance_mm
+        extent = self.ring.extent_mm
+        up = np.array([0.0, 0.0, 1.0])
         if view == "along the axis":
-            position, look_at = axis_camera(a, b, axial)
+            position, look_at, up = axis_camera(a, b, axial, extent)
         elif view == "whole field":
             position, look_at = np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"])
         else:
-            position, look_at = ring_camera(a, b, axial)
+            position, look_at = ring_camera(a, b, axial, extent_mm=extent)
         with self.client.atomic():  # position first: viser moves look_at along with it
+            # Along the axis the camera looks through the head: hidden there, shown in the other views.
+            self.head.set_visible(view != "along the axis")
             self.client.camera.position = position
             self.client.camera.look_at = look_at
+            self.client.camera.up_direction = up
         self._camera_at = (a, b)
+        self._camera_extent = extent
         self._camera_view = view  # the view a following camera keeps
 
     # -- rendering ---------------------------------------------------------------------------------
@@ -204,15 +216,22 @@ class Session:
         else:
             title = f"{orientation_label(a, b)} — prediction (not measured)"
         c = self.controls
+        # The chart's base radius keeps every deviation of the campaign (each repetition) and of
+        # the curves drawn here off the centre (ph_explorer.polar).
+        drawn = [ds.deviation_bounds_um, *view.curves.values(), *(band[1:] if band is not None else ())]
+        scale = polar_scale(float(c.magnification.value), drawn, self.ring.bore_radius)
+        show_repetitions = bool(c.repetitions.value)
         with self.client.atomic():
             self.head.update(a, b)
             self.ring.place(a, b)
-            self.ring.update(view.curves, shown, float(c.magnification.value), view.repetitions, bool(c.repetitions.value), band, title)
+            self.ring.update(view.curves, shown, scale, view.repetitions, show_repetitions, band, title)
+            self.polar.update(scale, view, shown, show_repetitions, band, title)
             self.field.highlight(a, b, ds.campaign.geometry.pivot_to_ball_mm)
             self.tables.update(view, ds)
             self.charts.update(view, shown)
             c.status.content = f"**{title}**"
-            if c.follow.value and self._camera_at != (a, b) and self._camera_view != "whole field":
+            moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
+            if c.follow.value and moved and self._camera_view != "whole field":
                 self.look(self._camera_view)
         self.view = view
 
