@@ -193,14 +193,31 @@ class PhysicsLoop:
         self._show_study_line()
 
     def reveal(self) -> None:
-        """What a teaching scenario hid in its data (from the campaign's sidecar)."""
-        hidden = (self.current().campaign.scenario or {}).get("hidden")
-        if not hidden:
+        """What a teaching scenario hid in its data (the sidecar's hidden effects, with their true
+        parameters) next to what this session found: the diagnosis's fit with its uncertainty, the last refit."""
+        scenario = self.current().campaign.scenario or {}
+        hidden = [e for e in scenario.get("effects", []) if e.get("hidden")]
+        if not scenario.get("hidden"):
             self.panel.revealed.content = "_This campaign records no hidden effect (it is not a teaching scenario)._"
             return
-        lines = []
-        for effect_id in hidden:
+        found = {c.effect: c for c in reversed(self.diagnosis.candidates)} if self.diagnosis is not None else {}
+        refitted = {p["effect"]: p["params"] for step in self.steps for p in step.params}
+        lines = ["**Hidden in this scenario** — the truth, next to what you found:"]
+        for entry in hidden or [{"id": i} for i in scenario["hidden"]]:
+            effect_id = str(entry["id"])
             cls = self.catalog.get(effect_id)
-            name, teaching = (cls.name, cls.teaching) if cls is not None else (effect_id, "")
-            lines.append(f"- **{name}** (`{effect_id}`): {teaching}")
-        self.panel.revealed.content = "Hidden in this scenario:\n" + "\n".join(lines)
+            truth = {k: float(v) for k, v in entry.items() if k not in ("id", "hidden")}
+            text = cls.parameters_text if cls is not None else (lambda p, u=None: ", ".join(f"{k} {v:g}" for k, v in p.items()))
+            lines.append(f"- **{cls.name if cls is not None else effect_id}** (`{effect_id}`)")
+            lines.append(f"  - truth: {text(truth) if truth else 'parameters not recorded'}")
+            candidate = found.get(effect_id)
+            if candidate is None:
+                lines.append("  - diagnosis: " + ("not diagnosed yet" if self.diagnosis is None else "not among the candidates"))
+            else:
+                verdict = "significant" if candidate.significant else "not significant"
+                lines.append(f"  - diagnosis ({verdict}, ± expanded uncertainty k = 2): {text(candidate.params, candidate.params_u)}")
+            if effect_id in refitted:
+                lines.append(f"  - last refit: {text(refitted[effect_id])}")
+            if cls is not None:
+                lines.append(f"  - _{cls.teaching}_")
+        self.panel.revealed.content = "\n".join(lines)

@@ -18,6 +18,7 @@ from typing import Callable, Mapping
 import numpy as np
 import viser
 
+from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.panels import (
@@ -107,6 +108,7 @@ class Session:
                 self.field_panel = FieldPanel(gui, dataset.figure_names())
             with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
+        name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
         self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
         self._wire()
         self.set_dataset(dataset)
