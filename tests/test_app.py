@@ -543,3 +543,26 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
         assert len(s.render_state.render_times) >= 2 and all(t > 0 for t in s.render_state.render_times)
     finally:
         fake.close()
+
+
+def test_model_checkboxes_exist_with_their_models_and_a_scenario_switch_shows_its_progress(browser, monkeypatch) -> None:
+    """Item 4 of issue 15: no ticked, greyed checkbox of a model that does not exist; a scenario
+    switch (seconds: simulate, fit, draw) shows what it is doing above the fold, then hides."""
+    import ph_explorer.app.session as session_module
+
+    s = browser
+    assert s.dataset.model_names == ["trilinear"]
+    assert [name for name, box in s.controls.show.items() if box.visible] == ["measured", "trilinear"]
+    assert not s.ring.curves["hybrid"].visible and not s.controls.busy.visible
+    seen = []
+    fit = session_module.dataset_for
+
+    def watched(*args, **kwargs):
+        seen.append((s.controls.busy.visible, s.controls.busy.value, s.controls.busy_text.content))
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "dataset_for", watched)
+    s.load_scenario("paper")
+    assert seen and seen[0][0] and 0.0 < seen[0][1] < 100.0 and "paper: fitting the models" in seen[0][2]
+    assert not s.controls.busy.visible and not s.controls.busy_text.visible
+    assert "paper" in s.data_panel.source.content

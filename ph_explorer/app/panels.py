@@ -46,6 +46,9 @@ class ControlsPanel:
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the field's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
             self.status = gui.add_markdown("")
+            # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
+            self.busy_text = gui.add_markdown("", visible=False)
+            self.busy = gui.add_progress_bar(0.0, visible=False)
         with gui.add_folder("Curves"):
             self.magnification = gui.add_slider(
                 "Magnification", *MAGNIFICATION_RANGE, DEFAULT_MAGNIFICATION, hint="x: chart mm per mm of radial deviation"
@@ -66,8 +69,9 @@ class ControlsPanel:
             self.view_ring = gui.add_button_group("View", ("ring + head", "along the axis", "whole field"))
 
     def set_models(self, names: Sequence[str]) -> None:
+        # A model's checkbox exists only while the model does (a hybrid after its first refit).
         for name, box in self.show.items():
-            box.disabled = name != "measured" and name not in names
+            box.visible = name == "measured" or name in names
         self.band.options = ("none", *names)
         self.legend.content = legend_html(["measured", *names, "repetitions", "reference"])
 
@@ -84,7 +88,16 @@ class ControlsPanel:
         self.worst.hint = f"largest values of the field's figure ({unit_note})"
 
     def shown(self) -> dict[str, bool]:
-        return {name: bool(box.value) and not box.disabled for name, box in self.show.items()}
+        return {name: bool(box.value) and box.visible for name, box in self.show.items()}
+
+    def working(self, text: str, fraction: float) -> None:
+        """Show a slow step in progress under the orientation (above the fold)."""
+        self.busy_text.content = f"_{text}_"
+        self.busy_text.visible = self.busy.visible = True
+        self.busy.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+
+    def idle(self) -> None:
+        self.busy_text.visible = self.busy.visible = False
 
 
 LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "LS reference circle (dashed: scale circles, um)"}

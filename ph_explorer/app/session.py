@@ -37,6 +37,7 @@ from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
 from ph_explorer.app.study import StudyFile
+from ph_explorer.campaign import Campaign
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
@@ -290,6 +291,7 @@ class Session:
 
     def load_upload(self, name: str, content: bytes) -> None:
         """A CSV from the browser: read by the core's reader; a bad file keeps the session's data."""
+        self.controls.working(f"Reading {name}…", 0.05)
         try:
             campaign = read_uploaded_campaign(name, content, self.shared.geometry_overrides)
         except InputError as error:
@@ -298,23 +300,35 @@ class Session:
         except ValueError as error:  # a campaign the core refuses (e.g. inconsistent shapes)
             self.data_panel.show_error(f"{name}: {' '.join(str(error).split())}")
             return
+        finally:
+            self.controls.idle()
         self.data_panel.show_info(f"Loaded **{campaign.source}**.")
-        self._new_data(dataset_for(campaign, f"uploaded {campaign.source}", None))
+        self._new_data(campaign, f"uploaded {campaign.source}")
 
     def load_scenario(self, name: str) -> None:
         """A shipped scenario, simulated by the twin."""
         self.data_panel.show_info(f"Simulating scenario **{name}**…")
+        self.controls.working(f"Scenario {name}: simulating the campaign…", 0.05)
         try:
             campaign = simulated_scenario(name)
         except InputError as error:
+            self.controls.idle()
             self.data_panel.show_error(error.line())
             return
         self.data_panel.show_info(f"Scenario **{name}** simulated by the twin. {self.shared.scenarios.get(name, '')}")
-        self._new_data(dataset_for(campaign, f"scenario {name} (simulated by the twin)", None))
+        self._new_data(campaign, f"scenario {name} (simulated by the twin)", name)
 
-    def _new_data(self, dataset: Dataset) -> None:
-        self.loop.clear()
-        self.set_dataset(dataset)
+    def _new_data(self, campaign: Campaign, label: str, what: str | None = None) -> None:
+        """Fit the models to new data and show it, the progress above the fold (a few seconds)."""
+        what = what or campaign.source
+        try:
+            self.controls.working(f"{what}: fitting the models (leave one orientation out)…", 0.3)
+            dataset = dataset_for(campaign, label, None)
+            self.controls.working(f"{what}: drawing the field and the rings…", 0.8)
+            self.loop.clear()
+            self.set_dataset(dataset)
+        finally:
+            self.controls.idle()
 
     # -- worker jobs ---------------------------------------------------------------------------------
     def submit(self, job: Callable[..., None], *args: object) -> Future[None]:
