@@ -566,3 +566,48 @@ def test_model_checkboxes_exist_with_their_models_and_a_scenario_switch_shows_it
     assert seen and seen[0][0] and 0.0 < seen[0][1] < 100.0 and "paper: fitting the models" in seen[0][2]
     assert not s.controls.busy.visible and not s.controls.busy_text.visible
     assert "paper" in s.data_panel.source.content
+
+
+def test_serve_with_the_operators_effect_file_offers_its_effects_and_a_browser_uploads_no_code(tmp_path) -> None:
+    """Item 9 of issue 15: `serve --effects FILE.py` (build_server(effects=...)) puts the file's effects
+    in every browser's catalog; what a browser uploads is read as a campaign CSV, never run."""
+    from ph_explorer import paths
+
+    example = paths.assets_dir() / "effects_example.py"
+    csv = write_campaign(lobing_campaign(seed=9, n_repetitions=3), tmp_path / "small.csv")
+    explorer = build_server(data=csv, port=0, effects=example)
+    try:
+        fake, s = open_session(explorer)
+        try:
+            assert "my_ball_form" in s.catalog and "my_ball_form" in s.physics.effects
+            assert set(DEFAULT_CATALOG.candidates()) < set(s.physics.effects)
+            before = s.dataset
+            s.load_upload("effects.py", example.read_bytes())  # code sent as a campaign: refused, not run
+            assert "Not loaded" in s.data_panel.message.content and s.dataset is before
+            assert list(s.catalog) == list(explorer.shared.catalog)
+        finally:
+            s.wait(timeout=60)
+            fake.close()
+    finally:
+        explorer.stop()
+
+
+def test_serve_refuses_a_bad_effect_file_in_one_line_before_serving(tmp_path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from ph_explorer.errors import InputError
+
+    clash = tmp_path / "clash.py"
+    clash.write_text(
+        "from ph_explorer.effects.stylus import BallForm\n\nclass Again(BallForm):\n    id = 'lobing'\n", encoding="utf-8"
+    )
+    with pytest.raises(InputError, match="already a built-in effect"):
+        build_server(port=0, effects=clash)
+    done = subprocess.run(
+        [sys.executable, "-m", "ph_explorer", "serve", "--effects", str(tmp_path / "missing.py"), "--port", "0"],
+        capture_output=True, text=True, env=dict(os.environ, COLUMNS="120"), timeout=120,
+    )
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (done.stdout, done.stderr)
+    assert "effects file not found" in done.stderr and "serving" not in done.stdout
