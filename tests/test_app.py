@@ -229,24 +229,39 @@ def test_presets_and_marker_clicks_move_the_sliders(opened) -> None:
     )
 
 
-def test_error_field_colours_by_the_chosen_figure(browser, dataset: Dataset) -> None:
+def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dataset: Dataset) -> None:
     from ph_explorer.harmonics import ron_t
 
-    s = browser
-    assert s.field_panel.figure.value == "measured RONt"
-    np.testing.assert_allclose(s.field.values, ron_t(dataset.campaign.mean_curves()))
-    s.field_panel.figure.value = "trilinear MAE, leave-one-out"
+    fake, s = opened
+    # The map starts on where the model fails out of sample (um), not on the roundness; the 3D field is off.
+    assert s.map_panel.figure.value == "trilinear MAE, leave-one-out"
     s.wait()
-    values = s.field.values
-    assert values.shape == (dataset.campaign.n_orientations,) and np.all(values > 0)
-    # Leave-one-out is out of sample: at least the noise floor of the mean on average.
-    assert values.mean() > dataset.noise_floor_um["mean"]
+    loo = dataset.figure("trilinear MAE, leave-one-out")
+    np.testing.assert_allclose(s.field.values, loo.values)
+    assert not s.map_panel.show.value and not s.field.markers.visible and not s.field.current.visible
+    svg = s.map_panel.plot.content
+    assert svg.startswith("<svg") and "A (deg)" in svg and "B (deg)" in svg and ">um</text>" in svg
+    # The Worst dropdown lists the largest values with their unit.
     worst = s.controls.worst.options[1]
     a, b = (float(t[1:]) for t in worst.split()[:2])
-    j = int(np.argmax(values))
-    assert (a, b) == tuple(dataset.campaign.orientations[j])
-    s.controls.worst.value = worst
-    assert s.orientation == (a, b)
+    j = int(np.nanargmax(loo.values))
+    assert (a, b) == tuple(dataset.campaign.orientations[j]) and worst.endswith(" um)")
+    # Another figure, chosen in the browser: the field and the map follow.
+    fake.click("Map of", "measured RONt")
+    assert wait_for(lambda: s.map_panel.plot.content.count("measured RONt") >= 1 and np.allclose(s.field.values, ron_t(dataset.campaign.mean_curves())))
+    # The ring picker, as the browser sends it: the sliders go there, the map marks it.
+    option = s.map_panel.ring.options[3]
+    a, b = (float(t[1:]) for t in option.split()[:2])
+    fake.click("Go to ring", option)
+    assert wait_for(lambda: s.orientation == (a, b) and (s.view.a_deg, s.view.b_deg) == (a, b))
+    s.wait()
+    x = 46.0 + (b + 180.0) / 360.0 * 342.0  # the map's plot box: B across from x = 46, 342 wide
+    assert f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#d00"' in s.map_panel.plot.content  # the current orientation's cross hair
+    # Before a diagnosis, the failing rings are not named, and the panel says why.
+    assert "Not diagnosed yet" in s.map_panel.failing_text.content and not s.map_panel.failing_buttons
+    # The 3D field on request.
+    fake.click("3D field around the head")
+    assert wait_for(lambda: s.field.markers.visible)
 
 
 def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:
@@ -448,6 +463,25 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         assert f"Verdict: {verdict}" in s1.physics.verdict.content
         assert any(effect_id in s1.physics.candidates.content for effect_id in app.shared.catalog.candidates())
         assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
+        # Where it fails: the rings the within-noise test finds beyond their noise, worst first by
+        # their error over their floor, a button each; one click goes there.
+        from ph_explorer.app.map_panel import MAX_FAILING_BUTTONS, failing_label
+
+        rings = s1.loop.diagnosis.failing_rings()
+        assert rings and [r.ratio for r in rings] == sorted((r.ratio for r in rings), reverse=True)
+        labels = [button.label for button in s1.map_panel.failing_buttons]
+        assert labels == [failing_label(r) for r in rings[:MAX_FAILING_BUTTONS]]
+        assert f"{rings[0].mae_um:.3f} um, floor {rings[0].floor_um:.3f} um" in labels[0]
+        assert f"{len(rings)} rings exceed their noise" in s1.map_panel.failing_text.content
+        target = rings[min(1, len(rings) - 1)]
+        b1.click(failing_label(target))
+        assert wait_for(lambda: s1.orientation == (target.a_deg, target.b_deg))
+        # The diagnosis's per-ring verdict on the map: exceeds where the test says so.
+        verdict = "diagnosis: ring verdict (within-noise test)"
+        assert verdict in s1.map_panel.figure.options and verdict not in s2.dataset.figure_names()  # this browser's only
+        b1.click("Map of", verdict)
+        assert wait_for(lambda: np.array_equal(s1.field.values, s1.loop.diagnosis.failing.astype(float)))
+        assert "exceeds its noise" in s1.map_panel.plot.content and "Not diagnosed yet" in s2.map_panel.failing_text.content
     finally:
         release.set()
         b1.close()

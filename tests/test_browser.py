@@ -40,6 +40,14 @@ def dark_pixels(png: bytes) -> int:
     return int((rgb.max(axis=-1) < 70).sum())
 
 
+def coloured_pixels(png: bytes) -> int:
+    """How many pixels of a screenshot are strongly coloured (the map's viridis markers and colour bar)."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+    return int((rgb.max(axis=-1) - rgb.min(axis=-1) > 60).sum())
+
+
 def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     assert Path(CHROMIUM).exists(), "CI must have Debian's chromium at /usr/bin/chromium"
     from playwright.sync_api import sync_playwright
@@ -111,7 +119,23 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             assert wait_for(lambda: not session.head.root.visible)
             time.sleep(2.0)
             view = page.screenshot(path=str(shots / "explorer_along_the_axis.png"), clip={"x": 0, "y": 0, "width": 1000, "height": 900})
-            assert dark_pixels(view) > 300
+            # The model's curve (orange; A18 is not measured, so no black mean) and the chart's labels: not a grey screen.
+            assert coloured_pixels(view) > 300 and dark_pixels(view) > 100
+            # The error map (Map tab) is drawn: its coloured markers and colour bar, not only DOM nodes.
+            page.get_by_role("tab", name="Map").click()
+            error_map = page.locator('svg[aria-label^="error map"]').first
+            error_map.wait_for(timeout=30_000)
+            error_map.scroll_into_view_if_needed()
+            time.sleep(1.0)
+            png = error_map.screenshot(path=str(shots / "explorer_error_map.png"))
+            assert coloured_pixels(png) > 3000 and dark_pixels(png) > 300  # markers and bar; axis labels and ticks
+            # A ring chosen under the map: the sliders go there.
+            option = session.map_panel.ring.options[2]
+            page.get_by_label("Go to ring").click()
+            page.get_by_role("option", name=option).click()
+            target = tuple(float(t[1:]) for t in option.split()[:2])
+            assert wait_for(lambda: session.orientation == target, timeout=60), (session.orientation, target)
+            page.screenshot(path=str(shots / "explorer_map_went_to_ring.png"))
             assert not [e for e in errors if "value property" in e or "TypeError" in e], errors
             browser.close()
     finally:

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
+from ph_explorer.orientation_map import MapFigure
 from ph_explorer.polar import MAGNIFICATION_RANGE, PolarScale, PolarSeries, polar_svg
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
@@ -43,7 +44,7 @@ class ControlsPanel:
             self.a = gui.add_slider("A (deg)", *a_range, 1.0, float(a_deg), hint="tilt of the stylus, 0 = down")
             self.b = gui.add_slider("B (deg)", -180.0, 180.0, 1.0, float(b_deg), hint="turn about the quill axis")
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
-            self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the field's figure is largest")
+            self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the map's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
             self.status = gui.add_markdown("")
             # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
@@ -81,11 +82,12 @@ class ControlsPanel:
         if not low <= self.a.value <= high:
             self.a.value = float(np.clip(self.a.value, low, high))
 
-    def set_worst(self, worst: Iterable[tuple[float, float, float]], unit_note: str) -> None:
-        self.worst_targets = {f"{orientation_label(a, b)} ({v:.3g})": (a, b) for a, b, v in worst}
+    def set_worst(self, worst: Iterable[tuple[float, float, float]], figure: MapFigure, name: str) -> None:
+        """The rings with the largest values of the map's figure, each with its value and unit."""
+        self.worst_targets = {f"{orientation_label(a, b)} ({figure.text(v)})": (a, b) for a, b, v in worst}
         self.worst.options = (NO_CHOICE, *self.worst_targets)
         self.worst.value = NO_CHOICE
-        self.worst.hint = f"largest values of the field's figure ({unit_note})"
+        self.worst.hint = f"largest values of the map's figure: {name}"
 
     def shown(self) -> dict[str, bool]:
         return {name: bool(box.value) and box.visible for name, box in self.show.items()}
@@ -276,32 +278,6 @@ class ChartsPanel:
             if tuple(handle.series) != series:  # series change only with the shown curves: resent only then
                 handle.series = series
             handle.data = data
-
-
-class FieldPanel:
-    """Which per-orientation figure colours the error field, its scale, and whether it shows."""
-
-    def __init__(self, gui: viser.GuiApi, names: Sequence[str]) -> None:
-        self.figure = gui.add_dropdown("Colour by", tuple(names))
-        self.show = gui.add_checkbox("Show the field", True)
-        self.scale = gui.add_html("")
-        self.note = gui.add_markdown("")
-
-    def set_names(self, names: Sequence[str]) -> None:
-        self.figure.options = tuple(names)
-
-    def set_scale(self, low: float, high: float, note: str, computing: bool = False) -> None:
-        if computing:
-            self.scale.content = "<em>computing…</em>"
-            self.note.content = ""
-            return
-        self.scale.content = (
-            '<div style="font-size:0.8em">'
-            f'<div style="height:10px;background:linear-gradient(to right,#440154,#3e4a89,#26828e,#35b779,#fde725)"></div>'
-            f'<div style="display:flex;justify-content:space-between"><span>{low:.3g}</span><span>{high:.3g}</span></div>'
-            "</div>"
-        )
-        self.note.content = f"_{note}. Large markers: held-out rings; red: the current orientation; click a marker to go there._"
 
 
 class DataPanel:

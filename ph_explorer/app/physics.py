@@ -24,7 +24,6 @@ from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
 
-DIAGNOSIS_FIGURE = "diagnosis: out-of-sample MAE / its floor"
 
 
 class PhysicsLoop:
@@ -108,13 +107,8 @@ class PhysicsLoop:
         if p.evidence_of.visible:
             p.evidence_of.value = p.evidence_of.options[0]
             self.show_evidence(p.evidence_of.value)
-        # The diagnosis' per-orientation out-of-sample error becomes a field figure.
-        ds.add_figure(
-            DIAGNOSIS_FIGURE,
-            result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"],
-            "x the floor of each ring; training rings by leave-one-out, check rings by the baseline (ph_explorer.diagnosis)",
-        )
-        self.show(ds)
+        # The diagnosis's per-ring figures join this browser's map (its out-of-sample error over the floor, each ring's verdict).
+        self.show(ds.with_figures(result.ring_figures()))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
             self.steps = list(result.steps[: 1 + len(start)])
         p.show_history(self.steps)

@@ -21,12 +21,12 @@ import viser
 from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
+from ph_explorer.app.map_panel import MapPanel
 from ph_explorer.app.panels import (
     PAPER_PRESETS,
     ChartsPanel,
     ControlsPanel,
     DataPanel,
-    FieldPanel,
     PolarPanel,
     TablesPanel,
     orientation_label,
@@ -105,8 +105,8 @@ class Session:
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
             with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
                 self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
-            with tabs.add_tab("Field", icon=viser.Icon.WORLD):
-                self.field_panel = FieldPanel(gui, dataset.figure_names())
+            with tabs.add_tab("Map", icon=viser.Icon.MAP):
+                self.map_panel = MapPanel(gui, dataset.figure_names(), self.go_to)
             with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
@@ -122,8 +122,8 @@ class Session:
             handle.on_update(self._control_changed)
         c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
         c.view_ring.on_click(lambda event: self.look(event.target.value))
-        self.field_panel.figure.on_update(lambda _: self.refresh_field())
-        self.field_panel.show.on_update(lambda _: self.field.set_visible(bool(self.field_panel.show.value)))
+        self.map_panel.figure.on_update(lambda _: self.refresh_field())
+        self.map_panel.show.on_update(lambda _: self.field.set_visible(bool(self.map_panel.show.value)))
         data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
         p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
@@ -230,6 +230,7 @@ class Session:
             self.ring.update(view.curves, shown, scale, view.repetitions, show_repetitions, band, title)
             self.polar.update(scale, view, shown, show_repetitions, band, title)
             self.field.highlight(a, b, ds.campaign.geometry.pivot_to_ball_mm)
+            self.map_panel.draw(a, b)
             self.tables.update(view, ds)
             self.charts.update(view, shown)
             c.status.content = f"**{title}**"
@@ -255,21 +256,22 @@ class Session:
         finally:
             self._moving = False
         self.controls.set_models(dataset.model_names)
-        self.field_panel.set_names(dataset.figure_names())
+        self.map_panel.set_names(dataset.figure_names())
         self.data_panel.set_source(dataset)
+        self.show_failing()
         self.refresh_field()
         self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
 
     def refresh_field(self) -> None:
-        """Recolour the error field; slow figures (leave-one-out refits) are computed on the worker."""
+        """Redraw the error map and recolour the 3D field; slow figures are computed on the worker."""
         self._field_token += 1
-        token, dataset, name = self._field_token, self.dataset, self.field_panel.figure.value
+        token, dataset, name = self._field_token, self.dataset, self.map_panel.figure.value
         if name not in dataset.figure_names():
             return
         if dataset.has_figure(name):
             self._apply_field(dataset, name)
             return
-        self.field_panel.set_scale(0.0, 0.0, "", computing=True)
+        self.map_panel.computing()
 
         def compute() -> None:
             dataset.figure(name)
@@ -279,15 +281,22 @@ class Session:
         self.submit(compute)
 
     def _apply_field(self, dataset: Dataset, name: str) -> None:
-        values, note = dataset.figure(name)
+        figure = dataset.figure(name)
         held_out = ~np.asarray(dataset.train_mask, dtype=bool)
-        with self.client.atomic():
-            self.field.set_values(dataset.campaign.orientations, values, held_out)
-            self.field.set_visible(bool(self.field_panel.show.value))
-            self.field_panel.set_scale(*self.field.range, note)
-            self.controls.set_worst(dataset.worst_orientations(name), name)
         a, b = self.orientation
+        with self.client.atomic():
+            self.field.set_values(dataset.campaign.orientations, figure.values, held_out)
+            self.field.set_visible(bool(self.map_panel.show.value))
+            self.map_panel.set_figure(name, figure, dataset.campaign.orientations, held_out)
+            self.map_panel.draw(a, b)
+            self.controls.set_worst(dataset.worst_orientations(name), figure, name)
         self.field.highlight(a, b, dataset.campaign.geometry.pivot_to_ball_mm)
+
+    def show_failing(self) -> None:
+        """The rings the last diagnosis finds beyond their noise, worst first (none before a diagnosis)."""
+        result = self.loop.diagnosis
+        tested = result is None or result.within_noise["baseline"] is not None
+        self.map_panel.set_failing(None if result is None else result.failing_rings(), tested)
 
     def load_upload(self, name: str, content: bytes) -> None:
         """A CSV from the browser: read by the core's reader; a bad file keeps the session's data."""
@@ -324,6 +333,7 @@ class Session:
         try:
             self.controls.working(f"{what}: fitting the models (leave one orientation out)…", 0.3)
             dataset = dataset_for(campaign, label, None)
+            dataset.figure(dataset.figure_names()[0])  # the map's first figure (leave-one-out fits), drawn with the data
             self.controls.working(f"{what}: drawing the field and the rings…", 0.8)
             self.loop.clear()
             self.set_dataset(dataset)
