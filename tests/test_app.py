@@ -461,6 +461,11 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         verdict = s1.loop.diagnosis.verdict if s1.loop.diagnosis is not None else None
         assert verdict in ("unexplained", "partial")
         assert f"Verdict: {verdict}" in s1.physics.verdict.content
+        # The four verdicts the diagnosis could give, this one marked.
+        from ph_explorer.diagnosis import VERDICTS
+
+        assert all(f"{key}: {meaning}" in s1.physics.verdict.content for key, meaning in VERDICTS.items() if key != verdict)
+        assert f"**{verdict}** ✔: {VERDICTS[verdict]}" in s1.physics.verdict.content
         assert any(effect_id in s1.physics.candidates.content for effect_id in app.shared.catalog.candidates())
         assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
         # Where it fails: the rings the within-noise test finds beyond their noise, worst first by
@@ -527,6 +532,10 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     np.testing.assert_allclose(mae_mean, [baseline.mae_um["mean"], last.mae_um["mean"]])
     np.testing.assert_allclose(floor_single, [baseline.noise_floor_um["single"], last.noise_floor_um["single"]])
     assert "+ b_axis_cyclic" in p.history_table.content
+    # Beside the history, the honest "after": the choice cross-validated (nested), before and after.
+    nested = s.loop.diagnosis.nested
+    assert nested is not None and f"**{nested.after_um['mean']:.3f} um** after" in p.history_table.content
+    assert f"{nested.before_um['mean']:.3f} um before" in p.history_table.content
     # The hybrid curve is in the scene, the charts and the tables.
     assert "hybrid" in s.dataset.models
     s.go_to(43.0, 90.0)
@@ -575,6 +584,27 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
         s.go_to(43.0, 100.0)
         assert not s.view.measured and s.ring.curves["network"].visible
         assert len(s.render_state.render_times) >= 2 and all(t > 0 for t in s.render_state.render_times)
+    finally:
+        fake.close()
+
+
+def test_the_guis_diagnosis_starts_from_the_loaded_network(default_app: ExplorerApp, monkeypatch) -> None:
+    """Item 6 of issue 15: the loaded model is the baseline, as `diagnose --model` takes it."""
+    from ph_explorer.app import physics
+    from ph_explorer.errors import InputError
+
+    seen = []
+
+    def watched(campaign, **kwargs):
+        seen.append(kwargs["baseline"])
+        raise InputError("stopped by the test")  # the baseline is what this test reads; the search is tested elsewhere
+
+    monkeypatch.setattr(physics.diagnosis, "diagnose", watched)
+    fake, s = open_session(default_app)
+    try:
+        click(fake, s, "Diagnose")
+        assert seen == [default_app.dataset.models["network"]]
+        assert "stopped by the test" in s.physics.status.content
     finally:
         fake.close()
 
