@@ -34,6 +34,7 @@ VIRIDIS = np.array(
 NO_VALUE_RGB = 170  # grey: a ring where the figure does not exist (e.g. in sample for a model)
 # A verdict's categories, in order of their value (0, 1, ...): calm for "within", red for "exceeds".
 CATEGORY_COLORS = ("#8fb3d9", "#d62728", "#ff9f1c", "#2ca02c")
+CURRENT = "#111"  # the current orientation's ring and cross hairs
 A_TICK_DEG = 15.0
 B_TICKS_DEG = tuple(range(-180, 181, 60))
 
@@ -179,12 +180,15 @@ def map_svg(
                 f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4.6" fill="{fill}" stroke="{"#555" if fill == "#fff" else "#fff"}" '
                 f'stroke-width="0.6"><title>{label}</title></circle>'
             )
-    if current is not None:  # the current orientation: a red ring with cross hairs
+    if current is not None:
+        # The current orientation: a black ring on a white halo with cross hairs, readable on every
+        # colour of the bar and distinct from a verdict's red.
         x, y = float(x_of(current[1])), float(y_of(current[0]))
         parts.append(
-            f'<line x1="{left}" y1="{y:.1f}" x2="{left + plot_w}" y2="{y:.1f}" stroke="#d00" stroke-width="0.8" stroke-dasharray="3 3"/>'
-            f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="#d00" stroke-width="0.8" stroke-dasharray="3 3"/>'
-            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="#d00" stroke-width="2.2"/>'
+            f'<line x1="{left}" y1="{y:.1f}" x2="{left + plot_w}" y2="{y:.1f}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
+            f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
+            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="#fff" stroke-width="4.5"/>'
+            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="{CURRENT}" stroke-width="2.2"/>'
         )
     parts += _scale(figure, low, high, left, plot_w, bar_y)
     parts.append("</svg>")
@@ -195,7 +199,7 @@ def _scale(figure: MapFigure, low: float, high: float, left: float, plot_w: floa
     """Under the map: the colour bar with round ticks and the unit, or a verdict's legend; the marker key."""
     key = (
         f'<text x="{left}" y="{bar_y + 36}" font-size="10" fill="#444">● training ring  ◆ check ring  '
-        f'○ no value  red: current orientation</text>'
+        f'○ no value  ringed: current orientation</text>'
     )
     if figure.categories:
         parts = []

@@ -256,7 +256,7 @@ def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dat
     assert wait_for(lambda: s.orientation == (a, b) and (s.view.a_deg, s.view.b_deg) == (a, b))
     s.wait()
     x = 46.0 + (b + 180.0) / 360.0 * 342.0  # the map's plot box: B across from x = 46, 342 wide
-    assert f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#d00"' in s.map_panel.plot.content  # the current orientation's cross hair
+    assert f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#111"' in s.map_panel.plot.content  # the current orientation's cross hair
     # Before a diagnosis, the failing rings are not named, and the panel says why.
     assert "Not diagnosed yet" in s.map_panel.failing_text.content and not s.map_panel.failing_buttons
     # The 3D field on request.

@@ -70,7 +70,7 @@ def test_the_map_svg_has_axes_ticks_rings_the_current_orientation_and_a_colour_b
     # Every ring a marker: check rings as diamonds (paths with a title), training rings as circles.
     assert svg.count("(check ring)</title></path>") == 3
     assert len(re.findall(r'<circle cx="[^"]+" cy="[^"]+" r="4.6"', svg)) == c.n_orientations - 3
-    assert 'r="9" fill="none" stroke="#d00"' in svg  # the current orientation
+    assert 'r="9" fill="none" stroke="#111"' in svg  # the current orientation
     # The colour bar: round ticks between min and max (more than the two ends), and the unit.
     low, high = np.min(figure.values), np.max(figure.values)
     labels = [float(t) for t in re.findall(r'text-anchor="middle">([-0-9.e]+)</text>', svg.split("linearGradient")[-1])]

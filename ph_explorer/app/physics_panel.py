@@ -184,7 +184,7 @@ class PhysicsPanel:
         n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
         self.summary.content = (
             f"**Rings that exceed their noise:** {n_fail} of {len(result.failing)} orientations "
-            f"(out of sample, the within-noise test). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"(out of sample, the within-noise test; the Map tab names them, worst first). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
             f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
