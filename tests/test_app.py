@@ -16,7 +16,7 @@ import pytest
 from fake_browser import FakeBrowser, open_session, wait_for
 from ph_explorer.app.dataset import Dataset, dataset_for
 from ph_explorer.app.render_queue import RenderState
-from ph_explorer.app.scene import a_joint, b_joint, head_orientation, magnified_radius
+from ph_explorer.app.scene import a_joint, b_joint, head_orientation
 from ph_explorer.app.server import ExplorerApp, build_server
 from ph_explorer.app.session import Session
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -93,11 +93,11 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
     np.testing.assert_allclose(
         s.ring.frame.position, s.dataset.campaign.geometry.axial_distance_mm * stylus_direction(43.0, 90.0), atol=1e-6
     )
-    # A43 B90 was measured: the measured mean and the trilinear curve are drawn, radius = R + m dev.
+    # A43 B90 was measured: the measured mean and the trilinear curve are drawn, radius = base + m dev.
     view = s.dataset.view(43.0, 90.0)
     assert view.measured and s.ring.curves["measured"].visible and s.ring.curves["trilinear"].visible
     radius = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1)
-    expected = magnified_radius(s.ring.bore_radius, s.controls.magnification.value, view.curves["measured"])
+    expected = s.ring.scale.base_mm + s.controls.magnification.value * 1e-3 * view.curves["measured"]
     np.testing.assert_allclose(radius, expected, rtol=1e-9)
     drawn = np.asarray(s.ring.curves["measured"].points)
     np.testing.assert_allclose(drawn[:, 0, :2], s.ring.points["measured"][:, :2], atol=1e-4)
@@ -109,38 +109,71 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
 
 
 def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
-    from ph_explorer.app.scene import axis_camera, ring_camera
+    from ph_explorer.app.scene import CAMERA_FOV_DEG, axis_camera, ring_camera
 
     s = browser
     axial = s.dataset.campaign.geometry.axial_distance_mm
     s.go_to(43.0, 90.0)
-    position, look_at = ring_camera(43.0, 90.0, axial)
+    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm)
     np.testing.assert_allclose(s.client.camera.position, position, atol=1e-6)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    assert s.head.root.visible
     s.look("along the axis")
     s.go_to(75.0, 40.0)  # the following camera keeps the chosen view
-    position, look_at = axis_camera(75.0, 40.0, axial)
+    position, look_at, up = axis_camera(75.0, 40.0, axial, s.ring.extent_mm)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
-    np.testing.assert_allclose(
-        (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position),
-        stylus_direction(75.0, 40.0),
-        atol=0.1,
-    )
+    view = (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position)
+    np.testing.assert_allclose(view, stylus_direction(75.0, 40.0), atol=1e-9)  # square to the ring plane: undistorted
+    # The head, between the camera and the ring, is hidden; the whole chart is inside the field
+    # of view; the ring's e2 is up, so theta turns counter-clockwise as on the panel's chart.
+    centre = axial * stylus_direction(75.0, 40.0)
+    distance = float(np.dot(centre - np.asarray(s.client.camera.position), view))
+    assert distance > 0.0 and not s.head.root.visible
+    half = np.tan(np.radians(0.5 * CAMERA_FOV_DEG))  # vertical; a 1440x900 window is 1.6 times wider
+    assert s.ring.extent_mm / distance < half
+    assert (np.linalg.norm(look_at - centre) + s.ring.extent_mm) / distance < 1.6 * half
+    np.testing.assert_allclose(s.client.camera.up_direction, rotation_of(s.ring.frame.wxyz)[:, 1], atol=1e-9)
     s.controls.follow.value = False
     s.go_to(15.0, -20.0)  # not following: the camera stays where the user put it
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
     s.controls.follow.value = True
     s.look("ring + head")
+    assert s.head.root.visible
 
 
-def test_magnification_scales_the_deviation_not_the_circle(browser) -> None:
+def test_magnification_scales_the_deviation_about_the_reference_circle(browser) -> None:
     s = browser
     s.go_to(15.0, -20.0)
     s.controls.magnification.value = 2000.0
-    r1 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.bore_radius
+    r1 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.scale.base_mm
     s.controls.magnification.value = 20000.0
-    r2 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.bore_radius
+    r2 = np.linalg.norm(s.ring.points["measured"][:, :2], axis=1) - s.ring.scale.base_mm
     np.testing.assert_allclose(r2, 10.0 * r1, rtol=1e-9)
+    # The drawn reference circle is the chart's base circle.
+    np.testing.assert_allclose(np.linalg.norm(np.asarray(s.ring.reference.points)[:, 0, :2], axis=1), s.ring.scale.base_mm, rtol=1e-5)
+    s.controls.magnification.value = 10000.0
+
+
+def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_circles(browser) -> None:
+    """At every offered magnification, with each repetition shown, nothing drawn reaches the centre;
+    each scale circle's label in the scene says the deviation its radius stands for."""
+    from ph_explorer.polar import INNER_CLEARANCE, offered_magnifications
+
+    s = browser
+    s.go_to(15.0, -20.0)
+    s.controls.repetitions.value = True
+    for m in offered_magnifications():
+        s.controls.magnification.value = float(m)
+        scale = s.ring.scale
+        assert scale.magnification == m
+        reps = np.asarray(s.ring.repetitions.points)[:, 0, :2]
+        assert np.linalg.norm(reps, axis=1).min() >= INNER_CLEARANCE * scale.base_mm - 1e-3
+        for handle, (text, radius) in zip(s.ring.scale_labels, scale.labelled_circles()):
+            value = float(handle.text.split(" um")[0])
+            assert handle.visible and np.isclose(np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5)
+        assert f"x{m:g}" in s.ring.caption.text and f"x{m:g}" in s.polar.plot.content
+    s.controls.repetitions.value = False
+    s.controls.magnification.value = 10000.0
 
 
 def test_unmeasured_orientation_is_labelled_a_prediction(browser) -> None:
@@ -196,24 +229,39 @@ def test_presets_and_marker_clicks_move_the_sliders(opened) -> None:
     )
 
 
-def test_error_field_colours_by_the_chosen_figure(browser, dataset: Dataset) -> None:
+def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dataset: Dataset) -> None:
     from ph_explorer.harmonics import ron_t
 
-    s = browser
-    assert s.field_panel.figure.value == "measured RONt"
-    np.testing.assert_allclose(s.field.values, ron_t(dataset.campaign.mean_curves()))
-    s.field_panel.figure.value = "trilinear MAE, leave-one-out"
+    fake, s = opened
+    # The map starts on where the model fails out of sample (um), not on the roundness; the 3D field is off.
+    assert s.map_panel.figure.value == "trilinear MAE, leave-one-out"
     s.wait()
-    values = s.field.values
-    assert values.shape == (dataset.campaign.n_orientations,) and np.all(values > 0)
-    # Leave-one-out is out of sample: at least the noise floor of the mean on average.
-    assert values.mean() > dataset.noise_floor_um["mean"]
+    loo = dataset.figure("trilinear MAE, leave-one-out")
+    np.testing.assert_allclose(s.field.values, loo.values)
+    assert not s.map_panel.show.value and not s.field.markers.visible and not s.field.current.visible
+    svg = s.map_panel.plot.content
+    assert svg.startswith("<svg") and "A (deg)" in svg and "B (deg)" in svg and ">um</text>" in svg
+    # The Worst dropdown lists the largest values with their unit.
     worst = s.controls.worst.options[1]
     a, b = (float(t[1:]) for t in worst.split()[:2])
-    j = int(np.argmax(values))
-    assert (a, b) == tuple(dataset.campaign.orientations[j])
-    s.controls.worst.value = worst
-    assert s.orientation == (a, b)
+    j = int(np.nanargmax(loo.values))
+    assert (a, b) == tuple(dataset.campaign.orientations[j]) and worst.endswith(" um)")
+    # Another figure, chosen in the browser: the field and the map follow.
+    fake.click("Map of", "measured RONt")
+    assert wait_for(lambda: s.map_panel.plot.content.count("measured RONt") >= 1 and np.allclose(s.field.values, ron_t(dataset.campaign.mean_curves())))
+    # The ring picker, as the browser sends it: the sliders go there, the map marks it.
+    option = s.map_panel.ring.options[3]
+    a, b = (float(t[1:]) for t in option.split()[:2])
+    fake.click("Go to ring", option)
+    assert wait_for(lambda: s.orientation == (a, b) and (s.view.a_deg, s.view.b_deg) == (a, b))
+    s.wait()
+    x = 46.0 + (b + 180.0) / 360.0 * 342.0  # the map's plot box: B across from x = 46, 342 wide
+    assert f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#111"' in s.map_panel.plot.content  # the current orientation's cross hair
+    # Before a diagnosis, the failing rings are not named, and the panel says why.
+    assert "Not diagnosed yet" in s.map_panel.failing_text.content and not s.map_panel.failing_buttons
+    # The 3D field on request.
+    fake.click("3D field around the head")
+    assert wait_for(lambda: s.field.markers.visible)
 
 
 def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:
@@ -413,8 +461,32 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         verdict = s1.loop.diagnosis.verdict if s1.loop.diagnosis is not None else None
         assert verdict in ("unexplained", "partial")
         assert f"Verdict: {verdict}" in s1.physics.verdict.content
+        # The four verdicts the diagnosis could give, this one marked.
+        from ph_explorer.diagnosis import VERDICTS
+
+        assert all(f"{key}: {meaning}" in s1.physics.verdict.content for key, meaning in VERDICTS.items() if key != verdict)
+        assert f"**{verdict}** ✔: {VERDICTS[verdict]}" in s1.physics.verdict.content
         assert any(effect_id in s1.physics.candidates.content for effect_id in app.shared.catalog.candidates())
         assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
+        # Where it fails: the rings the within-noise test finds beyond their noise, worst first by
+        # their error over their floor, a button each; one click goes there.
+        from ph_explorer.app.map_panel import MAX_FAILING_BUTTONS, failing_label
+
+        rings = s1.loop.diagnosis.failing_rings()
+        assert rings and [r.ratio for r in rings] == sorted((r.ratio for r in rings), reverse=True)
+        labels = [button.label for button in s1.map_panel.failing_buttons]
+        assert labels == [failing_label(r) for r in rings[:MAX_FAILING_BUTTONS]]
+        assert f"{rings[0].mae_um:.3f} um, floor {rings[0].floor_um:.3f} um" in labels[0]
+        assert f"{len(rings)} rings exceed their noise" in s1.map_panel.failing_text.content
+        target = rings[min(1, len(rings) - 1)]
+        b1.click(failing_label(target))
+        assert wait_for(lambda: s1.orientation == (target.a_deg, target.b_deg))
+        # The diagnosis's per-ring verdict on the map: exceeds where the test says so.
+        verdict = "diagnosis: ring verdict (within-noise test)"
+        assert verdict in s1.map_panel.figure.options and verdict not in s2.dataset.figure_names()  # this browser's only
+        b1.click("Map of", verdict)
+        assert wait_for(lambda: np.array_equal(s1.field.values, s1.loop.diagnosis.failing.astype(float)))
+        assert "exceeds its noise" in s1.map_panel.plot.content and "Not diagnosed yet" in s2.map_panel.failing_text.content
     finally:
         release.set()
         b1.close()
@@ -460,6 +532,10 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     np.testing.assert_allclose(mae_mean, [baseline.mae_um["mean"], last.mae_um["mean"]])
     np.testing.assert_allclose(floor_single, [baseline.noise_floor_um["single"], last.noise_floor_um["single"]])
     assert "+ b_axis_cyclic" in p.history_table.content
+    # Beside the history, the honest "after": the choice cross-validated (nested), before and after.
+    nested = s.loop.diagnosis.nested
+    assert nested is not None and f"**{nested.after_um['mean']:.3f} um** after" in p.history_table.content
+    assert f"{nested.before_um['mean']:.3f} um before" in p.history_table.content
     # The hybrid curve is in the scene, the charts and the tables.
     assert "hybrid" in s.dataset.models
     s.go_to(43.0, 90.0)
@@ -468,6 +544,10 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     assert "hybrid" in s.tables.markdown.content
     fake.click("Reveal the hidden effect")
     assert wait_for(lambda: "b_axis_cyclic" in p.revealed.content)
+    # The truth from the sidecar next to what was found: the diagnosis's fit with its uncertainty, the refit.
+    assert "truth: amplitude 1 arcsec" in p.revealed.content and "22 cycles/rev" in p.revealed.content
+    assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(best.params, best.params_u) in p.revealed.content
+    assert "last refit: amplitude" in p.revealed.content
     # New data clears the physics of the old.
     s.data_panel.scenario.value = "paper"
     s.wait(timeout=300)
@@ -506,3 +586,92 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
         assert len(s.render_state.render_times) >= 2 and all(t > 0 for t in s.render_state.render_times)
     finally:
         fake.close()
+
+
+def test_the_guis_diagnosis_starts_from_the_loaded_network(default_app: ExplorerApp, monkeypatch) -> None:
+    """Item 6 of issue 15: the loaded model is the baseline, as `diagnose --model` takes it."""
+    from ph_explorer.app import physics
+    from ph_explorer.errors import InputError
+
+    seen = []
+
+    def watched(campaign, **kwargs):
+        seen.append(kwargs["baseline"])
+        raise InputError("stopped by the test")  # the baseline is what this test reads; the search is tested elsewhere
+
+    monkeypatch.setattr(physics.diagnosis, "diagnose", watched)
+    fake, s = open_session(default_app)
+    try:
+        click(fake, s, "Diagnose")
+        assert seen == [default_app.dataset.models["network"]]
+        assert "stopped by the test" in s.physics.status.content
+    finally:
+        fake.close()
+
+
+def test_model_checkboxes_exist_with_their_models_and_a_scenario_switch_shows_its_progress(browser, monkeypatch) -> None:
+    """Item 4 of issue 15: no ticked, greyed checkbox of a model that does not exist; a scenario
+    switch (seconds: simulate, fit, draw) shows what it is doing above the fold, then hides."""
+    import ph_explorer.app.session as session_module
+
+    s = browser
+    assert s.dataset.model_names == ["trilinear"]
+    assert [name for name, box in s.controls.show.items() if box.visible] == ["measured", "trilinear"]
+    assert not s.ring.curves["hybrid"].visible and not s.controls.busy.visible
+    seen = []
+    fit = session_module.dataset_for
+
+    def watched(*args, **kwargs):
+        seen.append((s.controls.busy.visible, s.controls.busy.value, s.controls.busy_text.content))
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "dataset_for", watched)
+    s.load_scenario("paper")
+    assert seen and seen[0][0] and 0.0 < seen[0][1] < 100.0 and "paper: fitting the models" in seen[0][2]
+    assert not s.controls.busy.visible and not s.controls.busy_text.visible
+    assert "paper" in s.data_panel.source.content
+
+
+def test_serve_with_the_operators_effect_file_offers_its_effects_and_a_browser_uploads_no_code(tmp_path) -> None:
+    """Item 9 of issue 15: `serve --effects FILE.py` (build_server(effects=...)) puts the file's effects
+    in every browser's catalog; what a browser uploads is read as a campaign CSV, never run."""
+    from ph_explorer import paths
+
+    example = paths.assets_dir() / "effects_example.py"
+    csv = write_campaign(lobing_campaign(seed=9, n_repetitions=3), tmp_path / "small.csv")
+    explorer = build_server(data=csv, port=0, effects=example)
+    try:
+        fake, s = open_session(explorer)
+        try:
+            assert "my_ball_form" in s.catalog and "my_ball_form" in s.physics.effects
+            assert set(DEFAULT_CATALOG.candidates()) < set(s.physics.effects)
+            before = s.dataset
+            s.load_upload("effects.py", example.read_bytes())  # code sent as a campaign: refused, not run
+            assert "Not loaded" in s.data_panel.message.content and s.dataset is before
+            assert list(s.catalog) == list(explorer.shared.catalog)
+        finally:
+            s.wait(timeout=60)
+            fake.close()
+    finally:
+        explorer.stop()
+
+
+def test_serve_refuses_a_bad_effect_file_in_one_line_before_serving(tmp_path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from ph_explorer.errors import InputError
+
+    clash = tmp_path / "clash.py"
+    clash.write_text(
+        "from ph_explorer.effects.stylus import BallForm\n\nclass Again(BallForm):\n    id = 'lobing'\n", encoding="utf-8"
+    )
+    with pytest.raises(InputError, match="already a built-in effect"):
+        build_server(port=0, effects=clash)
+    done = subprocess.run(
+        [sys.executable, "-m", "ph_explorer", "serve", "--effects", str(tmp_path / "missing.py"), "--port", "0"],
+        capture_output=True, text=True, env=dict(os.environ, COLUMNS="120"), timeout=120,
+    )
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (done.stdout, done.stderr)
+    assert "effects file not found" in done.stderr and "serving" not in done.stdout

@@ -7,6 +7,7 @@ to the test's tmp folder (and $PH_EXPLORER_SCREENSHOTS when set) so a human can 
 
 from __future__ import annotations
 
+import io
 import os
 import time
 from pathlib import Path
@@ -31,6 +32,22 @@ def _rotation(wxyz: np.ndarray) -> np.ndarray:
     return SO3(np.asarray(wxyz, dtype=float)).as_matrix()
 
 
+def dark_pixels(png: bytes) -> int:
+    """How many pixels of a screenshot are near-black (the measured mean's curve, the chart's text)."""
+    from PIL import Image  # pillow comes with matplotlib, a test dependency
+
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+    return int((rgb.max(axis=-1) < 70).sum())
+
+
+def coloured_pixels(png: bytes) -> int:
+    """How many pixels of a screenshot are strongly coloured (the map's viridis markers and colour bar)."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+    return int((rgb.max(axis=-1) - rgb.min(axis=-1) > 60).sum())
+
+
 def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     assert Path(CHROMIUM).exists(), "CI must have Debian's chromium at /usr/bin/chromium"
     from playwright.sync_api import sync_playwright
@@ -47,7 +64,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-            page = browser.new_page(viewport={"width": 1200, "height": 800})
+            page = browser.new_page(viewport={"width": 1440, "height": 900})
             errors: list[str] = []
             page.on("pageerror", lambda error: errors.append(str(error)))
             t0 = time.monotonic()
@@ -64,8 +81,16 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             curve_before = np.asarray(session.ring.curves["trilinear"].points).copy()
             renders = session.render_count
 
-            # Move the A slider like a user: focus its thumb, press the arrow key three times.
-            thumb = page.get_by_role("slider").first
+            # Every control is reachable by its label or its name, as a screen reader finds it.
+            for label in ("A (deg)", "B (deg)", "Magnification", "Worst", "Measured mean", "Monte Carlo band"):
+                assert page.get_by_label(label).count() == 1, label
+            for name in ("A (deg)", "B (deg)", "Magnification"):
+                assert page.get_by_role("slider", name=name).count() == 1, name
+            for name in ("A15 B-20", "ring + head", "along the axis", "whole field"):
+                assert page.get_by_role("button", name=name).count() == 1, name
+
+            # Move the A slider like a user: focus it by its label, press the arrow key three times (1 deg each).
+            thumb = page.get_by_label("A (deg)")
             thumb.focus()
             for _ in range(3):
                 page.keyboard.press("ArrowRight")
@@ -81,9 +106,36 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             assert not np.allclose(session.head.a_frame.wxyz, wxyz_before)
             assert not np.allclose(np.asarray(session.ring.curves["trilinear"].points), curve_before, atol=1e-4)
             # The browser shows the new value in the slider's number box.
-            assert page.get_by_role("slider").first.get_attribute("aria-valuenow") == f"{a:g}"
+            assert page.get_by_label("A (deg)").get_attribute("aria-valuenow") == f"{a:g}"
             time.sleep(1.5)
             page.screenshot(path=str(shots / "explorer_after_a_slider.png"))
+
+            # The flat polar chart is drawn (pixels of the measured mean's near-black curve, not only DOM).
+            chart = page.locator('svg[role="img"]').first
+            chart.scroll_into_view_if_needed()
+            assert dark_pixels(chart.screenshot(path=str(shots / "explorer_polar_chart.png"))) > 300
+            # Along the axis: the ring and its curves, not the inside of the head.
+            page.get_by_role("button", name="along the axis").click()
+            assert wait_for(lambda: not session.head.root.visible)
+            time.sleep(2.0)
+            view = page.screenshot(path=str(shots / "explorer_along_the_axis.png"), clip={"x": 0, "y": 0, "width": 1000, "height": 900})
+            # The model's curve (orange; A18 is not measured, so no black mean) and the chart's labels: not a grey screen.
+            assert coloured_pixels(view) > 300 and dark_pixels(view) > 100
+            # The error map (Map tab) is drawn: its coloured markers and colour bar, not only DOM nodes.
+            page.get_by_role("tab", name="Map").click()
+            error_map = page.locator('svg[aria-label^="error map"]').first
+            error_map.wait_for(timeout=30_000)
+            error_map.scroll_into_view_if_needed()
+            time.sleep(1.0)
+            png = error_map.screenshot(path=str(shots / "explorer_error_map.png"))
+            assert coloured_pixels(png) > 3000 and dark_pixels(png) > 300  # markers and bar; axis labels and ticks
+            # A ring chosen under the map: the sliders go there.
+            option = session.map_panel.ring.options[2]
+            page.get_by_label("Go to ring").click()
+            page.get_by_role("option", name=option).click()
+            target = tuple(float(t[1:]) for t in option.split()[:2])
+            assert wait_for(lambda: session.orientation == target, timeout=60), (session.orientation, target)
+            page.screenshot(path=str(shots / "explorer_map_went_to_ring.png"))
             assert not [e for e in errors if "value property" in e or "TypeError" in e], errors
             browser.close()
     finally:

@@ -63,7 +63,7 @@ def test_inspect_json(tmp_path: Path) -> None:
     # A0 = 112 tilts the stylus to 118.5 deg at some touches: beyond the PH20's 115 deg.
     assert s["unreachable_orientations"] == [[112.0, 0.0]]
     assert 0 < s["unreachable_touches"] < 6 * 32 and s["unreachable_touches"] % 6 == 0
-    assert s["scenario"] == {"name": "test", "seed": 1}
+    assert s["scenario"] == {"name": "test", "seed": 1, "hidden_effects": 0}
 
 
 def test_inspect_text_and_geometry_options(tmp_path: Path) -> None:

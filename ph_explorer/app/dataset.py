@@ -25,11 +25,17 @@ from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.crossval import cross_val_predict
+from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.orientation_map import MapFigure, ranked_rings
+from ph_explorer.polar import deviation_bounds
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
+# The map's own figures (a model's are named after it); the first is where the map starts.
+LOO_FIGURE = "trilinear MAE, leave-one-out"
+LOO_RATIO_FIGURE = "trilinear MAE / noise floor, leave-one-out"
+RONT_FIGURE = "measured RONt"
 VIEW_CACHE = 512  # orientations whose views a dataset keeps (a slider sweep revisits them)
 
 
@@ -71,10 +77,12 @@ class Dataset:
         if self.train_mask is None:
             self.train_mask = ~self.campaign.holdout_mask()
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
-        self._figures: dict[str, tuple[NDArray[np.float64], str]] = {}
+        self._figures: dict[str, MapFigure] = {}
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
+        # Every deviation of the campaign (each repetition): what a polar chart must keep off its centre.
+        self.deviation_bounds_um = np.array(deviation_bounds([self.campaign.deviations]))
         self.sigma_um = self.campaign.noise_sigma_um()
         # A campaign of single repetitions has no repetition spread: no floor to show.
         finite = np.isfinite(self.sigma_um)
@@ -101,11 +109,18 @@ class Dataset:
             return self
         return self._with_models({k: v for k, v in self.models.items() if k != name})
 
+    def with_figures(self, figures: Mapping[str, MapFigure]) -> "Dataset":
+        """A copy holding more per-ring figures (a diagnosis's): one browser's, never shared with the others."""
+        copy = self._with_models(dict(self.models))
+        for name, figure in figures.items():
+            copy.add_figure(name, figure)
+        return copy
+
     def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
         copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
-                copy.add_figure(extra, *self._figures[extra])
+                copy.add_figure(extra, self._figures[extra])
         return copy
 
     # -- one orientation ---------------------------------------------------------------------------
@@ -161,20 +176,20 @@ class Dataset:
         tail = 50.0 * (1.0 - coverage)
         return np.percentile(sims, tail, axis=0), np.percentile(sims, 100.0 - tail, axis=0)
 
-    # -- over all orientations (the error field) ---------------------------------------------------
+    # -- over all orientations (the error map and field) -----------------------------------------
     def figure_names(self) -> list[str]:
-        names = ["measured RONt"]
+        """What the map can show: measured roundness, each model's out-of-sample error and its ratio
+        to the floor, then what a diagnosis added (its per-ring figures and verdict)."""
+        names = [LOO_FIGURE, LOO_RATIO_FIGURE, RONT_FIGURE]
         for m in self.model_names:
-            if m == "trilinear":
-                names += ["trilinear MAE, leave-one-out", "trilinear MAE / noise floor, leave-one-out"]
-            else:
-                names += [f"{m} MAE", f"{m} MAE / noise floor"]
+            if m != "trilinear":
+                names += [f"{m} MAE, check rings", f"{m} MAE / noise floor, check rings"]
         return names + list(self._extra_figures)
 
-    def add_figure(self, name: str, values: NDArray[np.float64], note: str) -> None:
+    def add_figure(self, name: str, figure: MapFigure) -> None:
         """A per-orientation figure computed elsewhere in the core (e.g. by the diagnosis)."""
         with self._lock:
-            self._figures[name] = (np.asarray(values, dtype=float), note)
+            self._figures[name] = figure
             if name not in self._extra_figures:
                 self._extra_figures.append(name)
 
@@ -182,8 +197,8 @@ class Dataset:
         with self._lock:
             return name in self._figures
 
-    def figure(self, name: str) -> tuple[NDArray[np.float64], str]:
-        """Per-orientation values (n_o,) of a named figure and a note on what it is."""
+    def figure(self, name: str) -> MapFigure:
+        """A named figure: a value per ring (n_o,) with its unit and a note on what it is."""
         with self._lock:
             hit = self._figures.get(name)
         if hit is not None:
@@ -193,34 +208,36 @@ class Dataset:
             self._figures[name] = result
         return result
 
-    def _compute_figure(self, name: str) -> tuple[NDArray[np.float64], str]:
-        if name == "measured RONt":
-            return ron_t(self.mean_curves), "um, peak to valley of the measured mean curve (ISO 12181)"
-        ratio = name.endswith("/ noise floor") or "/ noise floor," in name
-        floor = self.noise_floor_um.get("mean")
-        if name.startswith("trilinear MAE") and "leave-one-out" in name:
-            # Out of sample: each training ring by tables fitted without it, each held-out ring by the training rings.
-            predicted = cross_val_predict(TrilinearModel, self.campaign, self.train_mask)
-            note = "um against the measured mean; each ring predicted by tables refitted without it (out of sample)"
+    def _compute_figure(self, name: str) -> MapFigure:
+        c = self.campaign
+        if name == RONT_FIGURE:
+            return MapFigure(ron_t(self.mean_curves), "um", "peak to valley of the measured mean curve (ISO 12181): the ring's roundness, not a model's error")
+        ratio = "/ noise floor" in name
+        if name in (LOO_FIGURE, LOO_RATIO_FIGURE):
+            # Out of sample everywhere: each training ring by tables refitted without it, each check
+            # ring by the training rings; each ring's floor holds the noise of the rings predicting it.
+            mae = ring_mae(cross_val_predict(TrilinearModel, c, self.train_mask), c.deviations)["mean"]
+            floor = OutOfSampleSmoother(c.orientations, self.train_mask).noise_floor(self.sigma_um, c.n_repetitions)["mean"]
+            note = "out of sample at every ring: each training ring by tables refitted without it, each check ring by the training rings"
         else:
             model = name.split(" ")[0]
             if model not in self.models:
                 raise KeyError(name)
-            predicted = self.models[model].predict(self.campaign.orientations, n_points=self.campaign.n_points)
-            note = (
-                "um against the measured mean: out of sample on the held-out rings, in sample on the training rings"
-            )
-        mae = ring_mae(predicted, self.campaign.deviations)["mean"]
+            # Only the check rings are out of sample for a model fitted on the others (its training rings are not shown).
+            held_out = ~np.asarray(self.train_mask, dtype=bool)
+            mae = np.full(c.n_orientations, np.nan)
+            mae[held_out] = held_out_ring_mae(self.models[model], c, held_out)["mean"]
+            floor = self.noise_floor_um.get("mean", np.nan)
+            note = f"out of sample on the check rings only; the {model} model saw the training rings (hollow)"
         if ratio:
-            if not floor:
-                return np.full(self.campaign.n_orientations, np.nan), "noise floor unknown (a single repetition)"
-            return mae / floor, f"x the noise floor of the mean ({floor:.3f} um); " + note
-        return mae, note
+            if not np.all(np.isfinite(floor)):
+                return MapFigure(np.full(c.n_orientations, np.nan), "x floor", "noise floor unknown (a single repetition)")
+            return MapFigure(mae / floor, "x floor", "MAE against the repetition mean over its noise floor; " + note)
+        return MapFigure(mae, "um", "MAE against the repetition mean; " + note)
 
     def worst_orientations(self, name: str, count: int = 5) -> list[tuple[float, float, float]]:
-        values, _ = self.figure(name)
-        order = np.argsort(np.where(np.isfinite(values), values, -np.inf))[::-1][:count]
-        return [(float(self.campaign.orientations[i, 0]), float(self.campaign.orientations[i, 1]), float(values[i])) for i in order]
+        """The rings with the largest values of a figure, (A, B, value), largest first."""
+        return ranked_rings(self.figure(name), self.campaign.orientations)[:count]
 
 
 # -- loading -----------------------------------------------------------------------------------------

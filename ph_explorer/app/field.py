@@ -13,36 +13,7 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.geometry import A_LIMIT_DEG, joint_angles, stylus_direction
-
-# A few stops of the viridis colormap (0..1 -> RGB): perceptually uniform, colour-blind safe.
-_VIRIDIS = np.array(
-    [
-        [68, 1, 84],
-        [72, 40, 120],
-        [62, 74, 137],
-        [49, 104, 142],
-        [38, 130, 142],
-        [31, 158, 137],
-        [53, 183, 121],
-        [109, 205, 89],
-        [180, 222, 44],
-        [253, 231, 37],
-    ],
-    dtype=float,
-)
-
-
-def colormap(values: NDArray[np.float64], low: float, high: float) -> NDArray[np.uint8]:
-    """Viridis colours (n, 3) uint8 for values scaled from [low, high]; NaN -> grey."""
-    v = np.asarray(values, dtype=float)
-    t = np.clip((v - low) / (high - low if high > low else 1.0), 0.0, 1.0)
-    x = t * (len(_VIRIDIS) - 1)
-    i = np.clip(np.floor(x).astype(int), 0, len(_VIRIDIS) - 2)
-    w = (x - i)[..., None]
-    rgb = (1 - w) * _VIRIDIS[i] + w * _VIRIDIS[i + 1]
-    rgb = np.where(np.isfinite(v)[..., None], rgb, 170.0)
-    return rgb.astype(np.uint8)
-
+from ph_explorer.orientation_map import colormap, value_range
 
 @lru_cache(maxsize=2)
 def _hemisphere(radius: float, a_max_deg: float = A_LIMIT_DEG + 3.0) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -77,11 +48,12 @@ class ErrorField:
         self.range = (0.0, 1.0)
         marker = trimesh.creation.icosphere(subdivisions=1, radius=1.0)
         self._marker = marker
-        self.current = scene.add_icosphere("/field/current", radius=7.0, color=(220, 30, 30), subdivisions=3)
+        # Context, off by default (the Map tab's flat map is what is read): shown on request.
+        self.visible = False
+        self.current = scene.add_icosphere("/field/current", radius=7.0, color=(220, 30, 30), subdivisions=3, visible=False)
         self.current_line = scene.add_line_segments(
-            "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen"
+            "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen", visible=False
         )
-        self.visible = True
         self._on_pick: Callable[[float, float], None] | None = None
 
     def on_pick(self, callback: Callable[[float, float], None]) -> None:
@@ -91,8 +63,7 @@ class ErrorField:
         """Recolour the surface and the markers for a new figure or a new campaign."""
         self.orientations = np.asarray(orientations, dtype=float)
         self.values = np.asarray(values, dtype=float)
-        finite = self.values[np.isfinite(self.values)]
-        self.range = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        self.range = value_range(self.values)
         dirs = stylus_direction(self.orientations[:, 0], self.orientations[:, 1])
         nearest = np.argmax(self.vertex_dirs @ dirs.T, axis=1)
         colors = colormap(self.values[nearest], *self.range)

@@ -14,6 +14,8 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
+from ph_explorer.orientation_map import MapFigure
+from ph_explorer.polar import MAGNIFICATION_RANGE, PolarScale, PolarSeries, polar_svg
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
     "A15 B-20": (15.0, -20.0),
@@ -42,12 +44,15 @@ class ControlsPanel:
             self.a = gui.add_slider("A (deg)", *a_range, 1.0, float(a_deg), hint="tilt of the stylus, 0 = down")
             self.b = gui.add_slider("B (deg)", -180.0, 180.0, 1.0, float(b_deg), hint="turn about the quill axis")
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
-            self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the field's figure is largest")
+            self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the map's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
             self.status = gui.add_markdown("")
+            # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
+            self.busy_text = gui.add_markdown("", visible=False)
+            self.busy = gui.add_progress_bar(0.0, visible=False)
         with gui.add_folder("Curves"):
             self.magnification = gui.add_slider(
-                "Magnification", 1000.0, 20000.0, 500.0, DEFAULT_MAGNIFICATION, hint="x: radial deviation scale"
+                "Magnification", *MAGNIFICATION_RANGE, DEFAULT_MAGNIFICATION, hint="x: chart mm per mm of radial deviation"
             )
             self.show = {
                 name: gui.add_checkbox(label, True)
@@ -65,8 +70,9 @@ class ControlsPanel:
             self.view_ring = gui.add_button_group("View", ("ring + head", "along the axis", "whole field"))
 
     def set_models(self, names: Sequence[str]) -> None:
+        # A model's checkbox exists only while the model does (a hybrid after its first refit).
         for name, box in self.show.items():
-            box.disabled = name != "measured" and name not in names
+            box.visible = name == "measured" or name in names
         self.band.options = ("none", *names)
         self.legend.content = legend_html(["measured", *names, "repetitions", "reference"])
 
@@ -76,17 +82,28 @@ class ControlsPanel:
         if not low <= self.a.value <= high:
             self.a.value = float(np.clip(self.a.value, low, high))
 
-    def set_worst(self, worst: Iterable[tuple[float, float, float]], unit_note: str) -> None:
-        self.worst_targets = {f"{orientation_label(a, b)} ({v:.3g})": (a, b) for a, b, v in worst}
+    def set_worst(self, worst: Iterable[tuple[float, float, float]], figure: MapFigure, name: str) -> None:
+        """The rings with the largest values of the map's figure, each with its value and unit."""
+        self.worst_targets = {f"{orientation_label(a, b)} ({figure.text(v)})": (a, b) for a, b, v in worst}
         self.worst.options = (NO_CHOICE, *self.worst_targets)
         self.worst.value = NO_CHOICE
-        self.worst.hint = f"largest values of the field's figure ({unit_note})"
+        self.worst.hint = f"largest values of the map's figure: {name}"
 
     def shown(self) -> dict[str, bool]:
-        return {name: bool(box.value) and not box.disabled for name, box in self.show.items()}
+        return {name: bool(box.value) and box.visible for name, box in self.show.items()}
+
+    def working(self, text: str, fraction: float) -> None:
+        """Show a slow step in progress under the orientation (above the fold)."""
+        self.busy_text.content = f"_{text}_"
+        self.busy_text.visible = self.busy.visible = True
+        self.busy.value = float(np.clip(100.0 * fraction, 0.0, 100.0))
+
+    def idle(self) -> None:
+        self.busy_text.visible = self.busy.visible = False
 
 
-LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "circle R, ±1 um"}
+LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "LS reference circle (dashed: scale circles, um)"}
+CURVE_ORDER = ("measured", "network", "trilinear", "hybrid")
 
 
 def legend_html(names: Iterable[str]) -> str:
@@ -109,6 +126,43 @@ def legend_html(names: Iterable[str]) -> str:
         )
         items.append(f'<div style="white-space:nowrap">Monte Carlo 95 % band:{swatches}</div>')
     return '<div style="font-size:0.8em;line-height:1.8em">' + "".join(items) + "</div>"
+
+
+class PolarPanel:
+    """The flat polar chart of the current orientation, always facing the user (an SVG)."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.plot = gui.add_html("")
+
+    def update(
+        self,
+        scale: PolarScale,
+        view: OrientationView,
+        shown: Mapping[str, bool],
+        show_repetitions: bool,
+        band: tuple[str, NDArray, NDArray] | None,
+        title: str,
+    ) -> None:
+        self.plot.content = polar_chart(scale, view, shown, show_repetitions, band, title)
+
+
+def polar_chart(
+    scale: PolarScale,
+    view: OrientationView,
+    shown: Mapping[str, bool],
+    show_repetitions: bool,
+    band: tuple[str, NDArray, NDArray] | None,
+    title: str,
+) -> str:
+    """The SVG of the shown curves (the same colours as the 3D scene), repetitions under them."""
+    series = []
+    if show_repetitions and view.repetitions is not None:
+        series.append(PolarSeries(LEGEND_LABELS["repetitions"], view.repetitions, hex_color(curve_color("repetitions")), 0.8, 0.6))
+    for name in CURVE_ORDER:
+        if name in view.curves and shown.get(name, True):
+            series.append(PolarSeries(LEGEND_LABELS.get(name, name), view.curves[name], hex_color(curve_color(name)), 2.5 if name == "measured" else 2.0))
+    drawn_band = (band[0], band[1], band[2], hex_color(BAND_COLORS.get(band[0], (200, 200, 200)))) if band is not None else None
+    return polar_svg(scale, series, title, drawn_band)
 
 
 class TablesPanel:
@@ -155,7 +209,7 @@ def tables_markdown(view: OrientationView, dataset: Dataset) -> str:
 
 def deviation_chart_data(view: OrientationView, shown: Mapping[str, bool]) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
     """uPlot data and series: deviation (um) against point number for the shown curves."""
-    names = [n for n in ("measured", "network", "trilinear", "hybrid") if n in view.curves and shown.get(n, True)]
+    names = [n for n in CURVE_ORDER if n in view.curves and shown.get(n, True)]
     n_pt = next(iter(view.curves.values())).size if view.curves else 64
     x = np.arange(n_pt, dtype=float)
     data = (x, *(np.asarray(view.curves[n], dtype=float) for n in names))
@@ -172,7 +226,7 @@ def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_up
     uPlot has no bar renderer without JavaScript callbacks, so each bar is drawn as a filled
     rectangle path (0 -> a -> a -> 0) on a shared x axis where the other curves sit at 0.
     """
-    names = [n for n in ("measured", "network", "trilinear", "hybrid") if n in view.spectra and shown.get(n, True)]
+    names = [n for n in CURVE_ORDER if n in view.spectra and shown.get(n, True)]
     if not names:
         x = np.array([2.0, float(max_upr)])
         return (x, np.zeros(2)), ({"label": "UPR"}, {"label": "no curve shown", "stroke": "#bbbbbb"})
@@ -224,32 +278,6 @@ class ChartsPanel:
             if tuple(handle.series) != series:  # series change only with the shown curves: resent only then
                 handle.series = series
             handle.data = data
-
-
-class FieldPanel:
-    """Which per-orientation figure colours the error field, its scale, and whether it shows."""
-
-    def __init__(self, gui: viser.GuiApi, names: Sequence[str]) -> None:
-        self.figure = gui.add_dropdown("Colour by", tuple(names))
-        self.show = gui.add_checkbox("Show the field", True)
-        self.scale = gui.add_html("")
-        self.note = gui.add_markdown("")
-
-    def set_names(self, names: Sequence[str]) -> None:
-        self.figure.options = tuple(names)
-
-    def set_scale(self, low: float, high: float, note: str, computing: bool = False) -> None:
-        if computing:
-            self.scale.content = "<em>computing…</em>"
-            self.note.content = ""
-            return
-        self.scale.content = (
-            '<div style="font-size:0.8em">'
-            f'<div style="height:10px;background:linear-gradient(to right,#440154,#3e4a89,#26828e,#35b779,#fde725)"></div>'
-            f'<div style="display:flex;justify-content:space-between"><span>{low:.3g}</span><span>{high:.3g}</span></div>'
-            "</div>"
-        )
-        self.note.content = f"_{note}. Large markers: held-out rings; red: the current orientation; click a marker to go there._"
 
 
 class DataPanel:

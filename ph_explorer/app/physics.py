@@ -24,7 +24,6 @@ from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
 
-DIAGNOSIS_FIGURE = "diagnosis: out-of-sample MAE / its floor"
 
 
 class PhysicsLoop:
@@ -108,13 +107,8 @@ class PhysicsLoop:
         if p.evidence_of.visible:
             p.evidence_of.value = p.evidence_of.options[0]
             self.show_evidence(p.evidence_of.value)
-        # The diagnosis' per-orientation out-of-sample error becomes a field figure.
-        ds.add_figure(
-            DIAGNOSIS_FIGURE,
-            result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"],
-            "x the floor of each ring; training rings by leave-one-out, check rings by the baseline (ph_explorer.diagnosis)",
-        )
-        self.show(ds)
+        # The diagnosis's per-ring figures join this browser's map (its out-of-sample error over the floor, each ring's verdict).
+        self.show(ds.with_figures(result.ring_figures()))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
             self.steps = list(result.steps[: 1 + len(start)])
         p.show_history(self.steps)
@@ -193,14 +187,31 @@ class PhysicsLoop:
         self._show_study_line()
 
     def reveal(self) -> None:
-        """What a teaching scenario hid in its data (from the campaign's sidecar)."""
-        hidden = (self.current().campaign.scenario or {}).get("hidden")
-        if not hidden:
+        """What a teaching scenario hid in its data (the sidecar's hidden effects, with their true
+        parameters) next to what this session found: the diagnosis's fit with its uncertainty, the last refit."""
+        scenario = self.current().campaign.scenario or {}
+        hidden = [e for e in scenario.get("effects", []) if e.get("hidden")]
+        if not scenario.get("hidden"):
             self.panel.revealed.content = "_This campaign records no hidden effect (it is not a teaching scenario)._"
             return
-        lines = []
-        for effect_id in hidden:
+        found = {c.effect: c for c in reversed(self.diagnosis.candidates)} if self.diagnosis is not None else {}
+        refitted = {p["effect"]: p["params"] for step in self.steps for p in step.params}
+        lines = ["**Hidden in this scenario** — the truth, next to what you found:"]
+        for entry in hidden or [{"id": i} for i in scenario["hidden"]]:
+            effect_id = str(entry["id"])
             cls = self.catalog.get(effect_id)
-            name, teaching = (cls.name, cls.teaching) if cls is not None else (effect_id, "")
-            lines.append(f"- **{name}** (`{effect_id}`): {teaching}")
-        self.panel.revealed.content = "Hidden in this scenario:\n" + "\n".join(lines)
+            truth = {k: float(v) for k, v in entry.items() if k not in ("id", "hidden")}
+            text = cls.parameters_text if cls is not None else (lambda p, u=None: ", ".join(f"{k} {v:g}" for k, v in p.items()))
+            lines.append(f"- **{cls.name if cls is not None else effect_id}** (`{effect_id}`)")
+            lines.append(f"  - truth: {text(truth) if truth else 'parameters not recorded'}")
+            candidate = found.get(effect_id)
+            if candidate is None:
+                lines.append("  - diagnosis: " + ("not diagnosed yet" if self.diagnosis is None else "not among the candidates"))
+            else:
+                verdict = "significant" if candidate.significant else "not significant"
+                lines.append(f"  - diagnosis ({verdict}, ± expanded uncertainty k = 2): {text(candidate.params, candidate.params_u)}")
+            if effect_id in refitted:
+                lines.append(f"  - last refit: {text(refitted[effect_id])}")
+            if cls is not None:
+                lines.append(f"  - _{cls.teaching}_")
+        self.panel.revealed.content = "\n".join(lines)

@@ -14,7 +14,7 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
-from ph_explorer.diagnosis import Candidate, Diagnosis, Step, signature_text, verdict_text
+from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
 from ph_explorer.effects import Catalog
 
 # Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
@@ -44,6 +44,23 @@ def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
         return np.array([float(getattr(s, attr)[reference]) for s in steps])
 
     return (x, per_step("mae_um", "mean"), per_step("noise_floor_um", "mean"), per_step("mae_um", "single"), per_step("noise_floor_um", "single"))
+
+
+def verdicts_markdown(verdict: str) -> str:
+    """The four verdicts a diagnosis can give, this campaign's marked: what the verdict could have been."""
+    rows = [f"- {'**' + key + '** ✔' if key == verdict else key}: {meaning}" for key, meaning in VERDICTS.items()]
+    return "_The four verdicts:_\n\n" + "\n".join(rows)
+
+
+def nested_markdown(nested: NestedAfter) -> str:
+    """The honest "after": before and after the search's effects, each ring predicted by what the
+    search chose without it (nested cross-validation over the training rings), against both references."""
+    return (
+        f"**Nested cross-validation** ({nested.folds} folds over {nested.rings} training rings; each fold's rings "
+        f"predicted by the effects the search chose without them): MAE vs the mean {nested.before_um['mean']:.3f} um before, "
+        f"**{nested.after_um['mean']:.3f} um** after (floor {nested.noise_floor_um['mean']:.3f}); vs single repetitions "
+        f"{nested.before_um['single']:.3f} -> {nested.after_um['single']:.3f} um (floor {nested.noise_floor_um['single']:.3f})."
+    )
 
 
 def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: int = 8) -> str:
@@ -87,6 +104,7 @@ class PhysicsPanel:
 
     def __init__(self, gui: viser.GuiApi, catalog: Catalog, study: bool = False) -> None:
         self.catalog = catalog
+        self.nested: NestedAfter | None = None  # the last diagnosis's honest "after" (nested cross-validation)
         # The operator's study (serve --study): which, how far it got; empty without one.
         self.study_line = gui.add_markdown("")
         self.diagnose = gui.add_button("Diagnose", hint="where the loaded model fails out of sample, and which catalog effect is missing")
@@ -135,6 +153,7 @@ class PhysicsPanel:
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
+        self.nested = None
         for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed, self.study_status):
             handle.content = ""
         self.candidates.content = ""
@@ -165,21 +184,15 @@ class PhysicsPanel:
         n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
         self.summary.content = (
             f"**Rings that exceed their noise:** {n_fail} of {len(result.failing)} orientations "
-            f"(out of sample, the within-noise test). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"(out of sample, the within-noise test; the Map tab names them, worst first). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
             f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
         self.candidates.content = candidates_html(result.candidates, self.catalog)
         headline, lines = verdict_text(result, self.catalog)
         advice = "\n\nTick the effects found below and refit." if result.found else ""
-        nested = result.nested
-        if nested is not None:  # the honest "after": the choice made without the rings it is measured on
-            lines.append(
-                f"Measured on rings that took no part in the choice ({nested.folds}-fold nested cross-validation over "
-                f"{nested.rings} training rings): MAE vs the mean {nested.before_um['mean']:.3f} um before, "
-                f"**{nested.after_um['mean']:.3f} um** after (floor {nested.noise_floor_um['mean']:.3f})."
-            )
-        self.verdict.content = f"**{headline}**\n\n" + "\n\n".join(lines) + advice
+        self.nested = result.nested  # the honest "after", shown with the error history
+        self.verdict.content = f"**{headline}**\n\n" + "\n\n".join(lines) + advice + "\n\n" + verdicts_markdown(result.verdict)
         for c in result.candidates:
             box = self.effects.get(c.effect)
             if box is not None:
@@ -241,6 +254,8 @@ class PhysicsPanel:
         last = steps[-1]
         ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
         lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
+        if self.nested is not None:
+            lines += ["", nested_markdown(self.nested)]
         self.history_table.content = "\n".join(lines)
 
     def show_study(self, name: str, runs: int, chain: Sequence[str], verdict: str | None, applies: bool = True) -> None:

@@ -1,5 +1,5 @@
-"""Scene objects of one browser: the PH20 head and the ring with its magnified curves (the error
-field is in field.py), their colours and the cameras that look at them.
+"""Scene objects of one browser: the PH20 head (the ring and its polar chart are in ring.py, the
+error field in field.py), the curves' colours and the cameras that look at them.
 
 Each object owns its viser handles (created in that client's scene) and updates them from plain
 arrays; the caller groups the updates of one slider move in one `client.atomic()` batch.
@@ -10,15 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Mapping
-
 import numpy as np
 import trimesh
 import viser
 from numpy.typing import NDArray
 from viser.transforms import SO3
 
-from ph_explorer.geometry import Geometry, point_angles_deg, stylus_direction
+from ph_explorer.geometry import Geometry, stylus_direction
 
 # One color per curve (RGB 0-255), shared by the scene, the legend and the charts.
 CURVE_COLORS: dict[str, tuple[int, int, int]] = {
@@ -65,15 +63,30 @@ def head_orientation(a_deg: float, b_deg: float) -> SO3:
 # -- where to look from ----------------------------------------------------------------------------------
 
 
+# The chart radius (mm, point numbers included) the default camera distances were chosen for.
+CHART_EXTENT_MM = 26.0
+# Vertical field of view of viser's camera (deg): the along-axis view fits the chart in it.
+CAMERA_FOV_DEG = 75.0
+
+
 def ring_camera(
-    a_deg: float, b_deg: float, axial_distance_mm: float, distance_mm: float = 105.0, off_axis_deg: float = 62.0, shift_mm: float = 18.0
+    a_deg: float,
+    b_deg: float,
+    axial_distance_mm: float,
+    distance_mm: float = 105.0,
+    off_axis_deg: float = 62.0,
+    shift_mm: float = 18.0,
+    extent_mm: float = CHART_EXTENT_MM,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Camera (position, look_at) in mm showing the ring obliquely from the head's side, the stylus behind it.
 
     The camera sits off the ring axis towards the A joint's axis (always horizontal), a little
     raised, so the ring plane, its curves and the stylus arm stay in view at any orientation. The
     look-at point is shifted to the camera's right so that the ring sits left of the side panel.
+    A larger chart (extent_mm, at high magnification) moves the camera back in proportion.
     """
+    grow = max(1.0, extent_mm / CHART_EXTENT_MM)
+    distance_mm, shift_mm = distance_mm * grow, shift_mm * grow
     s = stylus_direction(a_deg, b_deg)
     centre = axial_distance_mm * s
     b = np.radians(b_deg)
@@ -87,13 +100,22 @@ def ring_camera(
     return position + (look_at - centre), look_at
 
 
-def axis_camera(a_deg: float, b_deg: float, axial_distance_mm: float, distance_mm: float = 70.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Camera looking down the ring's axis from the head's side (the polar plot undistorted)."""
+def axis_camera(
+    a_deg: float, b_deg: float, axial_distance_mm: float, extent_mm: float = CHART_EXTENT_MM
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Camera (position, look_at, up) looking down the ring's axis from the head's side.
+
+    The chart lies in a plane square to the view, so it is drawn undistorted, oriented as the
+    panel's flat polar plot: e1 to the right, e2 up, theta counter-clockwise. The camera stands
+    back far enough for the whole chart (the head, between it and the ring, is hidden in this view).
+    """
+    frame = head_orientation(a_deg, b_deg).as_matrix()
+    e1, e2 = frame[:, 0], frame[:, 1]
     s = stylus_direction(a_deg, b_deg)
     centre = axial_distance_mm * s
-    b = np.radians(b_deg)
-    side = np.array([np.cos(b), np.sin(b), 0.0])
-    return centre - distance_mm * s + 4.0 * side, centre
+    distance = 1.25 * extent_mm / np.tan(np.radians(0.5 * CAMERA_FOV_DEG))
+    look_at = centre + 0.45 * extent_mm * e1  # the ring left of the side panel
+    return look_at - distance * s, look_at, e2
 
 
 # -- the PH20 / TP20 head, built with trimesh ----------------------------------------------------------
@@ -175,161 +197,10 @@ class HeadScene:
                 flat_shading=False,
             )
 
+    def set_visible(self, visible: bool) -> None:
+        """Hide the head (the along-axis view looks through where it stands)."""
+        self.root.visible = visible
+
     def update(self, a_deg: float, b_deg: float) -> None:
         self.b_frame.wxyz = b_joint(b_deg).wxyz
         self.a_frame.wxyz = a_joint(a_deg).wxyz
-
-
-# -- the ring and its curves ------------------------------------------------------------------------------
-
-
-def closed_polyline(points: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(n, 3) points around a loop -> (n, 2, 3) segments closing it."""
-    return np.stack([points, np.roll(points, -1, axis=0)], axis=1)
-
-
-def ring_points(radius_mm: NDArray[np.float64] | float, theta_deg: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Points at radius r_k and angle theta_k in the ring plane (ring frame: e1 = x, e2 = y), (n, 3)."""
-    t = np.radians(theta_deg)
-    r = np.broadcast_to(np.asarray(radius_mm, dtype=float), t.shape)
-    return np.stack([r * np.cos(t), r * np.sin(t), np.zeros_like(t)], axis=-1)
-
-
-def magnified_radius(bore_radius_mm: float, magnification: float, deviation_um: NDArray[np.float64]) -> NDArray[np.float64]:
-    """R + magnification * dev: the polar roundness plot's radius in mm for deviations in um."""
-    return bore_radius_mm + magnification * np.asarray(deviation_um, dtype=float) * 1e-3
-
-
-def _annulus(inner: float, outer: float, height: float) -> trimesh.Trimesh:
-    outer_c = trimesh.creation.cylinder(radius=outer, height=height, sections=96)
-    ring = trimesh.creation.annulus(r_min=inner, r_max=outer, height=height, sections=96)
-    return ring if ring is not None else outer_c
-
-
-class RingScene:
-    """The ring gauge with its axis along the stylus, and the polar plot of the curves in its plane."""
-
-    CURVES = ("measured", "network", "trilinear", "hybrid")
-
-    def __init__(self, scene: viser.SceneApi, geometry: Geometry) -> None:
-        self.scene = scene
-        self.geometry = geometry
-        self.bore_radius = 0.5 * geometry.bore_diameter_mm
-        self.frame = scene.add_frame("/ring", show_axes=False)
-        gauge = _annulus(self.bore_radius + 0.6, self.bore_radius + 7.0, 5.0)
-        # The gauge sits below the measuring plane (away from the head) so the curves stay visible.
-        gauge.apply_translation((0.0, 0.0, -3.1))
-        self.gauge = scene.add_mesh_simple(
-            "/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.35, side="double"
-        )
-        self.theta = point_angles_deg(geometry.points_per_circle)
-        fine = np.linspace(0.0, 360.0, 181)[:-1]
-        self.reference = scene.add_line_segments(
-            "/ring/reference",
-            closed_polyline(ring_points(self.bore_radius, fine)),
-            CURVE_COLORS["reference"],
-            thickness=1.5,
-            thickness_units="screen",
-        )
-        self._fine = fine
-        self.grid = scene.add_line_segments(
-            "/ring/grid_1um",
-            np.zeros((2, 2, 3)),
-            (200, 200, 200),
-            thickness=1.0,
-            thickness_units="screen",
-        )
-        self.curves: dict[str, viser.LineSegmentsHandle] = {}
-        for name in self.CURVES:
-            self.curves[name] = scene.add_line_segments(
-                f"/ring/curves/{name}",
-                np.zeros((1, 2, 3)),
-                curve_color(name),
-                thickness=3.0 if name == "measured" else 2.5,
-                thickness_units="screen",
-                visible=False,
-            )
-        self.repetitions = scene.add_line_segments(
-            "/ring/curves/repetitions",
-            np.zeros((1, 2, 3)),
-            CURVE_COLORS["repetitions"],
-            thickness=1.0,
-            thickness_units="screen",
-            visible=False,
-        )
-        self.band: viser.MeshHandle | None = None
-        self.band_model: str | None = None
-        self.labels = [
-            scene.add_label(
-                f"/ring/point_{k}",
-                str(k),
-                position=tuple(ring_points(self.bore_radius + 9.0, np.array([self.theta[k]]))[0]),
-                anchor="center-center",
-                font_screen_scale=0.7,
-            )
-            for k in range(0, geometry.points_per_circle, max(1, geometry.points_per_circle // 4))
-        ]
-        self.title = scene.add_label(
-            "/ring/title", "", position=(0.0, -(self.bore_radius + 14.0), 0.0), anchor="center-center", font_screen_scale=0.8
-        )
-        self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
-
-    def place(self, a_deg: float, b_deg: float) -> None:
-        """Ring axis along s(A0, B0) through the pivot, its measuring plane at the ball's depth."""
-        self.frame.wxyz = head_orientation(a_deg, b_deg).wxyz
-        self.frame.position = self.geometry.axial_distance_mm * stylus_direction(a_deg, b_deg)
-
-    def update(
-        self,
-        curves: Mapping[str, NDArray[np.float64]],
-        shown: Mapping[str, bool],
-        magnification: float,
-        repetitions: NDArray[np.float64] | None,
-        show_repetitions: bool,
-        band: tuple[str, NDArray[np.float64], NDArray[np.float64]] | None,
-        title: str,
-    ) -> None:
-        grid = [ring_points(magnified_radius(self.bore_radius, magnification, d), self._fine) for d in (-1.0, 1.0)]
-        self.grid.points = np.concatenate([closed_polyline(g) for g in grid]).astype(np.float32)
-        self.points = {}
-        for name, handle in self.curves.items():
-            visible = name in curves and bool(shown.get(name, True))
-            if visible:
-                pts = ring_points(magnified_radius(self.bore_radius, magnification, curves[name]), self.theta)
-                self.points[name] = pts
-                handle.points = closed_polyline(pts).astype(np.float32)
-            handle.visible = visible
-        if repetitions is not None and show_repetitions:
-            radius = magnified_radius(self.bore_radius, magnification, repetitions)  # (n_rep, n_pt)
-            pts = ring_points(radius, np.broadcast_to(self.theta, radius.shape))  # (n_rep, n_pt, 3)
-            segs = np.concatenate([closed_polyline(p) for p in pts])
-            self.repetitions.points = segs.astype(np.float32)
-            self.repetitions.visible = True
-        else:
-            self.repetitions.visible = False
-        self._update_band(band, magnification)
-        self.title.text = title
-
-    def _update_band(self, band: tuple[str, NDArray[np.float64], NDArray[np.float64]] | None, magnification: float) -> None:
-        if band is None:
-            if self.band is not None:
-                self.band.visible = False
-            return
-        model, low, high = band
-        n = low.size
-        inner = ring_points(magnified_radius(self.bore_radius, magnification, low), self.theta)
-        outer = ring_points(magnified_radius(self.bore_radius, magnification, high), self.theta)
-        vertices = np.concatenate([inner, outer]) + np.array([0.0, 0.0, -0.05])
-        k = np.arange(n)
-        k1 = (k + 1) % n
-        faces = np.concatenate([np.stack([k, k1, n + k], 1), np.stack([k1, n + k1, n + k], 1)])
-        if self.band is None or self.band_model != model:
-            if self.band is not None:
-                self.band.remove()
-            self.band = self.scene.add_mesh_simple(
-                "/ring/band", vertices, faces, color=BAND_COLORS.get(model, (200, 200, 200)), opacity=0.6, side="double"
-            )
-            self.band_model = model
-        else:
-            self.band.vertices = vertices.astype(np.float32)
-            self.band.visible = True

@@ -146,6 +146,7 @@ def build_server(
     geometry: Mapping[str, float] | None = None,
     verbose: bool = False,
     study: Path | None = None,
+    effects: Path | None = None,
 ) -> ExplorerApp:
     """Load the data and models, then start the server (port 0 picks a free port).
 
@@ -153,16 +154,19 @@ def build_server(
     trilinear). The returned app's `startup_s` is the time this call took.
     study: the operator's study file, of the served campaign's file (--data, or the shipped
     paper.csv); checked here, before the server starts (InputError), and the only file the app writes.
+    effects: the operator's Python file of effects (`Catalog.with_file`), imported here, before the
+    server starts; every browser diagnoses and refits with them. Browsers upload campaign CSVs only.
     """
     start = time.perf_counter()
     if study is not None and scenario is not None:
         # A scenario is simulated anew in memory: there are no campaign bytes to tie a study to.
         raise InputError("a study belongs to a campaign file: simulate the scenario to a CSV (simulate --out) and serve it with --data", option="--study")
+    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     dataset = default_dataset(scenario=scenario, data=data, model=model, geometry=geometry)
     opened = None
     if study is not None:
         data_file = Path(data) if data is not None else paths.assets_dir() / "data" / "paper.csv"
-        opened = open_study(Path(study), data_file, dataset.campaign, DEFAULT_CATALOG)
-    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, study=opened)
+        opened = open_study(Path(study), data_file, dataset.campaign, catalog)
+    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, catalog=catalog, study=opened)
     app.startup_s = time.perf_counter() - start
     return app

@@ -18,25 +18,30 @@ from typing import Callable, Mapping
 import numpy as np
 import viser
 
+from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
+from ph_explorer.app.map_panel import MapPanel
 from ph_explorer.app.panels import (
     PAPER_PRESETS,
     ChartsPanel,
     ControlsPanel,
     DataPanel,
-    FieldPanel,
+    PolarPanel,
     TablesPanel,
     orientation_label,
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
-from ph_explorer.app.scene import HeadScene, RingScene, axis_camera, ring_camera
+from ph_explorer.app.ring import RingScene
+from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
 from ph_explorer.app.study import StudyFile
+from ph_explorer.campaign import Campaign
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
+from ph_explorer.polar import polar_scale
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
 # The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
@@ -80,6 +85,7 @@ class Session:
         self._field_token = 0  # the latest field request; older computations do not draw
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
+        self._camera_extent = 0.0  # the chart's size the camera was placed for
 
         scene, gui = client.scene, client.gui
         geometry = dataset.campaign.geometry
@@ -91,16 +97,19 @@ class Session:
             self.field.on_pick(self.go_to)
             self.controls = ControlsPanel(gui, a0, b0, dataset.a_range)
             tabs = gui.add_tab_group()
+            with tabs.add_tab("Polar plot", icon=viser.Icon.CIRCLE_DOTTED):
+                self.polar = PolarPanel(gui)
             with tabs.add_tab("Tables 1-3", icon=viser.Icon.TABLE):
                 self.tables = TablesPanel(gui)
             with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
             with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
                 self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
-            with tabs.add_tab("Field", icon=viser.Icon.WORLD):
-                self.field_panel = FieldPanel(gui, dataset.figure_names())
+            with tabs.add_tab("Map", icon=viser.Icon.MAP):
+                self.map_panel = MapPanel(gui, dataset.figure_names(), self.go_to)
             with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
+        name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
         self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
         self._wire()
         self.set_dataset(dataset)
@@ -113,8 +122,8 @@ class Session:
             handle.on_update(self._control_changed)
         c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
         c.view_ring.on_click(lambda event: self.look(event.target.value))
-        self.field_panel.figure.on_update(lambda _: self.refresh_field())
-        self.field_panel.show.on_update(lambda _: self.field.set_visible(bool(self.field_panel.show.value)))
+        self.map_panel.figure.on_update(lambda _: self.refresh_field())
+        self.map_panel.show.on_update(lambda _: self.field.set_visible(bool(self.map_panel.show.value)))
         data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
         p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
@@ -163,16 +172,22 @@ class Session:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
         a, b = self.orientation
         axial = self.dataset.campaign.geometry.axial_distance_mm
+        extent = self.ring.extent_mm
+        up = np.array([0.0, 0.0, 1.0])
         if view == "along the axis":
-            position, look_at = axis_camera(a, b, axial)
+            position, look_at, up = axis_camera(a, b, axial, extent)
         elif view == "whole field":
             position, look_at = np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"])
         else:
-            position, look_at = ring_camera(a, b, axial)
+            position, look_at = ring_camera(a, b, axial, extent_mm=extent)
         with self.client.atomic():  # position first: viser moves look_at along with it
+            # Along the axis the camera looks through the head: hidden there, shown in the other views.
+            self.head.set_visible(view != "along the axis")
             self.client.camera.position = position
             self.client.camera.look_at = look_at
+            self.client.camera.up_direction = up
         self._camera_at = (a, b)
+        self._camera_extent = extent
         self._camera_view = view  # the view a following camera keeps
 
     # -- rendering ---------------------------------------------------------------------------------
@@ -204,15 +219,23 @@ class Session:
         else:
             title = f"{orientation_label(a, b)} — prediction (not measured)"
         c = self.controls
+        # The chart's base radius keeps every deviation of the campaign (each repetition) and of
+        # the curves drawn here off the centre (ph_explorer.polar).
+        drawn = [ds.deviation_bounds_um, *view.curves.values(), *(band[1:] if band is not None else ())]
+        scale = polar_scale(float(c.magnification.value), drawn, self.ring.bore_radius)
+        show_repetitions = bool(c.repetitions.value)
         with self.client.atomic():
             self.head.update(a, b)
             self.ring.place(a, b)
-            self.ring.update(view.curves, shown, float(c.magnification.value), view.repetitions, bool(c.repetitions.value), band, title)
+            self.ring.update(view.curves, shown, scale, view.repetitions, show_repetitions, band, title)
+            self.polar.update(scale, view, shown, show_repetitions, band, title)
             self.field.highlight(a, b, ds.campaign.geometry.pivot_to_ball_mm)
+            self.map_panel.draw(a, b)
             self.tables.update(view, ds)
             self.charts.update(view, shown)
             c.status.content = f"**{title}**"
-            if c.follow.value and self._camera_at != (a, b) and self._camera_view != "whole field":
+            moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
+            if c.follow.value and moved and self._camera_view != "whole field":
                 self.look(self._camera_view)
         self.view = view
 
@@ -233,21 +256,22 @@ class Session:
         finally:
             self._moving = False
         self.controls.set_models(dataset.model_names)
-        self.field_panel.set_names(dataset.figure_names())
+        self.map_panel.set_names(dataset.figure_names())
         self.data_panel.set_source(dataset)
+        self.show_failing()
         self.refresh_field()
         self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
 
     def refresh_field(self) -> None:
-        """Recolour the error field; slow figures (leave-one-out refits) are computed on the worker."""
+        """Redraw the error map and recolour the 3D field; slow figures are computed on the worker."""
         self._field_token += 1
-        token, dataset, name = self._field_token, self.dataset, self.field_panel.figure.value
+        token, dataset, name = self._field_token, self.dataset, self.map_panel.figure.value
         if name not in dataset.figure_names():
             return
         if dataset.has_figure(name):
             self._apply_field(dataset, name)
             return
-        self.field_panel.set_scale(0.0, 0.0, "", computing=True)
+        self.map_panel.computing()
 
         def compute() -> None:
             dataset.figure(name)
@@ -257,18 +281,26 @@ class Session:
         self.submit(compute)
 
     def _apply_field(self, dataset: Dataset, name: str) -> None:
-        values, note = dataset.figure(name)
+        figure = dataset.figure(name)
         held_out = ~np.asarray(dataset.train_mask, dtype=bool)
-        with self.client.atomic():
-            self.field.set_values(dataset.campaign.orientations, values, held_out)
-            self.field.set_visible(bool(self.field_panel.show.value))
-            self.field_panel.set_scale(*self.field.range, note)
-            self.controls.set_worst(dataset.worst_orientations(name), name)
         a, b = self.orientation
+        with self.client.atomic():
+            self.field.set_values(dataset.campaign.orientations, figure.values, held_out)
+            self.field.set_visible(bool(self.map_panel.show.value))
+            self.map_panel.set_figure(name, figure, dataset.campaign.orientations, held_out)
+            self.map_panel.draw(a, b)
+            self.controls.set_worst(dataset.worst_orientations(name), figure, name)
         self.field.highlight(a, b, dataset.campaign.geometry.pivot_to_ball_mm)
+
+    def show_failing(self) -> None:
+        """The rings the last diagnosis finds beyond their noise, worst first (none before a diagnosis)."""
+        result = self.loop.diagnosis
+        tested = result is None or result.within_noise["baseline"] is not None
+        self.map_panel.set_failing(None if result is None else result.failing_rings(), tested)
 
     def load_upload(self, name: str, content: bytes) -> None:
         """A CSV from the browser: read by the core's reader; a bad file keeps the session's data."""
+        self.controls.working(f"Reading {name}…", 0.05)
         try:
             campaign = read_uploaded_campaign(name, content, self.shared.geometry_overrides)
         except InputError as error:
@@ -277,23 +309,36 @@ class Session:
         except ValueError as error:  # a campaign the core refuses (e.g. inconsistent shapes)
             self.data_panel.show_error(f"{name}: {' '.join(str(error).split())}")
             return
+        finally:
+            self.controls.idle()
         self.data_panel.show_info(f"Loaded **{campaign.source}**.")
-        self._new_data(dataset_for(campaign, f"uploaded {campaign.source}", None))
+        self._new_data(campaign, f"uploaded {campaign.source}")
 
     def load_scenario(self, name: str) -> None:
         """A shipped scenario, simulated by the twin."""
         self.data_panel.show_info(f"Simulating scenario **{name}**…")
+        self.controls.working(f"Scenario {name}: simulating the campaign…", 0.05)
         try:
             campaign = simulated_scenario(name)
         except InputError as error:
+            self.controls.idle()
             self.data_panel.show_error(error.line())
             return
         self.data_panel.show_info(f"Scenario **{name}** simulated by the twin. {self.shared.scenarios.get(name, '')}")
-        self._new_data(dataset_for(campaign, f"scenario {name} (simulated by the twin)", None))
+        self._new_data(campaign, f"scenario {name} (simulated by the twin)", name)
 
-    def _new_data(self, dataset: Dataset) -> None:
-        self.loop.clear()
-        self.set_dataset(dataset)
+    def _new_data(self, campaign: Campaign, label: str, what: str | None = None) -> None:
+        """Fit the models to new data and show it, the progress above the fold (a few seconds)."""
+        what = what or campaign.source
+        try:
+            self.controls.working(f"{what}: fitting the models (leave one orientation out)…", 0.3)
+            dataset = dataset_for(campaign, label, None)
+            dataset.figure(dataset.figure_names()[0])  # the map's first figure (leave-one-out fits), drawn with the data
+            self.controls.working(f"{what}: drawing the field and the rings…", 0.8)
+            self.loop.clear()
+            self.set_dataset(dataset)
+        finally:
+            self.controls.idle()
 
     # -- worker jobs ---------------------------------------------------------------------------------
     def submit(self, job: Callable[..., None], *args: object) -> Future[None]:

@@ -96,10 +96,16 @@ def _serve(
         Optional[Path],
         typer.Option(help="A study of the served campaign to open and continue (diagnose --save makes one; created on the first Save study if absent)."),
     ] = None,
+    effects: Annotated[
+        Optional[Path],
+        typer.Option(help="A Python file defining your own effects, read by the server at start (a browser never uploads code)."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Start the 3D explorer in the browser (default: the shipped paper campaign and model/paper)."""
-    _run("serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, study=study, geometry=geometry)
+    _run(
+        "serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, study=study, effects=effects, geometry=geometry
+    )
 
 
 @app.command("simulate")

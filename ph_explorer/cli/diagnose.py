@@ -7,7 +7,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 from rich.progress import Progress
 
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
@@ -127,17 +126,13 @@ def _floor_and_baseline(result: Diagnosis) -> list[str]:
 
 def _where_it_fails(result: Diagnosis) -> list[str]:
     """The count of failing orientations, then the worst five (by MAE over their own floor)."""
-    mae, floor = result.out_of_sample_mae_um["mean"], result.out_of_sample_floor_um["mean"]
     lines = [
         f"Rings that exceed their noise: {int(result.failing.sum())} of {len(result.failing)} orientations "
         "(out of sample; the within-noise test, ring level 1 %)."
     ]
-    for i in np.argsort(-(mae / floor))[:5]:
-        if not result.failing[i]:
-            continue
-        a, b = result.orientations[i]
-        kind = "held out" if result.held_out[i] else "leave-one-out"
-        lines.append(f"  A {a:g} B {b:g} ({kind}): MAE {mae[i]:.3f} um, {mae[i] / floor[i]:.1f}x its floor")
+    for ring in result.failing_rings()[:5]:
+        kind = "held out" if ring.held_out else "leave-one-out"
+        lines.append(f"  A {ring.a_deg:g} B {ring.b_deg:g} ({kind}): MAE {ring.mae_um:.3f} um, {ring.ratio:.1f}x its floor")
     return lines
 
 

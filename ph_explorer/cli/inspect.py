@@ -65,8 +65,11 @@ def summary_text(s: dict[str, Any]) -> str:
     if s["scenario"]:
         scenario = dict(s["scenario"])
         description = scenario.pop("description", None)
+        hidden = scenario.pop("hidden_effects", 0)
         rows.append(("scenario", ", ".join(f"{k} = {v}" for k, v in scenario.items())))
         if description:
             rows.append(("", str(description)))
+        if hidden:  # counted, not named: a teaching exercise (the sidecar's hidden list is the answer)
+            rows.append(("hidden effects", f"{hidden} (the sidecar's [scenario] hidden list names them)"))
     width = max(len(label) for label, _ in rows)
     return "\n".join(f"{label:<{width}}  {value}" for label, value in rows)

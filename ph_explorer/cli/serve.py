@@ -7,12 +7,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 
 
 def serve_command(**options: Any) -> int:
     """Start the explorer with build_server's options (scenario, data, model, host, port, geometry,
-    study; default: the shipped paper campaign with model/paper)."""
+    study, effects; default: the shipped paper campaign with model/paper)."""
     # viser and torch: imported when the command runs, so that the CLI (and inspect) works without them.
     from ph_explorer.app.server import build_server
 
@@ -23,6 +24,9 @@ def serve_command(**options: Any) -> int:
     print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
     for note in app.dataset.notes:
         print(f"  - {note}")
+    if options.get("effects") is not None:
+        own = [effect_id for effect_id in app.shared.catalog if effect_id not in DEFAULT_CATALOG]
+        print(f"ph-explorer: effects of {options['effects']}: {', '.join(own)} (candidates in every browser's Physics tab)")
     if app.study is not None:
         saved = app.study.current()
         count = 0 if saved is None else len(saved["runs"])

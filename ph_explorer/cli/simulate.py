@@ -27,7 +27,9 @@ def simulate_command(
     loaded = twin.load_scenario(scenario)
     campaign = twin.simulate(loaded, seed)
     path = write_campaign(campaign, out)
-    hidden = ", ".join(loaded.hidden_ids) or "none"
+    # Spoiler-free: a student may run this; the sidecar's [scenario] hidden list holds the answer.
+    n_hidden = len(loaded.hidden_ids)
+    hidden = f"{n_hidden} (listed under [scenario] hidden in {path.with_suffix('.toml').name})" if n_hidden else "none"
     print(
         f"{path}: scenario {loaded.name}, seed {campaign.scenario['seed']}, {campaign.n_orientations} orientations x "
         f"{campaign.n_repetitions} repetitions x {campaign.n_points} points, {len(loaded.check_orientations)} check "

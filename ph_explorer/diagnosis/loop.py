@@ -33,7 +33,7 @@ from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.crossval import held_out_mae
+from ph_explorer.models.crossval import held_out_mae, held_out_ring_mae
 from ph_explorer.models.hybrid import DataModel, HybridModel
 
 
@@ -58,10 +58,9 @@ def out_of_sample_figures(
     """
     sigma, n_rep = campaign.noise_sigma_um(), campaign.n_repetitions
     mae = metrics.ring_mae(campaign.deviations - search.residual, campaign.deviations)
-    floors = metrics.noise_floor(sigma, n_rep, neighbour_weights_sq=(search.smoother.weights**2).sum(axis=1))
+    floors = search.smoother.noise_floor(sigma, n_rep)
     if baseline is not None:
-        rings = np.flatnonzero(held_out)
-        own = metrics.ring_mae(baseline.predict_held_out(campaign, rings), campaign.deviations[rings])
+        own = held_out_ring_mae(baseline, campaign, held_out)
         floor = metrics.noise_floor(sigma, n_rep)
         for reference in metrics.REFERENCES:
             mae[reference][held_out] = own[reference]

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from ph_explorer.diagnosis.noise_test import NoiseTest
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.models.hybrid import HybridModel
+from ph_explorer.orientation_map import MapFigure
 
 DIGITS = 5
 NULL_MARGIN = 2.0  # a candidate is beyond noise when it explains more than this multiple of the noise null
@@ -107,6 +108,24 @@ class NestedAfter:
         }
 
 
+@dataclass(frozen=True)
+class FailingRing:
+    """A ring the within-noise test finds beyond its noise: its out-of-sample MAE and floor (vs the mean)."""
+
+    a_deg: float
+    b_deg: float
+    mae_um: float
+    floor_um: float
+    held_out: bool  # a check ring (predicted by the baseline), else predicted leave-one-out
+
+    @property
+    def ratio(self) -> float:
+        return self.mae_um / self.floor_um if self.floor_um > 0 else float("inf")
+
+
+RING_VERDICTS = ("within its noise", "exceeds its noise")  # the within-noise test of one ring, 0 and 1
+
+
 @dataclass
 class Diagnosis:
     noise_floor_um: dict[str, float]
@@ -137,6 +156,31 @@ class Diagnosis:
             {"added": s.added, "model": s.model, "mae_um": rounded(s.mae_um), "noise_floor_um": rounded(s.noise_floor_um), "params": s.params}
             for s in steps
         ]
+
+    def failing_rings(self) -> list[FailingRing]:
+        """The rings that exceed their noise (the within-noise test), worst first: by how far their
+        out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
+        mae, floor = self.out_of_sample_mae_um["mean"], self.out_of_sample_floor_um["mean"]
+        rings = [
+            FailingRing(float(self.orientations[i, 0]), float(self.orientations[i, 1]), float(mae[i]), float(floor[i]), bool(self.held_out[i]))
+            for i in np.flatnonzero(self.failing)
+        ]
+        return sorted(rings, key=lambda ring: -ring.ratio)
+
+    def ring_figures(self) -> dict[str, MapFigure]:
+        """The diagnosis's per-ring figures for the error map: out-of-sample MAE over its floor, and
+        each ring's verdict (no verdict where the test could not run: one repetition)."""
+        ratio = self.out_of_sample_mae_um["mean"] / self.out_of_sample_floor_um["mean"]
+        tested = self.within_noise["baseline"] is not None
+        verdict = self.failing.astype(float) if tested else np.full(len(self.failing), np.nan)
+        return {
+            "diagnosis: out-of-sample MAE / its floor": MapFigure(
+                ratio, "x floor", "each ring's out-of-sample MAE over its own floor; training rings leave-one-out, check rings by the baseline"
+            ),
+            "diagnosis: ring verdict (within-noise test)": MapFigure(
+                verdict, "", "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual", RING_VERDICTS
+            ),
+        }
 
     def as_dict(self) -> dict[str, Any]:
         """The diagnose --json object."""

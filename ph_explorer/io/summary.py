@@ -11,7 +11,8 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.io.sidecar import plain_values
 from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
 
-# The scenario fields a summary shows (the effects and their parameters are the sidecar's business).
+# The scenario fields a summary shows (the effects and their parameters are the sidecar's business;
+# a teaching scenario's hidden effects are counted, never named: the sidecar's hidden list is the answer).
 SCENARIO_FIELDS = ("name", "description", "seed")
 
 
@@ -54,7 +55,12 @@ def campaign_summary(campaign: Campaign) -> dict[str, Any]:
         },
         "unreachable_touches": int(unreachable.sum()),
         "unreachable_orientations": _pairs(campaign.orientations[unreachable_orientations]),
-        "scenario": {k: v for k, v in plain_values(campaign.scenario).items() if k in SCENARIO_FIELDS}
-        if campaign.scenario
-        else None,
+        "scenario": scenario_summary(campaign.scenario) if campaign.scenario else None,
     }
+
+
+def scenario_summary(scenario: dict[str, Any]) -> dict[str, Any]:
+    """Name, description and seed of the scenario a campaign was simulated from, and how many effects it hides."""
+    out = {k: v for k, v in plain_values(scenario).items() if k in SCENARIO_FIELDS}
+    out["hidden_effects"] = len(scenario.get("hidden") or [])
+    return out

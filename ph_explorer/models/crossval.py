@@ -82,6 +82,13 @@ def held_out_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike) -> 
     return metrics.mae(model.predict_held_out(campaign, rings), campaign.deviations[rings])
 
 
+def held_out_ring_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike) -> dict[str, NDArray[np.float64]]:
+    """Each held-out ring's MAE (um) of a fitted model, against the repetition mean and single
+    repetitions ({"mean", "single"}: arrays over the rings of mask, in their order)."""
+    rings = np.flatnonzero(np.asarray(mask, dtype=bool))
+    return metrics.ring_mae(model.predict_held_out(campaign, rings), campaign.deviations[rings])
+
+
 def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike) -> NDArray[np.float64]:
     """W (n_o x n_o) of the trilinear model: row i predicts orientation i out of sample.
 
@@ -105,6 +112,10 @@ class OutOfSampleSmoother:
     def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """Out-of-sample prediction of values shaped (n_o, ...)."""
         return np.tensordot(self.weights, values, axes=(1, 0))
+
+    def noise_floor(self, sigma_um: float, n_repetitions: int) -> dict[str, NDArray[np.float64]]:
+        """Each ring's floor of its out-of-sample MAE: its own noise and that of the rings predicting it."""
+        return metrics.noise_floor(sigma_um, n_repetitions, neighbour_weights_sq=(self.weights**2).sum(axis=1))
 
     def residual(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """values (n_o, n_rep, n_pt, ...) minus the out-of-sample prediction of their repetition mean."""

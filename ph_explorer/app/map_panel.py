@@ -1,0 +1,103 @@
+"""The Map tab of one browser: the error map over orientations (an SVG drawn by the core), a ring
+picker that goes there, the rings that fail (a button each), and the 3D field's switch.
+
+viser's HTML element reports no click inside it, so a ring is reached by the "Go to ring"
+dropdown (every ring, largest value first) or by a failing ring's button. The panel formats what
+the core returns (ph_explorer.orientation_map, Diagnosis.failing_rings); it computes nothing.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+import viser
+from numpy.typing import NDArray
+
+from ph_explorer.app.panels import NO_CHOICE, orientation_label
+from ph_explorer.diagnosis.results import FailingRing
+from ph_explorer.orientation_map import MapFigure, map_svg, ranked_rings
+
+MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict shows the rest
+
+
+def failing_label(ring: FailingRing) -> str:
+    """A failing ring's button: where, its error and floor in um, how far above its floor."""
+    kind = ", check ring" if ring.held_out else ""
+    return f"{orientation_label(ring.a_deg, ring.b_deg)}: {ring.mae_um:.3f} um, floor {ring.floor_um:.3f} um ({ring.ratio:.1f}x{kind})"
+
+
+class MapPanel:
+    """Which figure the map shows, the map, a ring picker, where it fails, and the 3D field's switch."""
+
+    def __init__(self, gui: viser.GuiApi, names: Sequence[str], go_to: Callable[[float, float], None]) -> None:
+        self.gui = gui
+        self._go_to = go_to
+        self.figure = gui.add_dropdown("Map of", tuple(names), hint="a value per measured ring: roundness, a model's out-of-sample error, its ratio to the floor, the diagnosis's verdict")
+        self.plot = gui.add_html("")
+        self.note = gui.add_markdown("")
+        self.ring = gui.add_dropdown("Go to ring", (NO_CHOICE,), hint="every ring of the map, largest value first")
+        self.ring_targets: dict[str, tuple[float, float]] = {}
+        self.ring.on_update(lambda _: self._go(self.ring.value, self.ring_targets))
+        with gui.add_folder("Where it fails") as self.failing_folder:
+            self.failing_text = gui.add_markdown("")
+        self.failing_buttons: list[viser.GuiButtonHandle] = []
+        self.failing_targets: dict[str, tuple[float, float]] = {}
+        self.show = gui.add_checkbox("3D field around the head", False, hint="the same figure on the dome of stylus directions (context)")
+        self._shown: tuple[MapFigure, NDArray[np.float64], NDArray[np.bool_], str] | None = None
+        self.set_failing(None)
+
+    def _go(self, label: str, targets: dict[str, tuple[float, float]]) -> None:
+        if label in targets:
+            self._go_to(*targets[label])
+
+    def set_names(self, names: Sequence[str]) -> None:
+        """The figures of new data (or of a diagnosis); a figure the data no longer has gives way to the first."""
+        if self.figure.value not in names:
+            self.figure.value = names[0]
+        self.figure.options = tuple(names)
+
+    def computing(self) -> None:
+        self.plot.content = "<em>computing the map…</em>"
+        self.note.content = ""
+
+    def set_figure(self, name: str, figure: MapFigure, orientations: NDArray[np.float64], check: NDArray[np.bool_]) -> None:
+        """A new figure (or campaign): the rings' values; drawn with the current orientation by `draw`."""
+        self._shown = (figure, np.asarray(orientations, dtype=float), np.asarray(check, dtype=bool), name)
+        self.note.content = f"_{name}: {figure.note}._"
+        self.ring_targets = {f"{orientation_label(a, b)} ({figure.text(v)})": (a, b) for a, b, v in ranked_rings(figure, orientations)}
+        self.ring.options = (NO_CHOICE, *self.ring_targets)
+        self.ring.value = NO_CHOICE
+
+    def draw(self, a_deg: float, b_deg: float) -> None:
+        """The map with the current orientation marked."""
+        if self._shown is not None:
+            figure, orientations, check, name = self._shown
+            self.plot.content = map_svg(figure, orientations, check, (a_deg, b_deg), name)
+
+    def set_failing(self, rings: Sequence[FailingRing] | None, tested: bool = True) -> None:
+        """The rings that fail, worst first, a button each; before a diagnosis, say so."""
+        for button in self.failing_buttons:
+            button.remove()
+        self.failing_buttons, self.failing_targets = [], {}
+        if rings is None:
+            self.failing_text.content = "_Not diagnosed yet: **Diagnose** (Physics tab) tests every ring against its noise._"
+            return
+        if not tested:
+            self.failing_text.content = "_One repetition: no repetition spread, so no ring can be tested against its noise._"
+            return
+        if not rings:
+            self.failing_text.content = "**No ring exceeds its noise** (the within-noise test, ring level 1 %)."
+            return
+        more = f" The first {MAX_FAILING_BUTTONS} have a button; the map's ring verdict shows all." if len(rings) > MAX_FAILING_BUTTONS else ""
+        self.failing_text.content = (
+            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean, over its floor); "
+            f"click one to go there.{more}"
+        )
+        with self.failing_folder:
+            for ring in rings[:MAX_FAILING_BUTTONS]:
+                label = failing_label(ring)
+                button = self.gui.add_button(label)
+                self.failing_targets[label] = (ring.a_deg, ring.b_deg)
+                button.on_click(lambda event: self._go(event.target.label, self.failing_targets))
+                self.failing_buttons.append(button)
