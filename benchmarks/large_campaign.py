@@ -17,6 +17,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 import tomllib
 from collections.abc import Callable
@@ -57,18 +58,23 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     )
     output: list[str] = []
     wall = None
+    # A command that outlives the timeout (or a server that does not stop on Ctrl-C) is killed.
+    killer = threading.Timer(timeout, process.kill)
+    killer.start()
     assert process.stdout is not None
     for line in process.stdout:
         output.append(line)
         if stop_when is not None and stop_when(line):
             wall = time.perf_counter() - start
             process.send_signal(signal.SIGINT)
+            killer.cancel()
+            killer = threading.Timer(10.0, process.kill)  # SIGINT is ignored where the parent ignores it
+            killer.start()
+            output.extend(process.stdout)  # what it says while it stops; EOF when it has
             break
-        if time.perf_counter() - start > timeout:
-            process.kill()
-            break
-    process.stdout.close()
     _, status, usage = os.wait4(process.pid, 0)
+    killer.cancel()
+    process.stdout.close()
     wall = wall if wall is not None else time.perf_counter() - start
     ok = stop_when is not None and wall is not None or os.waitstatus_to_exitcode(status) == 0
     return {
