@@ -32,6 +32,7 @@ TEACHING = {
     "b_axis_22": ("b_axis_cyclic", "mean"),
     "a_axis_24": ("a_axis_cyclic", "mean"),
     "direction_alternating": ("direction", "single"),
+    "head_2": ("b_axis_tilt_motion", "mean"),
 }
 
 
@@ -86,7 +87,7 @@ def test_hidden_effect_is_found_added_and_the_error_falls(diagnoses, name, sidec
     if "cycles_per_rev" in truth.params:
         assert best.params["cycles_per_rev"] == truth.params["cycles_per_rev"]
     for key, value in truth.params.items():
-        if key.startswith("amplitude") or key.endswith("lost_motion_arcsec"):
+        if "amplitude" in key or key.endswith("lost_motion_arcsec"):
             assert best.params[key] == pytest.approx(value, rel=0.2), key
             # The truth lies within the expanded uncertainty (k = 2) of the fit.
             assert abs(best.params[key] - value) <= best.params_u[key], (key, best.params[key], best.params_u[key])
@@ -100,6 +101,24 @@ def test_hidden_effect_is_found_added_and_the_error_falls(diagnoses, name, sidec
     excess_before = baseline.mae_um[reference] - floor
     excess_after = final.mae_um[reference] - floor
     assert excess_before > 0 and excess_after <= 0.3 * excess_before
+
+
+@pytest.mark.slow
+def test_the_near_vertical_lesson_names_the_b_line_or_its_twin_and_says_they_are_one():
+    # Near the vertical a tilt eps of the B axis moves the ball as an offset of eps L: the hidden
+    # offset of the B line is found as one of the pair, the other named beside it as confounded,
+    # and the error falls to the floor. No other explanation is credited first.
+    scenario = load_scenario("near_vertical")
+    (hidden,) = [e for e, h in zip(scenario.effects, scenario.hidden) if h]
+    result = diagnose(simulate(scenario), nested=False)
+    assert result.verdict == "missing"
+    first = result.found[0]
+    pair = {hidden.id, "b_axis_orientation"}
+    assert hidden.id == "b_axis_position" and first.effect in pair
+    twin = [o for o in first.confounded_with if o["effect"] in pair - {first.effect}]
+    assert twin and twin[0]["shared"] >= 0.99
+    final = result.steps[-1]
+    assert final.mae_um["mean"] <= 1.3 * final.noise_floor_um["mean"] < result.steps[0].mae_um["mean"]
 
 
 @pytest.mark.slow
