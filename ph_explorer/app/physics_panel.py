@@ -196,7 +196,9 @@ class PhysicsPanel:
         for c in result.candidates:
             box = self.effects.get(c.effect)
             if box is not None:
-                box.label = c.effect + (" ✔" if c.significant else "")
+                # The label stays the effect's id (its accessible name); the hint says what was found.
+                name = self.catalog[c.effect].name if c.effect in self.catalog else c.effect
+                box.hint = f"{name}: " + ("found by the diagnosis; " if c.significant else "") + "add it to the hybrid's physical terms"
         # Each candidate's evidence, then what is left (the signature), by the label shown in the dropdown.
         self.evidence_items = {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
         for entry in result.signature:
