@@ -488,7 +488,8 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         assert verdict in s1.map_panel.figure.options and verdict not in s2.dataset.figure_names()  # this browser's only
         b1.click("Map of", verdict)
         assert wait_for(lambda: np.array_equal(s1.field.values, s1.loop.diagnosis.failing.astype(float)))
-        assert "exceeds its noise" in s1.map_panel.plot.content and "Not diagnosed yet" in s2.map_panel.failing_text.content
+        assert wait_for(lambda: "exceeds its noise" in s1.map_panel.plot.content)  # drawn after the values, on the render thread
+        assert "Not diagnosed yet" in s2.map_panel.failing_text.content
     finally:
         release.set()
         b1.close()
@@ -537,6 +538,8 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     np.testing.assert_allclose(mae_mean, [baseline.mae_um["mean"], last.mae_um["mean"]])
     np.testing.assert_allclose(floor_single, [baseline.noise_floor_um["single"], last.noise_floor_um["single"]])
     assert "+ b_axis_cyclic" in p.history_table.content
+    # The fall in one line above Reveal and the chart: first step -> last, over the last step's floor.
+    assert f"{baseline.mae_um['mean']:.3f} -> **{last.mae_um['mean']:.3f} um**" in p.fall.content
     # Beside the history, the honest "after": the choice cross-validated (nested), before and after.
     nested = s.loop.diagnosis.nested
     assert nested is not None and f"**{nested.after_um['mean']:.3f} um** after" in p.history_table.content

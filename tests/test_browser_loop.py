@@ -106,9 +106,9 @@ def test_the_teaching_loop_fits_above_the_fold_at_1440x900(tmp_path: Path) -> No
 
             # 4. The error fell: the history chart and the line that says how far, above the fold.
             time.sleep(2.0)
-            above_the_fold(page.get_by_text("Check-ring MAE per step", exact=False).first, "history chart title")
-            above_the_fold(page.locator(".uplot", has_text="Check-ring MAE per step").first, "history chart")
-            above_the_fold(page.get_by_text("the noise floor of the mean", exact=False).first, "the error fall")
+            above_the_fold(page.get_by_text("Check-ring MAE (um) per step", exact=False).first, "history chart title")
+            above_the_fold(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
+            above_the_fold(page.get_by_text("Check-ring MAE:", exact=False).first, "the error fall")
             no_scroll(page)
             page.screenshot(path=str(shots / "loop_3_refitted.png"))
 
