@@ -172,6 +172,8 @@ def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_ci
             value = float(handle.text.split(" um")[0])
             assert handle.visible and np.isclose(np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5)
         assert f"x{m:g}" in s.ring.caption.text and f"x{m:g}" in s.polar.plot.content
+        # The title and the magnification on opposite sides of the chart: never drawn over each other.
+        assert s.ring.title.position[1] * s.ring.caption.position[1] < 0
     s.controls.repetitions.value = False
     s.controls.magnification.value = 10000.0
 
@@ -461,11 +463,11 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         verdict = s1.loop.diagnosis.verdict if s1.loop.diagnosis is not None else None
         assert verdict in ("unexplained", "partial")
         assert f"Verdict: {verdict}" in s1.physics.verdict.content
-        # The four verdicts the diagnosis could give, this one marked.
+        # The four verdicts the diagnosis could give, this one marked (under "More", the verdict kept short).
         from ph_explorer.diagnosis import VERDICTS
 
-        assert all(f"{key}: {meaning}" in s1.physics.verdict.content for key, meaning in VERDICTS.items() if key != verdict)
-        assert f"**{verdict}** ✔: {VERDICTS[verdict]}" in s1.physics.verdict.content
+        assert all(f"{key}: {meaning}" in s1.physics.verdict_more.content for key, meaning in VERDICTS.items() if key != verdict)
+        assert f"**{verdict}** ✔: {VERDICTS[verdict]}" in s1.physics.verdict_more.content
         assert any(effect_id in s1.physics.candidates.content for effect_id in app.shared.catalog.candidates())
         assert s2.loop.diagnosis is None and s2.physics.verdict.content == ""  # the other browser is untouched
         # Where it fails: the rings the within-noise test finds beyond their noise, worst first by
@@ -486,7 +488,8 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         assert verdict in s1.map_panel.figure.options and verdict not in s2.dataset.figure_names()  # this browser's only
         b1.click("Map of", verdict)
         assert wait_for(lambda: np.array_equal(s1.field.values, s1.loop.diagnosis.failing.astype(float)))
-        assert "exceeds its noise" in s1.map_panel.plot.content and "Not diagnosed yet" in s2.map_panel.failing_text.content
+        assert wait_for(lambda: "exceeds its noise" in s1.map_panel.plot.content)  # drawn after the values, on the render thread
+        assert "Not diagnosed yet" in s2.map_panel.failing_text.content
     finally:
         release.set()
         b1.close()
@@ -508,7 +511,10 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     assert "b_axis_cyclic" in p.candidates.content and f"{100 * best.explained_fraction:.1f}" in p.candidates.content
     assert "Verdict: missing" in p.verdict.content
     assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(best.params, best.params_u) in p.verdict.content
-    assert "arcsec" in p.verdict.content and best.teaching in p.verdict.content
+    # The teaching text once, under "More" with the tests' figures; not again in the evidence or Reveal.
+    assert "arcsec" in p.verdict.content and best.teaching in p.verdict_more.content
+    assert best.teaching not in p.verdict.content and best.teaching not in p.evidence_text.content
+    assert list(p.effects)[0] == "b_axis_cyclic" and p.found_folder.visible  # the found effect first, ready to tick
     assert p.evidence.visible and p.evidence_of.value == "b_axis_cyclic"
     np.testing.assert_allclose(p.evidence.data[1], best.evidence["residual"])
     assert "B joint angle" in p.evidence.axes[0]["label"]
@@ -532,6 +538,8 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     np.testing.assert_allclose(mae_mean, [baseline.mae_um["mean"], last.mae_um["mean"]])
     np.testing.assert_allclose(floor_single, [baseline.noise_floor_um["single"], last.noise_floor_um["single"]])
     assert "+ b_axis_cyclic" in p.history_table.content
+    # The fall in one line above Reveal and the chart: first step -> last, over the last step's floor.
+    assert f"{baseline.mae_um['mean']:.3f} -> **{last.mae_um['mean']:.3f} um**" in p.fall.content
     # Beside the history, the honest "after": the choice cross-validated (nested), before and after.
     nested = s.loop.diagnosis.nested
     assert nested is not None and f"**{nested.after_um['mean']:.3f} um** after" in p.history_table.content
@@ -547,7 +555,7 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     # The truth from the sidecar next to what was found: the diagnosis's fit with its uncertainty, the refit.
     assert "truth: amplitude 1 arcsec" in p.revealed.content and "22 cycles/rev" in p.revealed.content
     assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(best.params, best.params_u) in p.revealed.content
-    assert "last refit: amplitude" in p.revealed.content
+    assert "last refit: amplitude" in p.revealed.content and best.teaching not in p.revealed.content
     # New data clears the physics of the old.
     s.data_panel.scenario.value = "paper"
     s.wait(timeout=300)

@@ -35,12 +35,13 @@ class MapPanel:
         self._go_to = go_to
         self.figure = gui.add_dropdown("Map of", tuple(names), hint="a value per measured ring: roundness, a model's out-of-sample error, its ratio to the floor, the diagnosis's verdict")
         self.plot = gui.add_html("")
+        # Where it fails right under the map (above the fold at 1440x900), then the map's note and picker.
+        with gui.add_folder("Where it fails") as self.failing_folder:
+            self.failing_text = gui.add_markdown("")
         self.note = gui.add_markdown("")
         self.ring = gui.add_dropdown("Go to ring", (NO_CHOICE,), hint="every ring of the map, largest value first")
         self.ring_targets: dict[str, tuple[float, float]] = {}
         self.ring.on_update(lambda _: self._go(self.ring.value, self.ring_targets))
-        with gui.add_folder("Where it fails") as self.failing_folder:
-            self.failing_text = gui.add_markdown("")
         self.failing_buttons: list[viser.GuiButtonHandle] = []
         self.failing_targets: dict[str, tuple[float, float]] = {}
         self.show = gui.add_checkbox("3D field around the head", False, hint="the same figure on the dome of stylus directions (context)")
@@ -91,8 +92,8 @@ class MapPanel:
             return
         more = f" The first {MAX_FAILING_BUTTONS} have a button; the map's ring verdict shows all." if len(rings) > MAX_FAILING_BUTTONS else ""
         self.failing_text.content = (
-            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean, over its floor); "
-            f"click one to go there.{more}"
+            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean / its floor); "
+            f"click to go there.{more}"
         )
         with self.failing_folder:
             for ring in rings[:MAX_FAILING_BUTTONS]:

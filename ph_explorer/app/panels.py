@@ -50,7 +50,7 @@ class ControlsPanel:
             # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
             self.busy_text = gui.add_markdown("", visible=False)
             self.busy = gui.add_progress_bar(0.0, visible=False)
-        with gui.add_folder("Curves"):
+        with gui.add_folder("Curves", expand_by_default=False):
             self.magnification = gui.add_slider(
                 "Magnification", *MAGNIFICATION_RANGE, DEFAULT_MAGNIFICATION, hint="x: chart mm per mm of radial deviation"
             )

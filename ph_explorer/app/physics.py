@@ -152,11 +152,7 @@ class PhysicsLoop:
         self.steps.append(step)
         p.show_history(self.steps)
         fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
-        p.done(
-            f"Hybrid ({label}): check-ring MAE **{step.mae_um['mean']:.3f} um** vs mean, "
-            f"{step.mae_um['single']:.3f} um vs single. {fitted}",
-            refit=True,
-        )
+        p.done(f"Refitted: {fitted or label}.", refit=True)  # its error: the fall line and the history under it
         # No physical term ticked: the hybrid would be the baseline again; draw no separate curve.
         self.show(ds.with_model("hybrid", hybrid) if ids else ds.without_model("hybrid"))
 
@@ -196,7 +192,7 @@ class PhysicsLoop:
             return
         found = {c.effect: c for c in reversed(self.diagnosis.candidates)} if self.diagnosis is not None else {}
         refitted = {p["effect"]: p["params"] for step in self.steps for p in step.params}
-        lines = ["**Hidden in this scenario** — the truth, next to what you found:"]
+        lines = ["**Hidden in this scenario**, next to what you found:"]
         for entry in hidden or [{"id": i} for i in scenario["hidden"]]:
             effect_id = str(entry["id"])
             cls = self.catalog.get(effect_id)
@@ -209,9 +205,9 @@ class PhysicsLoop:
                 lines.append("  - diagnosis: " + ("not diagnosed yet" if self.diagnosis is None else "not among the candidates"))
             else:
                 verdict = "significant" if candidate.significant else "not significant"
-                lines.append(f"  - diagnosis ({verdict}, ± expanded uncertainty k = 2): {text(candidate.params, candidate.params_u)}")
+                lines.append(f"  - diagnosis ({verdict}, ± k = 2): {text(candidate.params, candidate.params_u)}")
             if effect_id in refitted:
                 lines.append(f"  - last refit: {text(refitted[effect_id])}")
-            if cls is not None:
-                lines.append(f"  - _{cls.teaching}_")
+            if cls is not None and (candidate is None or not candidate.significant):
+                lines.append(f"  - _{cls.teaching}_")  # else the verdict's "More" already teaches it
         self.panel.revealed.content = "\n".join(lines)

@@ -107,63 +107,86 @@ class PhysicsPanel:
         self.nested: NestedAfter | None = None  # the last diagnosis's honest "after" (nested cross-validation)
         # The operator's study (serve --study): which, how far it got; empty without one.
         self.study_line = gui.add_markdown("")
+        # The loop first, compact, near the top of the tab (issue 15: above the fold at 1440x900):
+        # Diagnose -> verdict -> tick the found effect -> Refit -> the error fall -> Reveal; the
+        # details (candidates, the tests' figures, the teaching text, evidence, history table) in "More".
         self.diagnose = gui.add_button("Diagnose", hint="where the loaded model fails out of sample, and which catalog effect is missing")
         self.status = gui.add_markdown("")
         self.progress = gui.add_progress_bar(0.0, visible=False)
-        self.summary = gui.add_markdown("")
-        self.candidates = gui.add_html("")
         self.verdict = gui.add_markdown("")
-        self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms, or what is left")
-        self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
-        self.evidence = gui.add_uplot(
-            (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
-            EVIDENCE_SERIES,
-            title="Evidence",
-            aspect=1.6,
-            scales={"x": {"time": False}},
-            axes=({"label": "x"}, {"label": "um"}),
-            visible=False,
-        )
-        self.evidence_text = gui.add_markdown("")
-        self.effects_label = gui.add_markdown("**Effects in the hybrid** (tick, then Refit):")
-        # Labelled by id (as in the candidates table): the panel's label column is narrow.
-        self.effects: dict[str, viser.GuiCheckboxHandle] = {
-            effect_id: gui.add_checkbox(effect_id, False, hint=f"{cls.name}: add it to the hybrid's physical terms")
-            for effect_id, cls in catalog.candidates().items()
-        }
+        # The effects the diagnosis found, ready to tick; every other effect in a collapsed folder.
+        self.gui = gui
+        self.found_folder = gui.add_folder("Effects found: tick, then Refit", visible=False)
         self.refit = gui.add_button("Refit the hybrid", hint="fit the ticked effects + the trilinear part; measure on the check rings")
         self.refit_progress = gui.add_progress_bar(0.0, visible=False)
         self.refit_status = gui.add_markdown("")
+        self.fall = gui.add_markdown("")
+        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
+        self.revealed = gui.add_markdown("")
         self.history = gui.add_uplot(
             (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
             HISTORY_SERIES,
-            title="Check-ring MAE per step (um), dashed: noise floor",
-            aspect=1.5,
+            title="Check-ring MAE (um) per step, dashed: noise floor",
+            aspect=3.0,
             scales={"x": {"time": False, "range": [-0.5, 0.5]}},
-            axes=({"label": "step"}, {"label": "um"}),
+            axes=({"size": 24}, {"size": 48}),  # no axis titles: the chart's title says step and um
+            legend={"live": False},  # the series' names, not "step: --" until hovered
             visible=False,
         )
-        self.history_table = gui.add_markdown("")
+        # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
+        self.other_folder = gui.add_folder("Effects in the hybrid (all)", expand_by_default=False)
+        self.effects: dict[str, viser.GuiCheckboxHandle] = {}
+        self._place_effects(set())
+        with gui.add_folder("More: candidates, tests, evidence, history", expand_by_default=False):
+            self.summary = gui.add_markdown("")
+            self.candidates = gui.add_html("")
+            self.verdict_more = gui.add_markdown("")
+            self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms, or what is left")
+            self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
+            self.evidence = gui.add_uplot(
+                (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
+                EVIDENCE_SERIES,
+                title="Evidence",
+                aspect=1.6,
+                scales={"x": {"time": False}},
+                axes=({"label": "x"}, {"label": "um"}),
+                visible=False,
+            )
+            self.evidence_text = gui.add_markdown("")
+            self.history_table = gui.add_markdown("")
         self.save_study = gui.add_button(
             "Save study", visible=study, hint="write this run (the model refitted last, the history, the verdict) to the server's study file"
         )
         self.study_status = gui.add_markdown("")
-        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
-        self.revealed = gui.add_markdown("")
+
+    def _place_effects(self, found: set[str], names: dict[str, str] | None = None) -> None:
+        """A checkbox per catalog effect, labelled by its id (its accessible name): the found ones in
+        the open folder, the rest in the collapsed one; what was ticked stays ticked."""
+        ticked = {e for e, box in self.effects.items() if box.value}
+        for box in self.effects.values():
+            box.remove()
+        self.effects = {}
+        for folder, wanted in ((self.found_folder, True), (self.other_folder, False)):
+            with folder:
+                for effect_id, cls in self.catalog.candidates().items():
+                    if (effect_id in found) == wanted:
+                        hint = f"{cls.name}: " + ("found by the diagnosis; " if wanted else "") + "add it to the hybrid's physical terms"
+                        self.effects[effect_id] = self.gui.add_checkbox(effect_id, effect_id in ticked, hint=hint)
+        self.found_folder.visible = bool(found)
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
         self.nested = None
-        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.evidence_text, self.history_table, self.revealed, self.study_status):
+        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.verdict_more, self.fall, self.evidence_text, self.history_table, self.revealed, self.study_status):
             handle.content = ""
         self.candidates.content = ""
         self.progress.visible = self.refit_progress.visible = False
         self.evidence.visible = self.evidence_of.visible = self.history.visible = False
         self.evidence_of.options = (NO_CHOICE,)
         self.evidence_items = {}
-        for effect_id, box in self.effects.items():
-            box.label = effect_id
+        for box in self.effects.values():
             box.value = False
+        self._place_effects(set())
 
     def show_progress(self, text: str, fraction: float | None, refit: bool = False) -> None:
         bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
@@ -190,15 +213,13 @@ class PhysicsPanel:
         )
         self.candidates.content = candidates_html(result.candidates, self.catalog)
         headline, lines = verdict_text(result, self.catalog)
-        advice = "\n\nTick the effects found below and refit." if result.found else ""
+        # The verdict in short (what was found, what to do); the tests' figures, the teaching text
+        # (shown once, here) and the four verdicts under "More".
+        short = [line for line in lines if line.startswith(("Found:", "Resumed with"))]
         self.nested = result.nested  # the honest "after", shown with the error history
-        self.verdict.content = f"**{headline}**\n\n" + "\n\n".join(lines) + advice + "\n\n" + verdicts_markdown(result.verdict)
-        for c in result.candidates:
-            box = self.effects.get(c.effect)
-            if box is not None:
-                # The label stays the effect's id (its accessible name); the hint says what was found.
-                name = self.catalog[c.effect].name if c.effect in self.catalog else c.effect
-                box.hint = f"{name}: " + ("found by the diagnosis; " if c.significant else "") + "add it to the hybrid's physical terms"
+        self.verdict.content = "\n\n".join([f"**{headline}**", *short])
+        self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
+        self._place_effects({c.effect for c in result.found})
         # Each candidate's evidence, then what is left (the signature), by the label shown in the dropdown.
         self.evidence_items = {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
         for entry in result.signature:
@@ -221,7 +242,7 @@ class PhysicsPanel:
             f"{self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
             f"The plot: every touch's residual with this term put back, and the term, both after the circle "
             f"fit, binned against {ev['x_label']}; the curve reaches {ev['fitted_peak']:.3g} "
-            f"({ev['y_label']}), the circle fit having removed part of the term the parameters describe.\n\n_{candidate.teaching}_"
+            f"({ev['y_label']}), the circle fit having removed part of the term the parameters describe."
         )
 
     def show_evidence(self, label: str) -> None:
@@ -241,11 +262,11 @@ class PhysicsPanel:
         """The error history: MAE against the mean and single repetitions per step, each with its floor."""
         if not steps:
             self.history.visible = False
-            self.history_table.content = ""
+            self.history_table.content = self.fall.content = ""
             return
         self.history.data = history_data(steps)
         self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
-        self.history.axes = ({"label": "step", "splits": tuple(float(k) for k in range(len(steps)))}, {"label": "um"})
+        self.history.axes = ({"size": 24, "splits": tuple(float(k) for k in range(len(steps)))}, {"size": 48})
         self.history.visible = True
         lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
         for k, s in enumerate(steps):
@@ -255,7 +276,13 @@ class PhysicsPanel:
             )
         last = steps[-1]
         ratio = last.mae_um["mean"] / last.noise_floor_um["mean"] if last.noise_floor_um["mean"] else float("nan")
-        lines += ["", f"Last step: **{ratio:.2f}x** the noise floor of the mean (um, on the check rings)."]
+        first = steps[0]
+        self.fall.content = (
+            # One line: vs the repetition mean, first step -> last (the table under "More" has each step).
+            f"Check-ring MAE: {first.mae_um['mean']:.3f} -> **{last.mae_um['mean']:.3f} um**, **{ratio:.2f}x** its floor"
+            if len(steps) > 1
+            else f"Check-ring MAE (baseline): **{last.mae_um['mean']:.3f} um**, **{ratio:.2f}x** its floor"
+        )
         if self.nested is not None:
             lines += ["", nested_markdown(self.nested)]
         self.history_table.content = "\n".join(lines)

@@ -171,7 +171,8 @@ class RingScene:
         self.arrow.points = theta_arrow(numbers + 2.0).astype(np.float32)
         self.arrow_label.position = tuple(float(v) for v in ring_points(numbers + 5.0, np.array([20.0]))[0])
         self.title.position = (0.0, -(numbers + 6.0), 0.0)
-        self.caption.position = (0.0, -(numbers + 10.0), 0.0)
+        # On the far side from the title: seen obliquely, two labels on one side are drawn over each other.
+        self.caption.position = (0.0, numbers + 8.0, 0.0)
         self.caption.text = scale.caption()
 
     def _update_band(self, band: tuple[str, NDArray[np.float64], NDArray[np.float64]] | None, scale: PolarScale) -> None:

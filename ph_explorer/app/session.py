@@ -97,17 +97,17 @@ class Session:
             self.field.on_pick(self.go_to)
             self.controls = ControlsPanel(gui, a0, b0, dataset.a_range)
             tabs = gui.add_tab_group()
-            with tabs.add_tab("Polar plot", icon=viser.Icon.CIRCLE_DOTTED):
+            with tabs.add_tab("Polar plot"):
                 self.polar = PolarPanel(gui)
-            with tabs.add_tab("Tables 1-3", icon=viser.Icon.TABLE):
+            with tabs.add_tab("Tables 1-3"):
                 self.tables = TablesPanel(gui)
-            with tabs.add_tab("Charts", icon=viser.Icon.CHART_LINE):
+            with tabs.add_tab("Charts"):
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
-            with tabs.add_tab("Physics", icon=viser.Icon.FLASK):
+            with tabs.add_tab("Physics"):
                 self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
-            with tabs.add_tab("Map", icon=viser.Icon.MAP):
+            with tabs.add_tab("Map"):
                 self.map_panel = MapPanel(gui, dataset.figure_names(), self.go_to)
-            with tabs.add_tab("Data", icon=viser.Icon.DATABASE):
+            with tabs.add_tab("Data"):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
         self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
