@@ -55,6 +55,11 @@ class Scan:
     null_best: NDArray[np.float64]  # (NULL_DRAWS,)
 
 
+def settings_key(effect: Effect) -> tuple[str, tuple]:
+    """An effect at its settings, as a dictionary key (the same columns for the same key)."""
+    return effect.id, tuple(sorted(effect.settings().items()))
+
+
 class FittedBases:
     """Effects' fitted basis columns (fitted_basis) over one campaign's touches, each made once.
 
@@ -78,7 +83,7 @@ class FittedBases:
         return out
 
     def __call__(self, effect: Effect) -> NDArray[np.float64]:
-        key = (effect.id, tuple(sorted(effect.settings().items())))
+        key = settings_key(effect)
         columns = self._columns.get(key)
         if columns is None:
             columns = fitted_basis(effect, self.touches)[0]
@@ -141,7 +146,7 @@ class CandidateSearch:
     def _design(self, effect: Effect) -> Design:
         """One effect's design at its settings, made once per search (every ranking and every
         step of the chain asks for the same scan values again)."""
-        key = (effect.id, tuple(sorted(effect.settings().items())))
+        key = settings_key(effect)
         if key in self._designs:
             return self._designs[key]
         design = Design(self.bases(effect), self.smoother)
