@@ -9,7 +9,7 @@ catalog, Monte Carlo seed 0):
    interval) and the share of the most common verdict (stability, target at least 95 %).
 2. designs: the same on other designs of the paper campaign: 5 repetitions, no touch times,
    another geometry (pivot to ball 100 mm), a coarser lattice (B step 30 deg).
-3. stability_with_effect: "b_axis_22": how often the hidden 22/rev B error is found, and how
+3. stability_with_effect: "head_3": how often the hidden 22/rev B error is found, and how
    often its true amplitude (and phase) lies within the fit +- its expanded uncertainty (k = 2).
 4. power: the paper scenario plus a hidden B 22/rev error of growing amplitude: the share of
    seeds where it is found (verdict "missing" or "partial" with b_axis_cyclic at 22/rev among the
@@ -241,7 +241,7 @@ def null_figures(records: list[dict[str, Any]], seeds: list[int], description: s
 
 
 def effect_figures(records: list[dict[str, Any]], seeds: list[int], truth: dict[str, float]) -> dict[str, Any]:
-    """Part 3: how often b_axis_22's hidden effect is found, and the coverage of its uncertainty."""
+    """Part 3: how often head_3's hidden effect is found, and the coverage of its uncertainty."""
     records = sorted(records, key=lambda r: r["seed"])
     figures = verdict_figures(records)
     n = len(records)
@@ -276,7 +276,7 @@ def effect_figures(records: list[dict[str, Any]], seeds: list[int], truth: dict[
         "true_effect": {"id": "b_axis_cyclic", **truth},
         **figures,
         "share_missing": share(figures["verdicts"].get("missing", 0), n),
-        "share_found_b_axis_22": share(len(hits), n),
+        "share_found_head_3": share(len(hits), n),
         "amplitude_arcsec": coverage("amplitude_arcsec"),
         "phase_deg": coverage("phase_deg", 360.0 / truth["cycles_per_rev"]),
         "coverage_note": "share of the seeds that found b_axis_cyclic at its true cycles/rev whose true value lies within fit +- params_u (k = 2; expected ~95 %)",
@@ -361,8 +361,8 @@ def jobs(quick: bool) -> tuple[list[dict[str, Any]], dict[str, Any]]:
         data, drop = design_data(design)
         designs[design] = data
         out += [{"group": "designs", "key": design, "data": data, "drop_times": drop, "seed": s} for s in design_seeds]
-    b22 = scenario_data("b_axis_22")
-    out += [{"group": "effect", "key": "b_axis_22", "data": b22, "seed": s} for s in effect_seeds]
+    b22 = scenario_data("head_3")
+    out += [{"group": "effect", "key": "head_3", "data": b22, "seed": s} for s in effect_seeds]
     for a in amplitudes:
         out += [{"group": "power", "key": a, "data": power_data(a), "seed": s} for s in power_seeds]
     plan = {"false_alarm": fa_seeds, "designs": design_seeds, "effect": effect_seeds, "power": power_seeds,
@@ -433,7 +433,7 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         },
     }
     out["designs"]["b_step_30"]["check_orientations"] = plan["design_data"]["b_step_30"]["check_orientations"]
-    out["stability_with_effect"] = {"scenario": "b_axis_22", **effect_figures(records[("effect", "b_axis_22")], plan["effect"], hidden_b_axis(plan["b22"]))}
+    out["stability_with_effect"] = {"scenario": "head_3", **effect_figures(records[("effect", "head_3")], plan["effect"], hidden_b_axis(plan["b22"]))}
     out["power"] = {
         "scenario": f"paper + hidden b_axis_cyclic {POWER_CYCLES}/rev, phase 0",
         "detected": f"verdict missing or partial with b_axis_cyclic at {POWER_CYCLES}/rev among the effects found",
@@ -456,15 +456,15 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         "holds": bool(np.median(seconds) < TARGET_SECONDS),
         "note": f"diagnose(campaign) alone (simulation excluded), {workers} diagnoses at a time on {os.cpu_count()} cores, one BLAS thread each",
     }
-    with_effect = [r["seconds"] for r in records[("effect", "b_axis_22")]]
-    out["seconds_per_diagnosis"]["b_axis_22"] = {
+    with_effect = [r["seconds"] for r in records[("effect", "head_3")]]
+    out["seconds_per_diagnosis"]["head_3"] = {
         "median": round(float(np.median(with_effect)), 2),
         "max": round(float(np.max(with_effect)), 2),
         "n": len(with_effect),
         "holds": bool(np.max(with_effect) < TARGET_SECONDS),
         "note": "an effect found: the nested cross-validation of the choice runs too (five more searches)",
     }
-    out["after_errors"] = {"scenario": "b_axis_22", **out["stability_with_effect"]["after_errors"]}
+    out["after_errors"] = {"scenario": "head_3", **out["stability_with_effect"]["after_errors"]}
     every = [r for rs in records.values() for r in rs]
     out["errors"] = [r for r in every if r["verdict"] == "error"]
     out["holds"] = {

@@ -53,7 +53,7 @@ def speed_plot(results: dict[str, Any], path: Path) -> Path:
         ("network training", speed.get("network_training") or {}),
         ("physics refit", speed.get("physics_refit") or {}),
         ("diagnosis, paper", {"seconds": (diagnosis.get("paper") or {}).get("seconds_median")}),
-        ("diagnosis, b_axis_22", {"seconds": (diagnosis.get("b_axis_22") or {}).get("seconds_median")}),
+        ("diagnosis, head_3", {"seconds": (diagnosis.get("head_3") or {}).get("seconds_median")}),
         ("serve start-up", speed.get("serve_startup") or {}),
     ]
     for label, entry in entries:

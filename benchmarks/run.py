@@ -30,7 +30,7 @@ from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import load_scenario, simulate
 
 HERE = Path(__file__).resolve().parent
-SCENARIOS = ("paper", "b_axis_22")
+SCENARIOS = ("paper", "head_3")
 
 
 def log(text: str) -> None:

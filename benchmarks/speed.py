@@ -52,10 +52,10 @@ DIAGNOSIS_TARGET_S = 30.0  # issue 13: a paper-size campaign diagnosed in under 
 
 def diagnosis_speed(repeat: int = 3) -> dict[str, Any]:
     """Seconds of one diagnose(campaign) alone on the machine (simulation excluded), median of
-    `repeat`: the paper campaign (nothing found) and b_axis_22 (an effect found, so the nested
+    `repeat`: the paper campaign (nothing found) and head_3 (an effect found, so the nested
     cross-validation of the choice runs too: the longest path of a paper-size diagnosis)."""
     out: dict[str, Any] = {"target_s": DIAGNOSIS_TARGET_S, "note": "one diagnosis at a time, nothing else running in the benchmark"}
-    for name in ("paper", "b_axis_22"):
+    for name in ("paper", "head_3"):
         scenario = load_scenario(name)
         campaign = simulate(scenario, scenario.seed)
         times, verdicts = [], set()
@@ -71,7 +71,7 @@ def diagnosis_speed(repeat: int = 3) -> dict[str, Any]:
             "nested": result.nested is not None,
             "touches": campaign.n_touches,
         }
-    out["holds"] = all(out[name]["seconds_median"] < DIAGNOSIS_TARGET_S for name in ("paper", "b_axis_22"))
+    out["holds"] = all(out[name]["seconds_median"] < DIAGNOSIS_TARGET_S for name in ("paper", "head_3"))
     return out
 
 

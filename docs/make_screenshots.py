@@ -2,7 +2,7 @@
 
 The server runs in this process on a free port; Debian's chromium (driven by Playwright) is the
 browser. 1) the default start (shipped paper campaign, model/paper); 2) the teaching loop on the
-b_axis_22 scenario: Diagnose, tick the top candidate, Refit, through that browser's Session.
+head_3 scenario: Diagnose, tick the top candidate, Refit, through that browser's Session.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def main(out: Path) -> None:
             dismiss_notices(page)
             time.sleep(1.0)
             page.screenshot(path=str(out / "screenshot_default.png"))
-            session.data_panel.scenario.value = "b_axis_22"
+            session.data_panel.scenario.value = "head_3"
             session.wait(timeout=300)
             session.submit(session.loop.diagnose)  # what the Diagnose button runs
             session.wait(timeout=600)

@@ -500,9 +500,9 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
 def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     """Done-when of issue 6: on a teaching scenario the GUI loop diagnose -> add -> refit lowers the error."""
     fake, s = opened
-    s.data_panel.scenario.value = "b_axis_22"
+    s.data_panel.scenario.value = "head_3"
     s.wait(timeout=300)
-    assert "b_axis_22" in s.data_panel.source.content
+    assert "head_3" in s.data_panel.source.content
     click(fake, s, "Diagnose", timeout=600)
     p = s.physics
     best = s.loop.diagnosis.candidates[0]

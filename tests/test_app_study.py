@@ -161,7 +161,7 @@ def test_a_study_of_another_campaign_or_place_is_refused_before_the_server_start
     with pytest.raises(InputError, match="the study was made on small.csv"):
         build_server(data=other, study=study_file, port=0)
     with pytest.raises(InputError, match="simulate the scenario to a CSV"):
-        build_server(scenario="b_axis_22", study=study_file, port=0)
+        build_server(scenario="head_3", study=study_file, port=0)
     with pytest.raises(InputError, match="no such folder"):
         build_server(data=small_csv, study=tmp_path / "nowhere" / "s.json", port=0)
     with pytest.raises(InputError, match="small.csv"):  # a file that is not a study

@@ -48,7 +48,7 @@ def test_subsets_are_lattices_that_keep_every_a_row_and_no_check_ring(paper) -> 
 
 
 def test_the_hybrid_gets_the_scenario_effects_minus_noise_with_their_cycles() -> None:
-    effects = hybrid_effects(load_scenario("b_axis_22"))
+    effects = hybrid_effects(load_scenario("head_3"))
     ids = [e.id for e in effects]
     assert "noise" not in ids and "lobing" in ids
     cycles = sorted(e.settings()["cycles_per_rev"] for e in effects if e.id == "b_axis_cyclic")
@@ -75,7 +75,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr[-3000:]
     results = json.loads((tmp_path / "results.json").read_text())
     assert results["mode"] == "quick"
-    for scenario in ("paper", "b_axis_22"):
+    for scenario in ("paper", "head_3"):
         curves = results["data_efficiency"][scenario]
         assert set(curves) == {"network", "trilinear", "hybrid"}
         for points in curves.values():
@@ -90,9 +90,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         assert key in speed, key
     assert speed["serve_startup"]["seconds_from_launch"] is not None
     assert set(speed["predict_one_orientation_us"]) == {"network", "trilinear", "hybrid"}
-    for name in ("paper", "b_axis_22"):
+    for name in ("paper", "head_3"):
         assert speed["diagnosis"][name]["seconds_median"] > 0
-    assert speed["diagnosis"]["b_axis_22"]["nested"] and speed["diagnosis"]["target_s"] == 30
+    assert speed["diagnosis"]["head_3"]["nested"] and speed["diagnosis"]["target_s"] == 30
     scale = results["scale"]
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
@@ -108,7 +108,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert len(calibration["false_alarm"]["seeds"]) == 3
     assert set(calibration["designs"]) == {"repetitions_5", "no_touch_times", "pivot_100mm", "b_step_30"}
     effect = calibration["stability_with_effect"]
-    for key in ("share_missing", "share_found_b_axis_22", "stability", "verdicts"):
+    for key in ("share_missing", "share_found_head_3", "stability", "verdicts"):
         assert key in effect, key
     for name in ("amplitude_arcsec", "phase_deg"):
         assert {"true", "covered", "of", "coverage", "coverage_ci95"} <= set(effect[name])
@@ -124,7 +124,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     if after["seeds_with_effects_found"]:
         assert after["nested"]["after"] > 0 and after["check_rings"]["after"] > 0
     seconds = calibration["seconds_per_diagnosis"]
-    assert seconds["b_axis_22"]["max"] > 0
+    assert seconds["head_3"]["max"] > 0
     assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
     assert calibration["errors"] == []
     hidden = results["hidden_effects"]
@@ -133,7 +133,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert {"verdict", "named_first_at_its_period", "truth_within_u", "after_over_floor", "seconds"} <= set(case)
     coverage = results["uncertainty_coverage"]
     assert coverage["mode"] == "quick" and coverage["target"] == [0.93, 0.97]
-    assert set(coverage["campaigns"]) == {"paper (shipped data and model)", "b_axis_22"}
+    assert set(coverage["campaigns"]) == {"paper (shipped data and model)", "head_3"}
     for models in coverage["campaigns"].values():
         assert set(models) == {"trilinear", "network", "hybrid"}
         for figures in models.values():

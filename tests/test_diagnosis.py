@@ -29,9 +29,9 @@ from ph_explorer.twin import load_scenario, scenario_from_dict, simulate
 
 # Each teaching scenario, its hidden effect, and the reference that exposes it.
 TEACHING = {
-    "b_axis_22": ("b_axis_cyclic", "mean"),
-    "a_axis_24": ("a_axis_cyclic", "mean"),
-    "direction_alternating": ("direction", "single"),
+    "head_3": ("b_axis_cyclic", "mean"),
+    "head_4": ("a_axis_cyclic", "mean"),
+    "head_5": ("direction", "single"),
     "head_2": ("b_axis_tilt_motion", "mean"),
 }
 
@@ -134,8 +134,8 @@ def test_nothing_hidden_in_the_paper_scenario(diagnoses, sidecar):
 def test_where_it_fails_points_at_the_rings_the_hidden_effect_spoils(diagnoses):
     # The aliased 24/rev A error is invisible on the grid and shows off it: the failing rings are
     # off-grid (those whose error exceeds their noise significantly; the weakest may not).
-    result = diagnoses[("a_axis_24", True)]
-    campaign = simulate(load_scenario("a_axis_24"))
+    result = diagnoses[("head_4", True)]
+    campaign = simulate(load_scenario("head_4"))
     off_grid = campaign.off_grid_mask()
     assert result.failing[off_grid].mean() > 0.6
     assert result.failing[~off_grid].mean() < 0.05  # a ring in a hundred exceeds its noise by chance
@@ -159,7 +159,7 @@ def test_out_of_sample_smoother_predicts_a_ring_from_the_others_only():
 
 
 def test_hybrid_refits_recovers_a_known_effect_and_predicts_unseen_orientations(tmp_path):
-    scenario = load_scenario("b_axis_22")
+    scenario = load_scenario("head_3")
     campaign = simulate(scenario)
     train = ~campaign.holdout_mask()
     effect = DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=22)
@@ -186,7 +186,7 @@ def run_cli(*args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def b22_csv(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("cli") / "b22.csv"
-    done = run_cli("simulate", "--scenario", "b_axis_22", "--out", str(out))
+    done = run_cli("simulate", "--scenario", "head_3", "--out", str(out))
     assert done.returncode == 0, done.stderr
     return out
 
@@ -222,7 +222,7 @@ def test_cli_add_takes_the_users_choice_and_user_effects(b22_csv):
 
 @pytest.mark.slow
 def test_the_after_error_is_also_measured_on_rings_that_took_no_part_in_the_choice(diagnoses):
-    result = diagnoses[("b_axis_22", True)]
+    result = diagnoses[("head_3", True)]
     nested = result.nested
     assert nested is not None and nested.folds == 5
     assert nested.rings == int((~result.held_out).sum())  # every training ring predicted once
@@ -337,7 +337,7 @@ def test_nothing_hidden_on_another_lattice_and_geometry():
 
 @pytest.mark.slow
 def test_a_campaign_without_touch_times_is_diagnosed_and_says_what_it_cannot_test():
-    campaign = simulate(load_scenario("b_axis_22"))
+    campaign = simulate(load_scenario("head_3"))
     campaign.times_s = None  # a file without t_s
     result = diagnose(campaign)
     by_id = {c.effect: c for c in result.candidates}
@@ -347,7 +347,7 @@ def test_a_campaign_without_touch_times_is_diagnosed_and_says_what_it_cannot_tes
 
 @pytest.mark.slow
 def test_a_single_repetition_campaign_gives_strict_json():
-    campaign = simulate(load_scenario("b_axis_22"))
+    campaign = simulate(load_scenario("head_3"))
     campaign.deviations, campaign.times_s = campaign.deviations[:, :1], campaign.times_s[:, :1]
     report = diagnose(campaign).as_dict()
 
@@ -383,7 +383,7 @@ def test_hybrid_with_every_effect_on_a_sparse_lattice_neither_breaks_down_nor_ne
 
 @pytest.mark.slow
 def test_evidence_of_a_cyclic_error_is_a_sine_of_its_phase(diagnoses):
-    best = diagnoses[("b_axis_22", True)].candidates[0]
+    best = diagnoses[("head_3", True)].candidates[0]
     ev = best.evidence
     assert "arcsec" in ev["y_label"] and "22 x B" in ev["x_label"]
     phase = np.radians(np.asarray(ev["x"]))
@@ -420,8 +420,8 @@ def test_a_hidden_effect_the_catalog_lacks_is_unexplained(name):
 def test_a_second_effect_the_catalog_lacks_leaves_the_verdict_partial():
     # Two hidden effects, one of them outside the catalog: the one it knows is found, and the
     # model still fails beyond noise with it.
-    data = tomllib.loads((scenarios_dir() / "b_axis_22.toml").read_text())
-    second = tomllib.loads((scenarios_dir() / "a_axis_24.toml").read_text())
+    data = tomllib.loads((scenarios_dir() / "head_3.toml").read_text())
+    second = tomllib.loads((scenarios_dir() / "head_4.toml").read_text())
     data["effects"] += [e for e in second["effects"] if e.get("hidden")]
     campaign = simulate(scenario_from_dict(data))
     partial = diagnose(campaign, catalog=catalog_without("a_axis_cyclic"))

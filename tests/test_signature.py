@@ -45,7 +45,7 @@ def search_of(campaign) -> CandidateSearch:
 
 @pytest.fixture(scope="module")
 def b22():
-    search = search_of(simulate(load_scenario("b_axis_22")))
+    search = search_of(simulate(load_scenario("head_3")))
     return search, signature(search)
 
 

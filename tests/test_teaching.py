@@ -4,7 +4,7 @@ none of its hidden effects; the sidecar's hidden list keeps the answer; Reveal s
 what the session found.
 
 A scenario's name is the handle a student types, and is left out of the check: three older names
-(b_axis_22, a_axis_24, direction_alternating) still hint at their answer (README, "Shipped scenarios").
+(head_3, head_4, head_5) still hint at their answer (README, "Shipped scenarios").
 """
 
 from __future__ import annotations
@@ -37,15 +37,15 @@ def spoilers(name: str) -> set[str]:
 
 
 def named(text: str, name: str) -> list[str]:
-    """The spoilers of scenario `name` that `text` contains as words (its own name left out)."""
-    text = text.replace(name, " ").lower()
+    """The spoilers of scenario `name` that `text` contains as words."""
+    text = text.lower()
     return [w for w in spoilers(name) if re.search(rf"(?<![a-z]){re.escape(w.lower())}(?![a-z])", text)]
 
 
 def test_there_are_teaching_scenarios_and_the_check_would_catch_a_spoiler() -> None:
     assert len(TEACHING) >= 4
-    assert set(named("a hidden 22/rev B-axis cyclic angular error", "b_axis_22")) == {"cyclic", "B-axis cyclic angular error"}
-    assert named("lost motion: Lost motion by direction of approach", "direction_alternating")
+    assert set(named("a hidden 22/rev B-axis cyclic angular error", "head_3")) == {"cyclic", "B-axis cyclic angular error"}
+    assert named("lost motion: Lost motion by direction of approach", "head_5")
 
 
 @pytest.mark.parametrize("name", TEACHING)

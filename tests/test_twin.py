@@ -20,7 +20,7 @@ from ph_explorer.twin import list_scenarios, load_scenario, scenario_from_dict, 
 
 SIGMA = 0.175
 FLOOR = noise_floor(SIGMA, 10)  # {"mean": 0.044, "single": 0.140} um
-TEACHING = ("b_axis_22", "direction_alternating", "a_axis_24")
+TEACHING = ("head_3", "head_5", "head_4")
 
 
 def check_ring_errors(name: str) -> dict[str, np.ndarray]:
@@ -80,7 +80,7 @@ def test_plain_interpolator_stays_near_the_floor_on_the_paper_scenario():
     assert np.all((errors["single"] >= 0.08) & (errors["single"] <= 0.22)), errors["single"]
 
 
-@pytest.mark.parametrize("name", ["b_axis_22", "a_axis_24"])
+@pytest.mark.parametrize("name", ["head_3", "head_4"])
 def test_plain_interpolator_misses_a_hidden_axis_error(name):
     scenario = load_scenario(name)
     hidden = [e for e, h in zip(scenario.effects, scenario.hidden) if h]
@@ -93,17 +93,17 @@ def test_plain_interpolator_misses_a_hidden_axis_error(name):
 
 
 def test_plain_interpolator_misses_lost_motion_that_alternates_between_repetitions():
-    scenario = load_scenario("direction_alternating")
+    scenario = load_scenario("head_5")
     assert scenario.hidden_ids == ["direction"] and scenario.scan_direction == "alternating"
-    errors = check_ring_errors("direction_alternating")
+    errors = check_ring_errors("head_5")
     assert errors["single"].mean() >= 1.3 * FLOOR["single"], errors["single"]
     # The mean of 10 repetitions averages the two scan directions: there it stays near the floor.
     assert errors["mean"].mean() <= 1.5 * FLOOR["mean"]
 
 
-def test_a_axis_24_is_aliased_on_the_grid():
-    errors = check_ring_errors("a_axis_24")
-    campaign = simulate(load_scenario("a_axis_24"))
+def test_head_4_is_aliased_on_the_grid():
+    errors = check_ring_errors("head_4")
+    campaign = simulate(load_scenario("head_4"))
     off = campaign.off_grid_mask()[campaign.holdout_mask()]
     # Every grid ring sees the 15-deg error at the same phase: held-out grid rings are predicted well.
     assert errors["mean"][~off].mean() < 1.6 * FLOOR["mean"]
@@ -111,7 +111,7 @@ def test_a_axis_24_is_aliased_on_the_grid():
 
 
 def test_scan_times_follow_order_and_direction():
-    scenario = load_scenario("direction_alternating")
+    scenario = load_scenario("head_5")
     t = scenario.times_s()
     assert np.all(np.diff(t[:, 0], axis=-1) == pytest.approx(scenario.touch_s))
     assert np.all(np.diff(t[:, 1], axis=-1) == pytest.approx(-scenario.touch_s))
@@ -121,7 +121,7 @@ def test_scan_times_follow_order_and_direction():
 
 
 def test_same_seed_same_campaign_other_seed_other_noise():
-    scenario = load_scenario("b_axis_22")
+    scenario = load_scenario("head_3")
     a, b, c = simulate(scenario), simulate(scenario), simulate(scenario, seed=scenario.seed + 1)
     assert np.array_equal(a.deviations, b.deviations)
     assert not np.array_equal(a.deviations, c.deviations)
@@ -173,12 +173,12 @@ def test_list_scenarios_describes_every_shipped_scenario():
 
 def test_simulate_command_writes_campaign_and_sidecar(tmp_path, capsys):
     out = tmp_path / "a.csv"
-    assert simulate_command(scenario="b_axis_22", out=out, seed=5) == 0
+    assert simulate_command(scenario="head_3", out=out, seed=5) == 0
     campaign = read_campaign(out)
-    assert campaign.scenario["name"] == "b_axis_22" and campaign.scenario["seed"] == 5
+    assert campaign.scenario["name"] == "head_3" and campaign.scenario["seed"] == 5
     assert campaign.scenario["hidden"] == ["b_axis_cyclic"]
     assert len(campaign.check_orientations) == 12 and campaign.times_s is not None
-    assert capsys.readouterr().out.startswith(f"{out}: scenario b_axis_22, seed 5, 135 orientations")
+    assert capsys.readouterr().out.startswith(f"{out}: scenario head_3, seed 5, 135 orientations")
     with pytest.raises(InputError) as info:
         simulate_command(scenario=None, out=out)
     assert info.value.option == "--scenario" and "option --scenario" in info.value.line()

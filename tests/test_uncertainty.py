@@ -163,7 +163,7 @@ def test_every_magnitude_declares_a_plausible_range_and_every_phase_a_period(cls
 
 @pytest.mark.parametrize("path", shipped_scenario_paths(), ids=lambda path: path.stem)
 def test_the_shipped_scenarios_are_plausible(path):
-    """A scenario the tool would call implausible would be a bug (direction_alternating's 1.6 arcsec
+    """A scenario the tool would call implausible would be a bug (head_5's 1.6 arcsec
     lost motion, a worn drive, included)."""
     scenario = load_scenario(path)
     for effect in scenario.effects:

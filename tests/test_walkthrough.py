@@ -24,7 +24,7 @@ def user_effect_source() -> str:
 
 @pytest.mark.slow
 def test_the_loop_closes_on_an_effect_in_no_catalog(tmp_path):
-    campaign = simulate(load_scenario("b_axis_22"))
+    campaign = simulate(load_scenario("head_3"))
     lacking = Catalog([cls for cls in BUILTIN_EFFECTS if cls.axis != "B"])
 
     first = diagnose(campaign, catalog=lacking)

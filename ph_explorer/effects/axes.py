@@ -15,7 +15,7 @@ __all__ = ["AAxisCyclic", "BAxisCyclic", "CYCLES_PER_REV", "Direction"]
 # generous by 1.5x at the top (the same as every angular error motion).
 CYCLIC_PLAUSIBLE_ARCSEC = ANGULAR_MOTION_PLAUSIBLE_ARCSEC
 # Plausible lost motion of a joint. The teaching text estimates <= 0.1 um at the ball for a servo
-# head (~0.5 arcsec), but the shipped direction_alternating scenario hides 1.6 arcsec as "a worn or
+# head (~0.5 arcsec), but the shipped head_5 scenario hides 1.6 arcsec as "a worn or
 # loosely tuned drive" that a user should be told about, not told is impossible; 3 arcsec (+-0.58 um
 # at the 80 mm lever) admits that with the same margin as the cyclic errors. More than that is a
 # drive that would fail its own qualification.
