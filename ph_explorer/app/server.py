@@ -37,6 +37,7 @@ import viser
 
 from ph_explorer import paths
 from ph_explorer.app.dataset import Dataset, default_dataset, scenario_descriptions
+from ph_explorer.app.loading import LoadingNotice, open_server
 from ph_explorer.app.render_queue import RenderQueue, RenderStats
 from ph_explorer.app.scene import ring_camera
 from ph_explorer.app.session import INITIAL_ORIENTATION, Session, Shared
@@ -60,7 +61,9 @@ class ExplorerApp:
         verbose: bool = False,
         catalog: Catalog = DEFAULT_CATALOG,
         study: StudyFile | None = None,
+        server: viser.ViserServer | None = None,
     ) -> None:
+        """server: one already answering (open_server, as `serve` does before loading); else one is opened."""
         self.dataset = dataset
         self.study = study
         self.sessions: dict[int, Session] = {}
@@ -80,9 +83,7 @@ class ExplorerApp:
         # Warm the caches the first browser needs (the default view and field).
         dataset.view(*INITIAL_ORIENTATION)
         dataset.figure(dataset.figure_names()[0])
-        self.server = viser.ViserServer(host=host, port=port, label="ph-explorer", verbose=verbose)
-        self.server.gui.configure_theme(control_layout="fixed", control_width="large", show_share_button=False, show_logo=False)
-        self.server.scene.set_up_direction("+z")
+        self.server = server if server is not None else open_server(host=host, port=port, verbose=verbose)
         camera = self.server.initial_camera
         position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry.axial_distance_mm)
         camera.position = tuple(position)
@@ -147,6 +148,8 @@ def build_server(
     verbose: bool = False,
     study: Path | None = None,
     effects: Path | None = None,
+    server: viser.ViserServer | None = None,
+    notice: LoadingNotice | None = None,
 ) -> ExplorerApp:
     """Load the data and models, then start the server (port 0 picks a free port).
 
@@ -156,6 +159,8 @@ def build_server(
     paper.csv); checked here, before the server starts (InputError), and the only file the app writes.
     effects: the operator's Python file of effects (`Catalog.with_file`), imported here, before the
     server starts; every browser diagnoses and refits with them. Browsers upload campaign CSVs only.
+    server, notice: a server already answering and its browsers' loading note (`serve` opens both
+    first, so that the URL answers while this loads); the explorer takes the waiting browsers over.
     """
     start = time.perf_counter()
     if study is not None and scenario is not None:
@@ -167,6 +172,11 @@ def build_server(
     if study is not None:
         data_file = Path(data) if data is not None else paths.assets_dir() / "data" / "paper.csv"
         opened = open_study(Path(study), data_file, dataset.campaign, catalog)
-    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, catalog=catalog, study=opened)
+    if notice is not None:
+        notice.say("the first view")
+        # Ready before the explorer registers its sessions, which then take over the waiting browsers.
+        dataset.view(*INITIAL_ORIENTATION)
+        notice.finish()
+    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, catalog=catalog, study=opened, server=server)
     app.startup_s = time.perf_counter() - start
     return app

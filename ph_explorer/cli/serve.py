@@ -15,12 +15,26 @@ def serve_command(**options: Any) -> int:
     """Start the explorer with build_server's options (scenario, data, model, host, port, geometry,
     study, effects; default: the shipped paper campaign with model/paper)."""
     # viser and torch: imported when the command runs, so that the CLI (and inspect) works without them.
-    from ph_explorer.app.server import build_server
+    from ph_explorer.app.loading import LoadingNotice, open_server
 
     if options.get("scenario") is not None and options.get("data") is not None:
         raise InputError("give --scenario or --data, not both")
-    app = build_server(**options)
-    shown_host = "127.0.0.1" if app.host in ("0.0.0.0", "") else app.host
+    # The page first (viser alone imports in a fraction of a second): the URL answers and says what
+    # is loading while torch, the campaign and the models load.
+    server = open_server(host=options.pop("host", "127.0.0.1"), port=options.pop("port", 8080), verbose=options.pop("verbose", False))
+    notice = LoadingNotice(server)
+    host = server.get_host()
+    shown_host = "127.0.0.1" if host in ("0.0.0.0", "") else host
+    answering = seconds_since_process_start()
+    answered = f"{answering:.1f} s after the command started; " if answering is not None else ""
+    print(f"ph-explorer: answering at http://{shown_host}:{server.get_port()}  ({answered}loading the campaign and the models)", flush=True)
+    try:
+        from ph_explorer.app.server import build_server
+
+        app = build_server(**options, server=server, notice=notice)
+    except BaseException:
+        server.stop()
+        raise
     print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
     for note in app.dataset.notes:
         print(f"  - {note}")
