@@ -8,7 +8,8 @@ components, each a deviation curve after the circle fit, in um:
   drawn by `models.base.draw_repetitions`, the draw of `simulate`); for the mean of R repetitions
   the same with sigma / sqrt(R) (the circle fit is linear, so the mean of R fitted repetitions is
   the fit of their mean);
-- model: the model's own error, estimated out of sample (`models.model_error`);
+- model: the model's own error, estimated out of sample (`models.model_error`), its size
+  calibrated on held-out rings where the campaign has them (`calibrate_model_error`);
 - parameters: for a hybrid, the spread of its fitted physical parameters
   (`models.parameter_spread`); the cross-validated error of a hybrid already holds the spread of
   its refitted parameters, so the model component is what it leaves beyond them (per harmonic,
@@ -22,7 +23,7 @@ components are independent, so the squares add up to the combined one's.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -32,8 +33,11 @@ from ph_explorer.models.base import DeviationModel, as_orientations, draw_repeti
 from ph_explorer.models.model_error import OutOfSampleError, random_phase_curves
 from ph_explorer.models.parameter_spread import ParameterSpread
 from ph_explorer.montecarlo import MAX_TRIALS, adaptive_monte_carlo
+from scipy.stats import norm
 
 COMPONENTS = ("repeatability", "model", "parameters")
+MIN_CALIBRATION_RINGS = 5  # held-out rings needed to calibrate the model error's size
+MAX_SCALE = 1e6  # the model error's calibration: a variance a million times the cross-validation's is not an estimate
 # Order of the quantities of one trial: two bands and the components (repeatability twice: touch, mean).
 QUANTITIES = ("touch", "mean", "repeatability", "repeatability_mean", "model", "parameters")
 
@@ -178,3 +182,61 @@ def band_coverage(bands: list[Band], deviations: ArrayLike, band: str = "touch")
         "touch": float(np.mean((d >= lo_t) & (d <= hi_t))),
         "mean": float(np.mean((mean >= lo_m) & (mean <= hi_m))),
     }
+
+
+def mean_band_variance(sources: Sources, orientations: ArrayLike, n_points: int, scale: float) -> NDArray[np.float64]:
+    """(m, N) per-point variance (um^2) of the mean band's draw with the model error's variance times `scale`.
+
+    The components are Gaussian and independent, so the variances add: repeatability sigma^2 / R
+    (sigma is the post-fit spread), the model's random-phase curve sum_k max(scale P_k - Q_k, 0)
+    at every point (Q_k: the parameters' power, which the hybrid's cross-validated error holds),
+    and the parameters' per-point variance.
+    """
+    o = as_orientations(orientations)
+    sigma = np.broadcast_to(np.asarray(sources.model.repetition_sigma(o, n_points=n_points), dtype=float), (len(o), n_points))
+    variance = sigma**2 / sources.n_repetitions
+    if sources.error is not None:
+        power = scale * np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, 2 : n_points // 2 + 1]
+        if sources.parameters is not None:
+            q = np.stack([sources.parameters.power(o[i : i + 1], n_points) for i in range(len(o))])[:, 2 : n_points // 2 + 1]
+            power = np.maximum(power - q, 0.0)
+        variance = variance + power.sum(axis=1, keepdims=True)
+    if sources.parameters is not None:
+        roots = np.stack([sources.parameters.root(o[i : i + 1], n_points) for i in range(len(o))])  # (m, N, q)
+        variance = variance + np.sum(roots**2, axis=2)
+    return variance
+
+
+def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves: ArrayLike, level: float = 0.95) -> Sources:
+    """The sources with the model error's size calibrated on held-out rings (split-conformal in spirit).
+
+    orientations (m, 2), mean_curves (m, N): rings the model was not fitted on, measured off its
+    lattice. The scale s >= 0 of the model error's variance is the smallest with which `level` of
+    their mean-curve points lie inside the mean band (Gaussian bounds +-z sqrt(variance), z the
+    two-sided quantile of `level`, which the Monte Carlo band reproduces for these Gaussian
+    components); the shape over A and the harmonics stays the cross-validation's. Rings used here
+    must not be the rings a coverage is then measured on. With fewer than MIN_CALIBRATION_RINGS
+    rings a share of points says too little (one ring's 64 points move together): the sources are
+    returned as they are, the cross-validation's size, `calibration_rings` 0.
+    """
+    o = as_orientations(orientations)
+    if sources.error is None or len(o) < MIN_CALIBRATION_RINGS:
+        return sources
+    curves = np.asarray(mean_curves, dtype=float)
+    n = curves.shape[-1]
+    residual = np.abs(curves - sources.model.predict(o, n_points=n))
+    z = float(norm.ppf(0.5 + level / 2.0))
+
+    def covered(scale: float) -> float:
+        return float(np.mean(residual <= z * np.sqrt(mean_band_variance(sources, o, n, scale))))
+
+    low, high = 0.0, 1.0
+    if covered(low) >= level:
+        high = 0.0
+    else:
+        while covered(high) < level and high < MAX_SCALE:
+            low, high = high, high * 2.0
+        for _ in range(30):  # bisection to ~1e-9 of the bracket: the coverage is a step function of s
+            middle = 0.5 * (low + high)
+            low, high = (middle, high) if covered(middle) < level else (low, middle)
+    return replace(sources, error=sources.error.scaled(high, len(o)), _cache={})

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.bands import Sources, calibrate_model_error
 from ph_explorer.campaign import Campaign
 from ph_explorer.evaluation import evaluation_report, mean_mae
 from ph_explorer.io.files import file_sha256
@@ -49,14 +50,26 @@ def train_models(
 
 
 def model_errors(
-    campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, network_config: NetworkConfig | None = None
+    campaign: Campaign,
+    train: NDArray[np.bool_],
+    models: Mapping[str, DeviationModel],
+    seed: int = 0,
+    network_config: NetworkConfig | None = None,
 ) -> dict[str, OutOfSampleError]:
     """Each model's own error out of sample (models.model_error: the cross-validation of the training
-    rings), for the model uncertainty of its Monte Carlo bands; the network is retrained per fold."""
+    rings), for the model uncertainty of its Monte Carlo bands; the network is retrained per fold.
+    Its size is calibrated on the rings left out of training (bands.calibrate_model_error), with
+    `models` fitted on `train`; with none left out it stays the cross-validation's."""
     config = NetworkConfig.from_dict({**(network_config or NetworkConfig()).as_dict(), "seed": seed})
-    return {
+    errors = {
         "network": out_of_sample_error(partial(FourierNetwork, config), campaign, train),
         "trilinear": out_of_sample_error(TrilinearModel, campaign, train),
+    }
+    held = ~np.asarray(train, dtype=bool)
+    means = campaign.mean_curves()
+    return {
+        name: calibrate_model_error(Sources(models[name], campaign.n_repetitions, error), campaign.orientations[held], means[held]).error  # type: ignore[misc]
+        for name, error in errors.items()
     }
 
 

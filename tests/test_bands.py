@@ -162,3 +162,45 @@ def test_cross_validation_in_folds_never_fits_the_ring_it_predicts(twin):
     after = cross_val_predict(TrilinearModel, dataclasses.replace(campaign, deviations=deviations), train, folds=5, strict=True)
     assert np.allclose(after[ring], base[ring])  # the ring is never in its own fit
     assert not np.allclose(after, base)  # but it is in the fits that predict the others
+
+
+def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(twin, trilinear, tmp_path):
+    """calibrate_model_error: the smallest scale of the model error's variance with which `level` of the
+    held-out rings' mean-curve points lie in the (Gaussian) mean band; a band calibrated on some
+    held-out rings then covers the others; the scale survives the model folder's file."""
+    from ph_explorer.bands import calibrate_model_error, mean_band_variance
+    from ph_explorer.models.model_error import load_errors, save_errors
+
+    _, campaign = twin
+    model, error = trilinear
+    check = np.flatnonzero(campaign.holdout_mask())
+    sources = Sources(model, campaign.n_repetitions, error)
+    orientations, means = campaign.orientations[check], campaign.mean_curves()[check]
+    calibrated = calibrate_model_error(sources, orientations, means)
+    scale = calibrated.error.scale
+    assert calibrated.error.calibration_rings == len(check) and scale > 0 and error.scale == 1.0
+    residual = np.abs(means - model.predict(orientations, n_points=campaign.n_points))
+
+    def covered(s: float) -> float:
+        return float(np.mean(residual <= 1.959964 * np.sqrt(mean_band_variance(sources, orientations, campaign.n_points, s))))
+
+    assert covered(scale) >= 0.95 > covered(0.98 * scale)
+    # Rings whose error is twice as large need a larger scale (about four times, in variance).
+    doubled = calibrate_model_error(sources, orientations, model.predict(orientations, n_points=campaign.n_points) + 2 * (means - model.predict(orientations, n_points=campaign.n_points)))
+    assert doubled.error.scale > 2.5 * scale
+    # Too few rings say too little: the cross-validation's size is kept.
+    assert calibrate_model_error(sources, orientations[:4], means[:4]) is sources
+    # Calibrated on the first half of the check rings, the band covers the mean curves of the second.
+    half = len(check) // 2
+    first = calibrate_model_error(sources, orientations[:half], means[:half])
+    bands = model_bands(first, orientations[half:], rng=np.random.default_rng(9), ndig=1)
+    assert band_coverage(bands, campaign.deviations[check[half:]])["mean"] >= 0.85
+    # The model folder's file keeps the scale; a file written before it reads as not calibrated.
+    save_errors({"trilinear": calibrated.error}, tmp_path, campaign.n_repetitions)
+    loaded, _ = load_errors(tmp_path)
+    assert loaded["trilinear"].scale == scale and loaded["trilinear"].calibration_rings == len(check)
+    with np.load(tmp_path / "uncertainty.npz") as data:
+        old = {k: data[k] for k in data.files if not k.endswith((".scale", ".calibration_rings"))}
+    np.savez(tmp_path / "uncertainty.npz", **old)
+    loaded, _ = load_errors(tmp_path)
+    assert loaded["trilinear"].scale == 1.0 and loaded["trilinear"].calibration_rings == 0

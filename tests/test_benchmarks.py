@@ -137,7 +137,8 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     for models in coverage["campaigns"].values():
         assert set(models) == {"trilinear", "network", "hybrid"}
         for figures in models.values():
-            for band in ("full_band", "noise_only_band"):
+            assert figures["model_error_scale"]["calibration_rings"] >= 1 and figures["model_error_scale"]["min"] >= 0
+            for band in ("full_band", "noise_only_band", "cross_validation_only_band"):
                 assert set(figures[band]) == {"touch", "mean"} and all(0.0 <= v <= 1.0 for v in figures[band].values())
     task = coverage["task_paper_check_rings"]["trilinear"]
     assert task["of_rings"] == 4 and 0 <= task["ront_E_n_at_most_1"] <= 4 and len(task["rings"]) == 4

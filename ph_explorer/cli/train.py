@@ -52,8 +52,9 @@ def train_command(
         models, seconds = train_models(campaign, ~mask, seed, progress, config)
     card = build_card(campaign, Path(data), mask, source, seed, models, seconds)
     if not quiet:
-        print("estimating each model's out-of-sample error (5-fold cross-validation, the network retrained per fold)", file=sys.stderr)
-    errors = model_errors(campaign, ~mask, seed, config)
+        print("estimating each model's out-of-sample error (5-fold cross-validation, the network retrained per fold; "
+              "its size calibrated on the held-out rings)", file=sys.stderr)
+    errors = model_errors(campaign, ~mask, models, seed, config)
     save_models(models, Path(out), card, errors)
     if not quiet:
         net = card["network"]

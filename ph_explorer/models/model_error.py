@@ -18,6 +18,15 @@ effect acts through levers that are functions of A (sin A for a B-axis error, th
 A-axis error, gravity sin A), so a model's error changes with A; along B it repeats with periods
 the model cannot resolve, so pooling over B estimates the variance of what it misses.
 
+Off the lattice. A ring left out of the cross-validation is predicted from neighbours twice as far
+as an orientation between the lattice's nodes is, and an error the lattice aliases (a period of
+one lattice step) is the same at every node, invisible to any fold. Where the campaign has
+held-out check rings, measured off the lattice, the size of this estimate is calibrated on them
+(`bands.calibrate_model_error`): `scale` multiplies every variance, chosen so that the stated
+share of their mean-curve points falls inside the mean band; its shape in A and over the
+harmonics stays the cross-validation's. Without check rings `scale` is 1 and
+`calibration_rings` 0: the band is then not checked off the lattice.
+
 A draw of the error is a random-phase Gaussian curve with that variance per harmonic: at an
 orientation it has not measured, the model does not know the phase of its own error. Phase-locked
 draws would keep the pointwise shape but not the random sign; with the phase free, RONt and the
@@ -27,7 +36,7 @@ harmonics of a task see the right spread.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -86,6 +95,8 @@ class OutOfSampleError:
     orientations: NDArray[np.float64]  # (n_rings, 2) training orientations, deg
     power: NDArray[np.float64]  # (n_rings, N//2 + 1) um^2, noise removed (may be < 0 at one ring)
     width_deg: float  # the kernel's width in A (inf: pooled over every ring)
+    scale: float = 1.0  # the variance's calibration on held-out rings off the lattice (see the docstring)
+    calibration_rings: int = 0  # the held-out rings that calibrated `scale` (0: not calibrated)
 
     @property
     def n_points(self) -> int:
@@ -113,14 +124,24 @@ class OutOfSampleError:
 
     def variance(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, N//2 + 1) the model's error power per harmonic at each orientation, um^2, >= 0."""
-        return np.maximum(self.weights(orientations) @ self.power, 0.0)
+        return self.scale * np.maximum(self.weights(orientations) @ self.power, 0.0)
+
+    def scaled(self, scale: float, calibration_rings: int) -> "OutOfSampleError":
+        """The same error with its variance calibrated by `scale` on that many held-out rings."""
+        return replace(self, scale=float(scale), calibration_rings=int(calibration_rings))
 
     def draw(self, orientation: ArrayLike, n_trials: int, n_points: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """(n_trials, n_points) draws of the model's error curve at one orientation."""
         return random_phase_curves(self.variance(orientation)[0], n_trials, n_points, rng)
 
     def arrays(self, prefix: str) -> dict[str, NDArray[np.float64]]:
-        return {f"{prefix}.orientations": self.orientations, f"{prefix}.power": self.power, f"{prefix}.width_deg": np.array(self.width_deg)}
+        return {
+            f"{prefix}.orientations": self.orientations,
+            f"{prefix}.power": self.power,
+            f"{prefix}.width_deg": np.array(self.width_deg),
+            f"{prefix}.scale": np.array(self.scale),
+            f"{prefix}.calibration_rings": np.array(self.calibration_rings),
+        }
 
 
 def a_step(orientations: NDArray[np.float64]) -> float:
@@ -160,8 +181,15 @@ def save_errors(errors: Mapping[str, OutOfSampleError], directory: str | Path, n
 def load_errors(directory: str | Path) -> tuple[dict[str, OutOfSampleError], int]:
     """(name -> OutOfSampleError, repetitions of the training campaign) from directory/uncertainty.npz."""
     with np.load(Path(directory) / FILE_NAME, allow_pickle=False) as data:
+        # Files written before the calibration off the lattice have no scale: 1, not calibrated.
         errors = {
-            str(name): OutOfSampleError(data[f"{name}.orientations"], data[f"{name}.power"], float(data[f"{name}.width_deg"]))
+            str(name): OutOfSampleError(
+                data[f"{name}.orientations"],
+                data[f"{name}.power"],
+                float(data[f"{name}.width_deg"]),
+                float(data[f"{name}.scale"]) if f"{name}.scale" in data else 1.0,
+                int(data[f"{name}.calibration_rings"]) if f"{name}.calibration_rings" in data else 0,
+            )
             for name in data["models"]
         }
         return errors, int(data["n_repetitions"])
