@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.models.base import DeviationModel, as_orientations, draw_repetitions
-from ph_explorer.models.model_error import OutOfSampleError, random_phase_curves
+from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, random_phase_curves
 from ph_explorer.models.parameter_spread import ParameterSpread
 from ph_explorer.montecarlo import MAX_TRIALS, adaptive_monte_carlo
 from scipy.stats import norm
@@ -184,27 +184,56 @@ def band_coverage(bands: list[Band], deviations: ArrayLike, band: str = "touch")
     }
 
 
-def mean_band_variance(sources: Sources, orientations: ArrayLike, n_points: int, scale: float) -> NDArray[np.float64]:
-    """(m, N) per-point variance (um^2) of the mean band's draw with the model error's variance times `scale`.
+def band_variance(
+    sources: Sources,
+    orientations: ArrayLike,
+    n_points: int,
+    band: str = "touch",
+    components: tuple[str, ...] = COMPONENTS,
+    scale: float | None = None,
+) -> NDArray[np.float64]:
+    """(m, N) per-point variance (um^2) of a band's draw: "touch" (one touch) or "mean" (of R).
 
-    The components are Gaussian and independent, so the variances add: repeatability sigma^2 / R
-    (sigma is the post-fit spread), the model's random-phase curve sum_k max(scale P_k - Q_k, 0)
-    at every point (Q_k: the parameters' power, which the hybrid's cross-validated error holds),
-    and the parameters' per-point variance.
+    The components are Gaussian and independent, so the variances add: repeatability sigma^2
+    (sigma^2 / R for the mean; sigma is the post-fit spread), the model's random-phase curve
+    sum_k max(s P_k - Q_k, 0) at every point (s the error's scale, or `scale`; Q_k the parameters'
+    power, which the hybrid's cross-validated error holds), the parameters' per-point variance.
+    The Monte Carlo band's quantiles of these components are +-z sqrt(variance) (tested).
     """
     o = as_orientations(orientations)
     sigma = np.broadcast_to(np.asarray(sources.model.repetition_sigma(o, n_points=n_points), dtype=float), (len(o), n_points))
-    variance = sigma**2 / sources.n_repetitions
-    if sources.error is not None:
-        power = scale * np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, 2 : n_points // 2 + 1]
-        if sources.parameters is not None:
-            q = np.stack([sources.parameters.power(o[i : i + 1], n_points) for i in range(len(o))])[:, 2 : n_points // 2 + 1]
-            power = np.maximum(power - q, 0.0)
-        variance = variance + power.sum(axis=1, keepdims=True)
+    variance = np.zeros((len(o), n_points))
+    if "repeatability" in components:
+        variance += sigma**2 / (sources.n_repetitions if band == "mean" else 1)
+    roots = None
     if sources.parameters is not None:
         roots = np.stack([sources.parameters.root(o[i : i + 1], n_points) for i in range(len(o))])  # (m, N, q)
-        variance = variance + np.sum(roots**2, axis=2)
+    if sources.error is not None and "model" in components:
+        s = sources.error.scale if scale is None else scale
+        power = s * np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, 2 : n_points // 2 + 1]
+        if roots is not None:
+            power = np.maximum(power - harmonic_power(np.swapaxes(roots, 1, 2)).sum(axis=1)[:, 2 : n_points // 2 + 1], 0.0)
+        variance += power.sum(axis=1, keepdims=True)
+    if roots is not None and "parameters" in components:
+        variance += np.sum(roots**2, axis=2)
     return variance
+
+
+def gaussian_band(
+    sources: Sources,
+    orientation: ArrayLike,
+    level: float = 0.95,
+    n_points: int | None = None,
+    band: str = "touch",
+    components: tuple[str, ...] = COMPONENTS,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(lower, upper) over the points, um: the band of `orientation_band` without its Monte Carlo
+    (prediction +- z sqrt(band_variance)): instant, for the explorer's slider."""
+    o = as_orientations(orientation)[:1]
+    n = sources.model.n_points if n_points is None else int(n_points)
+    prediction = sources.model.predict(o, n_points=n)[0]
+    half = float(norm.ppf(0.5 + level / 2.0)) * np.sqrt(band_variance(sources, o, n, band, components)[0])
+    return prediction - half, prediction + half
 
 
 def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves: ArrayLike, level: float = 0.95) -> Sources:
@@ -228,7 +257,7 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     z = float(norm.ppf(0.5 + level / 2.0))
 
     def covered(scale: float) -> float:
-        return float(np.mean(residual <= z * np.sqrt(mean_band_variance(sources, o, n, scale))))
+        return float(np.mean(residual <= z * np.sqrt(band_variance(sources, o, n, "mean", scale=scale))))
 
     low, high = 0.0, 1.0
     if covered(low) >= level:

@@ -168,7 +168,7 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     """calibrate_model_error: the smallest scale of the model error's variance with which `level` of the
     held-out rings' mean-curve points lie in the (Gaussian) mean band; a band calibrated on some
     held-out rings then covers the others; the scale survives the model folder's file."""
-    from ph_explorer.bands import calibrate_model_error, mean_band_variance
+    from ph_explorer.bands import band_variance, calibrate_model_error
     from ph_explorer.models.model_error import load_errors, save_errors
 
     _, campaign = twin
@@ -182,7 +182,7 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     residual = np.abs(means - model.predict(orientations, n_points=campaign.n_points))
 
     def covered(s: float) -> float:
-        return float(np.mean(residual <= 1.959964 * np.sqrt(mean_band_variance(sources, orientations, campaign.n_points, s))))
+        return float(np.mean(residual <= 1.959964 * np.sqrt(band_variance(sources, orientations, campaign.n_points, "mean", scale=s))))
 
     assert covered(scale) >= 0.95 > covered(0.98 * scale)
     # Rings whose error is twice as large need a larger scale (about four times, in variance).
@@ -204,3 +204,41 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     np.savez(tmp_path / "uncertainty.npz", **old)
     loaded, _ = load_errors(tmp_path)
     assert loaded["trilinear"].scale == 1.0 and loaded["trilinear"].calibration_rings == 0
+
+
+def test_the_gaussian_band_is_the_monte_carlo_band_without_its_trials(twin, trilinear):
+    """The explorer's instant band (prediction +- z sqrt(variance)) against the adaptive Monte Carlo's,
+    for the trilinear model with its error and for a hybrid with its parameters: within a few
+    hundredths of a um on every point (the Monte Carlo's own tolerance at ndig 2 is ~0.005 um)."""
+    from ph_explorer.bands import gaussian_band
+
+    scenario, campaign = twin
+    model, error = trilinear
+    train = ~campaign.holdout_mask()
+    hybrid = HybridModel([e for e in scenario.starting_effects if e.candidate], "trilinear").fit(campaign.subset(train))
+    for sources in (Sources(model, campaign.n_repetitions, error.scaled(1.7, 12)),
+                    Sources(hybrid, campaign.n_repetitions, None, parameter_spread(hybrid, campaign.subset(train)))):
+        mc = orientation_band(sources, (52.0, 10.0), rng=np.random.default_rng(5), ndig=2)
+        for band in ("touch", "mean"):
+            low, high = gaussian_band(sources, (52.0, 10.0), band=band)
+            assert np.max(np.abs(low - mc.lower[band])) < 0.03 and np.max(np.abs(high - mc.upper[band])) < 0.03, band
+        low, high = gaussian_band(sources, (52.0, 10.0), components=("repeatability",))
+        assert np.max(np.abs(high - mc.upper["repeatability"])) < 0.03
+
+
+def test_the_explorers_band_holds_the_model_error_and_can_leave_it_out(twin):
+    """The explorer's dataset: the trilinear model's error is estimated on first use (cross-validated,
+    calibrated on the held-out rings); its band is wider with it than the noise-only band; a
+    replaced model loses the old model's error."""
+    from ph_explorer.app.dataset import dataset_for
+
+    _, campaign = twin
+    dataset = dataset_for(campaign, "twin", None)
+    assert dataset.errors == {}
+    low, high = dataset.band("trilinear", 52.0, 10.0)
+    noise_low, noise_high = dataset.band("trilinear", 52.0, 10.0, with_model_error=False)
+    error = dataset.errors["trilinear"]
+    assert error.calibration_rings == len(CHECKS) and error.scale > 0
+    assert np.all(high - low > noise_high - noise_low)
+    refit = dataset.with_model("trilinear", TrilinearModel().fit(campaign, dataset.train_mask))
+    assert "trilinear" not in refit.errors and dataset.with_figures({}).errors["trilinear"] is error

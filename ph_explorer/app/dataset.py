@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
+from ph_explorer.bands import Sources, calibrate_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
 from ph_explorer.evaluation import holdout_from_card, orientation_tables
@@ -27,6 +28,7 @@ from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import load_card, load_models
+from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors, out_of_sample_error
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
 from ph_explorer.polar import deviation_bounds
@@ -72,6 +74,9 @@ class Dataset:
     label: str
     notes: list[str] = field(default_factory=list)
     train_mask: NDArray[np.bool_] | None = None
+    # Each model's out-of-sample error (the model folder's uncertainty.npz); the trilinear model's is
+    # estimated on first use when the folder has none. A model without one has no model component.
+    errors: dict[str, OutOfSampleError] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.train_mask is None:
@@ -117,7 +122,9 @@ class Dataset:
         return copy
 
     def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
-        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask)
+        # A replaced model's error was of the old model: kept only for the same object.
+        errors = {n: e for n, e in self.errors.items() if n in models and models[n] is self.models.get(n)}
+        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask, errors)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
                 copy.add_figure(extra, self._figures[extra])
@@ -168,13 +175,27 @@ class Dataset:
             "mae_um": {},
         }
 
-    def monte_carlo_band(
-        self, model: str, a_deg: float, b_deg: float, n_draws: int = 200, coverage: float = 0.95, seed: int = 0
-    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Pointwise band (low, high) in um of the model's simulated measurements (its Monte Carlo)."""
-        sims = self.models[model].simulate([[a_deg, b_deg]], n_repetitions=n_draws, rng=np.random.default_rng(seed))[0]
-        tail = 50.0 * (1.0 - coverage)
-        return np.percentile(sims, tail, axis=0), np.percentile(sims, 100.0 - tail, axis=0)
+    def model_error(self, model: str) -> OutOfSampleError | None:
+        """The model's out-of-sample error: from its folder, or (trilinear) by the cross-validation of
+        the training rings calibrated on the held-out ones, made on first use; else None."""
+        with self._lock:
+            if model in self.errors:
+                return self.errors[model]
+        if model != "trilinear" or int(self.train_mask.sum()) < 2 * FOLDS:
+            return None
+        error = out_of_sample_error(TrilinearModel, self.campaign, self.train_mask)
+        held = ~self.train_mask
+        sources = Sources(self.models[model], self.campaign.n_repetitions, error)
+        error = calibrate_model_error(sources, self.campaign.orientations[held], self.mean_curves[held]).error  # type: ignore[assignment]
+        with self._lock:
+            return self.errors.setdefault(model, error)
+
+    def band(self, model: str, a_deg: float, b_deg: float, with_model_error: bool = True, level: float = 0.95) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The model's band for one touch (lower, upper) in um: repeatability and, when asked and known,
+        the model's own error (bands.gaussian_band: the Monte Carlo's bounds without its trials)."""
+        error = self.model_error(model) if with_model_error else None
+        sources = Sources(self.models[model], self.campaign.n_repetitions, error)
+        return gaussian_band(sources, (a_deg, b_deg), level, n_points=self.campaign.n_points)
 
     # -- over all orientations (the error map and field) -----------------------------------------
     def figure_names(self) -> list[str]:
@@ -252,16 +273,19 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     notes = list(notes or [])
     models: dict[str, DeviationModel] = {}
     train = ~campaign.holdout_mask()
+    errors: dict[str, OutOfSampleError] = {}
     if model_dir is not None:
         models = dict(load_models(Path(model_dir)))
         train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
         notes.append(f"models from {model_dir}")
+        if (Path(model_dir) / ERRORS_FILE).is_file():
+            errors = {name: error for name, error in load_errors(Path(model_dir))[0].items() if name in models}
     if "trilinear" not in models and train.any():
         models["trilinear"] = TrilinearModel().fit(campaign, train)
         notes.append("trilinear tables fitted at start-up on the training rings")
     if "network" not in models:
         notes.append("no trained network for this campaign (ph-explorer train makes one)")
-    return Dataset(campaign, models, label, notes, train)
+    return Dataset(campaign, models, label, notes, train, errors)
 
 
 def read_uploaded_campaign(name: str, content: bytes, geometry: Mapping[str, float] | None = None) -> Campaign:

@@ -213,7 +213,7 @@ class Session:
         view = ds.view(a, b)
         shown = self.controls.shown()
         band_model = self.controls.band.value
-        band = (band_model, *ds.monte_carlo_band(band_model, a, b)) if band_model in ds.models else None
+        band = (band_model, *ds.band(band_model, a, b)) if band_model in ds.models else None
         if view.measured:
             title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"
         else:
