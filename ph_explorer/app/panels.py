@@ -165,6 +165,30 @@ def polar_chart(
     return polar_svg(scale, series, title, drawn_band)
 
 
+# At 1440x900 the polar plot (square, its legend under it) and the map (400 x 318 in its viewBox)
+# fill a 400 px column one above the other; the controls take 400 px at the right, the 3D scene the rest.
+FIGURES_WIDTH_PX = 400.0
+CONTROLS_WIDTH_PX = 400.0
+
+
+class FiguresPanel:
+    """The flat polar plot and the error map, one above the other, in a panel docked at the left
+    edge: in view whatever tab the controls show (the map's own choices are on the Map tab)."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.panel = gui.add_panel()
+        with self.panel.add_tab("Polar plot, errors over A×B"):
+            self.polar = PolarPanel(gui)
+            self.map_plot = gui.add_html("")
+        # This browser's placement: the figures at the left, the controls docked at the right (the
+        # server docks them for every browser; docking here again keeps them there once a panel
+        # joins the left edge).
+        self.panel.dock_left()
+        gui.main_panel.dock_right()
+        self.panel.set_width(FIGURES_WIDTH_PX)
+        gui.main_panel.set_width(CONTROLS_WIDTH_PX)
+
+
 class TablesPanel:
     """The paper's Tables 1-3 for the current orientation (markdown)."""
 

@@ -81,7 +81,8 @@ class ExplorerApp:
         dataset.view(*INITIAL_ORIENTATION)
         dataset.figure(dataset.figure_names()[0])
         self.server = viser.ViserServer(host=host, port=port, label="ph-explorer", verbose=verbose)
-        self.server.gui.configure_theme(control_layout="fixed", control_width="large", show_share_button=False, show_logo=False)
+        self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
+        self.server.gui.main_panel.dock_right()  # viser 1.1: control_layout="fixed" is deprecated for this
         self.server.scene.set_up_direction("+z")
         camera = self.server.initial_camera
         position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry.axial_distance_mm)
