@@ -114,6 +114,130 @@ def failing_figures(label: str) -> tuple[float, float, float, float, float]:
     return tuple(float(g) for g in found.groups())  # type: ignore[return-value]
 
 
+def teach(page, session, shots: Path) -> None:
+    """The loop, step by step, as a teacher goes through it (see the module docstring)."""
+    # The software-WebGL notice is about this machine (no GPU), not the app.
+    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
+    figures_drawn(page, "A15 B-20")
+
+    # 1. Load the hidden-effect scenario: Data tab, Scenario, by their labels; its progress ends.
+    page.get_by_role("tab", name="Data").click()
+    in_view(page.get_by_label("Scenario"), "Scenario")
+    page.get_by_label("Scenario").click()
+    page.get_by_role("option", name=SCENARIO).click()
+    assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
+    session.wait(timeout=300)
+    page.get_by_text(f"scenario {SCENARIO}", exact=False).first.wait_for(timeout=30_000)
+    bars = page.get_by_role("progressbar")  # the load's progress, under the orientation: gone when done
+    assert wait_for(lambda: not any(bars.nth(i).is_visible() for i in range(bars.count())), timeout=60)
+    in_view(page.get_by_text(f"scenario {SCENARIO}", exact=False).first, "the data loaded")
+    figures_drawn(page)
+    step_shot(page, shots, "loop_1_loaded")
+
+    # 2. Diagnose (Physics tab): the verdict, the found effect's checkbox, and the diagnosis's
+    # results: the signature plot and the fit with its uncertainty and identifiability.
+    page.get_by_role("tab", name="Physics").click()
+    diagnose = page.get_by_role("button", name="Diagnose", exact=True)
+    in_view(diagnose, "Diagnose")
+    diagnose.click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
+    session.wait(timeout=300)
+    result = session.loop.diagnosis
+    found = [c.effect for c in result.found]
+    assert found, "the diagnosis found no effect"
+    in_view(page.get_by_text("Verdict:", exact=False).first, "verdict")
+    in_view(page.get_by_label(found[0], exact=True), f"checkbox {found[0]}")
+    chart_drawn(page, "signature plot", found[0])
+    fit = page.get_by_text("fitted ± U (k = 2)", exact=False).first
+    in_view(fit, "the fit's table")
+    best = result.found[0]
+    for name, value in best.params.items():
+        if best.params_u.get(name):  # a fitted parameter, shown with its uncertainty
+            assert f"{value:.3g}" in session.physics.fit.content, (name, value)
+    in_view(page.get_by_text("identifiable" if not best.confounded_with else "confounded", exact=False).first, "identifiability")
+    figures_drawn(page)
+    step_shot(page, shots, "loop_2_diagnosed")
+
+    # 3. Where it fails, on the Map tab: the map shows each ring's error over its floor, and the
+    # failing rings are listed worst first, each with its error and floor, every button in view.
+    page.get_by_role("tab", name="Map", exact=True).click()
+    page.get_by_label("Map of").click()
+    page.get_by_role("option", name="diagnosis: out-of-sample MAE / its floor").click()
+    assert wait_for(lambda: "out-of-sample MAE / its floor" in session.map_panel.plot.content, timeout=60)
+    failing = result.failing_rings()
+    in_view(page.get_by_text(f"{len(failing)} rings exceed their noise", exact=True), "where it fails")
+    buttons = [button.label for button in session.map_panel.failing_buttons]
+    assert len(buttons) == min(len(failing), 10)
+    assert buttons, "no failing ring listed"
+    figures = [failing_figures(label) for label in buttons]
+    ratios = [f[4] for f in figures]
+    assert ratios == sorted(ratios, reverse=True), ratios  # worst first
+    assert all(mae > floor for _, _, mae, floor, _ in figures)
+    for label in buttons:
+        in_view(page.get_by_role("button", name=label), f"failing ring {label}")
+    time.sleep(1.0)
+    figures_drawn(page)
+    error_map = page.locator('svg[aria-label^="error map"]').first
+    assert "out-of-sample MAE / its floor" in (error_map.get_attribute("aria-label") or "")
+    step_shot(page, shots, "loop_3_where_it_fails")
+
+    # 4. One click on the worst ring: both sliders move there, the polar plot shows that ring.
+    a_target, b_target = figures[0][0], figures[0][1]
+    renders = session.render_count
+    page.get_by_role("button", name=buttons[0]).click()
+    assert wait_for(lambda: session.orientation == (a_target, b_target), timeout=60), (session.orientation, a_target, b_target)
+    assert wait_for(lambda: session.render_count > renders, timeout=60)
+    for label, value in (("A (deg)", a_target), ("B (deg)", b_target)):
+        slider = page.get_by_role("slider", name=label)
+        in_view(slider, label)
+        assert wait_for(lambda: slider.get_attribute("aria-valuenow") == f"{value:g}", timeout=30), (label, slider.get_attribute("aria-valuenow"))
+    time.sleep(1.0)
+    figures_drawn(page, f"A{a_target:g} B{b_target:g}")
+    step_shot(page, shots, "loop_4_at_the_worst_ring")
+
+    # 5. Tick the found effect by its label, Refit: the error shown falls.
+    page.get_by_role("tab", name="Physics").click()
+    box = page.get_by_label(found[0], exact=True)
+    in_view(box, f"checkbox {found[0]}")
+    box.check()
+    assert wait_for(lambda: session.physics.effects[found[0]].value, timeout=60)
+    refit = page.get_by_role("button", name="Refit the hybrid")
+    in_view(refit, "Refit")
+    steps = len(session.loop.steps)
+    refit.click()
+    assert wait_for(lambda: len(session.loop.steps) > steps and "hybrid" in session.dataset.models, timeout=900)
+    session.wait(timeout=300)
+    fall = page.get_by_text("Check-ring MAE:", exact=False).first
+    in_view(fall, "the error fall")
+    before, after, ratio = fall_figures(fall.inner_text())
+    print(f"the error fell: {before:.3f} -> {after:.3f} um, {ratio:.2f}x its floor")
+    assert after < before
+    first, last = session.loop.steps[0], session.loop.steps[-1]
+    assert (before, after) == (round(first.mae_um["mean"], 3), round(last.mae_um["mean"], 3))
+    in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
+    # The polar plot at the failing ring now draws the hybrid beside the measured mean.
+    assert "hybrid" in session.polar.plot.content
+    figures_drawn(page, f"A{a_target:g} B{b_target:g}")
+    step_shot(page, shots, "loop_5_refitted")
+
+    # 6. Reveal: the truth beside what was found, the fall and the history still in view.
+    reveal = page.get_by_role("button", name="Reveal the hidden effect")
+    in_view(reveal, "Reveal")
+    reveal.click()
+    assert wait_for(lambda: "truth:" in session.physics.revealed.content, timeout=60)
+    time.sleep(1.0)
+    in_view(page.get_by_text("Hidden:", exact=False).first, "Reveal's result")
+    in_view(page.get_by_text("truth:", exact=False).first, "the truth")
+    in_view(page.get_by_text("diagnosis (significant", exact=False).first, "what was found")
+    in_view(page.get_by_text("last refit:", exact=False).first, "the last refit")
+    in_view(fall, "the error fall")
+    in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
+    hidden = [e["id"] for e in session.dataset.campaign.scenario["effects"] if e.get("hidden")]
+    assert any(f"`{effect_id}`" in session.physics.revealed.content for effect_id in hidden)
+    figures_drawn(page)
+    step_shot(page, shots, "loop_6_revealed")
+
+
 def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
     from playwright.sync_api import sync_playwright
 
@@ -133,123 +257,11 @@ def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
             page.goto(app.url)
             session = app.session(timeout=60)
             assert wait_for(lambda: session.render_count >= 1)
-            # The software-WebGL notice is about this machine (no GPU), not the app.
-            page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
-            figures_drawn(page, "A15 B-20")
-
-            # 1. Load the hidden-effect scenario: Data tab, Scenario, by their labels; its progress ends.
-            page.get_by_role("tab", name="Data").click()
-            in_view(page.get_by_label("Scenario"), "Scenario")
-            page.get_by_label("Scenario").click()
-            page.get_by_role("option", name=SCENARIO).click()
-            assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
-            session.wait(timeout=300)
-            page.get_by_text(f"scenario {SCENARIO}", exact=False).first.wait_for(timeout=30_000)
-            assert page.get_by_role("progressbar").count() == 0 or not page.get_by_role("progressbar").first.is_visible()
-            in_view(page.get_by_text(f"scenario {SCENARIO}", exact=False).first, "the data loaded")
-            figures_drawn(page)
-            step_shot(page, shots, "loop_1_loaded")
-
-            # 2. Diagnose (Physics tab): the verdict, the found effect's checkbox, and the diagnosis's
-            # results: the signature plot and the fit with its uncertainty and identifiability.
-            page.get_by_role("tab", name="Physics").click()
-            diagnose = page.get_by_role("button", name="Diagnose", exact=True)
-            in_view(diagnose, "Diagnose")
-            diagnose.click()
-            assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
-            session.wait(timeout=300)
-            result = session.loop.diagnosis
-            found = [c.effect for c in result.found]
-            assert found, "the diagnosis found no effect"
-            in_view(page.get_by_text("Verdict:", exact=False).first, "verdict")
-            in_view(page.get_by_label(found[0], exact=True), f"checkbox {found[0]}")
-            chart_drawn(page, "signature plot", found[0])
-            fit = page.get_by_text("fitted ± U (k = 2)", exact=False).first
-            in_view(fit, "the fit's table")
-            best = result.found[0]
-            for name, value in best.params.items():
-                if best.params_u.get(name):  # a fitted parameter, shown with its uncertainty
-                    assert f"{value:.3g}" in session.physics.fit.content, (name, value)
-            in_view(page.get_by_text("identifiable" if not best.confounded_with else "confounded", exact=False).first, "identifiability")
-            figures_drawn(page)
-            step_shot(page, shots, "loop_2_diagnosed")
-
-            # 3. Where it fails, on the Map tab: the map shows each ring's error over its floor, and the
-            # failing rings are listed worst first, each with its error and floor, every button in view.
-            page.get_by_role("tab", name="Map", exact=True).click()
-            page.get_by_label("Map of").click()
-            page.get_by_role("option", name="diagnosis: out-of-sample MAE / its floor").click()
-            assert wait_for(lambda: "out-of-sample MAE / its floor" in session.map_panel.plot.content, timeout=60)
-            in_view(page.get_by_text("rings exceed their noise", exact=False).first, "where it fails")
-            buttons = [button.label for button in session.map_panel.failing_buttons]
-            assert buttons, "no failing ring listed"
-            figures = [failing_figures(label) for label in buttons]
-            ratios = [f[4] for f in figures]
-            assert ratios == sorted(ratios, reverse=True), ratios  # worst first
-            assert all(mae > floor for _, _, mae, floor, _ in figures)
-            for label in buttons:
-                in_view(page.get_by_role("button", name=label), f"failing ring {label}")
-            time.sleep(1.0)
-            figures_drawn(page)
-            error_map = page.locator('svg[aria-label^="error map"]').first
-            assert "out-of-sample MAE / its floor" in (error_map.get_attribute("aria-label") or "")
-            step_shot(page, shots, "loop_3_where_it_fails")
-
-            # 4. One click on the worst ring: both sliders move there, the polar plot shows that ring.
-            a_target, b_target = figures[0][0], figures[0][1]
-            renders = session.render_count
-            page.get_by_role("button", name=buttons[0]).click()
-            assert wait_for(lambda: session.orientation == (a_target, b_target), timeout=60), (session.orientation, a_target, b_target)
-            assert wait_for(lambda: session.render_count > renders, timeout=60)
-            for label, value in (("A (deg)", a_target), ("B (deg)", b_target)):
-                slider = page.get_by_role("slider", name=label)
-                in_view(slider, label)
-                assert wait_for(lambda: slider.get_attribute("aria-valuenow") == f"{value:g}", timeout=30), (label, slider.get_attribute("aria-valuenow"))
-            time.sleep(1.0)
-            figures_drawn(page, f"A{a_target:g} B{b_target:g}")
-            step_shot(page, shots, "loop_4_at_the_worst_ring")
-
-            # 5. Tick the found effect by its label, Refit: the error shown falls.
-            page.get_by_role("tab", name="Physics").click()
-            box = page.get_by_label(found[0], exact=True)
-            in_view(box, f"checkbox {found[0]}")
-            box.check()
-            assert wait_for(lambda: session.physics.effects[found[0]].value, timeout=60)
-            refit = page.get_by_role("button", name="Refit the hybrid")
-            in_view(refit, "Refit")
-            steps = len(session.loop.steps)
-            refit.click()
-            assert wait_for(lambda: len(session.loop.steps) > steps and "hybrid" in session.dataset.models, timeout=900)
-            session.wait(timeout=300)
-            fall = page.get_by_text("Check-ring MAE:", exact=False).first
-            in_view(fall, "the error fall")
-            before, after, ratio = fall_figures(fall.inner_text())
-            print(f"the error fell: {before:.3f} -> {after:.3f} um, {ratio:.2f}x its floor")
-            assert after < before
-            first, last = session.loop.steps[0], session.loop.steps[-1]
-            assert (before, after) == (round(first.mae_um["mean"], 3), round(last.mae_um["mean"], 3))
-            in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
-            # The polar plot at the failing ring now draws the hybrid beside the measured mean.
-            assert "hybrid" in session.polar.plot.content
-            figures_drawn(page, f"A{a_target:g} B{b_target:g}")
-            step_shot(page, shots, "loop_5_refitted")
-
-            # 6. Reveal: the truth beside what was found, the fall and the history still in view.
-            reveal = page.get_by_role("button", name="Reveal the hidden effect")
-            in_view(reveal, "Reveal")
-            reveal.click()
-            assert wait_for(lambda: "truth:" in session.physics.revealed.content, timeout=60)
-            time.sleep(1.0)
-            in_view(page.get_by_text("Hidden in this scenario", exact=False).first, "Reveal's result")
-            in_view(page.get_by_text("truth:", exact=False).first, "the truth")
-            in_view(page.get_by_text("diagnosis (significant", exact=False).first, "what was found")
-            in_view(page.get_by_text("last refit:", exact=False).first, "the last refit")
-            in_view(fall, "the error fall")
-            in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
-            hidden = [e["id"] for e in session.dataset.campaign.scenario["effects"] if e.get("hidden")]
-            assert any(f"`{effect_id}`" in session.physics.revealed.content for effect_id in hidden)
-            figures_drawn(page)
-            step_shot(page, shots, "loop_6_revealed")
+            try:
+                teach(page, session, shots)
+            except Exception:  # the page as it stood, for whoever reads the failure
+                page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / "ph_explorer_loop_failed.png"))
+                raise
             assert not [e for e in errors if "TypeError" in e], errors
             browser.close()
     finally:

@@ -177,7 +177,7 @@ class FiguresPanel:
 
     def __init__(self, gui: viser.GuiApi) -> None:
         self.panel = gui.add_panel()
-        with self.panel.add_tab("Polar plot, errors over A×B"):
+        with self.panel.add_tab("Polar plot, A×B errors"):
             self.polar = PolarPanel(gui)
             self.map_plot = gui.add_html("")
         # This browser's placement: the figures at the left, the controls docked at the right (the

@@ -53,6 +53,8 @@ def evidence_svg(evidence: dict, title: str) -> str:
     residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
     width, height, left, right, top, bottom = 400.0, 166.0, 46.0, 10.0, 22.0, 126.0
     x_low, x_high = float(x.min()), float(x.max())
+    x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
+    x_low, x_high = x_low - x_pad, x_high + x_pad
     values = np.concatenate([residual[np.isfinite(residual)], fitted[np.isfinite(fitted)], [0.0]])
     y_low, y_high = float(values.min()), float(values.max())
     pad = 0.08 * (y_high - y_low if y_high > y_low else 1.0)  # dots off the frame
@@ -217,7 +219,7 @@ class PhysicsPanel:
             (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
             HISTORY_SERIES,
             title="Check-ring MAE (um) per step, dashed: noise floor",
-            aspect=3.6,
+            aspect=4.6,
             scales={"x": {"time": False, "range": [-0.5, 0.5]}},
             axes=({"size": 24}, {"size": 48}),  # no axis titles: the chart's title says step and um
             legend={"live": False},  # the series' names, not "step: --" until hovered
@@ -229,9 +231,10 @@ class PhysicsPanel:
         # unexplained), the fitted parameters with their uncertainties and identifiability.
         with gui.add_folder("Diagnosis: signature, fit, identifiability", visible=False) as self.results_folder:
             self.fit = gui.add_html("")
+            # The plot before its chooser: in view right after Diagnose at 1440x900 (its title names it).
+            self.evidence = gui.add_html("")
             self.evidence_of = gui.add_dropdown("Signature of", (NO_CHOICE,), hint="what is left unexplained, or a candidate's residual and fitted term")
             self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
-            self.evidence = gui.add_html("")
             self.evidence_text = gui.add_markdown("")
         # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
         self.other_folder = gui.add_folder("Effects in the hybrid (all)", expand_by_default=False)
@@ -303,7 +306,8 @@ class PhysicsPanel:
         headline, lines = verdict_text(result, self.catalog)
         # The verdict in short (what was found, what to do); the tests' figures, the teaching text
         # (shown once, here) and the four verdicts under "More".
-        short = [line for line in lines if line.startswith(("Found:", "Resumed with"))]
+        # The found effects' parameters +- U are in the results' table just below: not repeated here.
+        short = [line for line in lines if line.startswith("Resumed with")]
         self.nested = result.nested  # the honest "after", shown with the error history
         self.verdict.content = "\n\n".join([f"**{headline}**", *short])
         self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
