@@ -46,7 +46,9 @@ class ControlsPanel:
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the map's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
-            self.status = gui.add_markdown("")
+            # Where the sliders stand and what is there, hidden: the polar plot's title in the figures
+            # panel says the same, and the loop's Physics tab needs the line's height at 1440x900.
+            self.status = gui.add_markdown("", visible=False)
             # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
             self.busy_text = gui.add_markdown("", visible=False)
             self.busy = gui.add_progress_bar(0.0, visible=False)

@@ -354,7 +354,9 @@ class PhysicsPanel:
             self.history_table.content = self.fall.content = ""
             return
         self.history.data = history_data(steps)
-        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
+        # From zero: the fall is read against the whole error, not against a zoomed-in difference.
+        top = 1.15 * max(float(np.nanmax(series)) for series in self.history.data[1:])
+        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}, "y": {"range": [0.0, top]}}
         self.history.axes = ({"size": 24, "splits": tuple(float(k) for k in range(len(steps)))}, {"size": 48})
         # One step is one point: the fall line says it; the chart (and its room) waits for a refit.
         self.history.visible = len(steps) > 1
