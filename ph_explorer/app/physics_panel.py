@@ -51,7 +51,7 @@ def evidence_svg(evidence: dict, title: str) -> str:
     round ticks on both axes (orientation_map.nice_ticks), the units in the axis titles."""
     x = np.asarray(evidence["x"], dtype=float)
     residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
-    width, height, left, right, top, bottom = 400.0, 166.0, 46.0, 10.0, 22.0, 126.0
+    width, height, left, right, top, bottom = 400.0, 176.0, 46.0, 10.0, 22.0, 126.0
     x_low, x_high = float(x.min()), float(x.max())
     x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
     x_low, x_high = x_low - x_pad, x_high + x_pad
@@ -92,7 +92,7 @@ def evidence_svg(evidence: dict, title: str) -> str:
     line = " L".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x[order]), sy(fitted[order])) if np.isfinite(b))
     parts.append(f'<path d="M{line}" fill="none" stroke="{FITTED_COLOR}" stroke-width="2"/>')
     parts += [f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.6" fill="{RESIDUAL_COLOR}"/>' for a, b in zip(sx(x), sy(residual)) if np.isfinite(b)]
-    legend_y = height - 6
+    legend_y = height - 5  # under the x axis title, clear of it
     parts.append(
         f'<circle cx="{left + 4}" cy="{legend_y - 3.5}" r="2.6" fill="{RESIDUAL_COLOR}"/>'
         f'<text x="{left + 11}" y="{legend_y}" font-size="10">out-of-sample residual, binned</text>'
