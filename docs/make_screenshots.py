@@ -1,8 +1,11 @@
 """Screenshots of the explorer for the README (run: python docs/make_screenshots.py [OUT_DIR]).
 
 The server runs in this process on a free port; Debian's chromium (driven by Playwright) is the
-browser. 1) the default start (shipped paper campaign, model/paper); 2) the teaching loop on the
-head_3 scenario: Diagnose, tick the top candidate, Refit, through that browser's Session.
+browser, at 1440x900 (the screen the teaching loop is laid out for). 1) the default start (shipped
+paper campaign, model/paper); 2) the teaching loop on the head_3 scenario: Diagnose, tick the
+effect found, Refit, go to the ring that failed worst; the Physics tab with the error fall, the
+figures panel with that ring's polar plot and the map of each ring's error over its floor.
+tests/test_browser_loop.py takes the same loop step by step by labels (docs/loop_*.png).
 """
 
 from __future__ import annotations
@@ -31,10 +34,10 @@ def main(out: Path) -> None:
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page = browser.new_page(viewport={"width": 1440, "height": 900})
             page.goto(app.url)
             session = app.session(timeout=60)
-            page.get_by_text("Tables 1-3").first.wait_for(timeout=60_000)
+            page.locator('svg[aria-label^="error map"]').first.wait_for(timeout=60_000)
             time.sleep(3.0)
             dismiss_notices(page)
             time.sleep(1.0)
@@ -43,14 +46,15 @@ def main(out: Path) -> None:
             session.wait(timeout=300)
             session.submit(session.loop.diagnose)  # what the Diagnose button runs
             session.wait(timeout=600)
-            best = session.loop.diagnosis.candidates[0].effect
-            session.physics.effects[best].value = True
+            found = session.loop.diagnosis.found[0].effect
+            session.physics.effects[found].value = True
             session.submit(session.loop.refit)  # what the Refit button runs
             session.wait(timeout=600)
-            session.go_to(43.0, 90.0)
-            page.get_by_text("Curves", exact=True).first.click()  # fold the curve switches away
+            session.map_panel.figure.value = "diagnosis: out-of-sample MAE / its floor"
+            session.wait(timeout=120)
+            worst = session.loop.diagnosis.failing_rings()[0]
+            session.go_to(worst.a_deg, worst.b_deg)  # what its button under "Where it fails" does
             page.get_by_role("tab", name="Physics").click()
-            page.get_by_text("Last step:").first.scroll_into_view_if_needed()
             time.sleep(3.0)
             dismiss_notices(page)
             time.sleep(1.0)

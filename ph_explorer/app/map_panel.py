@@ -1,5 +1,6 @@
-"""The Map tab of one browser: the error map over orientations (an SVG drawn by the core), a ring
-picker that goes there, the rings that fail (a button each), and the 3D field's switch.
+"""The Map tab of one browser: which figure the error map over orientations shows (the map itself, an
+SVG drawn by the core, sits in the figures panel beside the controls), the rings that fail (a
+button each), a ring picker that goes there, and the 3D field's switch.
 
 viser's HTML element reports no click inside it, so a ring is reached by the "Go to ring"
 dropdown (every ring, largest value first) or by a failing ring's button. The panel formats what
@@ -30,12 +31,12 @@ def failing_label(ring: FailingRing) -> str:
 class MapPanel:
     """Which figure the map shows, the map, a ring picker, where it fails, and the 3D field's switch."""
 
-    def __init__(self, gui: viser.GuiApi, names: Sequence[str], go_to: Callable[[float, float], None]) -> None:
+    def __init__(self, gui: viser.GuiApi, names: Sequence[str], go_to: Callable[[float, float], None], plot: viser.GuiHtmlHandle) -> None:
         self.gui = gui
         self._go_to = go_to
         self.figure = gui.add_dropdown("Map of", tuple(names), hint="a value per measured ring: roundness, a model's out-of-sample error, its ratio to the floor, the diagnosis's verdict")
-        self.plot = gui.add_html("")
-        # Where it fails right under the map (above the fold at 1440x900), then the map's note and picker.
+        self.plot = plot  # the map itself, drawn in the figures panel (always in view)
+        # Where it fails right under the map's choice (all ten buttons above the fold at 1440x900), then the map's note and picker.
         with gui.add_folder("Where it fails") as self.failing_folder:
             self.failing_text = gui.add_markdown("")
         self.note = gui.add_markdown("")

@@ -46,7 +46,9 @@ class ControlsPanel:
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the map's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
-            self.status = gui.add_markdown("")
+            # Where the sliders stand and what is there, hidden: the polar plot's title in the figures
+            # panel says the same, and the loop's Physics tab needs the line's height at 1440x900.
+            self.status = gui.add_markdown("", visible=False)
             # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
             self.busy_text = gui.add_markdown("", visible=False)
             self.busy = gui.add_progress_bar(0.0, visible=False)
@@ -163,6 +165,30 @@ def polar_chart(
             series.append(PolarSeries(LEGEND_LABELS.get(name, name), view.curves[name], hex_color(curve_color(name)), 2.5 if name == "measured" else 2.0))
     drawn_band = (band[0], band[1], band[2], hex_color(BAND_COLORS.get(band[0], (200, 200, 200)))) if band is not None else None
     return polar_svg(scale, series, title, drawn_band)
+
+
+# At 1440x900 the polar plot (square, its legend under it) and the map (400 x 318 in its viewBox)
+# fill a 400 px column one above the other; the controls take 400 px at the right, the 3D scene the rest.
+FIGURES_WIDTH_PX = 400.0
+CONTROLS_WIDTH_PX = 400.0
+
+
+class FiguresPanel:
+    """The flat polar plot and the error map, one above the other, in a panel docked at the left
+    edge: in view whatever tab the controls show (the map's own choices are on the Map tab)."""
+
+    def __init__(self, gui: viser.GuiApi) -> None:
+        self.panel = gui.add_panel()
+        with self.panel.add_tab("Polar plot, A×B errors"):
+            self.polar = PolarPanel(gui)
+            self.map_plot = gui.add_html("")
+        # This browser's placement: the figures at the left, the controls docked at the right (the
+        # server docks them for every browser; docking here again keeps them there once a panel
+        # joins the left edge).
+        self.panel.dock_left()
+        gui.main_panel.dock_right()
+        self.panel.set_width(FIGURES_WIDTH_PX)
+        gui.main_panel.set_width(CONTROLS_WIDTH_PX)
 
 
 class TablesPanel:

@@ -192,22 +192,24 @@ class PhysicsLoop:
             return
         found = {c.effect: c for c in reversed(self.diagnosis.candidates)} if self.diagnosis is not None else {}
         refitted = {p["effect"]: p["params"] for step in self.steps for p in step.params}
-        lines = ["**Hidden in this scenario**, next to what you found:"]
+        lines = []
         for entry in hidden or [{"id": i} for i in scenario["hidden"]]:
             effect_id = str(entry["id"])
             cls = self.catalog.get(effect_id)
             truth = {k: float(v) for k, v in entry.items() if k not in ("id", "hidden")}
             text = cls.parameters_text if cls is not None else (lambda p, u=None: ", ".join(f"{k} {v:g}" for k, v in p.items()))
-            lines.append(f"- **{cls.name if cls is not None else effect_id}** (`{effect_id}`)")
-            lines.append(f"  - truth: {text(truth) if truth else 'parameters not recorded'}")
+            # The truth, then what the diagnosis and the last refit found, flat under each hidden
+            # effect's name (nested lists lose a line's width at 1440x900).
+            lines.append(f"\n**Hidden: {cls.name if cls is not None else effect_id}** (`{effect_id}`)\n")
+            lines.append(f"- truth: {text(truth) if truth else 'parameters not recorded'}")
             candidate = found.get(effect_id)
             if candidate is None:
-                lines.append("  - diagnosis: " + ("not diagnosed yet" if self.diagnosis is None else "not among the candidates"))
+                lines.append("- diagnosis: " + ("not diagnosed yet" if self.diagnosis is None else "not among the candidates"))
             else:
                 verdict = "significant" if candidate.significant else "not significant"
-                lines.append(f"  - diagnosis ({verdict}, ± k = 2): {text(candidate.params, candidate.params_u)}")
+                lines.append(f"- diagnosis ({verdict}, ± k = 2): {text(candidate.params, candidate.params_u)}")
             if effect_id in refitted:
-                lines.append(f"  - last refit: {text(refitted[effect_id])}")
+                lines.append(f"- last refit: {text(refitted[effect_id])}")
             if cls is not None and (candidate is None or not candidate.significant):
-                lines.append(f"  - _{cls.teaching}_")  # else the verdict's "More" already teaches it
+                lines.append(f"- _{cls.teaching}_")  # else the verdict's "More" already teaches it
         self.panel.revealed.content = "\n".join(lines)

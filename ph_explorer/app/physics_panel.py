@@ -15,7 +15,9 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
+from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
+from ph_explorer.orientation_map import nice_ticks
 
 # Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
 HISTORY_SERIES = (
@@ -25,11 +27,8 @@ HISTORY_SERIES = (
     {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
     {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
 )
-EVIDENCE_SERIES = (
-    {"label": "x"},
-    {"label": "out-of-sample residual", "stroke": "#444444", "width": 0, "points": {"show": True, "size": 5, "fill": "#444444"}},
-    {"label": "candidate, fitted", "stroke": "#d62728", "width": 2, "points": {"show": False}},
-)
+# The signature chart: the binned out-of-sample residual as dots, the fitted term as a line.
+RESIDUAL_COLOR, FITTED_COLOR = "#444444", "#d62728"
 
 
 def step_label(step: Step) -> str:
@@ -44,6 +43,100 @@ def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
         return np.array([float(getattr(s, attr)[reference]) for s in steps])
 
     return (x, per_step("mae_um", "mean"), per_step("noise_floor_um", "mean"), per_step("mae_um", "single"), per_step("noise_floor_um", "single"))
+
+
+def evidence_svg(evidence: dict, title: str) -> str:
+    """A signature plot as a flat SVG chart, like the polar plot and the map: the binned out-of-sample
+    residual (dots) and the fitted term (line) against the variable the evidence is read against,
+    round ticks on both axes (orientation_map.nice_ticks), the units in the axis titles."""
+    x = np.asarray(evidence["x"], dtype=float)
+    residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
+    width, height, left, right, top, bottom = 400.0, 176.0, 46.0, 10.0, 22.0, 126.0
+    x_low, x_high = float(x.min()), float(x.max())
+    x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
+    x_low, x_high = x_low - x_pad, x_high + x_pad
+    values = np.concatenate([residual[np.isfinite(residual)], fitted[np.isfinite(fitted)], [0.0]])
+    y_low, y_high = float(values.min()), float(values.max())
+    pad = 0.08 * (y_high - y_low if y_high > y_low else 1.0)  # dots off the frame
+    y_low, y_high = y_low - pad, y_high + pad
+    x_span = x_high - x_low if x_high > x_low else 1.0
+
+    def sx(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        return left + (np.asarray(v, dtype=float) - x_low) / x_span * (width - left - right)
+
+    def sy(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        return bottom - (np.asarray(v, dtype=float) - y_low) / (y_high - y_low) * (bottom - top)
+
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
+        f'aria-label="signature plot {title}" style="font-family:sans-serif;background:#fff">',
+        f'<text x="2" y="14" font-size="11.5" font-weight="600">{title}</text>',
+        f'<rect x="{left}" y="{top}" width="{width - left - right}" height="{bottom - top}" fill="#fafafa" stroke="#888"/>',
+    ]
+    for t in nice_ticks(x_low, x_high):
+        parts.append(
+            f'<line x1="{sx(t):.1f}" y1="{top}" x2="{sx(t):.1f}" y2="{bottom}" stroke="#e2e2e2"/>'
+            f'<text x="{sx(t):.1f}" y="{bottom + 12}" font-size="10" text-anchor="middle">{t:g}</text>'
+        )
+    for t in nice_ticks(y_low, y_high, 4):
+        parts.append(
+            f'<line x1="{left}" y1="{sy(t):.1f}" x2="{width - right}" y2="{sy(t):.1f}" stroke="{"#999" if t == 0 else "#e2e2e2"}"/>'
+            f'<text x="{left - 4}" y="{sy(t) + 3.5:.1f}" font-size="10" text-anchor="end">{t:g}</text>'
+        )
+    parts.append(f'<text x="{(left + width - right) / 2:.1f}" y="{bottom + 26}" font-size="10.5" text-anchor="middle">{evidence["x_label"]}</text>')
+    parts.append(
+        f'<text x="10" y="{(top + bottom) / 2:.1f}" font-size="10.5" text-anchor="middle" '
+        f'transform="rotate(-90 10 {(top + bottom) / 2:.1f})">{evidence["y_label"]}</text>'
+    )
+    order = np.argsort(x, kind="stable")
+    line = " L".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x[order]), sy(fitted[order])) if np.isfinite(b))
+    parts.append(f'<path d="M{line}" fill="none" stroke="{FITTED_COLOR}" stroke-width="2"/>')
+    parts += [f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.6" fill="{RESIDUAL_COLOR}"/>' for a, b in zip(sx(x), sy(residual)) if np.isfinite(b)]
+    legend_y = height - 5  # under the x axis title, clear of it
+    parts.append(
+        f'<circle cx="{left + 4}" cy="{legend_y - 3.5}" r="2.6" fill="{RESIDUAL_COLOR}"/>'
+        f'<text x="{left + 11}" y="{legend_y}" font-size="10">out-of-sample residual, binned</text>'
+        f'<line x1="{left + 190}" y1="{legend_y - 3.5}" x2="{left + 206}" y2="{legend_y - 3.5}" stroke="{FITTED_COLOR}" stroke-width="2"/>'
+        f'<text x="{left + 210}" y="{legend_y}" font-size="10">the term, fitted</text>'
+    )
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
+    """The effects the diagnosis found (else those beyond noise): parameters +- U (k = 2, jackknife
+    over orientations) and identifiability: the other candidates each shares its variance with on
+    this campaign (above search.CONFOUNDED the two cannot be told apart), and what is left."""
+    shown = list(result.found) or [c for c in result.candidates if c.beyond_noise or c.significant][:limit]
+    cell = "padding:2px 4px;vertical-align:top;"
+    rows = []
+    for c in shown:
+        if c.confounded_with:
+            shared = "; ".join(f"{100 * o['shared']:.0f} % with {o['effect']}" for o in c.confounded_with[:3])
+            ident = f'<span style="color:#b35900">confounded: shares {shared}</span>'
+        else:
+            ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"
+        rows.append(
+            f'<tr style="border-bottom:1px solid #eee"><td style="{cell}font-weight:600;overflow-wrap:anywhere">{c.effect}</td>'
+            f'<td style="{cell}">{catalog[c.effect].parameters_text(c.params, c.params_u)}<div style="color:#555">{ident}</div></td></tr>'
+        )
+    if not rows:
+        rows.append(f'<tr><td style="{cell}" colspan="2">No effect explains more than noise would.</td></tr>')
+    left = [signature_text(entry) for entry in result.signature if entry["significant"]]
+    if left:
+        rest = "; ".join(left[:3])
+        leftover = f"<b>Left unexplained</b> (share of the residual, its noise share): {rest}."
+    elif result.verdict in ("missing", "none"):
+        leftover = "<b>Left unexplained:</b> nothing above noise" + (" once the found effects are in." if result.found else ".")
+    else:
+        leftover = "<b>Left unexplained:</b> beyond noise, with no pattern in the head's variables."
+    return (
+        '<table style="width:96%;border-collapse:collapse;font-size:0.75em;line-height:1.3em;table-layout:fixed">'
+        '<colgroup><col style="width:30%"><col style="width:70%"></colgroup>'
+        f'<tr style="border-bottom:1px solid #bbb;text-align:left"><th style="{cell}">effect</th><th style="{cell}">fitted &plusmn; U (k = 2); identifiability</th></tr>'
+        + "".join(rows)
+        + f'</table><div style="font-size:0.75em;line-height:1.3em;margin-top:3px;width:96%">{leftover}</div>'
+    )
 
 
 def verdicts_markdown(verdict: str) -> str:
@@ -121,38 +214,36 @@ class PhysicsPanel:
         self.refit_progress = gui.add_progress_bar(0.0, visible=False)
         self.refit_status = gui.add_markdown("")
         self.fall = gui.add_markdown("")
-        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
-        self.revealed = gui.add_markdown("")
+        # The history right under the fall, above Reveal: still in view once the truth is shown.
         self.history = gui.add_uplot(
             (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
             HISTORY_SERIES,
             title="Check-ring MAE (um) per step, dashed: noise floor",
-            aspect=3.0,
+            aspect=4.6,
             scales={"x": {"time": False, "range": [-0.5, 0.5]}},
             axes=({"size": 24}, {"size": 48}),  # no axis titles: the chart's title says step and um
             legend={"live": False},  # the series' names, not "step: --" until hovered
             visible=False,
         )
+        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
+        self.revealed = gui.add_markdown("")
+        # The diagnosis's results (issue 15 item 6): a signature plot (a candidate's, or what is left
+        # unexplained), the fitted parameters with their uncertainties and identifiability.
+        with gui.add_folder("Diagnosis: signature, fit, identifiability", visible=False) as self.results_folder:
+            self.fit = gui.add_html("")
+            # The plot before its chooser: in view right after Diagnose at 1440x900 (its title names it).
+            self.evidence = gui.add_html("")
+            self.evidence_of = gui.add_dropdown("Signature of", (NO_CHOICE,), hint="what is left unexplained, or a candidate's residual and fitted term")
+            self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
+            self.evidence_text = gui.add_markdown("")
         # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
         self.other_folder = gui.add_folder("Effects in the hybrid (all)", expand_by_default=False)
         self.effects: dict[str, viser.GuiCheckboxHandle] = {}
         self._place_effects(set())
-        with gui.add_folder("More: candidates, tests, evidence, history", expand_by_default=False):
+        with gui.add_folder("More: candidates, tests, history", expand_by_default=False):
             self.summary = gui.add_markdown("")
             self.candidates = gui.add_html("")
             self.verdict_more = gui.add_markdown("")
-            self.evidence_of = gui.add_dropdown("Evidence of", (NO_CHOICE,), visible=False, hint="a candidate's residual and fitted terms, or what is left")
-            self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
-            self.evidence = gui.add_uplot(
-                (np.array([0.0, 1.0]), np.zeros(2), np.zeros(2)),
-                EVIDENCE_SERIES,
-                title="Evidence",
-                aspect=1.6,
-                scales={"x": {"time": False}},
-                axes=({"label": "x"}, {"label": "um"}),
-                visible=False,
-            )
-            self.evidence_text = gui.add_markdown("")
             self.history_table = gui.add_markdown("")
         self.save_study = gui.add_button(
             "Save study", visible=study, hint="write this run (the model refitted last, the history, the verdict) to the server's study file"
@@ -179,9 +270,9 @@ class PhysicsPanel:
         self.nested = None
         for handle in (self.status, self.refit_status, self.summary, self.verdict, self.verdict_more, self.fall, self.evidence_text, self.history_table, self.revealed, self.study_status):
             handle.content = ""
-        self.candidates.content = ""
+        self.candidates.content = self.evidence.content = self.fit.content = ""
         self.progress.visible = self.refit_progress.visible = False
-        self.evidence.visible = self.evidence_of.visible = self.history.visible = False
+        self.results_folder.visible = self.history.visible = False
         self.evidence_of.options = (NO_CHOICE,)
         self.evidence_items = {}
         for box in self.effects.values():
@@ -215,13 +306,14 @@ class PhysicsPanel:
         headline, lines = verdict_text(result, self.catalog)
         # The verdict in short (what was found, what to do); the tests' figures, the teaching text
         # (shown once, here) and the four verdicts under "More".
-        short = [line for line in lines if line.startswith(("Found:", "Resumed with"))]
+        # The found effects' parameters +- U are in the results' table just below: not repeated here.
+        short = [line for line in lines if line.startswith("Resumed with")]
         self.nested = result.nested  # the honest "after", shown with the error history
         self.verdict.content = "\n\n".join([f"**{headline}**", *short])
         self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
         self._place_effects({c.effect for c in result.found})
-        # Each candidate's evidence, then what is left (the signature), by the label shown in the dropdown.
-        self.evidence_items = {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
+        # What is left (the signature) first, then each candidate's evidence, by the label shown in the dropdown.
+        self.evidence_items = {}
         for entry in result.signature:
             if entry["significant"] and entry["evidence"].get("x"):
                 label = "left: " + signature_text(entry)
@@ -230,32 +322,29 @@ class PhysicsPanel:
                     f"against {entry['evidence']['x_label']}, and this term fitted to it. Write an effect with this signature "
                     "(README, 'Your own effect') and diagnose again with it."
                 )
-                self.evidence_items[label] = (label, caption, entry["evidence"])
+                self.evidence_items[label] = (f"left: {entry['variable']} {entry['kind']}", caption, entry["evidence"])
+        self.evidence_items |= {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
         options = tuple(self.evidence_items)
         self.evidence_of.options = options or (NO_CHOICE,)
         self.evidence_of.visible = bool(options)
+        self.fit.content = fit_html(result, self.catalog)
+        self.results_folder.visible = True
 
     def _candidate_caption(self, candidate: Candidate) -> str:
+        # Short: its parameters +- U are in the table under the plot.
         ev = candidate.evidence
         return (
-            f"**{candidate.name}** ({candidate.status}): "
-            f"{self.catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}. "
-            f"The plot: every touch's residual with this term put back, and the term, both after the circle "
-            f"fit, binned against {ev['x_label']}; the curve reaches {ev['fitted_peak']:.3g} "
-            f"({ev['y_label']}), the circle fit having removed part of the term the parameters describe."
+            f"_**{candidate.name}** ({candidate.status}): every touch's residual with this term put back, and the term, "
+            f"after the circle fit, binned against {ev['x_label']}; the curve reaches {ev['fitted_peak']:.3g} ({ev['y_label']})._"
         )
 
     def show_evidence(self, label: str) -> None:
         """The evidence plot and its caption for a dropdown entry (a candidate, or what is left)."""
         title, caption, ev = self.evidence_items.get(label, ("", "", {}))
         if not ev.get("x"):
-            self.evidence.visible = False
-            self.evidence_text.content = ""
+            self.evidence.content = self.evidence_text.content = ""
             return
-        self.evidence.title = f"{title}: residual and fit, {ev['y_label']}"
-        self.evidence.axes = ({"label": ev["x_label"]}, {"label": ev["y_label"]})
-        self.evidence.data = (np.asarray(ev["x"], float), np.asarray(ev["residual"], float), np.asarray(ev["fitted"], float))
-        self.evidence.visible = True
+        self.evidence.content = evidence_svg(ev, f"{title}: residual and fit")
         self.evidence_text.content = caption
 
     def show_history(self, steps: Sequence[Step]) -> None:
@@ -265,9 +354,12 @@ class PhysicsPanel:
             self.history_table.content = self.fall.content = ""
             return
         self.history.data = history_data(steps)
-        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}}
+        # From zero: the fall is read against the whole error, not against a zoomed-in difference.
+        top = 1.15 * max(float(np.nanmax(series)) for series in self.history.data[1:])
+        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}, "y": {"range": [0.0, top]}}
         self.history.axes = ({"size": 24, "splits": tuple(float(k) for k in range(len(steps)))}, {"size": 48})
-        self.history.visible = True
+        # One step is one point: the fall line says it; the chart (and its room) waits for a refit.
+        self.history.visible = len(steps) > 1
         lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]
         for k, s in enumerate(steps):
             lines.append(

@@ -27,7 +27,7 @@ from ph_explorer.app.panels import (
     ChartsPanel,
     ControlsPanel,
     DataPanel,
-    PolarPanel,
+    FiguresPanel,
     TablesPanel,
     orientation_label,
 )
@@ -96,17 +96,19 @@ class Session:
             self.field = ErrorField(scene)
             self.field.on_pick(self.go_to)
             self.controls = ControlsPanel(gui, a0, b0, dataset.a_range)
+            # The flat polar plot and the error map in their own panel, always in view beside the
+            # controls (issue 15: a teacher reads both at every step of the loop, nothing scrolled).
+            self.figures = FiguresPanel(gui)
+            self.polar = self.figures.polar
             tabs = gui.add_tab_group()
-            with tabs.add_tab("Polar plot"):
-                self.polar = PolarPanel(gui)
+            with tabs.add_tab("Physics"):
+                self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
+            with tabs.add_tab("Map"):
+                self.map_panel = MapPanel(gui, dataset.figure_names(), self.go_to, self.figures.map_plot)
             with tabs.add_tab("Tables 1-3"):
                 self.tables = TablesPanel(gui)
             with tabs.add_tab("Charts"):
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
-            with tabs.add_tab("Physics"):
-                self.physics = PhysicsPanel(gui, self.catalog, study=shared.study is not None)
-            with tabs.add_tab("Map"):
-                self.map_panel = MapPanel(gui, dataset.figure_names(), self.go_to)
             with tabs.add_tab("Data"):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
