@@ -279,6 +279,35 @@ def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:
     assert not s.ring.band.visible
 
 
+def test_the_band_shows_what_the_model_uncertainty_adds_and_table_1_the_tasks_ront(browser) -> None:
+    """Issue 17, item 5: the band with and without the model's own error; RONt +- U of one
+    measurement beside Table 1, computed once the sliders rest (… meanwhile)."""
+    s = browser
+    s.go_to(43.0, 90.0)  # a check ring: measured, held out of training
+    s.controls.band.value = "trilinear"
+
+    def band_width() -> float:
+        vertices = np.asarray(s.ring.band.vertices, dtype=float)
+        n = vertices.shape[0] // 2
+        return float(np.mean(np.linalg.norm(vertices[n:, :2], axis=1) - np.linalg.norm(vertices[:n, :2], axis=1)))
+
+    with_error = band_width()
+    s.controls.band_model_error.value = False
+    without = band_width()
+    assert 0 < without < with_error
+    s.controls.band_model_error.value = True
+    assert band_width() == pytest.approx(with_error)
+    row = lambda: next(l for l in s.tables.markdown.content.splitlines() if l.startswith("| RONt, 1 meas."))
+    assert wait_for(lambda: "…" not in row(), timeout=120), row()
+    cells = [c.strip() for c in row().strip("|").split("|")[1:]]
+    assert len(cells) == 1 + len(s.dataset.model_names)  # measured and every model
+    for cell in cells:
+        value, u = (float(x) for x in cell.split("±"))
+        assert value > 0 and u > 0
+    s.tables.task.value = False
+    assert "RONt, 1 meas." not in s.tables.markdown.content
+
+
 def test_thirty_browsers_at_once_each_keep_their_own_state(app: ExplorerApp) -> None:
     before = set(app.sessions)
     browsers = [FakeBrowser(app.port) for _ in range(30)]

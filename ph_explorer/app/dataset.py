@@ -32,6 +32,7 @@ from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutO
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
 from ph_explorer.polar import deviation_bounds
+from ph_explorer.task import COVERAGE_FACTOR, measured_task, task_uncertainty
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
 # The map's own figures (a model's are named after it); the first is where the map starts.
@@ -82,6 +83,7 @@ class Dataset:
         if self.train_mask is None:
             self.train_mask = ~self.campaign.holdout_mask()
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
+        self._tasks: OrderedDict[tuple, dict[str, float]] = OrderedDict()
         self._figures: dict[str, MapFigure] = {}
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
@@ -196,6 +198,34 @@ class Dataset:
         error = self.model_error(model) if with_model_error else None
         sources = Sources(self.models[model], self.campaign.n_repetitions, error)
         return gaussian_band(sources, (a_deg, b_deg), level, n_points=self.campaign.n_points)
+
+    def task(self, model: str, a_deg: float, b_deg: float) -> dict[str, float]:
+        """RONt of one measurement of N touches at (A, B) by the model's Monte Carlo (task.task_uncertainty,
+        every component of its band, a fixed seed so an orientation always shows the same figure):
+        value, U (k = 2) and the 95 % interval, um; cached (a second or so per model)."""
+        key = (model, *_view_key(a_deg, b_deg))
+        with self._lock:
+            if key in self._tasks:
+                return self._tasks[key]
+        sources = Sources(self.models[model], self.campaign.n_repetitions, self.model_error(model))
+        ront = task_uncertainty(sources, (a_deg, b_deg), self.campaign.n_points, rng=np.random.default_rng(0), ndig=1)["ront_um"]
+        with self._lock:
+            self._tasks[key] = ront
+            while len(self._tasks) > VIEW_CACHE:
+                self._tasks.popitem(last=False)
+        return ront
+
+    def cached_task(self, model: str, a_deg: float, b_deg: float) -> dict[str, float] | None:
+        """The task's RONt if `task` computed it already, else None (the render thread never waits)."""
+        with self._lock:
+            return self._tasks.get((model, *_view_key(a_deg, b_deg)))
+
+    def measured_task(self, index: int) -> dict[str, float]:
+        """The measured RONt of one measurement at a measured ring: the mean over its repetitions and
+        U = 2 s (k = 2, s their spread: what one more measurement would scatter by)."""
+        single = measured_task(self.campaign.deviations[index : index + 1])["single"][0, :, 0]
+        spread = float(np.std(single, ddof=1)) if single.size > 1 else float("nan")
+        return {"value": float(np.mean(single)), "U": COVERAGE_FACTOR * spread}
 
     # -- over all orientations (the error map and field) -----------------------------------------
     def figure_names(self) -> list[str]:

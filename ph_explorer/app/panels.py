@@ -66,7 +66,12 @@ class ControlsPanel:
                 )
             }
             self.repetitions = gui.add_checkbox("Each repetition (faint)", False)
-            self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % of simulated measurements of a model")
+            self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % of one touch's deviation by a model's Monte Carlo")
+            self.band_model_error = gui.add_checkbox(
+                "Band: model uncertainty",
+                initial_value=True,
+                hint="With the model's own error (cross-validated, calibrated on the check rings); untick: the repeatability alone",
+            )
             self.legend = gui.add_html("")
             self.follow = gui.add_checkbox("Camera follows the ring", True, hint="each move puts the ring in front of you")
             self.view_ring = gui.add_button_group("View", ("ring + head", "along the axis", "whole field"))
@@ -195,13 +200,22 @@ class TablesPanel:
     """The paper's Tables 1-3 for the current orientation (markdown)."""
 
     def __init__(self, gui: viser.GuiApi) -> None:
+        self.task = gui.add_checkbox(
+            "RONt +- U of one measurement",
+            initial_value=True,
+            hint="Each model's Monte Carlo of one N-touch measurement here (its band's components), computed once the sliders rest",
+        )
         self.markdown = gui.add_markdown("")
 
     def update(self, view: OrientationView, dataset: Dataset) -> None:
-        self.markdown.content = tables_markdown(view, dataset)
+        self.markdown.content = tables_markdown(view, dataset, bool(self.task.value))
 
 
-def tables_markdown(view: OrientationView, dataset: Dataset) -> str:
+def task_cell(task: Mapping[str, float] | None) -> str:
+    return "…" if task is None else f"{task['value']:.3f} ± {task['U']:.3f}"
+
+
+def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = False) -> str:
     t = view.tables
     names = ["measured", *dataset.model_names] if view.measured else list(dataset.model_names)
     heading = orientation_label(view.a_deg, view.b_deg)
@@ -217,6 +231,15 @@ def tables_markdown(view: OrientationView, dataset: Dataset) -> str:
     lines += ["Table 1 — range, Table 2 — max |deviation|", "", header, rule]
     lines.append("| range | " + " | ".join(_fmt(t["range_um"].get(n)) for n in names) + " |")
     lines.append("| max abs | " + " | ".join(_fmt(t["max_abs_um"].get(n)) for n in names) + " |")
+    if with_task:
+        # Beside Table 1: the range of one measurement as a distribution (issue 17, the task's RONt).
+        tasks = {n: dataset.cached_task(n, view.a_deg, view.b_deg) for n in dataset.model_names}
+        if view.measured:
+            tasks["measured"] = dataset.measured_task(view.measured_index)
+        lines.append("| RONt, 1 meas. ± U | " + " | ".join(task_cell(tasks.get(n)) for n in names) + " |")
+        lines += ["", "_RONt ± U (k = 2) of one measurement of "
+                  f"{dataset.campaign.n_points} touches: measured, the mean of the repetitions and twice their spread; a model, its "
+                  "Monte Carlo with every component of its band (… while it computes)._"]
     lines.append("")
     if t["mae_um"]:
         models = list(t["mae_um"])

@@ -63,6 +63,9 @@ class Shared:
     study: StudyFile | None = None  # the operator's study (serve --study), continued by every browser
 
 
+TASK_SETTLE_S = 0.5  # the sliders at rest this long: compute the task's RONt (a second or so per model)
+
+
 def wrap_b(b_deg: float) -> float:
     """B into [-180, 180), keeping 180 as written (both ends of the slider)."""
     return 180.0 if b_deg == 180.0 else float(wrap_deg(b_deg))
@@ -86,6 +89,12 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
+        # The task's RONt is computed once the sliders rest (TASK_SETTLE_S), on the worker: one timer at a time.
+        self._task_wanted: tuple[float, float, float] | None = None  # (A, B, since when)
+        self._task_timer: threading.Timer | None = None
+        self._task_lock = threading.Lock()
+        # Its own thread, so that a diagnosis does not hold it back, bounded by shared.heavy with the rest.
+        self._task_jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-task-{client.client_id}")
 
         scene, gui = client.scene, client.gui
         geometry = dataset.campaign.geometry
@@ -120,7 +129,7 @@ class Session:
     # -- wiring: GUI events -> calls, nothing else ---------------------------------------------------
     def _wire(self) -> None:
         c, p, data = self.controls, self.physics, self.data_panel
-        for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, *c.show.values()):
+        for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, c.band_model_error, self.tables.task, *c.show.values()):
             handle.on_update(self._control_changed)
         c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
         c.view_ring.on_click(lambda event: self.look(event.target.value))
@@ -215,7 +224,7 @@ class Session:
         view = ds.view(a, b)
         shown = self.controls.shown()
         band_model = self.controls.band.value
-        band = (band_model, *ds.band(band_model, a, b)) if band_model in ds.models else None
+        band = (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value))) if band_model in ds.models else None
         if view.measured:
             title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"
         else:
@@ -240,6 +249,53 @@ class Session:
             if c.follow.value and moved and self._camera_view != "whole field":
                 self.look(self._camera_view)
         self.view = view
+        self._want_task(a, b)
+
+    # -- the task's RONt, once the sliders rest ------------------------------------------------------------
+    def _want_task(self, a: float, b: float) -> None:
+        """Ask for the task's RONt here unless it is known; computed when A and B have rested TASK_SETTLE_S."""
+        ds = self.dataset
+        if not self.tables.task.value or all(ds.cached_task(m, a, b) is not None for m in ds.model_names):
+            return
+        with self._task_lock:
+            self._task_wanted = (a, b, time.monotonic())
+            if self._task_timer is None:
+                self._start_task_timer(TASK_SETTLE_S)
+
+    def _start_task_timer(self, delay: float) -> None:
+        """Under _task_lock."""
+        self._task_timer = threading.Timer(delay, self._task_rested)
+        self._task_timer.daemon = True
+        self._task_timer.start()
+
+    def _task_rested(self) -> None:
+        with self._task_lock:
+            self._task_timer = None
+            if self._task_wanted is None:
+                return
+            a, b, since = self._task_wanted
+            waited = time.monotonic() - since
+            if waited < TASK_SETTLE_S:  # moved again meanwhile: wait out the rest
+                self._start_task_timer(TASK_SETTLE_S - waited)
+                return
+            self._task_wanted = None
+        try:
+            self._task_jobs.submit(self._compute_task, a, b)
+        except RuntimeError:  # the session closed meanwhile (its worker is shut down)
+            pass
+
+    def _compute_task(self, a: float, b: float) -> None:
+        if self.orientation != (a, b):
+            return  # gone elsewhere: that orientation asks for itself
+        ds = self.dataset
+        try:
+            with self.shared.heavy:
+                for model in ds.model_names:
+                    ds.task(model, a, b)
+        except Exception as error:  # the tables say it; the server log keeps the rest
+            self.data_panel.show_info(f"**Error** — RONt of one measurement: {type(error).__name__}: {' '.join(str(error).split())}")
+            raise
+        self.shared.renders.request(self.render_state)
 
     # -- data ----------------------------------------------------------------------------------------
     def set_dataset(self, dataset: Dataset) -> None:
@@ -369,5 +425,10 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
+        with self._task_lock:
+            if self._task_timer is not None:
+                self._task_timer.cancel()
+            self._task_wanted = None
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)
+        self._task_jobs.shutdown(wait=False, cancel_futures=True)
