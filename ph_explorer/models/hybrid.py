@@ -23,6 +23,7 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -31,7 +32,7 @@ from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import design
 from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
-from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
 from ph_explorer.models.design import Design
 from ph_explorer.models.folder import MODEL_TYPES
 
@@ -231,6 +232,60 @@ class HybridModel(DeviationModel):
         model.widths_ = list(record["widths"])
         model.ridge_ = float(record["ridge"])
         return model
+
+
+# Rings up to which the term selection leaves one ring out at a time; beyond, CARRIED_FOLDS groups
+# (each hybrid fit refits its smoother, O(rings) lattice fits: leave-one-out on 123 rings costs minutes).
+CARRIED_LEAVE_ONE_OUT_MAX = 30
+CARRIED_FOLDS = 10
+
+
+def cross_validated_mae(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+) -> float:
+    """Out-of-sample MAE (um, against the repetition mean) over the training rings of a hybrid with
+    these effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
+    strict: neither its physical terms nor its data part see the ring)."""
+    rings = int(train.sum())
+    folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
+    predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
+    return metrics.mae(predicted[train], campaign.deviations[train])["mean"]
+
+
+def carried_effects(
+    campaign: Campaign, effects: Sequence[Effect], data_model: str = "trilinear", train: ArrayLike | None = None
+) -> tuple[list[Effect], list[dict[str, Any]]]:
+    """The effects the data can carry: backward elimination on the hybrid's own cross-validated error.
+
+    With few rings, physical terms that alias one another (two cyclic orders seen at two B values)
+    or that the data part already learns cost more in variance than they remove in bias; the
+    data part alone (no effect) is always among the choices, so the hybrid chosen is never
+    worse out of sample, by this measure, than its own data part. Starting from every effect,
+    the one whose removal lowers the cross-validated error most is removed, while any removal
+    does not raise it. Returns the effects kept (in their given order) and the path: [{"effects":
+    [ids], "cv_mae_um"}, ...] of every set tried.
+    """
+    mask = training_mask(campaign, train)
+    kept = list(effects)
+    path: list[dict[str, Any]] = []
+
+    def score(chosen: list[Effect]) -> float:
+        value = cross_validated_mae(chosen, campaign, mask, data_model)
+        path.append({"effects": [e.id for e in chosen], "cv_mae_um": round(value, 5)})
+        return value
+
+    current = score(kept)
+    while kept:
+        trials = [(score(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
+        best, index = min(trials)
+        if best > current:
+            break
+        current = best
+        kept = kept[:index] + kept[index + 1 :]
+    # Elimination stops at a local minimum: the data part alone is compared with it too.
+    if kept and len(kept) < len(effects) and score([]) <= current:
+        kept = []
+    return kept, path
 
 
 def make_data_model(data_model: DataModel) -> DeviationModel:
