@@ -130,7 +130,9 @@ def ring_information(
     for effect in effects:
         unmet = effect.unmet_needs(touches)
         if unmet:
-            skipped.append(f"{effect_label(effect)}: {'; '.join(unmet)}")
+            reason = f"{effect.id}: {'; '.join(unmet)}"
+            if reason not in skipped:  # once per effect, not per scanned setting
+                skipped.append(reason)
             continue
         columns, _ = fitted_basis(effect, touches)
         if columns.shape[-1]:
