@@ -240,16 +240,33 @@ CARRIED_LEAVE_ONE_OUT_MAX = 30
 CARRIED_FOLDS = 10
 
 
-def cross_validated_mae(
+def cross_validated_errors(
     effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
-) -> float:
-    """Out-of-sample MAE (um, against the repetition mean) over the training rings of a hybrid with
-    these effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
+) -> NDArray[np.float64]:
+    """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with these
+    effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
     strict: neither its physical terms nor its data part see the ring)."""
     rings = int(train.sum())
     folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
     predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
-    return metrics.mae(predicted[train], campaign.deviations[train])["mean"]
+    return metrics.ring_mae(predicted[train], campaign.deviations[train])["mean"]
+
+
+def cross_validated_mae(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+) -> float:
+    """The mean of cross_validated_errors over the training rings."""
+    return float(cross_validated_errors(effects, campaign, train, data_model).mean())
+
+
+def _gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
+    """How far the fuller model's cross-validated error lies below the simpler one's, in standard
+    errors of the mean paired difference over the rings (> 1: the terms earn their place)."""
+    difference = simpler - fuller
+    if np.abs(difference).max(initial=0.0) <= 1e-9 * max(float(np.abs(simpler).mean()), 1e-300):
+        return 0.0  # the same predictions (a term the data part already holds exactly): rounding only
+    error = difference.std(ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
+    return float(difference.mean() / error) if error > 0 else (np.inf if difference.mean() > 0 else -np.inf)
 
 
 def carried_effects(
@@ -258,32 +275,34 @@ def carried_effects(
     """The effects the data can carry: backward elimination on the hybrid's own cross-validated error.
 
     With few rings, physical terms that alias one another (two cyclic orders seen at two B values)
-    or that the data part already learns cost more in variance than they remove in bias; the
-    data part alone (no effect) is always among the choices, so the hybrid chosen is never
-    worse out of sample, by this measure, than its own data part. Starting from every effect,
-    the one whose removal lowers the cross-validated error most is removed, while any removal
-    does not raise it. Returns the effects kept (in their given order) and the path: [{"effects":
-    [ids], "cv_mae_um"}, ...] of every set tried.
+    or that the data part already learns cost more in variance than they remove in bias. Starting
+    from every effect, the term whose removal costs least is removed while that cost is within one
+    standard error (the paired differences of the rings' cross-validated errors; the
+    one-standard-error rule of Breiman et al.: of two models the data cannot tell apart, the
+    simpler), and the data part alone (no effect) is compared with what is left the same way: on
+    touch noise alone nothing is kept. Returns the effects kept (in their given order) and the path:
+    [{"effects": [ids], "cv_mae_um"}, ...] of every set tried.
     """
     mask = training_mask(campaign, train)
     kept = list(effects)
     path: list[dict[str, Any]] = []
 
-    def score(chosen: list[Effect]) -> float:
-        value = cross_validated_mae(chosen, campaign, mask, data_model)
-        path.append({"effects": [e.id for e in chosen], "cv_mae_um": round(value, 5)})
-        return value
+    def errors(chosen: list[Effect]) -> NDArray[np.float64]:
+        values = cross_validated_errors(chosen, campaign, mask, data_model)
+        path.append({"effects": [e.id for e in chosen], "cv_mae_um": round(float(values.mean()), 5)})
+        return values
 
-    current = score(kept)
+    current = errors(kept)
     while kept:
-        trials = [(score(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
-        best, index = min(trials)
-        if best > current:
+        trials = [(errors(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
+        gains = [_gain_beyond_noise(without, current) for without, _ in trials]
+        cheapest = int(np.argmin(gains))
+        if gains[cheapest] > 1.0:
             break
-        current = best
+        current, index = trials[cheapest]
         kept = kept[:index] + kept[index + 1 :]
     # Elimination stops at a local minimum: the data part alone is compared with it too.
-    if kept and len(kept) < len(effects) and score([]) <= current:
+    if kept and len(kept) < len(effects) and _gain_beyond_noise(errors([]), current) <= 1.0:
         kept = []
     return kept, path
 
