@@ -16,16 +16,17 @@ from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 
 def design_command(
     budget: int,
+    json_output: bool = False,
     data: Path | None = None,
     effects: Path | None = None,
-    json_output: bool = False,
     geometry: dict[str, float] | None = None,
 ) -> int:
     """Print the proposed rings in measuring order, as text or one JSON object."""
+    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+    # Imported when the command runs: the design reads the hybrid's bases, whose module loads torch.
     from ph_explorer.design import propose_rings
     from ph_explorer.io import read_campaign
 
-    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     campaign = read_campaign(Path(data), geometry or {}) if data is not None else None
     try:
         shape = Geometry(**{**DEFAULT_GEOMETRY.as_dict(), **(geometry or {})})
