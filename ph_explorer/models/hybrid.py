@@ -281,16 +281,21 @@ def carried_effects(
     one-standard-error rule of Breiman et al.: of two models the data cannot tell apart, the
     simpler), and the data part alone (no effect) is compared with what is left the same way: on
     touch noise alone nothing is kept. Returns the effects kept (in their given order) and the path:
-    [{"effects": [ids], "cv_mae_um"}, ...] of every set tried.
+    [{"effects": ["id setting value", ...], "cv_mae_um"}, ...] of every set tried, once each.
     """
     mask = training_mask(campaign, train)
     kept = list(effects)
     path: list[dict[str, Any]] = []
 
+    tried: dict[tuple, NDArray[np.float64]] = {}
+
     def errors(chosen: list[Effect]) -> NDArray[np.float64]:
-        values = cross_validated_errors(chosen, campaign, mask, data_model)
-        path.append({"effects": [e.id for e in chosen], "cv_mae_um": round(float(values.mean()), 5)})
-        return values
+        key = tuple((e.id, tuple(sorted(e.settings().items()))) for e in chosen)
+        if key not in tried:  # a set reached twice (the data part alone) is cross-validated once
+            tried[key] = cross_validated_errors(chosen, campaign, mask, data_model)
+            labels = [" ".join([e.id, *(f"{k} {v:g}" for k, v in e.settings().items())]) for e in chosen]
+            path.append({"effects": labels, "cv_mae_um": round(float(tried[key].mean()), 5)})
+        return tried[key]
 
     current = errors(kept)
     while kept:
