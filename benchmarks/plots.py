@@ -16,19 +16,29 @@ COLORS = {"network": "tab:blue", "trilinear": "tab:orange", "hybrid": "tab:green
 
 def data_efficiency_plot(results: dict[str, Any], path: Path) -> Path:
     curves, details = results["data_efficiency"], results["data_efficiency_details"]
-    fig, axes = plt.subplots(1, len(curves), figsize=(5.5 * len(curves), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(curves), figsize=(6.5 * len(curves), 5.0), squeeze=False)
     for ax, (scenario, models) in zip(axes[0], curves.items()):
+        designs = details[scenario].get("design")
         for name, points in models.items():
-            n, mae = zip(*points)
-            ax.plot(n, mae, "o-", color=COLORS.get(name), label=name)
+            # Lattice subsets joined by a line; designed subsets (ph_explorer.design) as open squares.
+            kinds = designs if designs and len(designs) == len(points) else ["lattice"] * len(points)
+            lattice = [p for p, d in zip(points, kinds) if d.startswith("lattice")]
+            designed = [p for p, d in zip(points, kinds) if not d.startswith("lattice")]
+            if lattice:
+                n, mae = zip(*lattice)
+                ax.plot(n, mae, "o-", color=COLORS.get(name), label=name)
+            if designed:
+                n, mae = zip(*sorted(designed))
+                ax.plot(n, mae, "s--", mfc="none", color=COLORS.get(name), label=f"{name}, designed rings")
         floor = details[scenario]["noise_floor_um"]["mean"]
         ax.axhline(floor, color="grey", ls="--", label=f"noise floor {floor:.3f} um")
         full = max(models["trilinear"], key=lambda p: p[0])
         ax.axhline(full[1], color=COLORS["trilinear"], ls=":", lw=1, label=f"full-data trilinear {full[1]:.3f} um")
         ax.axvline(full[0] / 5, color="grey", ls=":", label="1/5 of the orientations")
+        ax.axvline(12, color="tab:green", ls=":", lw=1, label="12 rings (the design goal)")
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.set_xticks([p[0] for p in models["trilinear"]])
+        ax.set_xticks(sorted({p[0] for p in models["trilinear"]}))
         ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%.2f"))
@@ -37,7 +47,7 @@ def data_efficiency_plot(results: dict[str, Any], path: Path) -> Path:
         ax.set_ylabel("check-ring MAE vs 10-repetition mean (um)")
         ax.set_title(scenario)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=7, ncol=2, loc="upper right", framealpha=0.6)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -47,12 +47,14 @@ def paper_campaign() -> Campaign:
 
 def run_data_efficiency(quick: bool, network_config: NetworkConfig, results: dict[str, Any]) -> None:
     columns = (18, 3) if quick else data_efficiency.B_COLUMNS
+    budgets = (12,) if quick else data_efficiency.DESIGN_BUDGETS
     results["data_efficiency"], results["data_efficiency_details"] = {}, {}
     for name in SCENARIOS:
-        run = data_efficiency.run_scenario(name, network_config, columns, log=log)
+        run = data_efficiency.run_scenario(name, network_config, columns, log=log, budgets=budgets)
         results["data_efficiency"][name] = run["curves"]
         details = run["details"]
         details["target"] = data_efficiency.target(run["curves"])
+        details["design_target"] = data_efficiency.design_target(run["curves"], details["design"])
         results["data_efficiency_details"][name] = details
     holds = {name: d["target"]["holds"] for name, d in results["data_efficiency_details"].items()}
     results["target"] = {

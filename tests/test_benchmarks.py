@@ -17,7 +17,7 @@ import pytest
 REPOSITORY = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPOSITORY))
 
-from benchmarks.data_efficiency import hybrid_effects, lattice_subsets, target  # noqa: E402
+from benchmarks.data_efficiency import design_target, designed_subsets, hybrid_effects, lattice_subsets, target  # noqa: E402
 from ph_explorer.models.trilinear import TrilinearModel  # noqa: E402
 from ph_explorer.twin import load_scenario, simulate  # noqa: E402
 
@@ -55,6 +55,23 @@ def test_the_hybrid_gets_the_scenario_effects_minus_noise_with_their_cycles() ->
     assert cycles == [2.0, 4.0, 22.0]  # the hidden 22/rev included
 
 
+def test_designed_subsets_are_training_rings_the_trilinear_keeps_whole() -> None:
+    scenario = load_scenario("paper")
+    campaign = simulate(scenario, scenario.seed)
+    check = campaign.holdout_mask()
+    (mask, name), = designed_subsets(campaign, ~check, (12,))
+    assert mask.sum() == 12 and not (mask & check).any() and name.startswith("design 12")
+    assert TrilinearModel().fit(campaign, mask).measured.sum() == 12
+
+
+def test_design_target_compares_designed_rings_with_the_full_data_trilinear() -> None:
+    curves = {"trilinear": [[123, 0.05], [7, 0.07], [12, 0.06]], "hybrid": [[123, 0.05], [7, 0.06], [12, 0.052]]}
+    t = design_target(curves, ["lattice: 7 A rows x 18 B columns", "lattice: 7 A rows x 1 B columns", "design 12"])
+    assert t["holds"] and t["best_designed"] == [12, 0.052] and t["best_lattice_family"] == [7, 0.06]
+    curves["hybrid"][2] = [12, 0.06]
+    assert not design_target(curves, ["lattice", "lattice", "design 12"])["holds"]
+
+
 def test_target_reads_the_curves() -> None:
     curves = {"trilinear": [[126, 0.05], [21, 0.08]], "hybrid": [[126, 0.045], [21, 0.051], [14, 0.06]]}
     t = target(curves)
@@ -78,11 +95,16 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     for scenario in ("paper", "head_3"):
         curves = results["data_efficiency"][scenario]
         assert set(curves) == {"network", "trilinear", "hybrid"}
-        for points in curves.values():
-            assert len(points) == 2 and all(math.isfinite(mae) and mae > 0 for _, mae in points)
-            assert [n for n, _ in points] == [123, 21]
+        for model, points in curves.items():
+            assert all(math.isfinite(mae) and mae > 0 for _, mae in points)
+            # The network on the lattice family only; the others on the designed 12 rings too.
+            assert [n for n, _ in points] == ([123, 21] if model == "network" else [123, 21, 12])
         details = results["data_efficiency_details"][scenario]
         assert details["predictions_finite"] and details["noise_floor_um"]["mean"] > 0
+        assert details["hybrid_effects_source"] == "diagnosis"
+        assert len(details["design"]) == 3 and details["design"][2].startswith("design 12")
+        assert [p["orientations"] for p in details["never_worse"]] == [123, 21, 12]
+        assert isinstance(details["design_target"]["holds"], bool)
     assert isinstance(results["target"]["holds"], bool) and results["target"]["detail"]
     speed = results["speed"]
     for key in ("simulate", "network_training", "physics_refit", "diagnosis", "predict_one_orientation_us",

@@ -1,4 +1,4 @@
-"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, uncertainty, serve.
+"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, serve.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
 command is in its own module (cli/inspect.py, ...). A command module imports the torch- or
@@ -19,7 +19,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from ph_explorer.cli import diagnose, effects, evaluate, inspect, serve, simulate, train, uncertainty
+from ph_explorer.cli import design, diagnose, effects, evaluate, inspect, serve, simulate, train, uncertainty
 from ph_explorer.errors import InputError
 
 app = typer.Typer(
@@ -180,6 +180,22 @@ def _effects(
     """Every effect of the catalog (id, ISO 230-1 style symbol, axis, kind, parameters); with --data, which
     the campaign can see, which the circle fit absorbs, which the data model learns, which are confounded."""
     _run("effects", effects.effects_command, data=data, effects=effects_file, json_output=json_output, geometry=geometry)
+
+
+@app.command("design")
+@with_geometry
+def _design(
+    budget: Annotated[int, typer.Option(help="How many rings (orientations) to propose.")],
+    data: Annotated[
+        Optional[Path], typer.Option(help="A campaign CSV already measured: propose the next rings, those that most reduce its uncertainty.")
+    ] = None,
+    effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
+    json_output: JsonOpt = False,
+    geometry: dict[str, float] | None = None,
+) -> None:
+    """Which rings to measure and in what order: the catalog's effects identifiable (D-optimal on their
+    bases at the head touches) and the data part covered (space filling); with --data, the next rings."""
+    _run("design", design.design_command, budget=budget, data=data, effects=effects_file, json_output=json_output, geometry=geometry)
 
 
 @app.command("uncertainty")
