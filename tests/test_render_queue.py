@@ -335,3 +335,28 @@ def test_stats_gather_the_renders_of_every_state(queue: RenderQueue, log: list) 
     stats.failed(RuntimeError("boom"))  # what the app does when it sees a render fail
     assert stats.render_count == 2 and len(stats.render_times) == len(stats.latency_times) == 2
     assert stats.error_count == 1 and stats.last_error == "RuntimeError: boom"
+
+
+def test_when_resting_runs_once_with_the_latest_values_after_they_rest() -> None:
+    from ph_explorer.app.render_queue import WhenResting
+
+    ran: list[tuple] = []
+    done = threading.Event()
+
+    def job(*values: object) -> None:
+        ran.append(values)
+        done.set()
+
+    resting = WhenResting(job, settle_s=0.2)
+    start = time.monotonic()
+    for k in range(20):  # a slider dragged for ~0.4 s: one want per move
+        resting.want(float(k), -float(k))
+        time.sleep(0.02)
+    assert done.wait(5.0)
+    assert ran == [(19.0, -19.0)] and time.monotonic() - start >= 0.2 + 19 * 0.02
+    time.sleep(0.4)
+    assert len(ran) == 1  # nothing more was asked: nothing more ran
+    resting.want(1.0, 2.0)
+    resting.close()  # closed before it rested: never runs
+    time.sleep(0.4)
+    assert len(ran) == 1

@@ -9,7 +9,9 @@ moves that arrive before a session's turn only the latest is worth drawing. Henc
 * `RenderQueue`, one per app: the single render thread, which draws the dirty states in the
   order they became dirty, each with its latest values; a state that moved again while it was
   being drawn goes to the back, so one busy session cannot starve the others;
-* `RenderStats`, one per app: the render figures of all its states (for benchmarks).
+* `RenderStats`, one per app: the render figures of all its states (for benchmarks);
+* `WhenResting`, one per slow figure of a session: a job for the latest values once they have
+  stopped changing for a while (a slider at rest), never one per move.
 
 Values set by the server itself (scripts, tests) are drawn in the caller's thread (`render_now`)::
 
@@ -26,6 +28,7 @@ import threading
 import time
 import traceback
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from typing import Callable
 
 Clock = Callable[[], float]
@@ -277,3 +280,56 @@ class RenderQueue:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+class WhenResting:
+    """Run `job(*values)` on its own thread once the values asked for have not changed for `settle_s`.
+
+    `want(*values)` only records them (one timer at a time, however often it is called); when the
+    timer ends and the latest values are older than settle_s, the job runs with them, else the
+    timer waits out the rest. The job itself checks whether its values are still current.
+    """
+
+    def __init__(self, job: Callable[..., None], settle_s: float, name: str = "when-resting") -> None:
+        self.job = job
+        self.settle_s = settle_s
+        self._lock = threading.Lock()
+        self._wanted: tuple[tuple[object, ...], float] | None = None  # (values, since when)
+        self._timer: threading.Timer | None = None
+        self._closed = False
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix=name)
+
+    def want(self, *values: object) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._wanted = (values, time.monotonic())
+            if self._timer is None:
+                self._start(self.settle_s)
+
+    def _start(self, delay: float) -> None:
+        """Under _lock."""
+        self._timer = threading.Timer(delay, self._rested)
+        self._timer.daemon = True
+        self._timer.start()
+
+    def _rested(self) -> None:
+        with self._lock:
+            self._timer = None
+            if self._wanted is None or self._closed:
+                return
+            values, since = self._wanted
+            waited = time.monotonic() - since
+            if waited < self.settle_s:  # changed again meanwhile: wait out the rest
+                self._start(self.settle_s - waited)
+                return
+            self._wanted = None
+            self._worker.submit(self.job, *values)
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+            if self._timer is not None:
+                self._timer.cancel()
+            self._wanted = None
+        self._worker.shutdown(wait=False, cancel_futures=True)

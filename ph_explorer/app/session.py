@@ -33,7 +33,7 @@ from ph_explorer.app.panels import (
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
+from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
 from ph_explorer.app.study import StudyFile
@@ -89,12 +89,8 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
-        # The task's RONt is computed once the sliders rest (TASK_SETTLE_S), on the worker: one timer at a time.
-        self._task_wanted: tuple[float, float, float] | None = None  # (A, B, since when)
-        self._task_timer: threading.Timer | None = None
-        self._task_lock = threading.Lock()
-        # Its own thread, so that a diagnosis does not hold it back, bounded by shared.heavy with the rest.
-        self._task_jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-task-{client.client_id}")
+        # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
+        self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
 
         scene, gui = client.scene, client.gui
         geometry = dataset.campaign.geometry
@@ -255,34 +251,8 @@ class Session:
     def _want_task(self, a: float, b: float) -> None:
         """Ask for the task's RONt here unless it is known; computed when A and B have rested TASK_SETTLE_S."""
         ds = self.dataset
-        if not self.tables.task.value or all(ds.cached_task(m, a, b) is not None for m in ds.model_names):
-            return
-        with self._task_lock:
-            self._task_wanted = (a, b, time.monotonic())
-            if self._task_timer is None:
-                self._start_task_timer(TASK_SETTLE_S)
-
-    def _start_task_timer(self, delay: float) -> None:
-        """Under _task_lock."""
-        self._task_timer = threading.Timer(delay, self._task_rested)
-        self._task_timer.daemon = True
-        self._task_timer.start()
-
-    def _task_rested(self) -> None:
-        with self._task_lock:
-            self._task_timer = None
-            if self._task_wanted is None:
-                return
-            a, b, since = self._task_wanted
-            waited = time.monotonic() - since
-            if waited < TASK_SETTLE_S:  # moved again meanwhile: wait out the rest
-                self._start_task_timer(TASK_SETTLE_S - waited)
-                return
-            self._task_wanted = None
-        try:
-            self._task_jobs.submit(self._compute_task, a, b)
-        except RuntimeError:  # the session closed meanwhile (its worker is shut down)
-            pass
+        if self.tables.task.value and any(ds.cached_task(m, a, b) is None for m in ds.model_names):
+            self._task.want(a, b)
 
     def _compute_task(self, a: float, b: float) -> None:
         if self.orientation != (a, b):
@@ -425,10 +395,6 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
-        with self._task_lock:
-            if self._task_timer is not None:
-                self._task_timer.cancel()
-            self._task_wanted = None
+        self._task.close()
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)
-        self._task_jobs.shutdown(wait=False, cancel_futures=True)
