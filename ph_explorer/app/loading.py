@@ -12,7 +12,7 @@ import threading
 
 import viser
 
-LOADING_TEXT = "**ph-explorer is loading:** {what}. The explorer appears here when it is ready."
+LOADING_TEXT = "**Loading {what}…** The explorer appears here when ready."
 
 
 def open_server(host: str = "127.0.0.1", port: int = 8080, verbose: bool = False) -> viser.ViserServer:
