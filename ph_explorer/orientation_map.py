@@ -10,6 +10,9 @@ legend of its categories). The explorer's Map tab and a report use the same SVG.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +40,9 @@ CATEGORY_COLORS = ("#8fb3d9", "#d62728", "#ff9f1c", "#2ca02c")
 CURRENT = "#111"  # the current orientation's ring and cross hairs
 A_TICK_DEG = 15.0
 B_TICKS_DEG = tuple(range(-180, 181, 60))
+STATIC_CACHE = 64  # maps (figure, rings) whose static SVG is kept: a few per browser
+_STATIC: OrderedDict[tuple, tuple] = OrderedDict()
+_STATIC_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -122,12 +128,44 @@ def map_svg(
     current: tuple[float, float] | None = None,
     title: str = "",
 ) -> str:
-    """The map as an SVG string (see the module docstring); sized by its viewBox to the panel's width."""
+    """The map as an SVG string (see the module docstring); sized by its viewBox to the panel's width.
+
+    Everything but the current orientation's marker is kept for the last few (figure, orientations)
+    objects: a slider move redraws the marker only (the explorer draws the map on every move)."""
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
-    check = np.asarray(check, dtype=bool)
+    a_low, a_high = a_axis_range(o, None if current is None else current[0])
+    key = (id(figure), id(orientations), id(check), title, a_low, a_high)
+    with _STATIC_LOCK:
+        entry = _STATIC.get(key)
+    # The objects themselves are kept in the entry, so an id is never another object's.
+    if entry is None or entry[0] is not figure or entry[1] is not orientations or entry[2] is not check:
+        entry = (figure, orientations, check, *_static_parts(figure, o, np.asarray(check, dtype=bool), title, a_low, a_high))
+        with _STATIC_LOCK:
+            _STATIC[key] = entry
+            while len(_STATIC) > STATIC_CACHE:
+                _STATIC.popitem(last=False)
+    before, after, x_of, y_of, frame = entry[3:]
+    if current is None:
+        return before + after
+    left, plot_w, top, bottom = frame
+    # The current orientation: a black ring on a white halo with cross hairs, readable on every
+    # colour of the bar and distinct from a verdict's red.
+    x, y = float(x_of(current[1])), float(y_of(current[0]))
+    marker = (
+        f'<line x1="{left}" y1="{y:.1f}" x2="{left + plot_w}" y2="{y:.1f}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
+        f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
+        f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="#fff" stroke-width="4.5"/>'
+        f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="{CURRENT}" stroke-width="2.2"/>'
+    )
+    return before + marker + after
+
+
+def _static_parts(
+    figure: MapFigure, o: NDArray[np.float64], check: NDArray[np.bool_], title: str, a_low: float, a_high: float
+) -> tuple[str, str, Callable[[ArrayLike], NDArray[np.float64]], Callable[[ArrayLike], NDArray[np.float64]], tuple[float, float, float, float]]:
+    """The map without the current orientation: (SVG before its marker, after it, x_of B, y_of A, (left, plot_w, top, bottom))."""
     width, left, right, top, plot_h = 400.0, 46.0, 12.0, 26.0, 210.0
     plot_w = width - left - right
-    a_low, a_high = a_axis_range(o, None if current is None else current[0])
 
     def x_of(b: ArrayLike) -> NDArray[np.float64]:
         b = (np.asarray(b, dtype=float) + 180.0) % 360.0 - 180.0
@@ -180,19 +218,11 @@ def map_svg(
                 f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4.6" fill="{fill}" stroke="{"#555" if fill == "#fff" else "#fff"}" '
                 f'stroke-width="0.6"><title>{label}</title></circle>'
             )
-    if current is not None:
-        # The current orientation: a black ring on a white halo with cross hairs, readable on every
-        # colour of the bar and distinct from a verdict's red.
-        x, y = float(x_of(current[1])), float(y_of(current[0]))
-        parts.append(
-            f'<line x1="{left}" y1="{y:.1f}" x2="{left + plot_w}" y2="{y:.1f}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
-            f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="{CURRENT}" stroke-width="0.8" stroke-dasharray="3 3"/>'
-            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="#fff" stroke-width="4.5"/>'
-            f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="{CURRENT}" stroke-width="2.2"/>'
-        )
+    before = "".join(parts)
+    parts = []
     parts += _scale(figure, low, high, left, plot_w, bar_y)
     parts.append("</svg>")
-    return "".join(parts)
+    return before, "".join(parts), x_of, y_of, (left, plot_w, top, bottom)
 
 
 def _scale(figure: MapFigure, low: float, high: float, left: float, plot_w: float, bar_y: float) -> list[str]:

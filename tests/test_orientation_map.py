@@ -81,6 +81,18 @@ def test_the_map_svg_has_axes_ticks_rings_the_current_orientation_and_a_colour_b
     assert f"A{a:g} B{b:g}: {figure.values[0]:.3g} um" in svg
 
 
+def test_a_slider_move_redraws_the_marker_only_and_the_kept_map_is_the_fresh_one(twin: Dataset) -> None:
+    """map_svg keeps the static part per (figure, rings) objects: a move changes the marker only, and
+    the kept SVG equals one drawn from fresh copies of the same figure and rings."""
+    c = twin.campaign
+    figure, orientations, check = twin.figure(LOO_FIGURE), c.orientations.copy(), c.holdout_mask()
+    here, there = (map_svg(figure, orientations, check, current, LOO_FIGURE) for current in ((15.0, -20.0), (45.0, 60.0)))
+    strip = lambda svg: re.sub(r'<line x1[^>]*stroke-dasharray[^>]*/><line[^>]*/><circle[^>]*r="9"[^>]*/><circle[^>]*r="9"[^>]*/>', "", svg)
+    assert here != there and strip(here) == strip(there)
+    fresh = MapFigure(figure.values.copy(), figure.unit, figure.note, figure.categories)
+    assert map_svg(fresh, orientations.copy(), check.copy(), (45.0, 60.0), LOO_FIGURE) == there
+
+
 def test_a_verdict_map_has_a_legend_of_its_categories_not_a_colour_bar(twin: Dataset) -> None:
     c = twin.campaign
     verdict = MapFigure((np.arange(c.n_orientations) % 7 == 0).astype(float), "", "test", RING_VERDICTS)
