@@ -99,6 +99,7 @@ class RingScene:
         self.title = scene.add_label("/ring/title", "", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.8)
         self.caption = scene.add_label("/ring/magnification", "", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.75)
         self.scale: PolarScale | None = None  # the chart drawn last
+        self._chart_drawn: tuple[PolarScale, float] | None = None  # what _update_chart last sent
         self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
 
     def place(self, a_deg: float, b_deg: float) -> None:
@@ -148,7 +149,13 @@ class RingScene:
         self.title.text = title
 
     def _update_chart(self, scale: PolarScale) -> None:
-        """Reference and scale circles with their labels, point numbers, theta's direction, magnification."""
+        """Reference and scale circles with their labels, point numbers, theta's direction, magnification.
+
+        Sent only when the scale or the numbers' radius changed: most slider moves keep both."""
+        numbers = self._numbers_radius()
+        if self._chart_drawn == (scale, round(numbers, 1)):
+            return
+        self._chart_drawn = (scale, round(numbers, 1))
         self.reference.points = closed_polyline(ring_points(scale.base_mm, FINE_DEG)).astype(np.float32)
         others = [r for text, r in scale.labelled_circles() if text != scale_label(0.0)]
         circles = [closed_polyline(ring_points(r, FINE_DEG)) for r in others] or [np.zeros((1, 2, 3))]
@@ -165,7 +172,6 @@ class RingScene:
             handle.visible = True
         for handle in self.scale_labels[len(circles_text) :]:
             handle.visible = False
-        numbers = self._numbers_radius()
         for handle, k in zip(self.labels, self.numbered):
             handle.position = tuple(float(v) for v in ring_points(numbers, np.array([self.theta[k]]))[0])
         self.arrow.points = theta_arrow(numbers + 2.0).astype(np.float32)
