@@ -118,6 +118,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     scale = results["scale"]
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
+    assert scale["p95_target_ms"] == 50 and scale["server_p95_target_ms"] == 2 and isinstance(scale["holds"], bool)
+    room = results["scale_100"]
+    assert room["browsers"] == 3 and room["rate_hz"] == 5.0 and room["errors"] == 0 and room["latency_ms"]["p95"] > 0
     for key in ("p50", "p95"):
         assert scale["server_update_ms"][key] > 0
     calibration = results["diagnosis_calibration"]
