@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 from ph_explorer import paths, twin
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import holdout_from_card, orientation_tables
+from ph_explorer.evaluation import holdout_from_card, tables_at
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
@@ -154,19 +154,8 @@ class Dataset:
         return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
-        """Tables 1-3 of the paper at this orientation: from ph_explorer.evaluation when measured."""
-        models = {n: self.models[n] for n in self.model_names}
-        if idx is not None:
-            mask = np.zeros(self.campaign.n_orientations, dtype=bool)
-            mask[idx] = True
-            row = orientation_tables(self.campaign, models, mask)[0]
-            return {"range_um": row["range_um"], "max_abs_um": row["max_abs_um"], "mae_um": row["mae_um"]}
-        # Not measured: there is nothing to compare with; range and max |dev| of each prediction only.
-        return {
-            "range_um": {k: float(np.ptp(v)) for k, v in curves.items()},
-            "max_abs_um": {k: float(np.abs(v).max()) for k, v in curves.items()},
-            "mae_um": {},
-        }
+        """Tables 1-3 of the paper at this orientation (ph_explorer.evaluation)."""
+        return tables_at(self.campaign, {n: self.models[n] for n in self.model_names}, idx, curves)
 
     def monte_carlo_band(
         self, model: str, a_deg: float, b_deg: float, n_draws: int = 200, coverage: float = 0.95, seed: int = 0
