@@ -19,14 +19,14 @@ from numpy.typing import NDArray
 from ph_explorer import paths, twin
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import holdout_from_card, tables_at
+from ph_explorer.evaluation import tables_at
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
-from ph_explorer.models.folder import load_card, load_models
+from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
 from ph_explorer.polar import deviation_bounds
@@ -238,18 +238,8 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     The held-out rings are those of the model card when the models come from a folder (what the
     models never saw), else the campaign's own check orientations.
     """
-    notes = list(notes or [])
-    models: dict[str, DeviationModel] = {}
-    train = ~campaign.holdout_mask()
-    if model_dir is not None:
-        models = dict(load_models(Path(model_dir)))
-        train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
-        notes.append(f"models from {model_dir}")
-    if "trilinear" not in models and train.any():
-        models["trilinear"] = TrilinearModel().fit(campaign, train)
-        notes.append("trilinear tables fitted at start-up on the training rings")
-    if "network" not in models:
-        notes.append("no trained network for this campaign (ph-explorer train makes one)")
+    models, train, found = campaign_models(campaign, model_dir)
+    notes = [*(notes or []), *found]
     return Dataset(campaign, models, label, notes, train)
 
 
