@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.errors import InputError
-from ph_explorer.io.writer import atomic_write
+from ph_explorer.campaign import Campaign
+from ph_explorer.io.writer import atomic_write, csv_text
 
 
 def file_sha256(path: Path) -> str:
@@ -18,6 +19,12 @@ def file_sha256(path: Path) -> str:
         for chunk in iter(lambda: handle.read(1 << 20), b""):
             digest.update(chunk)
     return digest.hexdigest()
+
+
+def campaign_sha256(campaign: Campaign) -> str:
+    """The sha256 of the CSV bytes `write_campaign` writes for this campaign: the identity of a
+    campaign held in memory (a simulated scenario), equal to its file's once simulate --out wrote it."""
+    return hashlib.sha256(csv_text(campaign).encode("utf-8")).hexdigest()
 
 
 def read_json_object(path: Path, what: str) -> dict[str, Any]:
