@@ -117,6 +117,7 @@ def report_html(
     diagnosis: Diagnosis | None = None,
     reveal: bool = False,
     created: str = "",
+    source: str | None = None,
 ) -> str:
     """The report as one self-contained HTML document (see the module docstring).
 
@@ -126,12 +127,13 @@ def report_html(
     None for a campaign not diagnosed;
     diagnosis: the run that made it, when at hand: names the failing rings and maps each ring's test;
     orientations: where the polar plots and tables are drawn (default: `default_orientations`);
-    reveal: name a teaching scenario's hidden effects, with their true parameters.
+    reveal: name a teaching scenario's hidden effects, with their true parameters;
+    source: what the report calls the campaign (default: campaign.source).
     """
     names = EffectNames(campaign, catalog, reveal)
     chosen = list(orientations) if orientations else default_orientations(campaign, diagnosis)
     check = ~np.asarray(train_mask, dtype=bool)
-    source = campaign.source or "a campaign in memory"
+    source = source or campaign.source or "a campaign in memory"
     title = f"ph-explorer report: {source}"
     parts = [
         "<!DOCTYPE html>",
@@ -140,7 +142,7 @@ def report_html(
         f"<h1>{_e(title)}</h1>",
         f'<p class="note">Made by ph-explorer{", " + _e(created) if created else ""}. One file, its figures inside: it needs no network and no script.</p>',
     ]
-    parts += _campaign_section(campaign, models, check)
+    parts += _campaign_section(campaign, source, models, check)
     parts += _map_section(campaign, check, chosen[0], diagnosis)
     parts += _orientation_sections(campaign, models, check, chosen)
     parts += _diagnosis_section(study, diagnosis, catalog, names)
@@ -153,7 +155,7 @@ def report_html(
 # -- the campaign ------------------------------------------------------------------------------------
 
 
-def _campaign_section(campaign: Campaign, models: Mapping[str, DeviationModel], check: NDArray[np.bool_]) -> list[str]:
+def _campaign_section(campaign: Campaign, source: str, models: Mapping[str, DeviationModel], check: NDArray[np.bool_]) -> list[str]:
     g = campaign.geometry
     sigma = campaign.noise_sigma_um()
     floor = noise_floor(sigma, campaign.n_repetitions) if np.isfinite(sigma) else {}
@@ -161,7 +163,7 @@ def _campaign_section(campaign: Campaign, models: Mapping[str, DeviationModel], 
     off_grid = int(campaign.off_grid_mask().sum())
     scenario = campaign.scenario or {}
     rows = [
-        ("source", campaign.source or "in memory"),
+        ("source", source),
         ("orientations", f"{campaign.n_orientations} ({len(a_axis)} A x {len(b_axis)} B lattice, {off_grid} off the lattice)"),
         ("A0 range, deg", f"{campaign.orientations[:, 0].min():g} to {campaign.orientations[:, 0].max():g}"),
         ("B0 range, deg", f"{campaign.orientations[:, 1].min():g} to {campaign.orientations[:, 1].max():g}"),

@@ -32,14 +32,20 @@ def read_json_object(path: Path, what: str) -> dict[str, Any]:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"no such {what} file", file=str(path))
+    return parse_json_object(path.read_bytes(), str(path), what)
+
+
+def parse_json_object(content: bytes, source: str, what: str) -> dict[str, Any]:
+    """A JSON object from a file's bytes (read, or uploaded by a browser), or an InputError naming
+    the source and what is wrong with it."""
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
+        document = json.loads(content.decode("utf-8"))
     except UnicodeDecodeError:
-        raise InputError(f"not a {what}: not UTF-8 text", file=str(path)) from None
+        raise InputError(f"not a {what}: not UTF-8 text", file=source) from None
     except json.JSONDecodeError as error:
-        raise InputError(f"not a {what}: invalid JSON at line {error.lineno}, column {error.colno}", file=str(path)) from None
+        raise InputError(f"not a {what}: invalid JSON at line {error.lineno}, column {error.colno}", file=source) from None
     if not isinstance(document, dict):
-        raise InputError(f"not a {what}: the file holds a JSON {type(document).__name__}, not an object", file=str(path))
+        raise InputError(f"not a {what}: the file holds a JSON {type(document).__name__}, not an object", file=source)
     return document
 
 
