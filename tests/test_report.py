@@ -238,7 +238,7 @@ def test_chromium_draws_the_polar_plot_the_map_the_tables_and_the_history(report
         figures = {
             "polar plot": ("#polar-1 svg", 4, 0.04),  # grey repetitions, black mean, orange model, scale circles
             "error map": ("#map-1 svg", 6, 0.1),  # viridis markers and colour bar
-            "tables": ("#tables-1 table", 2, 0.03),
+            "tables": ("#tables-1", 2, 0.03),  # Tables 1-3 with their headings
             "history": ("#history-chart svg", 4, 0.04),  # blue and orange lines, grid, frame
         }
         for what, (selector, colours, share) in figures.items():

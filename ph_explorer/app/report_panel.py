@@ -16,21 +16,35 @@ from __future__ import annotations
 
 import datetime
 import re
-from typing import TYPE_CHECKING, Any
+from concurrent.futures import Future
+from typing import Any, Callable, Protocol
 
 import viser
 
+from ph_explorer.app.dataset import Dataset
+from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.study import APP_DATA_PART
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
+from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.io import campaign_sha256, parse_json_object
 from ph_explorer.report import default_orientations, report_html
 
-if TYPE_CHECKING:
-    from ph_explorer.app.physics import PhysicsLoop
-    from ph_explorer.app.session import Session
+
+class Session(Protocol):
+    """What the panel uses of its browser's session (app/session.py), which creates it."""
+
+    dataset: Dataset
+    loop: PhysicsLoop
+    catalog: Catalog
+    client: viser.ClientHandle
+
+    @property
+    def orientation(self) -> tuple[float, float]: ...
+
+    def submit(self, job: Callable[..., None], *args: object) -> Future[None]: ...
 
 
 def report_file_name(campaign: Campaign, label: str) -> str:
