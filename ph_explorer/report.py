@@ -43,7 +43,7 @@ STYLE = """
 body{font-family:sans-serif;max-width:1100px;margin:24px auto;padding:0 16px;color:#222;line-height:1.45}
 h1{font-size:1.5em;margin-bottom:0.2em} h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ccc}
 h3{font-size:1.05em} table{border-collapse:collapse;margin:6px 0 10px} td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}
-td:first-child,th:first-child{text-align:left} .meta td{text-align:left} .note{color:#555;font-size:0.9em}
+td:first-child,th:first-child,td.t{text-align:left} .meta td{text-align:left} .note{color:#555;font-size:0.9em}
 figure{margin:8px 0 16px} figcaption{font-size:0.9em;color:#444}
 .pair{display:flex;flex-wrap:wrap;gap:24px;align-items:flex-start} .pair>*{flex:1 1 420px;min-width:320px}
 .verdict{font-size:1.1em;font-weight:600}

@@ -92,7 +92,7 @@ def _noise_tests(study: Mapping[str, Any]) -> list[str]:
             continue
         rows.append(
             f"<tr><td>{_e(model)}</td><td>{test['failing_rings']}</td><td>{test['statistic']:.1f}</td><td>{test['critical']:.1f}</td>"
-            f"<td>{test['p_value']:.3g}</td><td>{'fails' if test['fails'] else 'within noise'}</td></tr>"
+            f"<td>{test['p_value']:.3g}</td><td class='t'>{'fails' if test['fails'] else 'within noise'}</td></tr>"
         )
     if not rows:
         return ["<p>One repetition: no repetition spread, so 'within noise' could not be tested.</p>"]
@@ -115,7 +115,7 @@ def _chain_table(study: Mapping[str, Any], catalog: Catalog, names: EffectNames)
         fitted = cls.parameters_text(entry.get("params") or {}, entry.get("params_u") or None) if cls is not None else ""
         settings = ", ".join(f"{k} {v:g}" for k, v in entry.get("settings", {}).items())
         label = names.label(effect_id) if names.teaching or cls is None else f"{cls.name} ({effect_id})"
-        rows.append(f"<tr><td>{_e(label)}</td><td>{_e(settings)}</td><td>{_e(fitted) or 'not fitted'}</td></tr>")
+        rows.append(f'<tr><td>{_e(label)}</td><td class="t">{_e(settings)}</td><td class="t">{_e(fitted) or "not fitted"}</td></tr>')
     return [
         "<h3>Effects in the model, fitted parameters +- U (k = 2)</h3>",
         "<table><tr><th>effect</th><th>scanned settings</th><th>fitted parameters +- expanded uncertainty</th></tr>" + "".join(rows) + "</table>",
@@ -133,7 +133,8 @@ def _history(steps: Sequence[Step], names: EffectNames) -> list[str]:
     if not steps:
         return ["<h3>History</h3><p>The study records no step.</p>"]
     rows = "".join(
-        f"<tr><td>{k}</td><td>{_e(step_label(s, names))}</td><td>{s.mae_um['mean']:.3f}</td><td>{s.noise_floor_um['mean']:.3f}</td>"
+        f'<tr><td>{k}</td><td class="t">{_e(step_label(s, names))}</td>'
+        f"<td>{s.mae_um['mean']:.3f}</td><td>{s.noise_floor_um['mean']:.3f}</td>"
         f"<td>{s.mae_um['single']:.3f}</td><td>{s.noise_floor_um['single']:.3f}</td></tr>"
         for k, s in enumerate(steps)
     )
@@ -177,11 +178,14 @@ def history_svg(steps: Sequence[Step]) -> str:
     for k, x in enumerate(xs):
         parts.append(f'<text x="{x:.1f}" y="{bottom + 14}" font-size="11" text-anchor="middle">{k}</text>')
     parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 30}" font-size="12" text-anchor="middle">step</text>')
+    half = 0.4 * plot_w / n  # a floor is a level across its step's width: one step shows it too
     for k, (ref, color) in enumerate(HISTORY_COLORS.items()):
-        for series, dash in ((floor[ref], ' stroke-dasharray="5 4"'), (mae[ref], "")):
-            finite = np.isfinite(series)
-            points = " ".join(f"{x:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(series[finite])))
-            parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="2.5"{dash}/>')
+        finite = np.isfinite(floor[ref])
+        levels = " ".join(f"{x - half:.1f},{y:.1f} {x + half:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(floor[ref][finite])))
+        parts.append(f'<polyline points="{levels}" fill="none" stroke="{color}" stroke-width="2.5" stroke-dasharray="5 4"/>')
+        finite = np.isfinite(mae[ref])
+        points = " ".join(f"{x:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(mae[ref][finite])))
+        parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="2.5"/>')
         for x, y in zip(xs, y_of(mae[ref])):
             if math.isfinite(y):
                 parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{color}"/>')
@@ -237,7 +241,7 @@ def _where_it_fails(study: Mapping[str, Any], diagnosis: Diagnosis | None) -> li
     if not rings:
         return parts + ["<p>No ring exceeds its noise (the within-noise test, ring level 1 %).</p>"]
     rows = "".join(
-        f"<tr><td>{_e(orientation_label(r.a_deg, r.b_deg))}</td><td>{'check ring' if r.held_out else 'leave-one-out'}</td>"
+        f"<tr><td>{_e(orientation_label(r.a_deg, r.b_deg))}</td><td class=\"t\">{'check ring' if r.held_out else 'leave-one-out'}</td>"
         f"<td>{r.mae_um:.3f}</td><td>{r.floor_um:.3f}</td><td>{r.ratio:.1f}</td></tr>"
         for r in rings[:MAX_FAILING_LISTED]
     )
@@ -254,8 +258,8 @@ def _runs(study: Mapping[str, Any], names: EffectNames) -> list[str]:
     if not runs:
         return []
     rows = "".join(
-        f"<tr><td>{k}</td><td>{_e(run.get('date', ''))}</td><td>{_e(names.text(', '.join(run.get('added', []))) or 'nothing')}</td>"
-        f"<td>{_e(run.get('verdict', ''))}</td></tr>"
+        f'<tr><td>{k}</td><td class="t">{_e(run.get("date", ""))}</td><td class="t">{_e(names.text(", ".join(run.get("added", []))) or "nothing")}</td>'
+        f'<td class="t">{_e(run.get("verdict", ""))}</td></tr>'
         for k, run in enumerate(runs, 1)
     )
     return ["<h3>Runs of the study</h3>", f"<table><tr><th>run</th><th>date</th><th>added</th><th>verdict</th></tr>{rows}</table>"]
