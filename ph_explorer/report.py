@@ -59,14 +59,17 @@ def _e(text: Any) -> str:
     return html.escape(str(text))
 
 
-def default_orientations(campaign: Campaign, diagnosis: Diagnosis | None = None) -> list[tuple[float, float]]:
+def default_orientations(
+    campaign: Campaign, check: NDArray[np.bool_], diagnosis: Diagnosis | None = None
+) -> list[tuple[float, float]]:
     """Where a report draws its polar plots when the caller names none: the ring that fails worst
-    (the diagnosis's), and the first check ring; the first ring measured when there is neither."""
+    (the diagnosis's), and the first check ring (of the mask `check`, the rings the models never
+    saw); the first ring measured when there is neither."""
     candidates: list[tuple[float, float]] = []
     failing = diagnosis.failing_rings() if diagnosis is not None else []
     if failing:
         candidates.append((failing[0].a_deg, failing[0].b_deg))
-    check = np.flatnonzero(campaign.holdout_mask())
+    check = np.flatnonzero(check)
     if check.size:
         candidates.append((float(campaign.orientations[check[0], 0]), float(campaign.orientations[check[0], 1])))
     candidates.append((float(campaign.orientations[0, 0]), float(campaign.orientations[0, 1])))
@@ -101,8 +104,8 @@ def report_html(
     source: what the report calls the campaign (default: campaign.source).
     """
     names = EffectNames(campaign, catalog, reveal)
-    chosen = list(orientations) if orientations else default_orientations(campaign, diagnosis)
     check = ~np.asarray(train_mask, dtype=bool)
+    chosen = list(orientations) if orientations else default_orientations(campaign, check, diagnosis)
     source = source or campaign.source or "a campaign in memory"
     title = f"ph-explorer report: {source}"
     parts = [

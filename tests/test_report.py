@@ -112,6 +112,10 @@ def test_a_teaching_report_names_no_hidden_effect_unless_revealed(diagnosed) -> 
     assert campaign.scenario["hidden"] == twin.load_scenario("head_3").hidden_ids
     assert named(hidden, "head_3") == [], named(hidden, "head_3")
     assert "effect A" in hidden and "22 cycles/rev" in hidden  # what was found stays, by letter
+    # No orientation named: the ring that fails worst, then the first check ring.
+    worst, first_check = result.failing_rings()[0], campaign.orientations[campaign.holdout_mask()][0]
+    headings = re.findall(r"<h3>(A[-\d.]+ B[-\d.]+)</h3>", hidden)
+    assert headings == [f"A{worst.a_deg:g} B{worst.b_deg:g}", f"A{first_check[0]:g} B{first_check[1]:g}"]
     assert "Revealed" not in hidden
     revealed = report_html(campaign, models, train, DEFAULT_CATALOG, None, study, result, reveal=True)
     assert set(named(revealed, "head_3")) >= {"b_axis_cyclic", "cyclic"}
@@ -287,6 +291,10 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
         assert wait_for(lambda: "Report sent" in s.report_panel.status.content)
         assert external_references(page) == [] and "Verdict: missing" in page
         assert page.count('aria-label="polar plot') >= 1 and 'aria-label="error map' in page
+        # The orientation on screen comes first (here not measured: the models' predictions).
+        a, b = s.orientation
+        assert re.findall(r"<h3>(A[-\d.]+ B[-\d.]+)</h3>", page)[0] == f"A{a:g} B{b:g}"
+        assert s.dataset.campaign.index_of(a, b) is None and f"A{a:g} B{b:g} — not measured" in page
         for step in study["steps"]:
             assert f"<td>{step['mae_um']['mean']:.3f}</td>" in page
         assert named(page, "head_3") == []  # the explorer's report is a teaching report too unless asked
