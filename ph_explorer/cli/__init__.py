@@ -200,7 +200,7 @@ def _uncertainty(
 def _report(
     out: Annotated[Path, typer.Option(help="The HTML file to write (one file, its figures inside; written atomically).")],
     data: Annotated[Optional[Path], typer.Option(help="The campaign CSV to report on.")] = None,
-    scenario: Annotated[Optional[str], typer.Option(help="A shipped scenario name (simulated with its own seed) instead of --data.")] = None,
+    scenario: ScenarioOpt = None,  # simulated with its own seed, instead of --data
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder: its models are shown and the diagnosis starts from it.")] = None,
     study: Annotated[
         Optional[Path], typer.Option(help="A study of this campaign (diagnose --save, the explorer's Save study); default: diagnose now.")
