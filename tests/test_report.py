@@ -183,6 +183,7 @@ def bad_inputs(small_csv: Path, tmp_path: Path) -> list[tuple[list[str], str]]:
         ([*data, "--scenario", "head_3"], "option --data: give one campaign"),
         (["--data", str(tmp_path / "missing.csv")], "missing.csv: no such file"),
         (["--scenario", "no_such_scenario"], "no_such_scenario"),
+        (["--scenario", "head_3", "--bore-diameter-mm", "30"], "option --bore-diameter-mm: applies to a campaign file (--data)"),
         ([*data, "--orientations", "43;90"], "option --orientations: '43;90' is not an orientation"),
         ([*data, "--orientations", "200:0"], "option --orientations: 200:0 is out of range"),
         ([*data, "--study", str(not_json)], "notes.json: not a study: not UTF-8 text"),

@@ -39,6 +39,9 @@ def report_command(
 
     if (data is None) == (scenario is None):
         raise InputError("give one campaign: --data FILE.csv or --scenario NAME", option="--data")
+    if scenario is not None and geometry:
+        # A scenario carries its own geometry: an option that changed nothing would mislead.
+        raise InputError("applies to a campaign file (--data); a scenario has its own geometry", option="--" + sorted(geometry)[0].replace("_", "-"))
     out = Path(out)
     if out.is_dir():
         raise InputError("is a folder: give the report's file name (e.g. report.html)", file=str(out), option="--out")
