@@ -302,3 +302,35 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
     finally:
         s.wait(timeout=120)
         fake.close()
+
+
+@pytest.mark.browser
+@pytest.mark.slow
+def test_in_chromium_open_study_then_export_report_downloads_the_file(app, diagnosed, tmp_path: Path) -> None:
+    """The same through viser's own web client: the upload button's file chooser, then a real download."""
+    if not Path(CHROMIUM).exists():
+        pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium")
+    from playwright.sync_api import sync_playwright
+
+    _, _, _, _, study = diagnosed
+    study_path = tmp_path / "study.json"
+    write_json_object(study_path, study)
+    before = set(app.sessions)
+    with sync_playwright() as pw:
+        browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+        page = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
+        page.goto(app.url)
+        assert wait_for(lambda: set(app.sessions) - before, timeout=60)
+        s = app.sessions[min(set(app.sessions) - before)]
+        page.get_by_role("tab", name="Data").click()
+        with page.expect_file_chooser() as chooser:
+            page.get_by_role("button", name="Open study").click()
+        chooser.value.set_files(str(study_path))
+        assert wait_for(lambda: "Opened study" in s.report_panel.status.content, timeout=60), s.report_panel.status.content
+        with page.expect_download(timeout=120_000) as download:
+            page.get_by_role("button", name="Export report").click()
+        saved = tmp_path / download.value.suggested_filename
+        download.value.save_as(str(saved))
+        text = saved.read_text(encoding="utf-8")
+        assert saved.name == "report_small_b22.html" and "Verdict: missing" in text and external_references(text) == []
+        browser.close()
