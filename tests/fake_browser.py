@@ -115,10 +115,11 @@ class FakeBrowser:
         self.send(_messages.FileTransferPart(button, transfer, 0, content))
 
     def download(self, filename: str, timeout: float = CONNECT_TIMEOUT_S) -> bytes:
-        """The bytes of a file the server sent this browser to download (send_file_download), once whole."""
+        """The bytes of the latest file of that name the server sent this browser to download
+        (send_file_download), once whole."""
 
         def whole() -> bytes | None:
-            for transfer in self._downloads.values():
+            for transfer in reversed(self._downloads.values()):
                 if transfer["filename"] == filename and len(transfer["parts"]) == transfer["part_count"]:
                     return b"".join(transfer["parts"][k] for k in range(transfer["part_count"]))
             return None

@@ -271,6 +271,11 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
     _, _, _, _, study = diagnosed
     fake, s = open_session(app)
     try:
+        # Before a diagnosis or a study: a report without a diagnosis, and the status says how to get one.
+        fake.click("Export report")
+        page = fake.download("report_small_b22.html", timeout=120).decode("utf-8")
+        assert "not been diagnosed" in page and "Verdict" not in page
+        assert wait_for(lambda: "not diagnosed yet" in s.report_panel.status.content)
         # Bad bytes: one line, the session unchanged.
         fake.upload("Open study", "notes.json", b"\xff\xfe not a study")
         assert wait_for(lambda: "Not opened" in s.report_panel.status.content)
@@ -288,8 +293,9 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
         assert s.physics.history.visible
         # Export report: the same HTML the core makes, as a download, with the study's diagnosis.
         fake.click("Export report")
+        assert wait_for(lambda: len(fake.downloaded()) == 2, timeout=120)
         page = fake.download("report_small_b22.html", timeout=120).decode("utf-8")
-        assert wait_for(lambda: "Report sent" in s.report_panel.status.content)
+        assert wait_for(lambda: "with its diagnosis" in s.report_panel.status.content)
         assert external_references(page) == [] and "Verdict: missing" in page
         assert page.count('aria-label="polar plot') >= 1 and 'aria-label="error map' in page
         # The orientation on screen comes first (here not measured: the models' predictions).

@@ -88,8 +88,8 @@ class ReportPanel:
         self.export.on_click(lambda _: session.submit(self.export_report))
         self.open.on_upload(lambda _: session.submit(self.open_study, self.open.value.name, self.open.value.content))
 
-    def report(self) -> tuple[str, str]:
-        """The report of what this browser shows, and its file name."""
+    def report(self) -> tuple[str, str, bool]:
+        """The report of what this browser shows, its file name, and whether it holds a diagnosis."""
         s = self.session
         ds, loop = s.dataset, s.loop
         name, sha256 = shown_campaign(s)
@@ -105,15 +105,15 @@ class ReportPanel:
         text = report_html(
             campaign, models, ds.train_mask, s.catalog, chosen[:3], study, loop.diagnosis, reveal=bool(self.reveal.value), created=created, source=name
         )
-        return text, report_file_name(campaign, ds.label)
+        return text, report_file_name(campaign, ds.label), study is not None
 
     def export_report(self) -> None:
         self.status.content = "_Writing the report…_"
-        text, file_name = self.report()
+        text, file_name, diagnosed = self.report()
         content = text.encode("utf-8")
         self.session.client.send_file_download(file_name, content, save_immediately=True)
-        diagnosed = "with its diagnosis" if self.session.loop.diagnosis is not None or self.session.loop.study_open else "not diagnosed yet"
-        self.status.content = f"Report sent: **{file_name}** ({len(content) // 1024} KiB, one file, {diagnosed})."
+        holds = "with its diagnosis" if diagnosed else "not diagnosed yet: Diagnose (Physics tab) or Open study first for its diagnosis"
+        self.status.content = f"Report sent: **{file_name}** ({len(content) // 1024} KiB, one file, {holds})."
 
     def open_study(self, name: str, content: bytes) -> None:
         """A study from the browser: checked whole before anything of the session changes."""
