@@ -136,6 +136,11 @@ class Campaign:
         return order.reshape(self.deviations.shape)
 
 
+def orientation_label(a_deg: float, b_deg: float) -> str:
+    """'A15 B-20': an orientation as the explorer, its lists and a report name it."""
+    return f"A{a_deg:g} B{b_deg:g}"
+
+
 def orientation_keys(angles_deg: ArrayLike) -> NDArray[np.float64]:
     """Angles rounded to the orientation tolerance: rows with equal keys are the same orientation."""
     return np.round(np.asarray(angles_deg, dtype=float), ORIENTATION_DECIMALS)

@@ -4,7 +4,9 @@ For each held-out orientation: the range and the maximum |deviation| of the meas
 and of each model's curve (Tables 1 and 2), and the mean absolute simulation error
 eps_s = delta_model - delta_measured (Table 3) against two references: the mean of the
 repetitions, and single repetitions (averaged over them). The MAE and the noise floor come from
-ph_explorer.metrics; cli/evaluate.py prints the tables.
+ph_explorer.metrics; cli/evaluate.py prints the tables. `tables_at` gives them at one orientation
+(measured or only predicted) and `tables_markdown` writes them as the explorer's Tables tab and a
+report show them.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer import metrics
-from ph_explorer.campaign import Campaign, orientation_match
+from ph_explorer.campaign import Campaign, orientation_label, orientation_match
 from ph_explorer.models.base import DeviationModel
 
 DIGITS = 5  # 0.01 nm: far below anything measured, keeps the JSON readable
@@ -52,6 +54,76 @@ def orientation_tables(
         }
         for i, (a, b) in enumerate(orientations)
     ]
+
+
+def tables_at(
+    campaign: Campaign, models: Mapping[str, DeviationModel], index: int | None, curves: Mapping[str, NDArray[np.float64]]
+) -> dict[str, Any]:
+    """Tables 1-3 at one orientation: {"range_um", "max_abs_um", "mae_um"} as an orientation_tables
+    row when it was measured (index in the campaign); else range and max |dev| of each predicted curve only."""
+    if index is not None:
+        mask = np.zeros(campaign.n_orientations, dtype=bool)
+        mask[index] = True
+        row = orientation_tables(campaign, models, mask)[0]
+        return {"range_um": row["range_um"], "max_abs_um": row["max_abs_um"], "mae_um": row["mae_um"]}
+    # Not measured: there is nothing to compare with.
+    return {
+        "range_um": {k: float(np.ptp(v)) for k, v in curves.items()},
+        "max_abs_um": {k: float(np.abs(v).max()) for k, v in curves.items()},
+        "mae_um": {},
+    }
+
+
+def _fmt(value: float | None) -> str:
+    return "—" if value is None or (isinstance(value, float) and not np.isfinite(value)) else f"{value:.2f}"
+
+
+def tables_markdown(
+    tables: Mapping[str, Any],
+    a_deg: float,
+    b_deg: float,
+    model_names: list[str],
+    noise_floor_um: Mapping[str, float],
+    measured: bool,
+    held_out: bool,
+    ront: Mapping[str, str] | None = None,
+    ront_note: str = "",
+) -> str:
+    """Tables 1-3 at one orientation (a `tables_at` result) as markdown: what the ring is (a training
+    ring, a check ring, or not measured), range and max |dev| per curve, each model's MAE and the floor.
+    ront: a row under Table 1 (curve -> cell text, e.g. the task's RONt +- U), with its note."""
+    t = tables
+    names = ["measured", *model_names] if measured else list(model_names)
+    heading = orientation_label(a_deg, b_deg)
+    if not measured:
+        heading += " — not measured: model **predictions** only"
+    elif held_out:
+        heading += " — measured, held out of training (check ring)"
+    else:
+        heading += " — measured, a training ring"
+    lines = [f"**{heading}**", ""]
+    header = "| um | " + " | ".join(names) + " |"
+    rule = "|---|" + "---|" * len(names)
+    lines += ["Table 1 — range, Table 2 — max |deviation|", "", header, rule]
+    lines.append("| range | " + " | ".join(_fmt(t["range_um"].get(n)) for n in names) + " |")
+    lines.append("| max abs | " + " | ".join(_fmt(t["max_abs_um"].get(n)) for n in names) + " |")
+    if ront is not None:
+        lines.append("| RONt, 1 meas. ± U | " + " | ".join(ront.get(n, "-") for n in names) + " |")
+        lines += ["", ront_note] if ront_note else []
+    lines.append("")
+    if t["mae_um"]:
+        models = list(t["mae_um"])
+        lines += ["Table 3 — mean absolute simulation error", "", "| um | " + " | ".join(models) + " |", "|---|" + "---|" * len(models)]
+        lines.append("| vs mean | " + " | ".join(_fmt(t["mae_um"][m]["mean"]) for m in models) + " |")
+        lines.append("| vs single | " + " | ".join(_fmt(t["mae_um"][m]["single"]) for m in models) + " |")
+        if noise_floor_um:
+            floor = noise_floor_um
+            lines += ["", f"Noise floor: {floor['mean']:.3f} um vs mean, {floor['single']:.3f} um vs single repetitions."]
+        if not held_out:
+            lines += ["", "_A training ring: the models saw it, so Table 3 here is in sample._"]
+    else:
+        lines.append("Table 3 needs a measurement at this orientation.")
+    return "\n".join(lines)
 
 
 def evaluation_report(

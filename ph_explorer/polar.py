@@ -5,7 +5,8 @@ deviations are already relative to it: harmonics 0 and 1 removed) on a chart whe
 `base + magnification x deviation`. The base radius is chosen from the deviations to be drawn so
 that the magnified profile never reaches the centre (a profile through the centre turns inside
 out and can no longer be read); scale circles are placed at round steps in um and labelled with
-the deviation they stand for. `polar_svg` draws the flat chart (the explorer's panel, a report).
+the deviation they stand for. `polar_svg` draws the flat chart; `curves_svg` draws a ring's named curves on it in the colours
+the explorer uses everywhere (its panel and 3D scene, a report).
 
 Chart lengths are in mm (the explorer's 3D scene draws the chart on the ring at true scale).
 """
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -28,6 +29,31 @@ SCALE_STEPS_UM = (0.01, 0.02, 0.05, 0.1, 0.2, 0.25, 0.5, 1.0, 2.0, 2.5, 5.0, 10.
 MAX_INTERVALS = 6
 # Scale circles closer than this share of the base radius would crowd the chart.
 MIN_SPACING = 0.1
+
+# One color per curve (RGB 0-255), shared by the explorer's scene, its legend and charts, and a report.
+CURVE_COLORS: dict[str, tuple[int, int, int]] = {
+    "measured": (30, 30, 30),
+    "repetitions": (150, 150, 150),
+    "network": (31, 119, 180),
+    "trilinear": (230, 120, 20),
+    "hybrid": (40, 160, 60),
+    "reference": (120, 120, 120),
+}
+BAND_COLORS: dict[str, tuple[int, int, int]] = {
+    "network": (150, 190, 235),
+    "trilinear": (250, 200, 150),
+    "hybrid": (160, 220, 160),
+}
+LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "LS reference circle (dashed: scale circles, um)"}
+CURVE_ORDER = ("measured", "network", "trilinear", "hybrid")
+
+
+def curve_color(name: str) -> tuple[int, int, int]:
+    return CURVE_COLORS.get(name, (140, 60, 160))
+
+
+def hex_color(rgb: tuple[int, int, int]) -> str:
+    return "#%02x%02x%02x" % tuple(int(c) for c in rgb)
 
 
 def offered_magnifications() -> NDArray[np.float64]:
@@ -214,3 +240,23 @@ def polar_svg(
         )
     parts.append("</svg>")
     return "".join(parts)
+
+
+def curves_svg(
+    scale: PolarScale,
+    curves: Mapping[str, NDArray[np.float64]],
+    shown: Mapping[str, bool],
+    repetitions: NDArray[np.float64] | None,
+    band: tuple[str, NDArray[np.float64], NDArray[np.float64]] | None,
+    title: str,
+) -> str:
+    """The chart of a ring's named curves ("measured" and model names -> (n_pt,) um) in the explorer's
+    colours, each repetition (n_rep, n_pt) faint under them when given, a model's band (name, low, high)."""
+    series = []
+    if repetitions is not None:
+        series.append(PolarSeries(LEGEND_LABELS["repetitions"], repetitions, hex_color(curve_color("repetitions")), 0.8, 0.6))
+    for name in CURVE_ORDER:
+        if name in curves and shown.get(name, True):
+            series.append(PolarSeries(LEGEND_LABELS.get(name, name), curves[name], hex_color(curve_color(name)), 2.5 if name == "measured" else 2.0))
+    drawn_band = (band[0], band[1], band[2], hex_color(BAND_COLORS.get(band[0], (200, 200, 200)))) if band is not None else None
+    return polar_svg(scale, series, title, drawn_band)

@@ -3,7 +3,8 @@
 The one fake browser of the project. It connects like the viser web client (viser registers a
 client when it receives the client's first camera message, so one is sent), drains and counts
 what the server sends, learns its GUI elements by label from the server's messages, and sends
-what a user's browser sends: a slider move (`move_slider("A (deg)", 43.0)`) or a file upload.
+what a user's browser sends: a slider move (`move_slider("A (deg)", 43.0)`) or a file upload; it
+keeps the files the server sends it to download (`download("report.html")`).
 
     browser, session = open_session(app)   # connect; returns with the Session the server made
     browser.move_slider("A (deg)", 60.0)   # as the user's browser would
@@ -76,6 +77,7 @@ class FakeBrowser:
         self.widgets: dict[str, dict[str, Any]] = {}  # label -> {"uuid", "type", "props", "value"}
         self._by_uuid: dict[str, dict[str, Any]] = {}
         self._wanted = None if labels is None else set(labels)
+        self._downloads: dict[str, dict[str, Any]] = {}  # transfer id -> {"filename", "part_count", "parts"}
         self._known = threading.Condition()
         self.closed = False
         self._closing = False
@@ -112,6 +114,29 @@ class FakeBrowser:
         self.send(_messages.FileTransferStartUpload(button, transfer, name, "text/csv", 1, len(content)))
         self.send(_messages.FileTransferPart(button, transfer, 0, content))
 
+    def download(self, filename: str, timeout: float = CONNECT_TIMEOUT_S) -> bytes:
+        """The bytes of the latest file of that name the server sent this browser to download
+        (send_file_download), once whole."""
+
+        def whole() -> bytes | None:
+            for transfer in reversed(self._downloads.values()):
+                if transfer["filename"] == filename and len(transfer["parts"]) == transfer["part_count"]:
+                    return b"".join(transfer["parts"][k] for k in range(transfer["part_count"]))
+            return None
+
+        with self._known:
+            if not self._known.wait_for(lambda: whole() is not None or self.closed, timeout):
+                raise TimeoutError(f"no download {filename!r} received")
+            content = whole()
+        if content is None:
+            raise ConnectionError("the fake browser is closed")
+        return content
+
+    def downloaded(self) -> list[str]:
+        """The names of the files the server has started sending this browser to download."""
+        with self._known:
+            return [transfer["filename"] for transfer in self._downloads.values()]
+
     def props(self, label: str) -> dict[str, Any]:
         """The properties this browser was last told for a GUI element (label, min, max, ...)."""
         self.uuid(label)
@@ -140,7 +165,11 @@ class FakeBrowser:
         with self._known:
             for m in messages:
                 kind = m.get("type", "")
-                if kind == "GuiUpdateMessage" and m.get("uuid") in self._by_uuid:
+                if kind == "FileTransferStartDownload":
+                    self._downloads[m["transfer_uuid"]] = {"filename": m["filename"], "part_count": m["part_count"], "parts": {}}
+                elif kind == "FileTransferPart" and m.get("transfer_uuid") in self._downloads:
+                    self._downloads[m["transfer_uuid"]]["parts"][int(m["part_index"])] = bytes(m["content"])
+                elif kind == "GuiUpdateMessage" and m.get("uuid") in self._by_uuid:
                     widget = self._by_uuid[m["uuid"]]
                     updates = m.get("updates") or {}
                     widget["value"] = updates.get("value", widget["value"])

@@ -20,14 +20,14 @@ from ph_explorer import paths, twin
 from ph_explorer.bands import Sources, calibrate_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import holdout_from_card, orientation_tables
+from ph_explorer.evaluation import tables_at
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
-from ph_explorer.models.folder import load_card, load_models
+from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors, out_of_sample_error
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
@@ -163,19 +163,8 @@ class Dataset:
         return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
-        """Tables 1-3 of the paper at this orientation: from ph_explorer.evaluation when measured."""
-        models = {n: self.models[n] for n in self.model_names}
-        if idx is not None:
-            mask = np.zeros(self.campaign.n_orientations, dtype=bool)
-            mask[idx] = True
-            row = orientation_tables(self.campaign, models, mask)[0]
-            return {"range_um": row["range_um"], "max_abs_um": row["max_abs_um"], "mae_um": row["mae_um"]}
-        # Not measured: there is nothing to compare with; range and max |dev| of each prediction only.
-        return {
-            "range_um": {k: float(np.ptp(v)) for k, v in curves.items()},
-            "max_abs_um": {k: float(np.abs(v).max()) for k, v in curves.items()},
-            "mae_um": {},
-        }
+        """Tables 1-3 of the paper at this orientation (ph_explorer.evaluation)."""
+        return tables_at(self.campaign, {n: self.models[n] for n in self.model_names}, idx, curves)
 
     def model_error(self, model: str) -> OutOfSampleError | None:
         """The model's out-of-sample error: from its folder, or (trilinear) by the cross-validation of
@@ -300,21 +289,11 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     The held-out rings are those of the model card when the models come from a folder (what the
     models never saw), else the campaign's own check orientations.
     """
-    notes = list(notes or [])
-    models: dict[str, DeviationModel] = {}
-    train = ~campaign.holdout_mask()
+    models, train, found = campaign_models(campaign, model_dir)
+    notes = [*(notes or []), *found]
     errors: dict[str, OutOfSampleError] = {}
-    if model_dir is not None:
-        models = dict(load_models(Path(model_dir)))
-        train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
-        notes.append(f"models from {model_dir}")
-        if (Path(model_dir) / ERRORS_FILE).is_file():
-            errors = {name: error for name, error in load_errors(Path(model_dir))[0].items() if name in models}
-    if "trilinear" not in models and train.any():
-        models["trilinear"] = TrilinearModel().fit(campaign, train)
-        notes.append("trilinear tables fitted at start-up on the training rings")
-    if "network" not in models:
-        notes.append("no trained network for this campaign (ph-explorer train makes one)")
+    if model_dir is not None and (Path(model_dir) / ERRORS_FILE).is_file():
+        errors = {name: error for name, error in load_errors(Path(model_dir))[0].items() if name in models}
     return Dataset(campaign, models, label, notes, train, errors)
 
 

@@ -14,8 +14,10 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
+from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's panels import it from here)
+from ph_explorer.evaluation import tables_markdown as orientation_tables_markdown
 from ph_explorer.orientation_map import MapFigure
-from ph_explorer.polar import MAGNIFICATION_RANGE, PolarScale, PolarSeries, polar_svg
+from ph_explorer.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
     "A15 B-20": (15.0, -20.0),
@@ -26,14 +28,6 @@ PAPER_PRESETS: dict[str, tuple[float, float]] = {
 NO_CHOICE = "(choose)"
 DEFAULT_MAGNIFICATION = 10000.0
 MAX_UPR = 16
-
-
-def orientation_label(a_deg: float, b_deg: float) -> str:
-    return f"A{a_deg:g} B{b_deg:g}"
-
-
-def _fmt(value: float | None) -> str:
-    return "—" if value is None or (isinstance(value, float) and not np.isfinite(value)) else f"{value:.2f}"
 
 
 class ControlsPanel:
@@ -109,10 +103,6 @@ class ControlsPanel:
         self.busy_text.visible = self.busy.visible = False
 
 
-LEGEND_LABELS = {"measured": "measured mean", "repetitions": "each repetition", "reference": "LS reference circle (dashed: scale circles, um)"}
-CURVE_ORDER = ("measured", "network", "trilinear", "hybrid")
-
-
 def legend_html(names: Iterable[str]) -> str:
     items = []
     for name in names:
@@ -162,14 +152,7 @@ def polar_chart(
     title: str,
 ) -> str:
     """The SVG of the shown curves (the same colours as the 3D scene), repetitions under them."""
-    series = []
-    if show_repetitions and view.repetitions is not None:
-        series.append(PolarSeries(LEGEND_LABELS["repetitions"], view.repetitions, hex_color(curve_color("repetitions")), 0.8, 0.6))
-    for name in CURVE_ORDER:
-        if name in view.curves and shown.get(name, True):
-            series.append(PolarSeries(LEGEND_LABELS.get(name, name), view.curves[name], hex_color(curve_color(name)), 2.5 if name == "measured" else 2.0))
-    drawn_band = (band[0], band[1], band[2], hex_color(BAND_COLORS.get(band[0], (200, 200, 200)))) if band is not None else None
-    return polar_svg(scale, series, title, drawn_band)
+    return curves_svg(scale, view.curves, shown, view.repetitions if show_repetitions else None, band, title)
 
 
 # At 1440x900 the polar plot (square, its legend under it) and the map (400 x 318 in its viewBox)
@@ -216,44 +199,18 @@ def task_cell(task: Mapping[str, float] | None) -> str:
 
 
 def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = False) -> str:
-    t = view.tables
-    names = ["measured", *dataset.model_names] if view.measured else list(dataset.model_names)
-    heading = orientation_label(view.a_deg, view.b_deg)
-    if not view.measured:
-        heading += " — not measured: model **predictions** only"
-    elif view.held_out:
-        heading += " — measured, held out of training (check ring)"
-    else:
-        heading += " — measured, a training ring"
-    lines = [f"**{heading}**", ""]
-    header = "| um | " + " | ".join(names) + " |"
-    rule = "|---|" + "---|" * len(names)
-    lines += ["Table 1 — range, Table 2 — max |deviation|", "", header, rule]
-    lines.append("| range | " + " | ".join(_fmt(t["range_um"].get(n)) for n in names) + " |")
-    lines.append("| max abs | " + " | ".join(_fmt(t["max_abs_um"].get(n)) for n in names) + " |")
+    ront = note = None
     if with_task:
         # Beside Table 1: the range of one measurement as a distribution (issue 17, the task's RONt).
         tasks = {n: dataset.cached_task(n, view.a_deg, view.b_deg) for n in dataset.model_names}
         if view.measured:
             tasks["measured"] = dataset.measured_task(view.measured_index)
-        lines.append("| RONt, 1 meas. ± U | " + " | ".join(task_cell(tasks.get(n)) for n in names) + " |")
-        lines += ["", "_RONt ± U (k = 2) of one measurement of "
-                  f"{dataset.campaign.n_points} touches: measured, the mean of the repetitions and twice their spread; a model, its "
-                  "Monte Carlo with every component of its band (… while it computes)._"]
-    lines.append("")
-    if t["mae_um"]:
-        models = list(t["mae_um"])
-        lines += ["Table 3 — mean absolute simulation error", "", "| um | " + " | ".join(models) + " |", "|---|" + "---|" * len(models)]
-        lines.append("| vs mean | " + " | ".join(_fmt(t["mae_um"][m]["mean"]) for m in models) + " |")
-        lines.append("| vs single | " + " | ".join(_fmt(t["mae_um"][m]["single"]) for m in models) + " |")
-        floor = dataset.noise_floor_um
-        if floor:
-            lines += ["", f"Noise floor: {floor['mean']:.3f} um vs mean, {floor['single']:.3f} um vs single repetitions."]
-        if not view.held_out:
-            lines += ["", "_A training ring: the models saw it, so Table 3 here is in sample._"]
-    else:
-        lines.append("Table 3 needs a measurement at this orientation.")
-    return "\n".join(lines)
+        ront = {n: task_cell(task) for n, task in tasks.items()}
+        note = (f"_RONt ± U (k = 2) of one measurement of {dataset.campaign.n_points} touches: measured, the mean of the "
+                "repetitions and twice their spread; a model, its Monte Carlo with every component of its band (… while it computes)._")
+    return orientation_tables_markdown(
+        view.tables, view.a_deg, view.b_deg, dataset.model_names, dataset.noise_floor_um, view.measured, view.held_out, ront, note or ""
+    )
 
 
 def deviation_chart_data(view: OrientationView, shown: Mapping[str, bool]) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:

@@ -17,9 +17,9 @@ from typing import Callable
 from ph_explorer import diagnosis
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.study import APP_DATA_PART, StudyFile, chain_of, study_steps
+from ph_explorer.app.study import APP_DATA_PART, StudyFile, chain_of
 from ph_explorer.diagnosis.results import effect_label
-from ph_explorer.diagnosis.study import study_record
+from ph_explorer.diagnosis.study import study_record, study_steps
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of

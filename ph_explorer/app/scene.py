@@ -17,29 +17,8 @@ from numpy.typing import NDArray
 from viser.transforms import SO3
 
 from ph_explorer.geometry import Geometry, stylus_direction
-
-# One color per curve (RGB 0-255), shared by the scene, the legend and the charts.
-CURVE_COLORS: dict[str, tuple[int, int, int]] = {
-    "measured": (30, 30, 30),
-    "repetitions": (150, 150, 150),
-    "network": (31, 119, 180),
-    "trilinear": (230, 120, 20),
-    "hybrid": (40, 160, 60),
-    "reference": (120, 120, 120),
-}
-BAND_COLORS: dict[str, tuple[int, int, int]] = {
-    "network": (150, 190, 235),
-    "trilinear": (250, 200, 150),
-    "hybrid": (160, 220, 160),
-}
-
-
-def curve_color(name: str) -> tuple[int, int, int]:
-    return CURVE_COLORS.get(name, (140, 60, 160))
-
-
-def hex_color(rgb: tuple[int, int, int]) -> str:
-    return "#%02x%02x%02x" % tuple(int(c) for c in rgb)
+# The curves' colours are the core's (ph_explorer.polar): a report draws them as the explorer does.
+from ph_explorer.polar import BAND_COLORS, CURVE_COLORS, curve_color, hex_color  # noqa: F401 (re-exported)
 
 
 # -- rotations (viser wants wxyz quaternions; viser.transforms composes them) -------------------------

@@ -34,6 +34,7 @@ from ph_explorer.app.panels import (
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
+from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
 from ph_explorer.app.study import StudyFile
@@ -116,6 +117,7 @@ class Session:
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
             with tabs.add_tab("Data"):
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
+                self.report_panel = ReportPanel(gui, self)  # Export report, Open study
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
         self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
         self._wire()

@@ -15,8 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis import Step
-from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain
+from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_steps
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_json_object, write_json_object
@@ -69,12 +68,7 @@ def open_study(path: Path, data_file: Path, campaign: Campaign, catalog: Catalog
     if not os.access(folder, os.W_OK):
         raise InputError("the study's folder is not writable", file=str(folder), option="--study")
     sha256 = file_sha256(Path(data_file))
-    described = {
-        "file": Path(data_file).name,
-        "sha256": sha256,
-        "orientations": campaign.n_orientations,
-        "repetitions": campaign.n_repetitions,
-    }
+    described = study_campaign(Path(data_file).name, sha256, campaign)
     study = None
     if path.exists():
         source = str(path)
@@ -89,27 +83,6 @@ def open_study(path: Path, data_file: Path, campaign: Campaign, catalog: Catalog
         study_chain(study, catalog, source)  # every effect of the chain is a candidate of this catalog
         study_steps(study, source)  # and its history reads back
     return StudyFile(path, described, study, catalog)
-
-
-def study_steps(study: dict[str, Any] | None, source: str = "study") -> list[Step]:
-    """The study's error history as the app's Step objects (the JSON's `steps`)."""
-    steps = []
-    for index, entry in enumerate((study or {}).get("steps", [])):
-        try:
-            steps.append(
-                Step(
-                    [str(e) for e in entry["added"]],
-                    {k: float(entry["mae_um"][k]) for k in ("mean", "single")},
-                    {k: float(entry["noise_floor_um"][k]) for k in ("mean", "single")},
-                    list(entry.get("params", [])),
-                    str(entry.get("model", "")),
-                )
-            )
-        except (KeyError, TypeError, ValueError):
-            raise InputError(
-                "each step must hold added, mae_um {mean, single} and noise_floor_um {mean, single}", file=source, column=f"steps[{index}]"
-            ) from None
-    return steps
 
 
 def chain_of(study: dict[str, Any] | None, catalog: Catalog, source: str = "study") -> list[Effect]:

@@ -1,4 +1,4 @@
-"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, serve.
+"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, report, serve.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
 command is in its own module (cli/inspect.py, ...). A command module imports the torch- or
@@ -19,7 +19,7 @@ from typing import Annotated, Any, Optional
 
 import typer
 
-from ph_explorer.cli import design, diagnose, effects, evaluate, inspect, serve, simulate, train, uncertainty
+from ph_explorer.cli import design, diagnose, effects, evaluate, inspect, report, serve, simulate, train, uncertainty
 from ph_explorer.errors import InputError
 
 app = typer.Typer(
@@ -209,6 +209,28 @@ def _uncertainty(
     """Each model's Monte Carlo band with every component (repeatability, model, parameters), its budget
     and the RONt of one measurement with U (k = 2), at the given orientations."""
     _run("uncertainty", uncertainty.uncertainty_command, model=model, orientations=orientations, level=level, json_output=json_output, seed=seed)
+
+
+@app.command("report")
+@with_geometry
+def _report(
+    out: Annotated[Path, typer.Option(help="The HTML file to write (one file, its figures inside; written atomically).")],
+    data: Annotated[Optional[Path], typer.Option(help="The campaign CSV to report on.")] = None,
+    scenario: ScenarioOpt = None,  # simulated with its own seed, instead of --data
+    model: Annotated[Optional[Path], typer.Option(help="A trained model folder: its models are shown and the diagnosis starts from it.")] = None,
+    study: Annotated[
+        Optional[Path], typer.Option(help="A study of this campaign (diagnose --save, the explorer's Save study); default: diagnose now.")
+    ] = None,
+    orientations: Annotated[
+        Optional[str], typer.Option(help="Where to draw polar plots and Tables 1-3, 'A:B[,A:B...]' (default: the worst failing ring and a check ring).")
+    ] = None,
+    reveal: Annotated[bool, typer.Option("--reveal", help="Name a teaching scenario's hidden effects, with their true parameters.")] = False,
+    geometry: dict[str, float] | None = None,
+) -> None:
+    """A campaign and its diagnosis as one HTML file: the campaign, the error map, polar plots and
+    Tables 1-3, the verdict, the fitted effects +- U, the error history and where it fails."""
+    options = {"data": data, "scenario": scenario, "model": model, "study": study, "orientations": orientations, "reveal": reveal}
+    _run("report", report.report_command, out=out, geometry=geometry, **options)
 
 
 @app.command("inspect")

@@ -35,7 +35,7 @@ def diagnose_command(
     with --save or --resume, write the study."""
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
     from ph_explorer.diagnosis import diagnose
-    from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain, study_record
+    from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record
     from ph_explorer.models.folder import baseline_of, load_models
     from ph_explorer.models.network import FourierNetwork
 
@@ -80,7 +80,7 @@ def diagnose_command(
         )
     target = save if save is not None else resume
     if target is not None:
-        described = {"file": Path(data).name, "sha256": sha256, "orientations": campaign.n_orientations, "repetitions": campaign.n_repetitions}
+        described = study_campaign(Path(data).name, sha256, campaign)
         study = study_record(result, result.chain, described, data_part, None if effects is None else str(effects), previous)
         write_json_object(target, study)
     if json_output:

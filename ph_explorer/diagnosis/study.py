@@ -23,6 +23,7 @@ from __future__ import annotations
 import datetime
 from typing import Any
 
+from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.results import Diagnosis, Step
 from ph_explorer.effects import Catalog, Effect
@@ -30,6 +31,11 @@ from ph_explorer.errors import InputError
 
 STUDY_FORMAT = "ph-explorer study 1"
 STUDY_KEYS = ("format", "campaign", "baseline", "data_part", "chain", "runs")
+
+
+def study_campaign(file_name: str, sha256: str, campaign: Campaign) -> dict[str, Any]:
+    """The study's `campaign` object: the file it was made on, its bytes' sha256 and its size."""
+    return {"file": file_name, "sha256": sha256, "orientations": campaign.n_orientations, "repetitions": campaign.n_repetitions}
 
 
 def study_record(
@@ -143,3 +149,24 @@ def check_campaign(study: dict[str, Any], sha256: str, source: str, data: str) -
             f"the study was made on {made_on} (sha256 {study['campaign']['sha256'][:12]}), not on {data} (sha256 {sha256[:12]})",
             file=source,
         )
+
+
+def study_steps(study: dict[str, Any] | None, source: str = "study") -> list[Step]:
+    """The study's error history as Step objects (the JSON's `steps`); an InputError line when a step is malformed."""
+    steps = []
+    for index, entry in enumerate((study or {}).get("steps", [])):
+        try:
+            steps.append(
+                Step(
+                    [str(e) for e in entry["added"]],
+                    {k: float(entry["mae_um"][k]) for k in ("mean", "single")},
+                    {k: float(entry["noise_floor_um"][k]) for k in ("mean", "single")},
+                    list(entry.get("params", [])),
+                    str(entry.get("model", "")),
+                )
+            )
+        except (KeyError, TypeError, ValueError):
+            raise InputError(
+                "each step must hold added, mae_um {mean, single} and noise_floor_um {mean, single}", file=source, column=f"steps[{index}]"
+            ) from None
+    return steps

@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.errors import InputError
-from ph_explorer.io.writer import atomic_write
+from ph_explorer.campaign import Campaign
+from ph_explorer.io.writer import atomic_write, csv_text
 
 
 def file_sha256(path: Path) -> str:
@@ -20,19 +21,31 @@ def file_sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def campaign_sha256(campaign: Campaign) -> str:
+    """The sha256 of the CSV bytes `write_campaign` writes for this campaign: the identity of a
+    campaign held in memory (a simulated scenario), equal to its file's once simulate --out wrote it."""
+    return hashlib.sha256(csv_text(campaign).encode("utf-8")).hexdigest()
+
+
 def read_json_object(path: Path, what: str) -> dict[str, Any]:
     """A JSON object from a file, or an InputError naming the file and what is wrong with it."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"no such {what} file", file=str(path))
+    return parse_json_object(path.read_bytes(), str(path), what)
+
+
+def parse_json_object(content: bytes, source: str, what: str) -> dict[str, Any]:
+    """A JSON object from a file's bytes (read, or uploaded by a browser), or an InputError naming
+    the source and what is wrong with it."""
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
+        document = json.loads(content.decode("utf-8"))
     except UnicodeDecodeError:
-        raise InputError(f"not a {what}: not UTF-8 text", file=str(path)) from None
+        raise InputError(f"not a {what}: not UTF-8 text", file=source) from None
     except json.JSONDecodeError as error:
-        raise InputError(f"not a {what}: invalid JSON at line {error.lineno}, column {error.colno}", file=str(path)) from None
+        raise InputError(f"not a {what}: invalid JSON at line {error.lineno}, column {error.colno}", file=source) from None
     if not isinstance(document, dict):
-        raise InputError(f"not a {what}: the file holds a JSON {type(document).__name__}, not an object", file=str(path))
+        raise InputError(f"not a {what}: the file holds a JSON {type(document).__name__}, not an object", file=source)
     return document
 
 

@@ -16,7 +16,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
+from ph_explorer.evaluation import holdout_from_card
 from ph_explorer.models import network, trilinear
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.model_error import OutOfSampleError, save_errors
@@ -98,3 +103,27 @@ def load_models(directory: Path) -> dict[str, DeviationModel]:
     if not models:
         raise InputError("the model folder holds no model file", file=str(directory))
     return models
+
+
+def campaign_models(
+    campaign: Campaign, model_dir: Path | None
+) -> tuple[dict[str, DeviationModel], NDArray[np.bool_], list[str]]:
+    """The models to show a campaign with, its training rings, and notes saying where they came from.
+
+    The models of model_dir when given, with the card's held-out rings (what the models never saw),
+    else the campaign's own check orientations; the trilinear tables are fitted now on the training
+    rings when the folder has none (or there is no folder).
+    """
+    notes: list[str] = []
+    models: dict[str, DeviationModel] = {}
+    train = ~campaign.holdout_mask()
+    if model_dir is not None:
+        models = dict(load_models(Path(model_dir)))
+        train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
+        notes.append(f"models from {model_dir}")
+    if "trilinear" not in models and train.any():
+        models["trilinear"] = trilinear.TrilinearModel().fit(campaign, train)
+        notes.append("trilinear tables fitted on the training rings")
+    if "network" not in models:
+        notes.append("no trained network for this campaign (ph-explorer train makes one)")
+    return models, train, notes
