@@ -27,7 +27,7 @@ from ph_explorer.app.dataset import dataset_for
 from ph_explorer.app.server import ExplorerApp
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import effect_label
-from ph_explorer.diagnosis.study import study_campaign, study_record
+from ph_explorer.diagnosis.study import check_study, study_campaign, study_record
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, write_campaign, write_json_object
 from ph_explorer.models.folder import campaign_models
@@ -305,8 +305,26 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
         for step in study["steps"]:
             assert f"<td>{step['mae_um']['mean']:.3f}</td>" in page
         assert named(page, "head_3") == []  # the explorer's report is a teaching report too unless asked
+        # Download study: the opened study continued, as a file that Open study and --resume read.
+        fake.click("Download study")
+        assert wait_for(lambda: "Study sent" in s.report_panel.status.content, timeout=120)
+        saved = json.loads(fake.download("study_small_b22.json", timeout=120).decode("utf-8"))
+        assert check_study(saved, "study_small_b22.json") == saved
+        assert saved["campaign"] == study["campaign"] and len(saved["runs"]) == len(study["runs"])
+        assert [step["mae_um"]["mean"] for step in saved["steps"]] == pytest.approx([step["mae_um"]["mean"] for step in study["steps"]])
     finally:
         s.wait(timeout=120)
+        fake.close()
+
+
+def test_download_study_before_anything_says_what_to_do_first(app) -> None:
+    fake, s = open_session(app)
+    try:
+        fake.click("Download study")
+        assert wait_for(lambda: "Nothing to download" in s.report_panel.status.content, timeout=60)
+        assert not fake.downloaded()
+    finally:
+        s.wait(timeout=60)
         fake.close()
 
 

@@ -29,7 +29,7 @@ from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
-from ph_explorer.io import campaign_sha256, parse_json_object
+from ph_explorer.io import campaign_sha256, json_object_text, parse_json_object
 from ph_explorer.report import default_orientations, report_html
 
 
@@ -84,9 +84,13 @@ class ReportPanel:
             self.export = gui.add_button("Export report", hint="one HTML file: the campaign, the map, polar plot and Tables 1-3, the diagnosis and its history")
             self.reveal = gui.add_checkbox("Name hidden effects in the report", False, hint="teaching scenarios: the report names what the twin hid")
             self.open = gui.add_upload_button("Open study", mime_type=".json,application/json", hint="a study of the campaign shown (diagnose --save)")
+            self.download = gui.add_button(
+                "Download study", hint="this browser's study as a file: its diagnosis and the model refitted last, on top of a study opened here"
+            )
             self.status = gui.add_markdown("")
         self.export.on_click(lambda _: session.submit(self.export_report))
         self.open.on_upload(lambda _: session.submit(self.open_study, self.open.value.name, self.open.value.content))
+        self.download.on_click(lambda _: session.submit(self.download_study))
 
     def report(self) -> tuple[str, str, bool]:
         """The report of what this browser shows, its file name, and whether it holds a diagnosis."""
@@ -114,6 +118,21 @@ class ReportPanel:
         self.session.client.send_file_download(file_name, content, save_immediately=True)
         holds = "with its diagnosis" if diagnosed else "not diagnosed yet: Diagnose (Physics tab) or Open study first for its diagnosis"
         self.status.content = f"Report sent: **{file_name}** ({len(content) // 1024} KiB, one file, {holds})."
+
+    def download_study(self) -> None:
+        """The study Save study would write, sent to the browser as a file (diagnose --resume and Open
+        study read it): a study opened by upload is continued and saved this way."""
+        s = self.session
+        name, sha256 = shown_campaign(s)
+        study = session_study(s.loop, study_campaign(name, sha256, s.dataset.campaign))
+        if study is None:
+            self.status.content = "**Nothing to download** — diagnose first (Physics tab), or open a study."
+            return
+        file_name = report_file_name(s.dataset.campaign, s.dataset.label).replace("report_", "study_", 1).rsplit(".", 1)[0] + ".json"
+        content = json_object_text(study).encode("utf-8")
+        s.client.send_file_download(file_name, content, save_immediately=True)
+        runs = len(study["runs"])
+        self.status.content = f"Study sent: **{file_name}** ({runs} run{'s' if runs != 1 else ''}); Open study or `diagnose --resume` continues it."
 
     def open_study(self, name: str, content: bytes) -> None:
         """A study from the browser: checked whole before anything of the session changes."""

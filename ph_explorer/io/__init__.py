@@ -6,7 +6,7 @@ summary.py says what a campaign holds (the `inspect --json` object), files.py ch
 reads and writes JSON documents (a diagnosis's study) atomically.
 """
 
-from ph_explorer.io.files import campaign_sha256, file_sha256, parse_json_object, read_json_object, write_json_object
+from ph_explorer.io.files import campaign_sha256, file_sha256, json_object_text, parse_json_object, read_json_object, write_json_object
 from ph_explorer.io.reader import KNOWN_COLUMNS, REQUIRED_COLUMNS, read_campaign
 from ph_explorer.io.sidecar import sidecar_path
 from ph_explorer.io.summary import campaign_summary
@@ -18,6 +18,7 @@ __all__ = [
     "campaign_sha256",
     "campaign_summary",
     "file_sha256",
+    "json_object_text",
     "parse_json_object",
     "read_campaign",
     "read_json_object",

@@ -49,6 +49,11 @@ def parse_json_object(content: bytes, source: str, what: str) -> dict[str, Any]:
     return document
 
 
+def json_object_text(document: dict[str, Any]) -> str:
+    """A JSON object as the project's files hold it (studies, cards): one key per line, a final newline."""
+    return json.dumps(document, indent=1) + "\n"
+
+
 def write_json_object(path: Path, document: dict[str, Any]) -> None:
     """Write a JSON object atomically: the old file stays whole until the new one is complete."""
-    atomic_write([(Path(path), json.dumps(document, indent=1) + "\n")])
+    atomic_write([(Path(path), json_object_text(document))])
