@@ -140,19 +140,8 @@ class PolarPanel:
         band: tuple[str, NDArray, NDArray] | None,
         title: str,
     ) -> None:
-        self.plot.content = polar_chart(scale, view, shown, show_repetitions, band, title)
-
-
-def polar_chart(
-    scale: PolarScale,
-    view: OrientationView,
-    shown: Mapping[str, bool],
-    show_repetitions: bool,
-    band: tuple[str, NDArray, NDArray] | None,
-    title: str,
-) -> str:
-    """The SVG of the shown curves (the same colours as the 3D scene), repetitions under them."""
-    return curves_svg(scale, view.curves, shown, view.repetitions if show_repetitions else None, band, title)
+        """The SVG of the shown curves (the same colours as the 3D scene), repetitions under them."""
+        self.plot.content = curves_svg(scale, view.curves, shown, view.repetitions if show_repetitions else None, band, title)
 
 
 # At 1440x900 the polar plot (square, its legend under it) and the map (400 x 318 in its viewBox)
