@@ -200,23 +200,39 @@ def band_variance(
     power, which the hybrid's cross-validated error holds), the parameters' per-point variance.
     The Monte Carlo band's quantiles of these components are +-z sqrt(variance) (tested).
     """
-    o = as_orientations(orientations)
+    fixed, power, q = _variance_parts(sources, as_orientations(orientations), n_points, band, components)
+    if power is None:
+        return fixed
+    return fixed + _model_variance(power, q, sources.error.scale if scale is None else scale)  # type: ignore[union-attr]
+
+
+def _variance_parts(
+    sources: Sources, o: NDArray[np.float64], n_points: int, band: str, components: tuple[str, ...]
+) -> tuple[NDArray[np.float64], NDArray[np.float64] | None, NDArray[np.float64] | None]:
+    """What band_variance adds up, made once (a calibration varies only the scale): the variance that
+    does not scale (m, N), the model error's unscaled power per harmonic 2..N/2 (m, K) or None, and
+    the parameters' power there (m, K) or None."""
     sigma = np.broadcast_to(np.asarray(sources.model.repetition_sigma(o, n_points=n_points), dtype=float), (len(o), n_points))
-    variance = np.zeros((len(o), n_points))
+    fixed = np.zeros((len(o), n_points))
     if "repeatability" in components:
-        variance += sigma**2 / (sources.n_repetitions if band == "mean" else 1)
+        fixed += sigma**2 / (sources.n_repetitions if band == "mean" else 1)
     roots = None
     if sources.parameters is not None:
         roots = np.stack([sources.parameters.root(o[i : i + 1], n_points) for i in range(len(o))])  # (m, N, q)
-    if sources.error is not None and "model" in components:
-        s = sources.error.scale if scale is None else scale
-        power = s * np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, 2 : n_points // 2 + 1]
-        if roots is not None:
-            power = np.maximum(power - harmonic_power(np.swapaxes(roots, 1, 2)).sum(axis=1)[:, 2 : n_points // 2 + 1], 0.0)
-        variance += power.sum(axis=1, keepdims=True)
-    if roots is not None and "parameters" in components:
-        variance += np.sum(roots**2, axis=2)
-    return variance
+        if "parameters" in components:
+            fixed += np.sum(roots**2, axis=2)
+    if sources.error is None or "model" not in components:
+        return fixed, None, None
+    harmonics = slice(2, n_points // 2 + 1)
+    power = np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, harmonics]
+    q = None if roots is None else harmonic_power(np.swapaxes(roots, 1, 2)).sum(axis=1)[:, harmonics]
+    return fixed, power, q
+
+
+def _model_variance(power: NDArray[np.float64], q: NDArray[np.float64] | None, scale: float) -> NDArray[np.float64]:
+    """(m, 1) the model's random-phase curve at every point: sum_k max(scale P_k - Q_k, 0)."""
+    scaled = scale * power if q is None else np.maximum(scale * power - q, 0.0)
+    return scaled.sum(axis=1, keepdims=True)
 
 
 def gaussian_band(
@@ -256,8 +272,10 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     residual = np.abs(curves - sources.model.predict(o, n_points=n))
     z = float(norm.ppf(0.5 + level / 2.0))
 
+    fixed, power, q = _variance_parts(sources, o, n, "mean", COMPONENTS)
+
     def covered(scale: float) -> float:
-        return float(np.mean(residual <= z * np.sqrt(band_variance(sources, o, n, "mean", scale=scale))))
+        return float(np.mean(residual <= z * np.sqrt(fixed + _model_variance(power, q, scale))))  # type: ignore[arg-type]
 
     low, high = 0.0, 1.0
     if covered(low) >= level:
