@@ -88,7 +88,7 @@ def one_model(
     for ring in np.flatnonzero(check):
         others = held.copy()
         others[ring] = False
-        calibrated.append(calibrate_model_error(sources, campaign.orientations[others], means[others], touches=campaign.deviations[others]))
+        calibrated.append(calibrate_model_error(sources, campaign.orientations[others], means[others]))
     bands = [model_bands(c, campaign.orientations[[ring]], rng=rng, ndig=NDIG)[0] for c, ring in zip(calibrated, np.flatnonzero(check))]
     uncalibrated = model_bands(sources, campaign.orientations[check], rng=rng, ndig=NDIG)
     measured = campaign.deviations[check]
@@ -173,9 +173,8 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
     in_target = {f"{c}/{m}": r["in_target"] for c, models in results.items() for m, r in models.items()}
     return {
         "mode": "quick" if quick else "full",
-        "method": "model error per harmonic from the cross-validation in 5 folds plus along A (each interior A value left out), "
-        "kernel in A (one lattice step), its variance scaled so that 95 % of the mean-curve points and 95 % of the single "
-        "touches of the OTHER held-out rings lie in their bands (leave one ring out); "
+        "method": "model error from 5-fold cross-validation per harmonic, kernel in A (one lattice step), its variance "
+        "scaled so that 95 % of the mean-curve points of the OTHER held-out rings lie in the mean band (leave one ring out); "
         "hybrid parameters by the ring jackknife; adaptive Monte Carlo JCGM 101 7.9 (ndig 1, batches of 10^4)",
         "components": list(COMPONENTS),
         "target": list(TARGET),

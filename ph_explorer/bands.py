@@ -254,44 +254,30 @@ def gaussian_band(
     return prediction - half, prediction + half
 
 
-def calibrate_model_error(
-    sources: Sources, orientations: ArrayLike, mean_curves: ArrayLike, level: float = 0.95, touches: ArrayLike | None = None
-) -> Sources:
+def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves: ArrayLike, level: float = 0.95) -> Sources:
     """The sources with the model error's size calibrated on held-out rings (split-conformal in spirit).
 
     orientations (m, 2), mean_curves (m, N): rings the model was not fitted on, measured off its
-    lattice; touches (m, R, N), when given, their single touches. The scale s >= 0 of the model
-    error's variance is the smallest with which `level` of their mean-curve points lie inside the
-    mean band and, with touches, `level` of their touches inside the touch band: the band states
-    both (Gaussian bounds +-z sqrt(variance), z the two-sided quantile of `level`, which the Monte
-    Carlo band reproduces for these Gaussian components); the shape over A and the harmonics stays
-    the cross-validation's. Rings used here must not be the rings a coverage is then measured on.
-    With fewer than MIN_CALIBRATION_RINGS rings a share of points says too little (one ring's
-    points move together): the sources are returned as they are, the cross-validation's size,
-    `calibration_rings` 0.
+    lattice. The scale s >= 0 of the model error's variance is the smallest with which `level` of
+    their mean-curve points lie inside the mean band (Gaussian bounds +-z sqrt(variance), z the
+    two-sided quantile of `level`, which the Monte Carlo band reproduces for these Gaussian
+    components); the shape over A and the harmonics stays the cross-validation's. Rings used here
+    must not be the rings a coverage is then measured on. With fewer than MIN_CALIBRATION_RINGS
+    rings a share of points says too little (one ring's 64 points move together): the sources are
+    returned as they are, the cross-validation's size, `calibration_rings` 0.
     """
     o = as_orientations(orientations)
     if sources.error is None or len(o) < MIN_CALIBRATION_RINGS:
         return sources
     curves = np.asarray(mean_curves, dtype=float)
     n = curves.shape[-1]
-    prediction = sources.model.predict(o, n_points=n)
+    residual = np.abs(curves - sources.model.predict(o, n_points=n))
     z = float(norm.ppf(0.5 + level / 2.0))
-    # (|measured - prediction|, the variance that does not scale) per band; the model's power is common.
-    checks = []
-    for band, measured in (("mean", curves), ("touch", None if touches is None else np.asarray(touches, dtype=float))):
-        if measured is None:
-            continue
-        fixed, power, q = _variance_parts(sources, o, n, band, COMPONENTS)
-        residual = np.abs(measured - (prediction if band == "mean" else prediction[:, None, :]))
-        checks.append((residual, fixed if band == "mean" else fixed[:, None, :]))
+
+    fixed, power, q = _variance_parts(sources, o, n, "mean", COMPONENTS)
 
     def covered(scale: float) -> float:
-        model = _model_variance(power, q, scale)  # type: ignore[arg-type]
-        return min(
-            float(np.mean(residual <= z * np.sqrt(fixed + (model if residual.ndim == 2 else model[:, None, :]))))
-            for residual, fixed in checks
-        )
+        return float(np.mean(residual <= z * np.sqrt(fixed + _model_variance(power, q, scale))))  # type: ignore[arg-type]
 
     low, high = 0.0, 1.0
     if covered(low) >= level:
@@ -304,16 +290,15 @@ def calibrate_model_error(
             low, high = (middle, high) if covered(middle) < level else (low, middle)
     return replace(sources, error=sources.error.scaled(high, len(o)), _cache={})
 
+
 def calibrated_model_error(
     make_model: Callable[[], DeviationModel], model: DeviationModel, campaign: Campaign, train: ArrayLike, level: float = 0.95
 ) -> OutOfSampleError:
     """A model's own error out of sample (`models.model_error.out_of_sample_error` on the training
-    rings), its size calibrated on the campaign's rings left out of training, their mean curves and
-    touches (`calibrate_model_error`;
+    rings), its size calibrated on the campaign's rings left out of training (`calibrate_model_error`;
     with fewer than MIN_CALIBRATION_RINGS of them, the cross-validation's size). `model` is the one
     fitted on `train`, `make_model` makes an unfitted one for the cross-validation."""
     error = out_of_sample_error(make_model, campaign, train)
     held = ~np.asarray(train, dtype=bool)
     sources = Sources(model, campaign.n_repetitions, error)
-    calibrated = calibrate_model_error(sources, campaign.orientations[held], campaign.mean_curves()[held], level, campaign.deviations[held])
-    return calibrated.error  # type: ignore[return-value]
+    return calibrate_model_error(sources, campaign.orientations[held], campaign.mean_curves()[held], level).error  # type: ignore[return-value]
