@@ -40,7 +40,8 @@ from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.hybrid import HybridModel, carried_effects
+from ph_explorer.models.carried import carried_effects
+from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import Scenario, load_scenario, simulate
@@ -80,8 +81,9 @@ def hybrid_effects(scenario: Scenario) -> list[Effect]:
     return [e for e in scenario.effects if e.candidate]
 
 
-def diagnosed_effects(campaign: Campaign, seed: int = 0) -> list[Effect]:
-    """The effects the diagnosis chooses on this campaign alone (a training subset).
+def diagnosed_effects(campaign: Campaign, seed: int = 0) -> tuple[list[Effect], list[Effect]]:
+    """The effects the diagnosis chooses on this campaign alone (a training subset), and those it
+    saw present beyond noise but not material on its check rings (at their best settings).
 
     The diagnosis judges an effect's materiality on held-out rings; a subset has none of its own,
     so a spread quarter of its rings (in measuring order, at least two) plays them. They are
@@ -91,7 +93,9 @@ def diagnosed_effects(campaign: Campaign, seed: int = 0) -> list[Effect]:
     held_out = np.zeros(n, dtype=bool)
     held_out[np.round(np.linspace(1, n - 2, max(2, round(DIAGNOSIS_HELD_OUT_SHARE * n)))).astype(int)] = True
     effects = [cls() for cls in DEFAULT_CATALOG.candidates().values()]
-    return choose_effects(campaign, ~held_out, effects, seed=seed, detail=False).chain
+    choice = choose_effects(campaign, ~held_out, effects, seed=seed, detail=False)
+    present = [DEFAULT_CATALOG[c.effect](**c.settings) for c in choice.remaining if c.beyond_noise and not c.significant]
+    return choice.chain, present
 
 
 def designed_subsets(campaign: Campaign, train: NDArray[np.bool_], budgets: tuple[int, ...] = DESIGN_BUDGETS) -> list[tuple[NDArray[np.bool_], str]]:
@@ -116,10 +120,16 @@ def fit_model(name: str, campaign: Campaign, train: NDArray[np.bool_], network_c
         model = HybridModel([], "trilinear").fit(campaign.subset(train))
     else:
         subset = campaign.subset(train)
-        found = diagnosed_effects(subset)
-        kept, path = carried_effects(subset, found)
+        found, present = diagnosed_effects(subset)
+        kept, path, identifiable = carried_effects(subset, found + present)
         model = HybridModel(kept, "trilinear").fit(subset)
-        chosen = {"found": [effect_label(e) for e in found], "kept": [effect_label(e) for e in kept], "cross_validation": path}
+        chosen = {
+            "found": [effect_label(e) for e in found],
+            "present": [effect_label(e) for e in present],
+            "kept": [effect_label(e) for e in kept],
+            "identifiability": identifiable,
+            "cross_validation": path,
+        }
     return model, time.perf_counter() - start, chosen
 
 
