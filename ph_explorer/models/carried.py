@@ -169,7 +169,7 @@ class Identification:
             if theirs is None:
                 continue
             shared = shared_variance(own, theirs)
-            if shared > CONFOUNDED and shared_over(effect, other, [self.domain]) <= CONFOUNDED:
+            if shared > CONFOUNDED and not self._alike_between(effect, other):
                 found.append((other, shared))
         return sorted(found, key=lambda item: -item[1])
 
@@ -213,7 +213,14 @@ class Identification:
         mine, theirs = self.design(effect), self.design(other)
         if mine is None or theirs is None:
             return mine is None
-        return shared_variance(mine, theirs) > CONFOUNDED and shared_over(effect, other, [self.domain]) > CONFOUNDED
+        return shared_variance(mine, theirs) > CONFOUNDED and self._alike_between(effect, other)
+
+    def _alike_between(self, effect: Effect, other: Effect) -> bool:
+        """Whether the two share more than CONFOUNDED over the prediction domain; one that needs what
+        the domain lacks (touch times) predicts nothing there: not alike."""
+        if effect.unmet_needs(self.domain) or other.unmet_needs(self.domain):
+            return False
+        return shared_over(effect, other, [self.domain]) > CONFOUNDED
 
 
 def _connected(effects: list[Effect], links: list[tuple[int, int]]) -> list[list[Effect]]:
