@@ -15,9 +15,12 @@ times). Each point of the curves names its design (details["design"]).
 Models: the paper's network (lattice subsets only), the trilinear model, and the hybrid, whose
 effects come from the diagnosis run on the training subset itself (diagnosis.choose_effects, the
 diagnosis's own choice: a quarter of the subset's rings, spread, play the check rings it judges
-materiality on; never the scenario's effects, never the benchmark's check rings), of which it keeps
-those its own cross-validation says the data can carry (hybrid.carried_effects: backward
-elimination on crossval.cross_val_predict, strict). Data part = trilinear. The hybrid is fitted on a
+materiality on; never the scenario's effects, never the benchmark's check rings) with those it saw
+present beyond noise but not material there, of which it keeps those the subset identifies (no
+catalog alias it cannot tell from them that predicts otherwise between its rings, unless the data
+part reproduces them there; a plausible fit) and its own cross-validation says the data can carry
+(models.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
+Data part = trilinear. The hybrid is fitted on a
 campaign holding the training orientations only, so neither its physical terms nor its data part
 see a check ring or an orientation left out of the subset; it then predicts every touch of the
 check rings. The rule (issue 16): at every subset the hybrid's check-ring MAE is at most 1.05 x
@@ -177,7 +180,7 @@ def run_scenario(
             if chosen:
                 hybrid_effects_chosen.append({"orientations": n, "design": design, **chosen})
             log(f"  {name}: {model_name:9s} n={n:3d} ({design})  MAE vs mean {mae[model_name]:.4f} um  ({took:.1f} s)"
-                + (f"  effects {chosen['found']} -> kept {chosen['kept']}" if chosen else ""))
+                + (f"  effects {chosen['found']} + present {chosen['present']} -> kept {chosen['kept']}" if chosen else ""))
         better = min(mae["trilinear"], mae["data_part"])
         never_worse.append({
             "orientations": n,
