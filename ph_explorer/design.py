@@ -147,14 +147,16 @@ _SIZES: dict[tuple[str, str], float] = {}  # plausible_size by effect class and 
 
 def plausible_size(effect: Effect) -> float:
     """The size of one of the effect's coefficients at its largest plausible magnitude: the default
-    coefficients (the effect as its author sized it) scaled to the edge of every declared plausible
-    range (diagnosis.identifiability.plausible_scale), as an rms over the coefficients; the default
-    size when no range bounds it, 1 when the default term is zero."""
+    coefficients (the effect as its author sized it; equal ones when its default term is zero, e.g.
+    an offset) scaled to the edge of every declared plausible range
+    (diagnosis.identifiability.plausible_scale), as an rms over the coefficients; their own size
+    when no range bounds them."""
     key = (f"{type(effect).__module__}.{type(effect).__qualname__}", repr(sorted(effect.params.items())))
     if key not in _SIZES:
         default = np.asarray(effect.coefficients(), dtype=float)
-        scale = plausible_scale(effect, default) if default.size and np.any(default) else None
-        _SIZES[key] = (1.0 if scale is None else scale) * float(np.sqrt(np.mean(default**2))) if np.any(default) else 1.0
+        direction = default if np.any(default) else np.ones(max(default.size, 1))
+        scale = plausible_scale(effect, direction) if default.size else None
+        _SIZES[key] = (1.0 if scale is None else scale) * float(np.sqrt(np.mean(direction**2)))
     return _SIZES[key]
 
 
