@@ -14,18 +14,12 @@ for two purposes at once:
   and the nearest one already in the design (the stylus direction, not (A, B): at A0 = 0 every B
   points the same way).
 
-Each coefficient is counted in units of its plausible size (the largest magnitude its effect's
-declared plausible ranges admit) over the touch noise, so the criterion is the same in any units and
-a Bayesian one: the prior information RIDGE_PRIOR I says every coefficient lies within about its
-plausible size, and a ring earns information only where the effect at that size stands out of the
-noise. A direction a ring shows only with a tiny lever (a B-axis error at A0 = 0, where the B joint
-sweeps a full turn but moves the tip by sin 6.5 deg of its lever) is worth little, as it is in the
-measurement; the previous design orthonormalised the columns over the candidates, which gave such a
-direction the weight of any other and filled small designs with A0 = 0 rings. Rings whose stylus
-points the same way (every A0 = 0 ring, whatever B0) are one circle in space: one of them is a
-candidate (distinct_rings). With a measured campaign, its rings are the prior too (their touch noise
-its own): the rings added are those that most shrink the effects' parameter uncertainty (the
-determinant of their covariance) and lie farthest from the data.
+The columns are first orthonormalised over all candidates (the information of measuring every
+candidate is the identity), so the criterion does not depend on the units of the parameters; a
+weak prior RIDGE_PRIOR I keeps it finite while fewer rings than columns are chosen. With a
+measured campaign, its rings are the prior: the rings added are those that most shrink the
+effects' parameter uncertainty (the determinant of their covariance) and lie farthest from the
+data.
 
 Without a campaign the design keeps to rings a lattice interpolator can use (the trilinear data
 part: `campaign.lattice_axes` keeps an A or B value only when it is shared by at least half as many
@@ -45,7 +39,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign, orientation_keys, orientation_match
-from ph_explorer.diagnosis.identifiability import plausible_scale
 from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
 from ph_explorer.errors import InputError
@@ -56,11 +49,8 @@ from ph_explorer.models.hybrid import fitted_basis
 # Scanned settings of each effect entered in the design (e.g. cycles per revolution 1-6): the low
 # orders carry most of a head's axis errors, and separating them is what a small design must do.
 DESIGN_SCAN_VALUES = 6
-# The prior information on each coefficient, in units of its plausible size: one (a coefficient is
-# known a priori to lie within about its plausible magnitude).
-RIDGE_PRIOR = 1.0
-# The catalog's touch-noise effect, whose sigma sets the noise of a touch without data.
-NOISE_ID = "noise"
+# The prior information, as a fraction of the identity (the information of every candidate).
+RIDGE_PRIOR = 1e-4
 # Nats of space filling per nat of log-determinant: the two criteria in the same currency.
 SPACE_FILLING_WEIGHT = 1.0
 # Candidate lattice: the paper's steps.
@@ -68,6 +58,8 @@ A_STEP_DEG = 15.0
 B_STEP_DEG = 20.0
 # Two rings whose stylus directions are closer than this are the same circle in space.
 SAME_RING_DEG = 1e-3
+# Singular values below this fraction of the largest are directions no candidate ring can show.
+RANK_RTOL = 1e-8
 
 
 @dataclass
@@ -78,7 +70,7 @@ class RingDesign:
     log_det: float  # the D-criterion of the design (prior included; measured rings too with data)
     gain: NDArray[np.float64]  # (N,) what each ring added to it, in order
     nearest_deg: NDArray[np.float64]  # (N,) angle to the nearest stylus direction before it
-    columns: int  # coefficients of the effects designed for
+    columns: int  # orthonormal directions of the effects' columns the candidates can show
     candidates: int
     effects: list[str]  # labels of the effect instances designed for
     not_designed_for: list[str] = field(default_factory=list)  # effects the touches cannot test, with why
@@ -96,8 +88,7 @@ class RingDesign:
             "measured": self.measured,
             "effects": self.effects,
             "not_designed_for": self.not_designed_for,
-            "criterion": "D-optimal on the effects' bases after the circle fit, each coefficient in units of its plausible size "
-            "over the touch noise (prior: one) "
+            "criterion": "D-optimal on the effects' bases after the circle fit (orthonormalised over the candidates) "
             f"+ {SPACE_FILLING_WEIGHT:g} x log(angle to the nearest stylus direction)",
         }
 
@@ -142,36 +133,14 @@ def effect_instances(catalog: Iterable[type[Effect]]) -> list[Effect]:
     return instances
 
 
-_SIZES: dict[tuple[str, str], float] = {}  # plausible_size by effect class and settings: a bisection each
-
-
-def plausible_size(effect: Effect) -> float:
-    """The size of one of the effect's coefficients at its largest plausible magnitude: the default
-    coefficients (the effect as its author sized it; equal ones when its default term is zero, e.g.
-    an offset) scaled to the edge of every declared plausible range
-    (diagnosis.identifiability.plausible_scale), as an rms over the coefficients; their own size
-    when no range bounds them."""
-    key = (f"{type(effect).__module__}.{type(effect).__qualname__}", repr(sorted(effect.params.items())))
-    if key not in _SIZES:
-        default = np.asarray(effect.coefficients(), dtype=float)
-        direction = default if np.any(default) else np.ones(max(default.size, 1))
-        scale = plausible_scale(effect, direction) if default.size else None
-        _SIZES[key] = (1.0 if scale is None else scale) * float(np.sqrt(np.mean(direction**2)))
-    return _SIZES[key]
-
-
 def ring_information(
-    orientations: ArrayLike, effects: Sequence[Effect], geometry: Geometry = DEFAULT_GEOMETRY, sigma_um: float | None = None
+    orientations: ArrayLike, effects: Sequence[Effect], geometry: Geometry = DEFAULT_GEOMETRY
 ) -> tuple[NDArray[np.float64], list[str], list[str]]:
-    """Each ring's stacked effect columns after its circle fit, (n_o, n_pt, c), in units of the
-    touch noise per coefficient of plausible size (plausible_size / sigma_um: a column's sum of
-    squares over a ring is then the information one pass of its touches gives on that coefficient,
-    against a prior of one), with the labels of the effects entered and of those the touches cannot
-    test (with why). sigma_um: the touch noise (default: the catalog's noise effect's).
+    """Each ring's stacked effect columns after its circle fit, (n_o, n_pt, c), with the labels of
+    the effects entered and of those the touches cannot test (with why).
 
     Effects that change between repetitions enter through their first repetition's columns.
     """
-    sigma = float(DEFAULT_CATALOG[NOISE_ID]().params["sigma_um"]) if sigma_um is None else float(sigma_um)
     touches = touch_kinematics(np.asarray(orientations, dtype=float), geometry)
     blocks, used, skipped = [], [], []
     for effect in effects:
@@ -183,11 +152,27 @@ def ring_information(
             continue
         columns, _ = fitted_basis(effect, touches)
         if columns.shape[-1]:
-            blocks.append(np.asarray(columns[:, 0]) * (plausible_size(effect) / sigma))
+            blocks.append(np.asarray(columns[:, 0]))
             used.append(effect_label(effect))
     if not blocks:
         raise InputError("no effect of the catalog can be seen by head touches: nothing to design for")
     return np.concatenate(blocks, axis=-1), used, skipped
+
+
+def orthonormal_rows(columns: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The columns (n_o, n_pt, c) in an orthonormal basis of their span over all rings, (n_o, n_pt, k).
+
+    The sum of every ring's information is then the identity: the criterion is the same in any
+    units, and directions no ring can show (absorbed by the circle fit) are gone.
+    """
+    n_o, n_pt, c = columns.shape
+    flat = columns.reshape(-1, c)
+    scale = np.sqrt((flat**2).sum(axis=0))
+    flat = flat / np.where(scale > 0, scale, 1.0)
+    # From the c x c Gram matrix (c is small, the rows many): U = X V / sqrt(lambda).
+    values, vectors = np.linalg.eigh(flat.T @ flat)
+    keep = values > RANK_RTOL**2 * max(values.max(initial=0.0), 1e-300)
+    return (flat @ (vectors[:, keep] / np.sqrt(values[keep]))).reshape(n_o, n_pt, int(keep.sum()))
 
 
 def _angle_deg(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -246,9 +231,8 @@ def propose_rings(
         raise InputError(f"only {len(pool)} candidate orientations are left to choose from, fewer than the budget {budget}", option="--budget")
     lattice = measured is None if lattice is None else lattice
     stacked = np.concatenate([pool, known]) if known.size else pool
-    noise = measured.noise_sigma_um() if measured is not None else float("nan")
-    sigma = noise if np.isfinite(noise) and noise > 0 else None  # a campaign without spread: the catalog's
-    basis, used, skipped = ring_information(stacked, effect_instances(catalog), geometry, sigma)
+    columns, used, skipped = ring_information(stacked, effect_instances(catalog), geometry)
+    basis = orthonormal_rows(columns)
     k = basis.shape[-1]
     ring_info = np.einsum("opc,opd->ocd", basis, basis)  # (n, k, k): each ring's share of X'X
     information = RIDGE_PRIOR * np.eye(k) + ring_info[len(pool) :].sum(axis=0)
@@ -305,6 +289,7 @@ def design_log_det(
     (to compare a design with another of the same size, e.g. a random one)."""
     pool = np.asarray(candidates, dtype=float).reshape(-1, 2)
     rings = orientation_match(pool, orientations).any(axis=1)
-    basis, _, _ = ring_information(pool, effect_instances(catalog), geometry)
+    columns, _, _ = ring_information(pool, effect_instances(catalog), geometry)
+    basis = orthonormal_rows(columns)
     information = RIDGE_PRIOR * np.eye(basis.shape[-1]) + np.einsum("opc,opd->cd", basis[rings], basis[rings])
     return float(np.linalg.slogdet(information)[1])

@@ -50,7 +50,7 @@ def design_text(report: dict[str, Any]) -> str:
     lines = [head, f"{'order':>5}  {'A0 deg':>7}  {'B0 deg':>7}  {'information gain':>16}  {'nearest ring deg':>16}"]
     for order, (a, b), gain, near in zip(report["order"], report["orientations"], report["gain"], report["nearest_deg"]):
         lines.append(f"{order:>5}  {a:>7g}  {b:>7g}  {gain:>16.2f}  {near:>16.1f}")
-    lines.append(f"criterion: {report['criterion']}; log det {report['log_det']:.2f} over {report['columns']} coefficients")
+    lines.append(f"criterion: {report['criterion']}; log det {report['log_det']:.2f} over {report['columns']} directions")
     lines.append(f"effects designed for: {len(report['effects'])} instances")
     if report["not_designed_for"]:
         lines.append("not designed for: " + "; ".join(report["not_designed_for"]))
