@@ -186,6 +186,9 @@ class Identification:
         for effect in effects:
             entry: dict[str, Any] = {"effect": effect_label(effect)}
             report.append(entry)
+            if self.design(effect) is None:
+                entry.update(carried=False, reason="nothing of it is left by the circle fit and the data part on these rings")
+                continue
             twin = next((k for k in kept if self._redundant(effect, k)), None)
             if twin is not None:
                 entry.update(carried=False, reason=f"predicts as {effect_label(twin)} does wherever the head goes")
@@ -206,13 +209,25 @@ class Identification:
             kept.append(effect)
             partners.append(inside)
             entry.update(carried=True, reason="identifiable" if not inside else "carried with its aliases among the candidates")
+        # A term carried with an alias that is itself not carried would hold the alias's share: out too.
+        dropped = True
+        while dropped:
+            dropped = False
+            for i, mine in enumerate(partners):
+                missing = [a for a in mine if not any(k is a for k in kept)]
+                if missing:
+                    entry = next(r for r in report if r["effect"] == effect_label(kept[i]))
+                    entry.update(carried=False, reason=f"its alias {effect_label(missing[0])} is not carried")
+                    del kept[i], partners[i]
+                    dropped = True
+                    break
         links = [(i, j) for i, mine in enumerate(partners) for j, other in enumerate(kept) if any(_same(other, a) for a in mine)]
         return _connected(kept, links), report
 
     def _redundant(self, effect: Effect, other: Effect) -> bool:
         mine, theirs = self.design(effect), self.design(other)
         if mine is None or theirs is None:
-            return mine is None
+            return False
         return shared_variance(mine, theirs) > CONFOUNDED and self._alike_between(effect, other)
 
     def _alike_between(self, effect: Effect, other: Effect) -> bool:
