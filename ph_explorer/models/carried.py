@@ -47,7 +47,7 @@ from ph_explorer.design import A_STEP_DEG, B_STEP_DEG, candidate_orientations
 from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.search import CONFOUNDED, shared_variance
 from ph_explorer.diagnosis.separation import shared_over
-from ph_explorer.effects import DEFAULT_CATALOG, Effect
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import design
 from ph_explorer.models.base import training_mask
@@ -108,7 +108,7 @@ def interpolation_weights(orientations: ArrayLike, at: ArrayLike) -> NDArray[np.
     return TrilinearModel().fit(Campaign(o, np.eye(len(o))[:, None, :])).interpolate(at)
 
 
-def catalog_alternatives(catalog=DEFAULT_CATALOG) -> list[Effect]:
+def catalog_alternatives(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
     """Every candidate effect of the catalog at every scanned setting: the possible aliases."""
     return [cls(**settings) for cls in catalog.candidates().values() for settings in cls.scan_grid()]
 
