@@ -15,9 +15,12 @@ times). Each point of the curves names its design (details["design"]).
 Models: the paper's network (lattice subsets only), the trilinear model, and the hybrid, whose
 effects come from the diagnosis run on the training subset itself (diagnosis.choose_effects, the
 diagnosis's own choice: a quarter of the subset's rings, spread, play the check rings it judges
-materiality on; never the scenario's effects, never the benchmark's check rings), of which it keeps
-those its own cross-validation says the data can carry (hybrid.carried_effects: backward
-elimination on crossval.cross_val_predict, strict). Data part = trilinear. The hybrid is fitted on a
+materiality on; never the scenario's effects, never the benchmark's check rings) with those it saw
+present beyond noise but not material there, of which it keeps those the subset identifies (no
+catalog alias it cannot tell from them that predicts otherwise between its rings, unless the data
+part reproduces them there; a plausible fit) and its own cross-validation says the data can carry
+(models.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
+Data part = trilinear. The hybrid is fitted on a
 campaign holding the training orientations only, so neither its physical terms nor its data part
 see a check ring or an orientation left out of the subset; it then predicts every touch of the
 check rings. The rule (issue 16): at every subset the hybrid's check-ring MAE is at most 1.05 x
@@ -40,7 +43,8 @@ from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.hybrid import HybridModel, carried_effects
+from ph_explorer.models.carried import carried_effects
+from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import Scenario, load_scenario, simulate
@@ -80,8 +84,9 @@ def hybrid_effects(scenario: Scenario) -> list[Effect]:
     return [e for e in scenario.effects if e.candidate]
 
 
-def diagnosed_effects(campaign: Campaign, seed: int = 0) -> list[Effect]:
-    """The effects the diagnosis chooses on this campaign alone (a training subset).
+def diagnosed_effects(campaign: Campaign, seed: int = 0) -> tuple[list[Effect], list[Effect]]:
+    """The effects the diagnosis chooses on this campaign alone (a training subset), and those it
+    saw present beyond noise but not material on its check rings (at their best settings).
 
     The diagnosis judges an effect's materiality on held-out rings; a subset has none of its own,
     so a spread quarter of its rings (in measuring order, at least two) plays them. They are
@@ -91,7 +96,9 @@ def diagnosed_effects(campaign: Campaign, seed: int = 0) -> list[Effect]:
     held_out = np.zeros(n, dtype=bool)
     held_out[np.round(np.linspace(1, n - 2, max(2, round(DIAGNOSIS_HELD_OUT_SHARE * n)))).astype(int)] = True
     effects = [cls() for cls in DEFAULT_CATALOG.candidates().values()]
-    return choose_effects(campaign, ~held_out, effects, seed=seed, detail=False).chain
+    choice = choose_effects(campaign, ~held_out, effects, seed=seed, detail=False)
+    present = [DEFAULT_CATALOG[c.effect](**c.settings) for c in choice.remaining if c.beyond_noise and not c.significant]
+    return choice.chain, present
 
 
 def designed_subsets(campaign: Campaign, train: NDArray[np.bool_], budgets: tuple[int, ...] = DESIGN_BUDGETS) -> list[tuple[NDArray[np.bool_], str]]:
@@ -116,10 +123,16 @@ def fit_model(name: str, campaign: Campaign, train: NDArray[np.bool_], network_c
         model = HybridModel([], "trilinear").fit(campaign.subset(train))
     else:
         subset = campaign.subset(train)
-        found = diagnosed_effects(subset)
-        kept, path = carried_effects(subset, found)
+        found, present = diagnosed_effects(subset)
+        kept, path, identifiable = carried_effects(subset, found + present)
         model = HybridModel(kept, "trilinear").fit(subset)
-        chosen = {"found": [effect_label(e) for e in found], "kept": [effect_label(e) for e in kept], "cross_validation": path}
+        chosen = {
+            "found": [effect_label(e) for e in found],
+            "present": [effect_label(e) for e in present],
+            "kept": [effect_label(e) for e in kept],
+            "identifiability": identifiable,
+            "cross_validation": path,
+        }
     return model, time.perf_counter() - start, chosen
 
 
@@ -167,7 +180,7 @@ def run_scenario(
             if chosen:
                 hybrid_effects_chosen.append({"orientations": n, "design": design, **chosen})
             log(f"  {name}: {model_name:9s} n={n:3d} ({design})  MAE vs mean {mae[model_name]:.4f} um  ({took:.1f} s)"
-                + (f"  effects {chosen['found']} -> kept {chosen['kept']}" if chosen else ""))
+                + (f"  effects {chosen['found']} + present {chosen['present']} -> kept {chosen['kept']}" if chosen else ""))
         better = min(mae["trilinear"], mae["data_part"])
         never_worse.append({
             "orientations": n,

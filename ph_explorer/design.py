@@ -56,6 +56,8 @@ SPACE_FILLING_WEIGHT = 1.0
 # Candidate lattice: the paper's steps.
 A_STEP_DEG = 15.0
 B_STEP_DEG = 20.0
+# Two rings whose stylus directions are closer than this are the same circle in space.
+SAME_RING_DEG = 1e-3
 # Singular values below this fraction of the largest are directions no candidate ring can show.
 RANK_RTOL = 1e-8
 
@@ -104,6 +106,20 @@ def candidate_orientations(
     grid = np.array([(a, b) for a in a_values for b in (b_values if a > 0 else [0.0])])
     reachable = touch_kinematics(grid, geometry).reachable[:, 0, :].all(axis=1)
     return grid[reachable]
+
+
+def distinct_rings(pool: NDArray[np.float64], known: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The candidates less those whose ring lies where another candidate's (or a measured one's)
+    does: the same stylus direction is the same circle in space, whatever B0 (every A0 = 0 ring
+    is the same ring, its B joint sweeping the full turn). Measuring it again adds repetitions,
+    not information on the effects or the data part's coverage. The first candidate of each is kept."""
+    directions = stylus_direction(pool[:, 0], pool[:, 1])
+    taken = stylus_direction(known[:, 0], known[:, 1]) if known.size else np.zeros((0, 3))
+    keep = np.ones(len(pool), dtype=bool)
+    for i in range(len(pool)):
+        earlier = np.concatenate([taken, directions[:i][keep[:i]]])
+        keep[i] = not (earlier.size and (_angle_deg(directions[i : i + 1], earlier) < SAME_RING_DEG).any())
+    return pool[keep]
 
 
 def effect_instances(catalog: Iterable[type[Effect]]) -> list[Effect]:
@@ -210,6 +226,7 @@ def propose_rings(
     known = np.zeros((0, 2)) if measured is None else measured.orientations
     if known.size:
         pool = pool[~orientation_match(pool, known).any(axis=1)]
+    pool = distinct_rings(pool, known)
     if len(pool) < budget:
         raise InputError(f"only {len(pool)} candidate orientations are left to choose from, fewer than the budget {budget}", option="--budget")
     lattice = measured is None if lattice is None else lattice

@@ -97,6 +97,18 @@ def test_with_data_the_next_rings_are_new_and_add_most_information() -> None:
     assert design_log_det(both, candidates) > max(random)
 
 
+def test_the_same_ring_in_space_is_proposed_once() -> None:
+    """At A0 = 0 every B0 is the same circle (the stylus points down, the B joint sweeps the full
+    turn): among a lattice's rings that holds one ring per B0 there, at most one is proposed, and
+    none when a measured campaign already holds one."""
+    lattice = np.array([(a, b) for a in (0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0) for b in np.arange(-160.0, 181.0, 20.0)])
+    design = propose_rings(12, lattice)
+    assert (design.orientations[:, 0] == 0.0).sum() <= 1
+    measured = Campaign(np.array([[0.0, 40.0], [45.0, 0.0]]), np.zeros((2, 2, 64)))
+    following = propose_rings(12, lattice, measured=measured)
+    assert (following.orientations[:, 0] == 0.0).sum() == 0
+
+
 def test_a_budget_larger_than_the_candidates_is_bad_input() -> None:
     with pytest.raises(InputError, match="budget"):
         propose_rings(5, candidates=[[15.0, 0.0], [30.0, 20.0]])

@@ -23,7 +23,6 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -32,7 +31,7 @@ from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import design
 from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
-from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
+from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.design import Design
 from ph_explorer.models.folder import MODEL_TYPES
 
@@ -232,84 +231,6 @@ class HybridModel(DeviationModel):
         model.widths_ = list(record["widths"])
         model.ridge_ = float(record["ridge"])
         return model
-
-
-# Rings up to which the term selection leaves one ring out at a time; beyond, CARRIED_FOLDS groups
-# (each hybrid fit refits its smoother, O(rings) lattice fits: leave-one-out on 123 rings costs minutes).
-CARRIED_LEAVE_ONE_OUT_MAX = 30
-CARRIED_FOLDS = 10
-
-
-def cross_validated_errors(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
-) -> NDArray[np.float64]:
-    """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with these
-    effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
-    strict: neither its physical terms nor its data part see the ring)."""
-    rings = int(train.sum())
-    folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
-    predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
-    return metrics.ring_mae(predicted[train], campaign.deviations[train])["mean"]
-
-
-def cross_validated_mae(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
-) -> float:
-    """The mean of cross_validated_errors over the training rings."""
-    return float(cross_validated_errors(effects, campaign, train, data_model).mean())
-
-
-def _gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
-    """How far the fuller model's cross-validated error lies below the simpler one's, in standard
-    errors of the mean paired difference over the rings (> 1: the terms earn their place)."""
-    difference = simpler - fuller
-    if np.abs(difference).max(initial=0.0) <= 1e-9 * max(float(np.abs(simpler).mean()), 1e-300):
-        return 0.0  # the same predictions (a term the data part already holds exactly): rounding only
-    error = difference.std(ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
-    return float(difference.mean() / error) if error > 0 else (np.inf if difference.mean() > 0 else -np.inf)
-
-
-def carried_effects(
-    campaign: Campaign, effects: Sequence[Effect], data_model: str = "trilinear", train: ArrayLike | None = None
-) -> tuple[list[Effect], list[dict[str, Any]]]:
-    """The effects the data can carry: backward elimination on the hybrid's own cross-validated error.
-
-    With few rings, physical terms that alias one another (two cyclic orders seen at two B values)
-    or that the data part already learns cost more in variance than they remove in bias. Starting
-    from every effect, the term whose removal costs least is removed while that cost is within one
-    standard error (the paired differences of the rings' cross-validated errors; the
-    one-standard-error rule of Breiman et al.: of two models the data cannot tell apart, the
-    simpler), and the data part alone (no effect) is compared with what is left the same way: on
-    touch noise alone nothing is kept. Returns the effects kept (in their given order) and the path:
-    [{"effects": ["id setting value", ...], "cv_mae_um"}, ...] of every set tried, once each.
-    """
-    mask = training_mask(campaign, train)
-    kept = list(effects)
-    path: list[dict[str, Any]] = []
-
-    tried: dict[tuple, NDArray[np.float64]] = {}
-
-    def errors(chosen: list[Effect]) -> NDArray[np.float64]:
-        key = tuple((e.id, tuple(sorted(e.settings().items()))) for e in chosen)
-        if key not in tried:  # a set reached twice (the data part alone) is cross-validated once
-            tried[key] = cross_validated_errors(chosen, campaign, mask, data_model)
-            labels = [" ".join([e.id, *(f"{k} {v:g}" for k, v in e.settings().items())]) for e in chosen]
-            path.append({"effects": labels, "cv_mae_um": round(float(tried[key].mean()), 5)})
-        return tried[key]
-
-    current = errors(kept)
-    while kept:
-        trials = [(errors(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
-        gains = [_gain_beyond_noise(without, current) for without, _ in trials]
-        cheapest = int(np.argmin(gains))
-        if gains[cheapest] > 1.0:
-            break
-        current, index = trials[cheapest]
-        kept = kept[:index] + kept[index + 1 :]
-    # Elimination stops at a local minimum: the data part alone is compared with it too.
-    if kept and len(kept) < len(effects) and _gain_beyond_noise(errors([]), current) <= 1.0:
-        kept = []
-    return kept, path
 
 
 def make_data_model(data_model: DataModel) -> DeviationModel:

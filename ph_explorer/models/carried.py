@@ -1,0 +1,317 @@
+"""Which physical terms a hybrid carries on a campaign: those the campaign identifies, kept by the
+hybrid's own cross-validation.
+
+A cross-validation on the campaign's own rings cannot see one failure: aliasing. On a campaign of
+few B columns (or 15-deg A rows), two catalog terms can take the same values at every ring measured
+(a 4/rev and a 2/rev B error on six columns 60 deg apart: 4 = -2 modulo 6) while they differ between
+the rings. A term fitted alone then holds the share of the other that the data carry (the paper
+campaign's 6-column subset: B 4/rev fitted at 1.90 +- 0.06 arcsec, true 1.0, because its B 2/rev
+alias, 1.8 arcsec, is not in the model; fitted together: 1.10 +- 0.11 and 1.61 +- 0.21), predicts
+every ring left out of the cross-validation well (the rings left out are on the same columns,
+where the alias is exact) and predicts wrongly between them, where the model is used. So before
+the cross-validation chooses, a term is judged identifiable on the campaign's touches
+(`identifiability`):
+
+- an **alias** of a term is a catalog effect (any scanned setting) whose columns share more than
+  CONFOUNDED with the term's over the campaign's touches, through the data part's out-of-sample
+  smoother (what the hybrid's fit sees: diagnosis.search.shared_variance), although over the
+  prediction domain (the lattice at half the design's steps: between the rings) they share at most
+  CONFOUNDED (separation.shared_over): the campaign cannot tell them apart, a denser one would;
+- a term whose prediction between the rings the data part reproduces anyway (the trilinear
+  interpolation of the term's own values at the rings gives more than CONFOUNDED of the term's
+  fitted sum of squares over the prediction domain) is harmless whatever its aliases: the data part
+  makes the same guess between the rings (the seat lobing on 15-deg A rows);
+- otherwise the term is carried only together with its aliases that the candidates hold (one
+  group, kept or dropped as one, so that each holds its own share), and not at all when it has an
+  alias the candidates do not hold.
+
+The candidates are what the diagnosis found plus what it saw present (beyond noise, plausible, but
+not material on its check rings): omitting a present term biases the terms that share columns
+with it. A set of terms whose fit on the campaign is implausible for a PH20/TP20-class head
+(Effect.implausible) is never carried. Among the admissible sets, backward elimination on the
+hybrid's cross-validated error (crossval.cross_val_predict, strict) with the one-standard-error
+rule: see carried_effects.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer import metrics
+from ph_explorer.campaign import Campaign
+from ph_explorer.design import A_STEP_DEG, B_STEP_DEG, candidate_orientations
+from ph_explorer.diagnosis.results import effect_label
+from ph_explorer.diagnosis.search import CONFOUNDED, shared_variance
+from ph_explorer.diagnosis.separation import shared_over
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
+from ph_explorer.models import design
+from ph_explorer.models.base import training_mask
+from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
+from ph_explorer.models.design import Design
+from ph_explorer.models.hybrid import HybridModel, fitted_basis
+from ph_explorer.models.trilinear import TrilinearModel
+
+# Rings up to which the term selection leaves one ring out at a time; beyond, CARRIED_FOLDS groups
+# (each hybrid fit refits its smoother, O(rings) lattice fits: leave-one-out on 123 rings costs minutes).
+CARRIED_LEAVE_ONE_OUT_MAX = 30
+CARRIED_FOLDS = 10
+
+
+def cross_validated_errors(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+) -> NDArray[np.float64]:
+    """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with these
+    effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
+    strict: neither its physical terms nor its data part see the ring)."""
+    rings = int(train.sum())
+    folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
+    predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
+    return metrics.ring_mae(predicted[train], campaign.deviations[train])["mean"]
+
+
+def cross_validated_mae(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+) -> float:
+    """The mean of cross_validated_errors over the training rings."""
+    return float(cross_validated_errors(effects, campaign, train, data_model).mean())
+
+
+def _gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
+    """How far the fuller model's cross-validated error lies below the simpler one's, in standard
+    errors of the mean paired difference over the rings (> 1: the terms earn their place)."""
+    difference = simpler - fuller
+    if np.abs(difference).max(initial=0.0) <= 1e-9 * max(float(np.abs(simpler).mean()), 1e-300):
+        return 0.0  # the same predictions (a term the data part already holds exactly): rounding only
+    error = difference.std(ddof=1) / np.sqrt(difference.size) if difference.size > 1 else 0.0
+    return float(difference.mean() / error) if error > 0 else (np.inf if difference.mean() > 0 else -np.inf)
+
+
+# -- identifiability ---------------------------------------------------------------------------------
+def prediction_domain(campaign: Campaign) -> Touches:
+    """Where the model will be asked: the design's candidate lattice at half its steps (rings on and
+    between the nodes), within the campaign's A range, one repetition each."""
+    grid = candidate_orientations(campaign.geometry, A_STEP_DEG / 2.0, B_STEP_DEG / 2.0)
+    a = campaign.orientations[:, 0]
+    inside = (grid[:, 0] >= a.min() - 1e-9) & (grid[:, 0] <= a.max() + 1e-9)
+    return touch_kinematics(grid[inside], campaign.geometry, 1)
+
+
+def interpolation_weights(orientations: ArrayLike, at: ArrayLike) -> NDArray[np.float64]:
+    """(m, n_o): the trilinear data part's interpolation, from the rings at `orientations`, at `at`
+    (the model is linear in its data: fitted on unit vectors, its interpolation is its weights)."""
+    o = np.asarray(orientations, dtype=float)
+    return TrilinearModel().fit(Campaign(o, np.eye(len(o))[:, None, :])).interpolate(at)
+
+
+def catalog_alternatives(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
+    """Every candidate effect of the catalog at every scanned setting: the possible aliases."""
+    return [cls(**settings) for cls in catalog.candidates().values() for settings in cls.scan_grid()]
+
+
+def _same(a: Effect, b: Effect) -> bool:
+    return a.id == b.id and a.settings() == b.settings()
+
+
+class Identification:
+    """What a campaign's touches identify of candidate terms (see the module docstring)."""
+
+    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None) -> None:
+        self.campaign = campaign
+        self.touches = campaign_touches(campaign)
+        every = np.ones(campaign.n_orientations, dtype=bool)
+        self.smoother = OutOfSampleSmoother(campaign.orientations, every)
+        self.targets = Design(self.smoother.residual(campaign.deviations)[..., None], None)
+        self.domain = prediction_domain(campaign)
+        self.between = interpolation_weights(campaign.orientations, self.domain.orientations)
+        self.alternatives = catalog_alternatives() if alternatives is None else list(alternatives)
+        self._designs: dict[str, Design | None] = {}
+
+    def design(self, effect: Effect) -> Design | None:
+        """The effect's columns through the smoother (None: the touches cannot show it)."""
+        key = effect_label(effect)
+        if key not in self._designs:
+            made = None
+            if not effect.unmet_needs(self.touches):
+                made = Design(fitted_basis(effect, self.touches)[0], self.smoother)
+                made = made if made.n_columns and np.abs(made.mean).max(initial=0.0) > 0 else None
+            self._designs[key] = made
+        return self._designs[key]
+
+    def learnable_between(self, effect: Effect) -> float:
+        """The share of the effect's fitted term over the prediction domain that the data part's
+        interpolation of its values at the rings reproduces (1: the data part guesses the same)."""
+        own = self.design(effect)
+        if own is None or effect.unmet_needs(self.domain):
+            return 1.0  # nothing to fit, or nothing it predicts there (no touch times)
+        coef = design.fit(own, self.targets)[0][:, 0]
+        at_rings = fitted_basis(effect, self.touches)[0].mean(axis=1) @ coef  # (n_o, n_pt)
+        there = fitted_basis(effect, self.domain)[0][:, 0] @ coef  # (m, n_pt)
+        left = there - np.tensordot(self.between, at_rings, axes=(1, 0))
+        total = float((there**2).sum())
+        return 1.0 - float((left**2).sum()) / total if total > 0 else 1.0
+
+    def aliases(self, effect: Effect) -> list[tuple[Effect, float]]:
+        """Catalog terms the campaign cannot tell from the effect that the prediction domain can,
+        with their shared variance over the campaign (largest first)."""
+        own = self.design(effect)
+        if own is None:
+            return []
+        found = []
+        for other in self.alternatives:
+            if _same(other, effect):
+                continue
+            theirs = self.design(other)
+            if theirs is None:
+                continue
+            shared = shared_variance(own, theirs)
+            if shared > CONFOUNDED and not self._alike_between(effect, other):
+                found.append((other, shared))
+        return sorted(found, key=lambda item: -item[1])
+
+    def groups(self, effects: Sequence[Effect]) -> tuple[list[list[Effect]], list[dict[str, Any]]]:
+        """The candidate terms as groups carried together, and why each term is or is not carried.
+
+        A term is dropped when the data part does not reproduce it between the rings and it has an
+        alias no candidate holds; a term that predicts the same as an earlier candidate everywhere
+        (shared over the prediction domain too) is that candidate already.
+        """
+        kept: list[Effect] = []
+        report: list[dict[str, Any]] = []
+        partners: list[list[Effect]] = []  # each kept term's aliases among the candidates
+        for effect in effects:
+            entry: dict[str, Any] = {"effect": effect_label(effect)}
+            report.append(entry)
+            if self.design(effect) is None:
+                entry.update(carried=False, reason="nothing of it is left by the circle fit and the data part on these rings")
+                continue
+            twin = next((k for k in kept if self._redundant(effect, k)), None)
+            if twin is not None:
+                entry.update(carried=False, reason=f"predicts as {effect_label(twin)} does wherever the head goes")
+                continue
+            entry["learnable_between"] = round(self.learnable_between(effect), 3)
+            if entry["learnable_between"] > CONFOUNDED:
+                kept.append(effect)
+                partners.append([])
+                entry.update(carried=True, reason="the data part reproduces it between the rings")
+                continue
+            aliases = self.aliases(effect)
+            inside = [c for c in effects if any(_same(a, c) for a, _ in aliases)]
+            outside = [(a, s) for a, s in aliases if not any(_same(a, c) for c in effects)]
+            entry["aliases"] = [f"{effect_label(a)} ({s:.2f})" for a, s in aliases[:5]]
+            if outside:
+                entry.update(carried=False, reason=f"aliased with {effect_label(outside[0][0])} on these rings ({outside[0][1]:.2f} shared)")
+                continue
+            kept.append(effect)
+            partners.append(inside)
+            entry.update(carried=True, reason="identifiable" if not inside else "carried with its aliases among the candidates")
+        # A term carried with an alias that is itself not carried would hold the alias's share: out too.
+        dropped = True
+        while dropped:
+            dropped = False
+            for i, mine in enumerate(partners):
+                missing = [a for a in mine if not any(k is a for k in kept)]
+                if missing:
+                    entry = next(r for r in report if r["effect"] == effect_label(kept[i]))
+                    entry.update(carried=False, reason=f"its alias {effect_label(missing[0])} is not carried")
+                    del kept[i], partners[i]
+                    dropped = True
+                    break
+        links = [(i, j) for i, mine in enumerate(partners) for j, other in enumerate(kept) if any(_same(other, a) for a in mine)]
+        return _connected(kept, links), report
+
+    def _redundant(self, effect: Effect, other: Effect) -> bool:
+        mine, theirs = self.design(effect), self.design(other)
+        if mine is None or theirs is None:
+            return False
+        return shared_variance(mine, theirs) > CONFOUNDED and self._alike_between(effect, other)
+
+    def _alike_between(self, effect: Effect, other: Effect) -> bool:
+        """Whether the two share more than CONFOUNDED over the prediction domain; one that needs what
+        the domain lacks (touch times) predicts nothing there: not alike."""
+        if effect.unmet_needs(self.domain) or other.unmet_needs(self.domain):
+            return False
+        return shared_over(effect, other, [self.domain]) > CONFOUNDED
+
+
+def _connected(effects: list[Effect], links: list[tuple[int, int]]) -> list[list[Effect]]:
+    """The effects in groups joined by the links (union-find), in their first member's order."""
+    parent = list(range(len(effects)))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for a, b in links:
+        parent[root(a)] = root(b)
+    groups: dict[int, list[Effect]] = {}
+    for i, effect in enumerate(effects):
+        groups.setdefault(root(i), []).append(effect)
+    return sorted(groups.values(), key=lambda g: effects.index(g[0]))
+
+
+def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_model: str = "trilinear") -> bool:
+    """Every fitted parameter of the hybrid with these effects within its plausible range."""
+    if not effects:
+        return True
+    model = HybridModel(effects, data_model).fit(campaign)
+    return not any(e.implausible(p["params"]) for e, p in zip(model.effects, model.effect_parameters()))
+
+
+def carried_effects(
+    campaign: Campaign,
+    effects: Sequence[Effect],
+    data_model: str = "trilinear",
+    train: ArrayLike | None = None,
+    identification: Identification | None = None,
+) -> tuple[list[Effect], list[dict[str, Any]], list[dict[str, Any]]]:
+    """The effects the data can carry: identifiable (module docstring), plausible, and kept by
+    backward elimination on the hybrid's own cross-validated error.
+
+    Starting from every identifiable group, the group whose removal costs least is removed while
+    that cost is within one standard error (the paired differences of the rings' cross-validated
+    errors; the one-standard-error rule of Breiman et al.: of two models the data cannot tell
+    apart, the simpler), or while what is left fits implausibly; the data part alone (no effect) is
+    compared with what is left the same way: on touch noise alone nothing is kept. Returns the
+    effects kept (in their given order), the path [{"effects": [labels], "cv_mae_um"}, ...] of every
+    set tried, once each, and the identifiability report of every candidate.
+    """
+    mask = training_mask(campaign, train)
+    fitted = campaign.subset(mask)
+    check = identification if identification is not None else Identification(fitted)
+    groups, report = check.groups(effects) if effects else ([], [])
+    path: list[dict[str, Any]] = []
+    tried: dict[tuple, NDArray[np.float64]] = {}
+
+    def flat(chosen: list[list[Effect]]) -> list[Effect]:
+        members = [e for g in chosen for e in g]
+        return [e for e in effects if any(m is e for m in members)]
+
+    def errors(chosen: list[list[Effect]]) -> NDArray[np.float64]:
+        terms = flat(chosen)
+        key = tuple(effect_label(e) for e in terms)
+        if key not in tried:  # a set reached twice (the data part alone) is cross-validated once
+            tried[key] = cross_validated_errors(terms, campaign, mask, data_model)
+            path.append({"effects": list(key), "cv_mae_um": round(float(tried[key].mean()), 5)})
+        return tried[key]
+
+    kept = list(groups)
+    current = errors(kept)
+    while kept:
+        admissible = plausible_fit(flat(kept), fitted, data_model)
+        trials = [(errors(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
+        gains = [_gain_beyond_noise(without, current) for without, _ in trials]
+        cheapest = int(np.argmin(gains))
+        if gains[cheapest] > 1.0 and admissible:
+            break
+        current, index = trials[cheapest]
+        kept = kept[:index] + kept[index + 1 :]
+    # Elimination stops at a local minimum: the data part alone is compared with it too.
+    if kept and len(kept) < len(groups) and _gain_beyond_noise(errors([]), current) <= 1.0:
+        kept = []
+    return flat(kept), path, report
