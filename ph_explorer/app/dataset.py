@@ -1,13 +1,19 @@
 """What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
 
 This module only calls the core (io, twin, models, metrics, evaluation, harmonics); it holds no
-physics. Views and figures are computed on demand and cached per Dataset.
+physics. Views and figures are computed on demand and cached per Dataset. Once a dataset is
+prepared (`prepare`, on the one background thread of `prepare_in_background`), a view reads each
+model's curve from its PredictionLattice (ph_explorer.models.lattice: no model call, no torch, on
+a slider move) and the measured rings' views are computed: a render then never predicts.
 """
 
 from __future__ import annotations
 
 import tempfile
 import threading
+import time
+import traceback
+import weakref
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +34,7 @@ from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import campaign_models
+from ph_explorer.models.lattice import PredictionLattice
 from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors, out_of_sample_error
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
@@ -78,6 +85,8 @@ class Dataset:
     # Each model's out-of-sample error (the model folder's uncertainty.npz); the trilinear model's is
     # estimated on first use when the folder has none. A model without one has no model component.
     errors: dict[str, OutOfSampleError] = field(default_factory=dict)
+    # Each model's curves on a dense (A, B) lattice (`prepare`); a model without one is predicted.
+    lattices: dict[str, PredictionLattice] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.train_mask is None:
@@ -85,6 +94,9 @@ class Dataset:
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
         self._tasks: OrderedDict[tuple, dict[str, float]] = OrderedDict()
         self._figures: dict[str, MapFigure] = {}
+        self._measured_views: dict[tuple, OrientationView] = {}  # every measured ring's view, once prepared
+        self._prepare_asked = False
+        self.prepared = threading.Event()  # set once `prepare` ended (tests and benchmarks wait for it)
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
@@ -126,7 +138,8 @@ class Dataset:
     def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
         # A replaced model's error was of the old model: kept only for the same object.
         errors = {n: e for n, e in self.errors.items() if n in models and models[n] is self.models.get(n)}
-        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask, errors)
+        lattices = {n: g for n, g in self.lattices.items() if n in models and models[n] is self.models.get(n)}
+        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask, errors, lattices)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
                 copy.add_figure(extra, self._figures[extra])
@@ -139,6 +152,9 @@ class Dataset:
             hit = self._views.get(key)
             if hit is not None:
                 self._views.move_to_end(key)
+                return hit
+            hit = self._measured_views.get(key)
+            if hit is not None:
                 return hit
         view = self._compute_view(float(a_deg), float(b_deg))
         with self._lock:
@@ -156,11 +172,40 @@ class Dataset:
             curves["measured"] = self.mean_curves[idx]
             reps = c.deviations[idx]
         for name in self.model_names:
-            curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
-        spectra = {k: harmonic_spectrum(v)[0] for k, v in curves.items()}
+            lattice = self.lattices.get(name)
+            if idx is None and lattice is not None and lattice.covers(a):
+                curves[name] = lattice.curve(a, b)  # within the lattice's tolerance of the model
+            else:  # a measured ring (its tables compare the model's own prediction) or no lattice here
+                curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
+        amplitudes = harmonic_spectrum(np.stack(list(curves.values())))[0]
+        spectra = dict(zip(curves, amplitudes))
         tables = self._tables(idx, curves)
         held_out = idx is not None and not bool(self.train_mask[idx])
         return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
+
+    def prepare(self) -> None:
+        """Build the missing models' lattices and every measured ring's view (a few seconds, once):
+        afterwards no slider move predicts. A model whose lattice would take more than
+        LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand."""
+        try:
+            for name in self.model_names:
+                if name not in self.lattices and lattice_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
+                    lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range)
+                    with self._lock:
+                        self.lattices.setdefault(name, lattice)
+            views = {_view_key(a, b): self._compute_view(float(a), float(b)) for a, b in self.campaign.orientations}
+            with self._lock:
+                self._measured_views = views
+        finally:
+            self.prepared.set()
+
+    def prepare_in_background(self) -> None:
+        """`prepare` on the app's one background thread, once per dataset; views are computed on demand meanwhile."""
+        with self._lock:
+            if self._prepare_asked:
+                return
+            self._prepare_asked = True
+        _PREPARER.add(self)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
         """Tables 1-3 of the paper at this orientation (ph_explorer.evaluation)."""
@@ -278,6 +323,50 @@ class Dataset:
     def worst_orientations(self, name: str, count: int = 5) -> list[tuple[float, float, float]]:
         """The rings with the largest values of a figure, (A, B, value), largest first."""
         return ranked_rings(self.figure(name), self.campaign.orientations)[:count]
+
+
+LATTICE_BUDGET_S = 5.0  # CPU seconds a model's lattice may take to build (a network's: ~2 s)
+
+
+def lattice_cpu_s(model: DeviationModel, n_points: int, a_range: tuple[float, float], sample: int = 512) -> float:
+    """The CPU seconds a lattice of this model would take, from the time of one batch of `sample`."""
+    nodes = PredictionLattice.node_count(a_range)
+    o = np.column_stack([np.linspace(a_range[0], a_range[1], sample), np.linspace(-180.0, 180.0, sample)])
+    start = time.thread_time()
+    model.predict(o, n_points=n_points)
+    return (time.thread_time() - start) * nodes / sample
+
+
+class _Preparer:
+    """One daemon thread preparing datasets, the latest asked first; a dataset nobody holds any more is skipped."""
+
+    def __init__(self) -> None:
+        self._waiting: list[weakref.ref[Dataset]] = []
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def add(self, dataset: Dataset) -> None:
+        with self._cond:
+            self._waiting.append(weakref.ref(dataset))
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name="ph-explorer-prepare", daemon=True)
+                self._thread.start()
+            self._cond.notify()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: bool(self._waiting))
+                dataset = self._waiting.pop()()
+            if dataset is not None:
+                try:
+                    dataset.prepare()
+                except Exception:  # noqa: BLE001 - that dataset keeps predicting on demand
+                    traceback.print_exc()
+                del dataset
+
+
+_PREPARER = _Preparer()
 
 
 # -- loading -----------------------------------------------------------------------------------------

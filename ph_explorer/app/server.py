@@ -83,6 +83,7 @@ class ExplorerApp:
         # Warm the caches the first browser needs (the default view and field).
         dataset.view(*INITIAL_ORIENTATION)
         dataset.figure(dataset.figure_names()[0])
+        dataset.prepare_in_background()  # the lattices: slider moves stop predicting a few seconds later
         self.server = server if server is not None else open_server(host=host, port=port, verbose=verbose)
         camera = self.server.initial_camera
         position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry.axial_distance_mm)

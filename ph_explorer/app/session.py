@@ -65,6 +65,9 @@ class Shared:
 
 
 TASK_SETTLE_S = 0.5  # the sliders at rest this long: compute the task's RONt (a second or so per model)
+# A following camera moves at most this often while the sliders move (three messages and ~0.5 ms
+# each time); once they stop it is put where the last orientation wants it.
+CAMERA_INTERVAL_S = 0.2
 
 
 def wrap_b(b_deg: float) -> float:
@@ -90,6 +93,9 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
+        self._camera_time = float("-inf")  # time.monotonic() when the camera last moved
+        self._camera_timer: threading.Timer | None = None  # a render asked for once the camera may move again
+        self._camera_lock = threading.Lock()
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
 
@@ -198,6 +204,28 @@ class Session:
         self._camera_at = (a, b)
         self._camera_extent = extent
         self._camera_view = view  # the view a following camera keeps
+        self._camera_time = time.monotonic()
+
+    def _follow(self, a: float, b: float) -> None:
+        """In a render: keep a following camera on the ring drawn at (a, b), at most every
+        CAMERA_INTERVAL_S; when it must wait, a render is asked for once it may move."""
+        moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
+        if not (self.controls.follow.value and moved and self._camera_view != "whole field"):
+            return
+        wait = self._camera_time + CAMERA_INTERVAL_S - time.monotonic()
+        if wait <= 0.0:
+            self.look(self._camera_view)
+            return
+        with self._camera_lock:
+            if self._camera_timer is None:
+                self._camera_timer = threading.Timer(wait, self._camera_due)
+                self._camera_timer.daemon = True
+                self._camera_timer.start()
+
+    def _camera_due(self) -> None:
+        with self._camera_lock:
+            self._camera_timer = None
+        self.shared.renders.request(self.render_state)
 
     # -- rendering ---------------------------------------------------------------------------------
     @property
@@ -242,10 +270,7 @@ class Session:
             self.map_panel.draw(a, b)
             self.tables.update(view, ds)
             self.charts.update(view, shown)
-            c.status.content = f"**{title}**"
-            moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
-            if c.follow.value and moved and self._camera_view != "whole field":
-                self.look(self._camera_view)
+            self._follow(a, b)
         self.view = view
         self._want_task(a, b)
 
@@ -274,6 +299,7 @@ class Session:
         """Show another campaign (or the same with a new model or figure) in this browser."""
         geometry_changed = dataset.campaign.geometry != self.dataset.campaign.geometry
         self.dataset = dataset
+        dataset.prepare_in_background()
         if geometry_changed:
             with self.client.atomic():
                 self.ring.frame.remove()
@@ -397,6 +423,9 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
+        with self._camera_lock:
+            if self._camera_timer is not None:
+                self._camera_timer.cancel()
         self._task.close()
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)
