@@ -11,9 +11,6 @@ from __future__ import annotations
 
 import tempfile
 import threading
-import time
-import traceback
-import weakref
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
+from ph_explorer.app.render_queue import LatestFirst
 from ph_explorer.bands import Sources, calibrate_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
@@ -34,7 +32,7 @@ from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import campaign_models
-from ph_explorer.models.lattice import PredictionLattice
+from ph_explorer.models.lattice import PredictionLattice, build_cpu_s
 from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors, out_of_sample_error
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
@@ -156,16 +154,17 @@ class Dataset:
             hit = self._measured_views.get(key)
             if hit is not None:
                 return hit
-        view = self._compute_view(float(a_deg), float(b_deg))
+            known = bool(self._measured_views)  # prepared: an orientation not among them was not measured
+        view = self._compute_view(float(a_deg), float(b_deg), unmeasured=known)
         with self._lock:
             self._views[key] = view
             while len(self._views) > VIEW_CACHE:
                 self._views.popitem(last=False)
         return view
 
-    def _compute_view(self, a: float, b: float) -> OrientationView:
+    def _compute_view(self, a: float, b: float, unmeasured: bool = False) -> OrientationView:
         c = self.campaign
-        idx = c.index_of(a, b)
+        idx = None if unmeasured else c.index_of(a, b)
         curves: dict[str, NDArray[np.float64]] = {}
         reps = None
         if idx is not None:
@@ -189,7 +188,7 @@ class Dataset:
         LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand."""
         try:
             for name in self.model_names:
-                if name not in self.lattices and lattice_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
+                if name not in self.lattices and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
                     lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range)
                     with self._lock:
                         self.lattices.setdefault(name, lattice)
@@ -326,47 +325,8 @@ class Dataset:
 
 
 LATTICE_BUDGET_S = 5.0  # CPU seconds a model's lattice may take to build (a network's: ~2 s)
-
-
-def lattice_cpu_s(model: DeviationModel, n_points: int, a_range: tuple[float, float], sample: int = 512) -> float:
-    """The CPU seconds a lattice of this model would take, from the time of one batch of `sample`."""
-    nodes = PredictionLattice.node_count(a_range)
-    o = np.column_stack([np.linspace(a_range[0], a_range[1], sample), np.linspace(-180.0, 180.0, sample)])
-    start = time.thread_time()
-    model.predict(o, n_points=n_points)
-    return (time.thread_time() - start) * nodes / sample
-
-
-class _Preparer:
-    """One daemon thread preparing datasets, the latest asked first; a dataset nobody holds any more is skipped."""
-
-    def __init__(self) -> None:
-        self._waiting: list[weakref.ref[Dataset]] = []
-        self._cond = threading.Condition()
-        self._thread: threading.Thread | None = None
-
-    def add(self, dataset: Dataset) -> None:
-        with self._cond:
-            self._waiting.append(weakref.ref(dataset))
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name="ph-explorer-prepare", daemon=True)
-                self._thread.start()
-            self._cond.notify()
-
-    def _loop(self) -> None:
-        while True:
-            with self._cond:
-                self._cond.wait_for(lambda: bool(self._waiting))
-                dataset = self._waiting.pop()()
-            if dataset is not None:
-                try:
-                    dataset.prepare()
-                except Exception:  # noqa: BLE001 - that dataset keeps predicting on demand
-                    traceback.print_exc()
-                del dataset
-
-
-_PREPARER = _Preparer()
+# Datasets are prepared one at a time beside the renders, the latest first; one nobody holds is skipped.
+_PREPARER = LatestFirst(Dataset.prepare, name="ph-explorer-prepare")
 
 
 # -- loading -----------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from ph_explorer.app.panels import (
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
+from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, Throttle, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
@@ -93,9 +93,10 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
-        self._camera_time = float("-inf")  # time.monotonic() when the camera last moved
-        self._camera_timer: threading.Timer | None = None  # a render asked for once the camera may move again
-        self._camera_lock = threading.Lock()
+        # A following camera: at most every CAMERA_INTERVAL_S; once it may move again, the render
+        # thread catches it up with the last drawn orientation (not a render: no render figures).
+        self._camera_catch_up = RenderState(lambda: self._follow(self.view.a_deg, self.view.b_deg))
+        self._camera_due = Throttle(CAMERA_INTERVAL_S, lambda: self.shared.renders.request(self._camera_catch_up))
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
 
@@ -204,28 +205,16 @@ class Session:
         self._camera_at = (a, b)
         self._camera_extent = extent
         self._camera_view = view  # the view a following camera keeps
-        self._camera_time = time.monotonic()
 
     def _follow(self, a: float, b: float) -> None:
-        """In a render: keep a following camera on the ring drawn at (a, b), at most every
-        CAMERA_INTERVAL_S; when it must wait, a render is asked for once it may move."""
+        """In a render: keep a following camera on the ring drawn at (a, b). A browser's slider moves
+        (the render thread's) move it at most every CAMERA_INTERVAL_S, the last one always; a jump
+        (go_to, a script) at once."""
         moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
         if not (self.controls.follow.value and moved and self._camera_view != "whole field"):
             return
-        wait = self._camera_time + CAMERA_INTERVAL_S - time.monotonic()
-        if wait <= 0.0:
+        if threading.current_thread() is not self.shared.renders.thread or self._camera_due.ready():
             self.look(self._camera_view)
-            return
-        with self._camera_lock:
-            if self._camera_timer is None:
-                self._camera_timer = threading.Timer(wait, self._camera_due)
-                self._camera_timer.daemon = True
-                self._camera_timer.start()
-
-    def _camera_due(self) -> None:
-        with self._camera_lock:
-            self._camera_timer = None
-        self.shared.renders.request(self.render_state)
 
     # -- rendering ---------------------------------------------------------------------------------
     @property
@@ -423,9 +412,8 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
-        with self._camera_lock:
-            if self._camera_timer is not None:
-                self._camera_timer.cancel()
+        self._camera_due.close()
+        self._camera_catch_up.close()
         self._task.close()
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)

@@ -20,6 +20,7 @@ x 64 points x 4 B = 43 MB per model.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,3 +134,11 @@ def _predict(model: DeviationModel, orientations: NDArray[np.float64], n_points:
     for start in range(0, orientations.shape[0], BATCH):
         curves[start : start + BATCH] = model.predict(orientations[start : start + BATCH], n_points=n_points)
     return curves
+
+
+def build_cpu_s(model: DeviationModel, n_points: int, a_range: tuple[float, float], sample: int = 512) -> float:
+    """The CPU seconds (this thread's) `PredictionLattice.build` would take, from one batch of `sample` orientations."""
+    o = np.column_stack([np.linspace(a_range[0], a_range[1], sample), np.linspace(-180.0, 180.0, sample)])
+    start = time.thread_time()
+    model.predict(o, n_points=n_points)
+    return (time.thread_time() - start) * PredictionLattice.node_count(a_range) / sample
