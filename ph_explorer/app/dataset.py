@@ -89,6 +89,8 @@ class Dataset:
     def __post_init__(self) -> None:
         if self.train_mask is None:
             self.train_mask = ~self.campaign.holdout_mask()
+        # One array for every browser showing this dataset: the map's SVG cache is keyed by it.
+        self.held_out_mask = ~np.asarray(self.train_mask, dtype=bool)
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
         self._tasks: OrderedDict[tuple, dict[str, float]] = OrderedDict()
         self._figures: dict[str, MapFigure] = {}

@@ -327,7 +327,7 @@ class Session:
 
     def _apply_field(self, dataset: Dataset, name: str) -> None:
         figure = dataset.figure(name)
-        held_out = ~np.asarray(dataset.train_mask, dtype=bool)
+        held_out = dataset.held_out_mask
         a, b = self.orientation
         with self.client.atomic():
             self.field.set_values(dataset.campaign.orientations, figure.values, held_out)
