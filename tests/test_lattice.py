@@ -15,7 +15,7 @@ import pytest
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.app.dataset import Dataset, default_dataset
-from ph_explorer.app.render_queue import LatestFirst
+from ph_explorer.app.background import LatestFirst
 from ph_explorer.models.base import DeviationModel, as_orientations
 from ph_explorer.models.lattice import TOLERANCE_UM, PredictionLattice, build_cpu_s
 

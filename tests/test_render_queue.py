@@ -13,7 +13,8 @@ from collections.abc import Iterator
 
 import pytest
 
-from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, Throttle
+from ph_explorer.app.background import Throttle
+from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
 
 TIMEOUT = 10.0  # generous: only reached when a test fails
 

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
-from ph_explorer.app.render_queue import LatestFirst
+from ph_explorer.app.background import LatestFirst
 from ph_explorer.bands import Sources, calibrate_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError

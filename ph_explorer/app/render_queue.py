@@ -11,11 +11,10 @@ moves that arrive before a session's turn only the latest is worth drawing. Henc
   being drawn goes to the back, so one busy session cannot starve the others;
 * `RenderStats`, one per app: the render figures of all its states (for benchmarks);
 * `WhenResting`, one per slow figure of a session: a job for the latest values once they have
-  stopped changing for a while (a slider at rest), never one per move;
-* `Throttle`, one per costly part of a render (a following camera): at most every so often, and
-  one call back once it may run again, so that the last values get it too;
-* `LatestFirst`, one per kind of background preparation: a job per object on one daemon thread,
-  the latest asked first, skipping an object nobody holds any more.
+  stopped changing for a while (a slider at rest), never one per move.
+
+The threads beside the renders (a throttled camera, datasets prepared in the background) are in
+background.py.
 
 Values set by the server itself (scripts, tests) are drawn in the caller's thread (`render_now`)::
 
@@ -31,10 +30,9 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-import weakref
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Callable
+from typing import Callable
 
 Clock = Callable[[], float]
 TimedHook = Callable[[float, float], None]
@@ -338,72 +336,3 @@ class WhenResting:
                 self._timer.cancel()
             self._wanted = None
         self._worker.shutdown(wait=False, cancel_futures=True)
-
-
-class Throttle:
-    """`ready()` is True at most once every `interval_s`; when it says False, `later()` is called
-    once (on a timer thread) when it would say True, so that whoever asked can ask again."""
-
-    def __init__(self, interval_s: float, later: Callable[[], None]) -> None:
-        self.interval_s = interval_s
-        self.later = later
-        self._last = float("-inf")  # time.monotonic() of the last True
-        self._timer: threading.Timer | None = None
-        self._lock = threading.Lock()
-
-    def ready(self) -> bool:
-        with self._lock:
-            wait = self._last + self.interval_s - time.monotonic()
-            if wait <= 0.0:
-                self._last = time.monotonic()
-                return True
-            if self._timer is None:
-                self._timer = threading.Timer(wait, self._due)
-                self._timer.daemon = True
-                self._timer.start()
-            return False
-
-    def _due(self) -> None:
-        with self._lock:
-            self._timer = None
-        self.later()
-
-    def close(self) -> None:
-        with self._lock:
-            if self._timer is not None:
-                self._timer.cancel()
-
-
-class LatestFirst:
-    """`job(obj)` for each object added, one at a time on a daemon thread, the latest added first.
-
-    Only weak references are queued: an object dropped before its turn (a browser's data replaced
-    again) is skipped. A failed job is printed; the others go on.
-    """
-
-    def __init__(self, job: Callable[[Any], None], name: str = "latest-first") -> None:
-        self.job = job
-        self.name = name
-        self._waiting: list[weakref.ref[Any]] = []
-        self._cond = threading.Condition()
-        self._thread: threading.Thread | None = None
-
-    def add(self, obj: Any) -> None:
-        with self._cond:
-            self._waiting.append(weakref.ref(obj))
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
-                self._thread.start()
-            self._cond.notify()
-
-    def _loop(self) -> None:
-        while True:
-            with self._cond:
-                self._cond.wait_for(lambda: bool(self._waiting))
-                obj = self._waiting.pop()()
-            if obj is not None:
-                try:
-                    self.job(obj)
-                except Exception:  # noqa: BLE001 - that object stays unprepared
-                    traceback.print_exc()
-                del obj

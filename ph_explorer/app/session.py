@@ -33,7 +33,8 @@ from ph_explorer.app.panels import (
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, Throttle, WhenResting
+from ph_explorer.app.background import Throttle
+from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
