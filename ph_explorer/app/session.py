@@ -167,8 +167,8 @@ class Session:
         if event.client is not None:
             # A browser's message: viser stamped the value when its event loop applied it.
             self.shared.renders.request(self.render_state, since=event.target.update_timestamp)
-        elif not self._moving:  # set by the server (a test, a script): draw it in this thread
-            self.render_state.render_now(wait=False, timeout=RENDER_WAIT_S)
+        elif not self._moving:  # set by the server (a test, a script): drawn when this returns, here
+            self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
 
     # -- orientation and camera ------------------------------------------------------------------------
     @property
