@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.app.server import ExplorerApp
-from ph_explorer.models.lattice import STEP_DEG, TOLERANCE_UM
+from ph_explorer.models.lattice import TOLERANCE_UM
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -52,7 +52,7 @@ def lattice_figures(app: ExplorerApp, timeout: float = 120.0) -> dict[str, Any]:
         "ready": ready,
         "waited_s": round(time.perf_counter() - start, 2),
         "models": {name: round(lattice.nbytes / 2**20, 1) for name, lattice in dataset.lattices.items()},  # MiB each
-        "step_deg": STEP_DEG,
+        "step_deg": {name: lattice.step_deg for name, lattice in dataset.lattices.items()},
         "tolerance_um": TOLERANCE_UM,
         "on_demand": [name for name in dataset.model_names if name not in dataset.lattices],
     }

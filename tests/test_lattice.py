@@ -142,3 +142,18 @@ def test_latest_first_runs_the_latest_and_skips_the_dropped() -> None:
     gate.set()
     assert finished.wait(10.0)
     assert done == [0, 2, 1]
+
+
+def test_a_large_campaigns_lattice_keeps_under_its_memory_bound_with_a_coarser_step() -> None:
+    from ph_explorer.models.lattice import MAX_BYTES, STEP_DEG, step_for
+
+    assert step_for(64, (0.0, 115.0)) == STEP_DEG  # the paper's: 43 MB
+    coarse = step_for(256, (-115.0, 115.0))  # 256 points per ring, negative A: 340 MB at 0.5 deg
+    assert coarse > STEP_DEG
+    lattice = PredictionLattice.build(JumpModel(), 256, (-115.0, 115.0))
+    assert lattice.step_deg == coarse and lattice.nbytes <= MAX_BYTES
+    o = random_orientations(500, (-115.0, 115.0))
+    covered = np.array([lattice.covers(a) for a in o[:, 0]])
+    assert covered.mean() > 0.9  # this model is smooth in B: the coarse lattice still covers most of A
+    error = np.abs(lattice.predict(o[covered]) - JumpModel().predict(o[covered], n_points=256)).max()
+    assert error <= TOLERANCE_UM, error

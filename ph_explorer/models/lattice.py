@@ -15,7 +15,7 @@ half a step off the nodes, every CHECK_EVERY-th column) and trusted only when al
 TOLERANCE_UM of the model; `covers` says False elsewhere and the caller predicts exactly there.
 tests/test_lattice.py checks the trusted bands against model.predict at random orientations.
 Curves are kept as float32: 0.5 deg over A in [0, 115] and all of B is 231 x 720 orientations
-x 64 points x 4 B = 43 MB per model.
+x 64 points x 4 B = 43 MB per model; a lattice is kept under MAX_BYTES by a coarser step.
 """
 
 from __future__ import annotations
@@ -29,6 +29,10 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.models.base import DeviationModel, as_orientations
 
 STEP_DEG = 0.5
+# A lattice's curves stay under this many bytes: a campaign of 256 points per ring (or A from -115)
+# gets a coarser step (1 or 2 deg), where fewer bands pass the check and more is predicted exactly.
+MAX_BYTES = 64 * 2**20
+COARSER_STEPS_DEG = (1.0, 2.0, 2.5, 5.0)
 TOLERANCE_UM = 0.002  # a trusted band's largest error at its checked cell centres, um
 CHECK_EVERY = 8  # the cell centres checked: every 8th column of B (90 per band at 0.5 deg)
 BATCH = 8192  # orientations predicted per call while building (bounds the temporary arrays)
@@ -45,9 +49,11 @@ class PredictionLattice:
 
     @classmethod
     def build(
-        cls, model: DeviationModel, n_points: int, a_range: tuple[float, float], step_deg: float = STEP_DEG
+        cls, model: DeviationModel, n_points: int, a_range: tuple[float, float], step_deg: float | None = None
     ) -> "PredictionLattice":
-        """Predict the model at every node of the lattice over a_range (deg) and all of B."""
+        """Predict the model at every node of the lattice over a_range (deg) and all of B (the step:
+        `step_for` unless given)."""
+        step_deg = step_for(n_points, a_range) if step_deg is None else float(step_deg)
         a_low = float(a_range[0])
         n_a, n_b = cls.shape(a_range, step_deg)
         a = a_low + step_deg * np.arange(n_a)
@@ -136,9 +142,18 @@ def _predict(model: DeviationModel, orientations: NDArray[np.float64], n_points:
     return curves
 
 
+def step_for(n_points: int, a_range: tuple[float, float], max_bytes: int = MAX_BYTES) -> float:
+    """STEP_DEG, or the first coarser step whose lattice of n_points curves fits in max_bytes."""
+    for step in (STEP_DEG, *COARSER_STEPS_DEG):
+        n_a, n_b = PredictionLattice.shape(a_range, step)
+        if n_a * n_b * int(n_points) * 4 <= max_bytes:
+            return step
+    return COARSER_STEPS_DEG[-1]
+
+
 def build_cpu_s(model: DeviationModel, n_points: int, a_range: tuple[float, float], sample: int = 512) -> float:
     """The CPU seconds (this thread's) `PredictionLattice.build` would take, from one batch of `sample` orientations."""
     o = np.column_stack([np.linspace(a_range[0], a_range[1], sample), np.linspace(-180.0, 180.0, sample)])
     start = time.thread_time()
     model.predict(o, n_points=n_points)
-    return (time.thread_time() - start) * PredictionLattice.node_count(a_range) / sample
+    return (time.thread_time() - start) * PredictionLattice.node_count(a_range, step_for(n_points, a_range)) / sample
