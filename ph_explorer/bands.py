@@ -23,6 +23,7 @@ components are independent, so the squares add up to the combined one's.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -30,7 +31,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.models.base import DeviationModel, as_orientations, draw_repetitions
-from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, random_phase_curves
+from ph_explorer.campaign import Campaign
+from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, out_of_sample_error, random_phase_curves
 from ph_explorer.models.parameter_spread import ParameterSpread
 from ph_explorer.montecarlo import MAX_TRIALS, adaptive_monte_carlo
 from scipy.stats import norm
@@ -287,3 +289,16 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
             middle = 0.5 * (low + high)
             low, high = (middle, high) if covered(middle) < level else (low, middle)
     return replace(sources, error=sources.error.scaled(high, len(o)), _cache={})
+
+
+def calibrated_model_error(
+    make_model: Callable[[], DeviationModel], model: DeviationModel, campaign: Campaign, train: ArrayLike, level: float = 0.95
+) -> OutOfSampleError:
+    """A model's own error out of sample (`models.model_error.out_of_sample_error` on the training
+    rings), its size calibrated on the campaign's rings left out of training (`calibrate_model_error`;
+    with fewer than MIN_CALIBRATION_RINGS of them, the cross-validation's size). `model` is the one
+    fitted on `train`, `make_model` makes an unfitted one for the cross-validation."""
+    error = out_of_sample_error(make_model, campaign, train)
+    held = ~np.asarray(train, dtype=bool)
+    sources = Sources(model, campaign.n_repetitions, error)
+    return calibrate_model_error(sources, campaign.orientations[held], campaign.mean_curves()[held], level).error  # type: ignore[return-value]

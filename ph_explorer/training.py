@@ -17,14 +17,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.bands import Sources, calibrate_model_error
+from ph_explorer.bands import calibrated_model_error
 from ph_explorer.campaign import Campaign
 from ph_explorer.evaluation import evaluation_report, mean_mae
 from ph_explorer.io.files import file_sha256
 from ph_explorer.models import network as network_module
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.folder import CARD_FORMAT, load_models
-from ph_explorer.models.model_error import OutOfSampleError, out_of_sample_error
+from ph_explorer.models.model_error import OutOfSampleError
 from ph_explorer.models.network import FourierNetwork, NetworkConfig, ProgressCallback
 from ph_explorer.models.trilinear import TrilinearModel
 
@@ -57,20 +57,13 @@ def model_errors(
     network_config: NetworkConfig | None = None,
 ) -> dict[str, OutOfSampleError]:
     """Each model's own error out of sample (models.model_error: the cross-validation of the training
-    rings), for the model uncertainty of its Monte Carlo bands; the network is retrained per fold.
+    rings in folds and along A), for the model uncertainty of its Monte Carlo bands; the network is
+    retrained per group left out.
     Its size is calibrated on the rings left out of training (bands.calibrate_model_error), with
     `models` fitted on `train`; with none left out it stays the cross-validation's."""
     config = NetworkConfig.from_dict({**(network_config or NetworkConfig()).as_dict(), "seed": seed})
-    errors = {
-        "network": out_of_sample_error(partial(FourierNetwork, config), campaign, train),
-        "trilinear": out_of_sample_error(TrilinearModel, campaign, train),
-    }
-    held = ~np.asarray(train, dtype=bool)
-    means = campaign.mean_curves()
-    return {
-        name: calibrate_model_error(Sources(models[name], campaign.n_repetitions, error), campaign.orientations[held], means[held]).error  # type: ignore[misc]
-        for name, error in errors.items()
-    }
+    makers = {"network": partial(FourierNetwork, config), "trilinear": TrilinearModel}
+    return {name: calibrated_model_error(make, models[name], campaign, train) for name, make in makers.items()}
 
 
 def as_saved(models: Mapping[str, DeviationModel]) -> dict[str, DeviationModel]:

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from ph_explorer.bands import Sources, band_coverage, model_bands, orientation_band
+from ph_explorer.campaign import Campaign
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
-from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, out_of_sample_error, random_phase_curves, white_noise_power
+from ph_explorer.models.model_error import OutOfSampleError, a_groups, harmonic_power, out_of_sample_error, random_phase_curves, white_noise_power
 from ph_explorer.models.parameter_spread import parameter_spread
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.montecarlo import adaptive_monte_carlo, batch_size, is_stable, numerical_tolerance
@@ -162,6 +163,32 @@ def test_cross_validation_in_folds_never_fits_the_ring_it_predicts(twin):
     after = cross_val_predict(TrilinearModel, dataclasses.replace(campaign, deviations=deviations), train, folds=5, strict=True)
     assert np.allclose(after[ring], base[ring])  # the ring is never in its own fit
     assert not np.allclose(after, base)  # but it is in the fits that predict the others
+
+
+def test_an_error_that_changes_with_a_alone_is_seen_by_the_cross_validation_along_a():
+    # Every ring of a row shares its curve, 1 um of 3 UPR times (A / 90)^2: interpolating between
+    # neighbours in a row is exact, between rows 15 deg apart it is not. The folds alone see nothing;
+    # the rows left out along A see the curvature: at A = 45 the trilinear predicts the row from
+    # A = 30 and 60, off by (45^2 - (30^2 + 60^2) / 2) / 90^2 = -0.028 um of 3 UPR.
+    a_values, b_values, n = np.arange(0.0, 91.0, 15.0), np.arange(-160.0, 181.0, 20.0), 32
+    orientations = np.array([(a, b) for a in a_values for b in b_values])
+    theta = np.radians(point_angles_deg(n))
+    curves = (orientations[:, 0:1] / 90.0) ** 2 * np.cos(3 * theta)
+    campaign = Campaign(orientations, np.repeat(curves[:, None, :], 3, axis=1))
+    train = np.ones(len(orientations), dtype=bool)
+    assert [np.unique(orientations[g, 0]).tolist() for g in a_groups(orientations, train)] == [[15.0], [30.0], [45.0], [60.0], [75.0]]
+    folds_only = cross_val_predict(TrilinearModel, campaign, train, folds=5, strict=True)
+    assert np.allclose(folds_only, curves, atol=1e-9)
+    error = out_of_sample_error(TrilinearModel, campaign, train)
+    expected = 0.5 * (45.0**2 - (30.0**2 + 60.0**2) / 2.0) ** 2 / 90.0**4  # mean square of 3 UPR
+    at_45 = error.power[np.flatnonzero(orientations[:, 0] == 45.0)]
+    assert at_45[:, 3] == pytest.approx(expected, rel=1e-6) and np.allclose(np.delete(at_45, 3, axis=1), 0.0, atol=1e-12)
+    # The edge rows (never left out along A: extrapolated) take the kernel mean of the others.
+    assert np.all(error.power[orientations[:, 0] == 0.0, 3] > 0.0)
+    # More interior A values than folds: every folds-th value left out together, every ring once.
+    many = np.column_stack([np.arange(0.0, 91.0, 5.0), np.zeros(19)])
+    groups = a_groups(many, np.ones(19, dtype=bool))
+    assert len(groups) == 5 and sorted(np.concatenate(groups).tolist()) == list(range(1, 18))
 
 
 def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(twin, trilinear, tmp_path):

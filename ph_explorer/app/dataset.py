@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
 from ph_explorer.app.background import LatestFirst
-from ph_explorer.bands import Sources, calibrate_model_error, gaussian_band
+from ph_explorer.bands import Sources, calibrated_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
 from ph_explorer.evaluation import tables_at
@@ -33,7 +33,7 @@ from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.lattice import PredictionLattice, build_cpu_s
-from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors, out_of_sample_error
+from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
 from ph_explorer.polar import deviation_bounds
@@ -220,10 +220,7 @@ class Dataset:
                 return self.errors[model]
         if model != "trilinear" or int(self.train_mask.sum()) < 2 * FOLDS:
             return None
-        error = out_of_sample_error(TrilinearModel, self.campaign, self.train_mask)
-        held = ~self.train_mask
-        sources = Sources(self.models[model], self.campaign.n_repetitions, error)
-        error = calibrate_model_error(sources, self.campaign.orientations[held], self.mean_curves[held]).error  # type: ignore[assignment]
+        error = calibrated_model_error(TrilinearModel, self.models[model], self.campaign, self.train_mask)
         with self._lock:
             return self.errors.setdefault(model, error)
 

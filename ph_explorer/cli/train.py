@@ -52,7 +52,8 @@ def train_command(
         models, seconds = train_models(campaign, ~mask, seed, progress, config)
     card = build_card(campaign, Path(data), mask, source, seed, models, seconds)
     if not quiet:
-        print("estimating each model's out-of-sample error (5-fold cross-validation, the network retrained per fold; "
+        print("estimating each model's out-of-sample error (5-fold cross-validation and A values left out in turn, "
+              "the network retrained each time; "
               "its size calibrated on the held-out rings)", file=sys.stderr)
     errors = model_errors(campaign, ~mask, models, seed, config)
     save_models(models, Path(out), card, errors)

@@ -17,7 +17,7 @@ already predict (Frisch-Waugh-Lovell).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -37,10 +37,14 @@ def _out_of_sample(
     predict: Callable[[DeviationModel, NDArray[np.float64]], NDArray[np.float64]],
     folds: int | None = None,
     strict: bool = False,
+    groups: Sequence[NDArray[np.int64]] | None = None,
+    held_out: bool = True,
 ) -> NDArray[np.float64]:
     """predict(model, orientations) at every ring, the model fitted without it (see the module docstring).
 
-    A training ring with no other training ring to learn from is predicted as zero.
+    `groups` (ring indices left out together) replaces the folds; only the rings in a group are then
+    predicted. Without `held_out` the rings outside `train` are not predicted (one fit fewer).
+    A ring with no other training ring to learn from, or not predicted, is zero.
     """
     train = np.asarray(train, dtype=bool)
     o = campaign.orientations
@@ -51,11 +55,12 @@ def _out_of_sample(
         return make_model().fit(campaign, mask)
 
     parts: list[tuple[NDArray[np.int64], NDArray[np.float64]]] = []
-    held_out = np.flatnonzero(~train)
-    if held_out.size and train.any():
-        parts.append((held_out, predict(fitted(train), o[held_out])))
+    outside = np.flatnonzero(~train)
+    if held_out and outside.size and train.any():
+        parts.append((outside, predict(fitted(train), o[outside])))
     rings = np.flatnonzero(train)
-    groups = [rings[i : i + 1] for i in range(rings.size)] if folds is None else [rings[f::folds] for f in range(min(folds, rings.size))]
+    if groups is None:
+        groups = [rings[i : i + 1] for i in range(rings.size)] if folds is None else [rings[f::folds] for f in range(min(folds, rings.size))]
     for group in groups:  # one fit per group: a loop over rings, never over touches
         others = train.copy()
         others[group] = False
@@ -69,10 +74,19 @@ def _out_of_sample(
 
 
 def cross_val_predict(
-    make_model: ModelFactory, campaign: Campaign, train: ArrayLike, folds: int | None = None, strict: bool = False
+    make_model: ModelFactory,
+    campaign: Campaign,
+    train: ArrayLike,
+    folds: int | None = None,
+    strict: bool = False,
+    groups: Sequence[NDArray[np.int64]] | None = None,
+    held_out: bool = True,
 ) -> NDArray[np.float64]:
-    """Each ring's out-of-sample systematic curve (n_o, n_points) in um (see the module docstring)."""
-    return _out_of_sample(make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points), folds, strict)
+    """Each ring's out-of-sample systematic curve (n_o, n_points) in um (see the module docstring and
+    `_out_of_sample` for `groups` and `held_out`)."""
+    return _out_of_sample(
+        make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points), folds, strict, groups, held_out
+    )
 
 
 def held_out_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike) -> dict[str, float]:

@@ -1,22 +1,31 @@
 """A model's own error, estimated out of sample: what its Monte Carlo band holds beside the noise.
 
-Method. The one cross-validation (`crossval.cross_val_predict`, the rings split into FOLDS groups
-left out in turn) predicts every training ring from the model fitted without it. The residual
-r_i = measured mean curve of ring i - its out-of-sample prediction holds the model's error at that
-ring plus the noise of the ring's own mean, independent of the prediction (white, variance
-v_i = s_i^2 N / (N - 3) / R per point before the circle fit, s_i the ring's post-fit repetition
-sigma). Per harmonic k (2..N/2: the circle fit removes 0 and 1) the model's error power at ring i is
+Method. The one cross-validation (`crossval.cross_val_predict`) predicts training rings from the
+model fitted without them, twice: (1) the rings split into FOLDS groups left out in turn (every
+FOLDS-th ring in measuring order: a left-out ring keeps its neighbours in A and most in B), and (2)
+along A: every training ring of one interior A value left out together (with more than FOLDS
+interior values, every FOLDS-th value together), so that a row is predicted from the rows beside
+it. (1) sees what the model cannot interpolate between neighbouring rings, (2) what it cannot
+interpolate between A values: an effect that changes quickly with A (near the vertical, say) is
+invisible to (1), since every ring of a row shares it. The residual r_i = measured mean curve of
+ring i - its out-of-sample prediction holds the model's error at that ring plus the noise of the
+ring's own mean, independent of the prediction (white, variance v_i = s_i^2 N / (N - 3) / R per
+point before the circle fit, s_i the ring's post-fit repetition sigma). Per harmonic k (2..N/2:
+the circle fit removes 0 and 1) the model's error power at ring i is
 
     P_ik = p_k(r_i) - e_k(v_i)
 
 with p_k harmonic k's share of the mean square over the points (Parseval: sum_k p_k = mean r^2) and
-e_k = 2 v / N (v / N at the Nyquist harmonic) what white noise puts there. At an orientation
-(A, B) the model's error variance per harmonic is the Gaussian-kernel weighted mean of P_ik over
-the training rings, in A only, width one A step of the training lattice, pooled over B; a negative
-mean (a model error too small to see under the noise) is zero. Why in A and not in B: every head
-effect acts through levers that are functions of A (sin A for a B-axis error, the A sweep for an
-A-axis error, gravity sin A), so a model's error changes with A; along B it repeats with periods
-the model cannot resolve, so pooling over B estimates the variance of what it misses.
+e_k = 2 v / N (v / N at the Nyquist harmonic) what white noise puts there. The two errors are
+independent directions of interpolation, so their powers add; a ring of an edge A value (never
+left out along A: it would be extrapolated) takes the kernel mean (below) of the other rings'
+power along A. At an orientation (A, B) the model's error variance per harmonic is the
+Gaussian-kernel weighted mean of P_ik over the training rings, in A only, width one A step of the
+training lattice, pooled over B; a negative mean (a model error too small to see under the noise)
+is zero. Why in A and not in B: every head effect acts through levers that are functions of A (sin
+A for a B-axis error, the A sweep for an A-axis error, gravity sin A), so a model's error changes
+with A; along B it repeats with periods the model cannot resolve, so pooling over B estimates the
+variance of what it misses.
 
 Off the lattice. A ring left out of the cross-validation is predicted from neighbours twice as far
 as an orientation between the lattice's nodes is, and an error the lattice aliases (a period of
@@ -108,10 +117,7 @@ class OutOfSampleError:
     ) -> "OutOfSampleError":
         """From out-of-sample residual curves (n, N) and the per-point noise variance of each ring's mean (n,)."""
         o = as_orientations(orientations)
-        r = np.asarray(residuals, dtype=float)
-        power = harmonic_power(r) - white_noise_power(noise_variance, r.shape[-1])
-        power[:, :2] = 0.0  # the circle fit removes size and centre
-        return cls(o, power, a_step(o) if width_deg is None else float(width_deg))
+        return cls(o, error_power(residuals, noise_variance), a_step(o) if width_deg is None else float(width_deg))
 
     def weights(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, n_rings) kernel weights in A, rows summing to 1."""
@@ -144,6 +150,25 @@ class OutOfSampleError:
         }
 
 
+def error_power(residuals: ArrayLike, noise_variance: ArrayLike) -> NDArray[np.float64]:
+    """(n, N//2 + 1) the model's error power per harmonic of out-of-sample residual curves (n, N), um^2:
+    their power less what the noise of each ring's mean (per-point variance (n,)) puts there."""
+    r = np.asarray(residuals, dtype=float)
+    power = harmonic_power(r) - white_noise_power(noise_variance, r.shape[-1])
+    power[:, :2] = 0.0  # the circle fit removes size and centre
+    return power
+
+
+def a_groups(orientations: ArrayLike, train: ArrayLike, folds: int | None = FOLDS) -> list[NDArray[np.int64]]:
+    """The cross-validation along A: the training rings of each interior A value (the smallest and the
+    largest would be extrapolated), every folds-th value together when there are more than `folds`."""
+    rings = np.flatnonzero(np.asarray(train, dtype=bool))
+    a = np.round(as_orientations(orientations)[rings, 0], 6)  # one A value: equal to 1e-6 deg
+    values = np.unique(a)[1:-1]
+    chunks = [values[f::folds] for f in range(folds)] if folds is not None and values.size > folds else [values[i : i + 1] for i in range(values.size)]
+    return [rings[np.isin(a, chunk)] for chunk in chunks]
+
+
 def a_step(orientations: NDArray[np.float64]) -> float:
     """The training lattice's A step (deg), inf when the rings hold one A value."""
     a_axis, _ = lattice_axes(orientations)
@@ -160,11 +185,25 @@ def ring_noise_variance(campaign: Campaign) -> NDArray[np.float64]:
 def out_of_sample_error(
     make_model: Callable[[], DeviationModel], campaign: Campaign, train: ArrayLike, folds: int | None = FOLDS, strict: bool = True
 ) -> OutOfSampleError:
-    """The model's error at its training rings by cross-validation (see the module docstring)."""
+    """The model's error at its training rings by the cross-validation in folds and along A (see the
+    module docstring)."""
     mask = np.asarray(train, dtype=bool)
-    predicted = cross_val_predict(make_model, campaign, mask, folds=folds, strict=strict)
-    residuals = campaign.mean_curves() - predicted
-    return OutOfSampleError.from_residuals(campaign.orientations[mask], residuals[mask], ring_noise_variance(campaign)[mask])
+    means, noise = campaign.mean_curves(), ring_noise_variance(campaign)
+    in_folds = means - cross_val_predict(make_model, campaign, mask, folds=folds, strict=strict, held_out=False)
+    error = OutOfSampleError.from_residuals(campaign.orientations[mask], in_folds[mask], noise[mask])
+    groups = a_groups(campaign.orientations, mask, folds)
+    if not groups:
+        return error
+    along_a = means - cross_val_predict(make_model, campaign, mask, strict=strict, groups=groups, held_out=False)
+    rows = np.concatenate(groups)
+    position = np.cumsum(mask) - 1  # a ring's row among the training rings
+    seen = np.zeros(int(mask.sum()), dtype=bool)
+    seen[position[rows]] = True
+    power_a = np.zeros_like(error.power)
+    power_a[position[rows]] = error_power(along_a[rows], noise[rows])
+    weights = error.weights(error.orientations[~seen])[:, seen]
+    power_a[~seen] = weights @ power_a[seen] / weights.sum(axis=1, keepdims=True)
+    return replace(error, power=error.power + power_a)
 
 
 def save_errors(errors: Mapping[str, OutOfSampleError], directory: str | Path, n_repetitions: int) -> Path:
