@@ -6,6 +6,9 @@ Two server-side figures per render: `server_update_ms`, the time of the render i
 `latency_ms`, from the oldest slider event the render drew (when viser applied it) to the end of
 that render, so queueing behind other browsers' renders is counted. Slider moves that arrive
 before their session's turn are coalesced: `renders` is at most `slider_updates_sent`.
+The browsers start once the app's dataset is prepared (`lattice`: each model's curves on a dense
+lattice, so that a slider move predicts nothing); `server_cpu_ms_per_update` is the server
+process' CPU per slider update, every thread included.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.app.server import ExplorerApp
+from ph_explorer.models.lattice import TOLERANCE_UM
 
 REPOSITORY = Path(__file__).resolve().parent.parent
 
@@ -38,14 +42,31 @@ def percentile_ms(values: list[float], q: float) -> float | None:
     return round(1000.0 * float(np.percentile(values, q)), 3) if values else None
 
 
+def lattice_figures(app: ExplorerApp, timeout: float = 120.0) -> dict[str, Any]:
+    """Wait until the app's dataset is prepared (its models' lattices: a slider move then predicts
+    nothing); what was built, its size and tolerance (ph_explorer.models.lattice)."""
+    dataset = app.dataset
+    start = time.perf_counter()
+    ready = dataset.prepared.wait(timeout)
+    return {
+        "ready": ready,
+        "waited_s": round(time.perf_counter() - start, 2),
+        "models": {name: round(lattice.nbytes / 2**20, 1) for name, lattice in dataset.lattices.items()},  # MiB each
+        "step_deg": {name: lattice.step_deg for name, lattice in dataset.lattices.items()},
+        "tolerance_um": TOLERANCE_UM,
+        "on_demand": [name for name in dataset.model_names if name not in dataset.lattices],
+    }
+
+
 def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> dict[str, Any]:
     """Run the browsers process against the app; return server-side and client-side figures."""
+    lattice = lattice_figures(app)
     app.stats.render_times.clear()
     app.stats.latency_times.clear()
     before_sessions = set(app.sessions)
     gc.collect()
     rss_before = rss_mb()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     missed: int | None = None
     connected = 0
     sessions: list[Any] = []
@@ -83,6 +104,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         out, err = process.communicate(timeout=120)
     finally:
         timer.cancel()
+    cpu_s = time.process_time() - cpu_start  # the server's every thread: renders, viser's event loop, callbacks
     renders = stats.render_count + stats.error_count - renders_before
     render_errors = stats.error_count - errors_before
     wall = time.perf_counter() - start
@@ -118,6 +140,9 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
         "latency_ms": {"p50": percentile_ms(latencies, 50), "p95": percentile_ms(latencies, 95), "max": percentile_ms(latencies, 100)},
+        # The server process' CPU per slider update sent, every thread (renders, viser's event loop, callbacks).
+        "server_cpu_ms_per_update": round(1000.0 * cpu_s / sent, 3) if sent else None,
+        "lattice": lattice,
         "client_errors": client_errors[:20],
         "render_errors": render_errors,
         "last_render_error": stats.last_error if render_errors else None,

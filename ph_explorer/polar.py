@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -152,8 +153,15 @@ def _xy(radius: NDArray[np.float64], theta_deg: NDArray[np.float64]) -> NDArray[
     return np.stack([radius * np.cos(t), -radius * np.sin(t)], axis=-1)
 
 
+@lru_cache(maxsize=16)
+def _path_format(n: int) -> str:
+    return "M" + " L".join(["%.3f,%.3f"] * n) + " Z"
+
+
 def _path(points: NDArray[np.float64]) -> str:
-    return "M" + " L".join(f"{x:.3f},{y:.3f}" for x, y in points) + " Z"
+    """A closed SVG path through (n, 2) points, 3 decimals: one %-format of all coordinates (the
+    explorer draws three on every slider move; a formatted string per point took 4x as long)."""
+    return _path_format(len(points)) % tuple(np.asarray(points, dtype=float).ravel().tolist())
 
 
 def polar_svg(
@@ -173,7 +181,6 @@ def polar_svg(
     theta = 360.0 * np.arange(n_pt) / n_pt
     profile_max = max((float(np.max(scale.radius_mm(s.deviations_um))) for s in series), default=scale.base_mm)
     outer = max(scale.outer_mm, profile_max, scale.base_mm)
-    numbers_r = 1.08 * outer
     extent = 1.28 * outer
     font = 0.055 * extent
     legend_rows = 1 + (len(series) + (band is not None)) // 3
@@ -194,6 +201,33 @@ def polar_svg(
             f'fill="{color}" fill-opacity="0.55" fill-rule="evenodd" stroke="none"/>'
         )
     stroke = 0.004 * extent
+    entries = tuple((s.label, s.color, s.opacity) for s in series) + (((f"{band[0]} 95 % band", band[3], 0.55),) if band else ())
+    circles, tail = _chart_frame(scale, outer, n_pt, point_labels, entries)
+    parts.append(circles)
+    for s in series:
+        rows = np.atleast_2d(s.deviations_um)
+        for row in rows:
+            parts.append(
+                f'<path d="{_path(_xy(scale.radius_mm(row), theta))}" fill="none" stroke="{s.color}" '
+                f'stroke-width="{s.width * stroke:.3f}" stroke-opacity="{s.opacity:g}" stroke-linejoin="round"/>'
+            )
+    parts.append(tail)
+    return "".join(parts)
+
+
+@lru_cache(maxsize=64)
+def _chart_frame(
+    scale: PolarScale, outer: float, n_pt: int, point_labels: int, entries: tuple[tuple[str, str, float], ...]
+) -> tuple[str, str]:
+    """The parts of polar_svg that only the scale, the chart's size and the legend fix: the scale
+    circles (under the profiles) and the point numbers, theta's arrow and the legend (over them).
+    Kept: the explorer redraws the chart on every slider move, mostly on the same scale."""
+    theta = 360.0 * np.arange(n_pt) / n_pt
+    numbers_r = 1.08 * outer
+    extent = 1.28 * outer
+    font = 0.055 * extent
+    stroke = 0.004 * extent
+    parts: list[str] = []
     for text, radius in scale.labelled_circles():
         reference = text == scale_label(0.0)
         dash = "" if reference else f' stroke-dasharray="{3 * stroke:.3f} {3 * stroke:.3f}"'
@@ -207,13 +241,8 @@ def polar_svg(
             f'<text x="{x:.3f}" y="{y:.3f}" font-size="{0.8 * font:.3f}" paint-order="stroke" stroke="#fff" '
             f'stroke-width="{0.25 * font:.3f}" fill="#555">{text}{" (LS circle)" if reference else ""}</text>'
         )
-    for s in series:
-        rows = np.atleast_2d(s.deviations_um)
-        for row in rows:
-            parts.append(
-                f'<path d="{_path(_xy(scale.radius_mm(row), theta))}" fill="none" stroke="{s.color}" '
-                f'stroke-width="{s.width * stroke:.3f}" stroke-opacity="{s.opacity:g}" stroke-linejoin="round"/>'
-            )
+    circles = "".join(parts)
+    parts = []
     for k in range(0, n_pt, max(1, n_pt // point_labels)):
         x, y = _xy(np.array(numbers_r), np.array(theta[k]))
         parts.append(
@@ -230,7 +259,6 @@ def polar_svg(
     x, y = _xy(np.array(1.24 * outer), np.array(20.0))
     parts.append(f'<text x="{x:.3f}" y="{y:.3f}" font-size="{font:.3f}" font-style="italic">θ</text>')
     # The legend, three entries a row, under the chart.
-    entries = [(s.label, s.color, s.opacity) for s in series] + ([(f"{band[0]} 95 % band", band[3], 0.55)] if band else [])
     for i, (label, color, opacity) in enumerate(entries):
         x = -extent + (i % 3) * (2 * extent / 3)
         y = extent + (i // 3 + 1) * 1.6 * font
@@ -239,7 +267,7 @@ def polar_svg(
             f'<text x="{x + 1.5 * font:.3f}" y="{y:.3f}" font-size="{0.85 * font:.3f}">{label}</text>'
         )
     parts.append("</svg>")
-    return "".join(parts)
+    return circles, "".join(parts)
 
 
 def curves_svg(

@@ -226,9 +226,14 @@ def test_presets_and_marker_clicks_move_the_sliders(opened) -> None:
     i = int(np.flatnonzero((s.field.orientations == [45.0, -20.0]).all(axis=1))[0])
     s.field.pick(i)
     assert s.orientation == (45.0, -20.0)
+    # The field is hidden (its marker is not sent on every move); shown, it marks where the stylus points.
+    assert not s.field.current.visible
+    s.map_panel.show.value = True
+    assert s.field.current.visible
     np.testing.assert_allclose(
         s.field.current.position / np.linalg.norm(s.field.current.position), stylus_direction(45.0, -20.0), atol=1e-6
     )
+    s.map_panel.show.value = False
 
 
 def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dataset: Dataset) -> None:

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 
 import pytest
 
+from ph_explorer.app.background import Throttle
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats
 
 TIMEOUT = 10.0  # generous: only reached when a test fails
@@ -360,3 +361,21 @@ def test_when_resting_runs_once_with_the_latest_values_after_they_rest() -> None
     resting.close()  # closed before it rested: never runs
     time.sleep(0.4)
     assert len(ran) == 1
+
+
+def test_throttle_allows_once_per_interval_and_calls_back_once_it_may() -> None:
+    called = threading.Event()
+    calls: list[float] = []
+
+    def later() -> None:
+        calls.append(time.monotonic())
+        called.set()
+
+    throttle = Throttle(0.2, later)
+    start = time.monotonic()
+    assert throttle.ready()  # the first time: at once
+    assert not throttle.ready() and not throttle.ready()  # within the interval: refused, one call back armed
+    assert called.wait(TIMEOUT)
+    assert calls[0] - start >= 0.19 and len(calls) == 1
+    assert throttle.ready()  # asked again when called back: allowed
+    throttle.close()

@@ -1,7 +1,10 @@
 """What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
 
 This module only calls the core (io, twin, models, metrics, evaluation, harmonics); it holds no
-physics. Views and figures are computed on demand and cached per Dataset.
+physics. Views and figures are computed on demand and cached per Dataset. Once a dataset is
+prepared (`prepare`, on the one background thread of `prepare_in_background`), a view reads each
+model's curve from its PredictionLattice (ph_explorer.models.lattice: no model call, no torch, on
+a slider move) and the measured rings' views are computed: a render then never predicts.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
+from ph_explorer.app.background import LatestFirst
 from ph_explorer.bands import Sources, calibrated_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
@@ -28,6 +32,7 @@ from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import campaign_models
+from ph_explorer.models.lattice import PredictionLattice, build_cpu_s
 from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
@@ -78,13 +83,20 @@ class Dataset:
     # Each model's out-of-sample error (the model folder's uncertainty.npz); the trilinear model's is
     # estimated on first use when the folder has none. A model without one has no model component.
     errors: dict[str, OutOfSampleError] = field(default_factory=dict)
+    # Each model's curves on a dense (A, B) lattice (`prepare`); a model without one is predicted.
+    lattices: dict[str, PredictionLattice] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.train_mask is None:
             self.train_mask = ~self.campaign.holdout_mask()
+        # One array for every browser showing this dataset: the map's SVG cache is keyed by it.
+        self.held_out_mask = ~np.asarray(self.train_mask, dtype=bool)
         self._views: OrderedDict[tuple, OrientationView] = OrderedDict()
         self._tasks: OrderedDict[tuple, dict[str, float]] = OrderedDict()
         self._figures: dict[str, MapFigure] = {}
+        self._measured_views: dict[tuple, OrientationView] = {}  # every measured ring's view, once prepared
+        self._prepare_asked = False
+        self.prepared = threading.Event()  # set once `prepare` ended (tests and benchmarks wait for it)
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
@@ -126,7 +138,8 @@ class Dataset:
     def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
         # A replaced model's error was of the old model: kept only for the same object.
         errors = {n: e for n, e in self.errors.items() if n in models and models[n] is self.models.get(n)}
-        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask, errors)
+        lattices = {n: g for n, g in self.lattices.items() if n in models and models[n] is self.models.get(n)}
+        copy = Dataset(self.campaign, models, self.label, list(self.notes), self.train_mask, errors, lattices)
         with self._lock:
             for extra in self._extra_figures:  # figures of the campaign, not of the models: still true
                 copy.add_figure(extra, self._figures[extra])
@@ -140,27 +153,60 @@ class Dataset:
             if hit is not None:
                 self._views.move_to_end(key)
                 return hit
-        view = self._compute_view(float(a_deg), float(b_deg))
+            hit = self._measured_views.get(key)
+            if hit is not None:
+                return hit
+            known = bool(self._measured_views)  # prepared: an orientation not among them was not measured
+        view = self._compute_view(float(a_deg), float(b_deg), unmeasured=known)
         with self._lock:
             self._views[key] = view
             while len(self._views) > VIEW_CACHE:
                 self._views.popitem(last=False)
         return view
 
-    def _compute_view(self, a: float, b: float) -> OrientationView:
+    def _compute_view(self, a: float, b: float, unmeasured: bool = False) -> OrientationView:
         c = self.campaign
-        idx = c.index_of(a, b)
+        idx = None if unmeasured else c.index_of(a, b)
         curves: dict[str, NDArray[np.float64]] = {}
         reps = None
         if idx is not None:
             curves["measured"] = self.mean_curves[idx]
             reps = c.deviations[idx]
         for name in self.model_names:
-            curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
-        spectra = {k: harmonic_spectrum(v)[0] for k, v in curves.items()}
+            lattice = self.lattices.get(name)
+            if idx is None and lattice is not None and lattice.covers(a):
+                curves[name] = lattice.curve(a, b)  # within the lattice's tolerance of the model
+            else:  # a measured ring (its tables compare the model's own prediction) or no lattice here
+                curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
+        amplitudes = harmonic_spectrum(np.stack(list(curves.values())))[0]
+        spectra = dict(zip(curves, amplitudes))
         tables = self._tables(idx, curves)
         held_out = idx is not None and not bool(self.train_mask[idx])
         return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
+
+    def prepare(self) -> None:
+        """Build the missing models' lattices and every measured ring's view (a few seconds, once):
+        afterwards no slider move predicts. A model whose lattice would take more than
+        LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand."""
+        try:
+            for name in self.model_names:
+                if name not in self.lattices and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
+                    lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range)
+                    with self._lock:
+                        self.lattices.setdefault(name, lattice)
+            views = {_view_key(a, b): self._compute_view(float(a), float(b)) for a, b in self.campaign.orientations}
+            with self._lock:
+                self._measured_views = views
+        finally:
+            self.prepared.set()
+
+    def prepare_in_background(self) -> None:
+        """`prepare` on the app's one background thread, once per dataset; views are computed on demand meanwhile."""
+        with self._lock:
+            if self._prepare_asked:
+                return
+            self._prepare_asked = True
+        _PREPARER.add(self)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
         """Tables 1-3 of the paper at this orientation (ph_explorer.evaluation)."""
@@ -275,6 +321,11 @@ class Dataset:
     def worst_orientations(self, name: str, count: int = 5) -> list[tuple[float, float, float]]:
         """The rings with the largest values of a figure, (A, B, value), largest first."""
         return ranked_rings(self.figure(name), self.campaign.orientations)[:count]
+
+
+LATTICE_BUDGET_S = 5.0  # CPU seconds a model's lattice may take to build (a network's: ~2 s)
+# Datasets are prepared one at a time beside the renders, the latest first; one nobody holds is skipped.
+_PREPARER = LatestFirst(Dataset.prepare, name="ph-explorer-prepare")
 
 
 # -- loading -----------------------------------------------------------------------------------------

@@ -55,6 +55,7 @@ class ErrorField:
             "/field/current_line", np.zeros((1, 2, 3)), (220, 30, 30), thickness=1.0, thickness_units="screen", visible=False
         )
         self._on_pick: Callable[[float, float], None] | None = None
+        self._at: tuple[float, float, float] | None = None  # the current orientation's marker, drawn when shown
 
     def on_pick(self, callback: Callable[[float, float], None]) -> None:
         self._on_pick = callback
@@ -110,8 +111,14 @@ class ErrorField:
                 handle.visible = visible
         self.current.visible = visible
         self.current_line.visible = visible
+        if visible and self._at is not None:
+            self.highlight(*self._at)
 
     def highlight(self, a_deg: float, b_deg: float, ball_distance_mm: float) -> None:
+        """Mark the current orientation; while the field is hidden only remembered (a slider move sends nothing)."""
+        self._at = (a_deg, b_deg, ball_distance_mm)
+        if not self.visible:
+            return
         s = stylus_direction(a_deg, b_deg)
         self.current.position = s * self.radius * 1.01
         self.current_line.points = np.array([[s * ball_distance_mm, s * self.radius]], dtype=np.float32)

@@ -40,9 +40,6 @@ class ControlsPanel:
             self.presets = gui.add_button_group("Paper", tuple(PAPER_PRESETS))
             self.worst = gui.add_dropdown("Worst", (NO_CHOICE,), hint="the orientations where the map's figure is largest")
             self.worst_targets: dict[str, tuple[float, float]] = {}  # option -> its orientation
-            # Where the sliders stand and what is there, hidden: the polar plot's title in the figures
-            # panel says the same, and the loop's Physics tab needs the line's height at 1440x900.
-            self.status = gui.add_markdown("", visible=False)
             # Anything slow the session does with its data (a scenario switch, an upload): what and how far.
             self.busy_text = gui.add_markdown("", visible=False)
             self.busy = gui.add_progress_bar(0.0, visible=False)
@@ -227,16 +224,16 @@ def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_up
         return (x, np.zeros(2)), ({"label": "UPR"}, {"label": "no curve shown", "stroke": "#bbbbbb"})
     upr = np.arange(2, max_upr + 1)
     width = 0.8 / len(names)
-    xs, ys = [], {n: [] for n in names}
-    for k in upr:
-        for j, n in enumerate(names):
-            left = k - 0.4 + j * width
-            xs += [left, left + 0.02 * width, left + 0.98 * width, left + width]
-            spectrum = view.spectra[n]
-            amp = float(spectrum[k]) if k < spectrum.size else 0.0
-            for m in names:
-                ys[m] += [0.0, amp, amp, 0.0] if m == n else [0.0, 0.0, 0.0, 0.0]
-    data = (np.array(xs), *(np.array(ys[n]) for n in names))
+    # (UPR, curve, corner): bar j of UPR k spans [left, left + width], its top on the middle two corners.
+    left = (upr[:, None] - 0.4) + np.arange(len(names))[None, :] * width
+    xs = left[:, :, None] + np.array([0.0, 0.02 * width, 0.98 * width, width])
+    amplitudes = np.zeros((len(names), upr.size))  # (curve, UPR); 0 beyond a curve's spectrum
+    for j, n in enumerate(names):
+        spectrum = np.asarray(view.spectra[n], dtype=float)[2 : max_upr + 1]
+        amplitudes[j, : spectrum.size] = spectrum
+    # Curve j's series: its amplitudes on its own bars' top corners, 0 on everyone else's bars.
+    ys = np.eye(len(names))[:, None, :, None] * amplitudes[:, :, None, None] * np.array([0.0, 1.0, 1.0, 0.0])
+    data = (xs.ravel(), *ys.reshape(len(names), -1))
     series = (
         {"label": "UPR"},
         *(

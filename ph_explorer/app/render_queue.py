@@ -13,6 +13,9 @@ moves that arrive before a session's turn only the latest is worth drawing. Henc
 * `WhenResting`, one per slow figure of a session: a job for the latest values once they have
   stopped changing for a while (a slider at rest), never one per move.
 
+The threads beside the renders (a throttled camera, datasets prepared in the background) are in
+background.py.
+
 Values set by the server itself (scripts, tests) are drawn in the caller's thread (`render_now`)::
 
     queue = RenderQueue()

@@ -15,8 +15,8 @@ import trimesh
 import viser
 from numpy.typing import NDArray
 
-from ph_explorer.app.scene import BAND_COLORS, CURVE_COLORS, curve_color, head_orientation
-from ph_explorer.geometry import Geometry, point_angles_deg, stylus_direction
+from ph_explorer.app.scene import BAND_COLORS, CURVE_COLORS, curve_color, joint_wxyz, stylus_point
+from ph_explorer.geometry import Geometry, point_angles_deg
 from ph_explorer.polar import PolarScale, scale_label
 
 FINE_DEG = np.linspace(0.0, 360.0, 181)[:-1]  # a smooth circle
@@ -101,11 +101,18 @@ class RingScene:
         self.scale: PolarScale | None = None  # the chart drawn last
         self._chart_drawn: tuple[PolarScale, float] | None = None  # what _update_chart last sent
         self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
+        # A slider move redraws every curve: its points are radius x these unit vectors, its segments
+        # these pairs of point indices (k, k + 1), and a handle's visibility is sent only when it changes.
+        self._unit = ring_points(1.0, self.theta)
+        n = self.theta.size
+        self._segments = np.stack([np.arange(n), (np.arange(n) + 1) % n], axis=1)
+        self._visible: dict[str, bool] = {}
+        self._profile_mm = 0.0  # the largest radius of the curves drawn last
 
     def place(self, a_deg: float, b_deg: float) -> None:
         """Ring axis along s(A0, B0) through the pivot, its measuring plane at the ball's depth."""
-        self.frame.wxyz = head_orientation(a_deg, b_deg).wxyz
-        self.frame.position = self.geometry.axial_distance_mm * stylus_direction(a_deg, b_deg)
+        self.frame.wxyz = joint_wxyz(a_deg, b_deg)[2]
+        self.frame.position = stylus_point(a_deg, b_deg, self.geometry.axial_distance_mm)
 
     @property
     def extent_mm(self) -> float:
@@ -114,9 +121,13 @@ class RingScene:
 
     def _numbers_radius(self) -> float:
         scale = self.scale
-        profiles = [float(np.max(np.linalg.norm(p[:, :2], axis=1))) for p in self.points.values()]
-        outer = max([scale.outer_mm if scale else self.bore_radius, self.bore_radius + 7.0, *profiles])
+        outer = max(scale.outer_mm if scale else self.bore_radius, self.bore_radius + 7.0, self._profile_mm)
         return outer + 4.0
+
+    def _show(self, name: str, handle: viser.SceneNodeHandle, visible: bool) -> None:
+        if self._visible.get(name) != visible:
+            handle.visible = visible
+            self._visible[name] = visible
 
     def update(
         self,
@@ -130,20 +141,22 @@ class RingScene:
     ) -> None:
         self.scale = scale
         self.points = {}
+        profile = 0.0
         for name, handle in self.curves.items():
             visible = name in curves and bool(shown.get(name, True))
             if visible:
-                pts = ring_points(scale.radius_mm(curves[name]), self.theta)
+                radius = scale.radius_mm(curves[name])
+                pts = radius[:, None] * self._unit
                 self.points[name] = pts
-                handle.points = closed_polyline(pts).astype(np.float32)
-            handle.visible = visible
+                profile = max(profile, float(np.max(np.abs(radius))))
+                handle.points = pts[self._segments].astype(np.float32)  # == closed_polyline(pts)
+            self._show(name, handle, visible)
+        self._profile_mm = profile
         if repetitions is not None and show_repetitions:
             radius = scale.radius_mm(repetitions)  # (n_rep, n_pt)
-            pts = ring_points(radius, np.broadcast_to(self.theta, radius.shape))  # (n_rep, n_pt, 3)
-            self.repetitions.points = np.concatenate([closed_polyline(p) for p in pts]).astype(np.float32)
-            self.repetitions.visible = True
-        else:
-            self.repetitions.visible = False
+            pts = radius[:, :, None] * self._unit  # (n_rep, n_pt, 3)
+            self.repetitions.points = pts[:, self._segments].reshape(-1, 2, 3).astype(np.float32)
+        self._show("repetitions", self.repetitions, repetitions is not None and show_repetitions)
         self._update_band(band, scale)
         self._update_chart(scale)
         self.title.text = title

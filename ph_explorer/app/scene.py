@@ -8,8 +8,10 @@ Lengths in mm, pivot of the head at the origin, z up (ph_explorer.geometry's con
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
+
 import numpy as np
 import trimesh
 import viser
@@ -37,6 +39,22 @@ def a_joint(a_deg: float) -> SO3:
 def head_orientation(a_deg: float, b_deg: float) -> SO3:
     """Rz(B) Rx(A) = geometry.head_rotation(A, B) = geometry.ring_frame(A, B)."""
     return b_joint(b_deg) @ a_joint(a_deg)
+
+
+def joint_wxyz(a_deg: float, b_deg: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """(B joint, A joint, head) wxyz quaternions as b_joint, a_joint and head_orientation give them, in
+    scalar arithmetic: qz(B) qx(A) = (cB cA, cB sA, sB sA, sB cA) with c, s of half the angles
+    (a slider move needs three; SO3's arrays cost ~50 us each)."""
+    half_a, half_b = math.radians(a_deg) / 2.0, math.radians(b_deg) / 2.0
+    ca, sa, cb, sb = math.cos(half_a), math.sin(half_a), math.cos(half_b), math.sin(half_b)
+    return (cb, 0.0, 0.0, sb), (ca, sa, 0.0, 0.0), (cb * ca, cb * sa, sb * sa, sb * ca)
+
+
+def stylus_point(a_deg: float, b_deg: float, distance_mm: float) -> tuple[float, float, float]:
+    """distance_mm along s(A, B) = Rz(B) Rx(A) (0, 0, -1) (geometry.stylus_direction), in scalar arithmetic."""
+    a, b = math.radians(a_deg), math.radians(b_deg)
+    sa = math.sin(a)
+    return (-distance_mm * math.sin(b) * sa, distance_mm * math.cos(b) * sa, -distance_mm * math.cos(a))
 
 
 # -- where to look from ----------------------------------------------------------------------------------
@@ -167,6 +185,7 @@ class HeadScene:
         self.b_frame = scene.add_frame("/head/B", show_axes=False)
         self.a_frame = scene.add_frame("/head/B/A", show_axes=False)
         self.parts: dict[str, viser.MeshHandle] = {}
+        self._angles: tuple[float | None, float | None] = (None, None)  # (A, B) the joints were last turned to
         for part in head_parts(geometry.pivot_to_ball_mm, geometry.ball_diameter_mm):
             self.parts[part.name] = scene.add_mesh_simple(
                 f"/head/{part.name}",
@@ -181,5 +200,11 @@ class HeadScene:
         self.root.visible = visible
 
     def update(self, a_deg: float, b_deg: float) -> None:
-        self.b_frame.wxyz = b_joint(b_deg).wxyz
-        self.a_frame.wxyz = a_joint(a_deg).wxyz
+        """Turn the joints; only a joint whose angle changed is sent (a slider moves one at a time)."""
+        b_wxyz, a_wxyz, _ = joint_wxyz(a_deg, b_deg)
+        last_a, last_b = self._angles
+        if b_deg != last_b:
+            self.b_frame.wxyz = b_wxyz
+        if a_deg != last_a:
+            self.a_frame.wxyz = a_wxyz
+        self._angles = (a_deg, b_deg)

@@ -33,6 +33,7 @@ from ph_explorer.app.panels import (
 )
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
+from ph_explorer.app.background import Throttle
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
@@ -65,6 +66,9 @@ class Shared:
 
 
 TASK_SETTLE_S = 0.5  # the sliders at rest this long: compute the task's RONt (a second or so per model)
+# A following camera moves at most this often while the sliders move (three messages and ~0.5 ms
+# each time); once they stop it is put where the last orientation wants it.
+CAMERA_INTERVAL_S = 0.2
 
 
 def wrap_b(b_deg: float) -> float:
@@ -90,6 +94,10 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
+        # A following camera: at most every CAMERA_INTERVAL_S; once it may move again, the render
+        # thread catches it up with the last drawn orientation (not a render: no render figures).
+        self._camera_catch_up = RenderState(lambda: self._follow(self.view.a_deg, self.view.b_deg))
+        self._camera_due = Throttle(CAMERA_INTERVAL_S, lambda: self.shared.renders.request(self._camera_catch_up))
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
 
@@ -159,8 +167,8 @@ class Session:
         if event.client is not None:
             # A browser's message: viser stamped the value when its event loop applied it.
             self.shared.renders.request(self.render_state, since=event.target.update_timestamp)
-        elif not self._moving:  # set by the server (a test, a script): draw it in this thread
-            self.render_state.render_now(wait=False, timeout=RENDER_WAIT_S)
+        elif not self._moving:  # set by the server (a test, a script): drawn when this returns, here
+            self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
 
     # -- orientation and camera ------------------------------------------------------------------------
     @property
@@ -198,6 +206,16 @@ class Session:
         self._camera_at = (a, b)
         self._camera_extent = extent
         self._camera_view = view  # the view a following camera keeps
+
+    def _follow(self, a: float, b: float) -> None:
+        """In a render: keep a following camera on the ring drawn at (a, b). A browser's slider moves
+        (the render thread's) move it at most every CAMERA_INTERVAL_S, the last one always; a jump
+        (go_to, a script) at once."""
+        moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
+        if not (self.controls.follow.value and moved and self._camera_view != "whole field"):
+            return
+        if threading.current_thread() is not self.shared.renders.thread or self._camera_due.ready():
+            self.look(self._camera_view)
 
     # -- rendering ---------------------------------------------------------------------------------
     @property
@@ -242,10 +260,7 @@ class Session:
             self.map_panel.draw(a, b)
             self.tables.update(view, ds)
             self.charts.update(view, shown)
-            c.status.content = f"**{title}**"
-            moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
-            if c.follow.value and moved and self._camera_view != "whole field":
-                self.look(self._camera_view)
+            self._follow(a, b)
         self.view = view
         self._want_task(a, b)
 
@@ -274,6 +289,7 @@ class Session:
         """Show another campaign (or the same with a new model or figure) in this browser."""
         geometry_changed = dataset.campaign.geometry != self.dataset.campaign.geometry
         self.dataset = dataset
+        dataset.prepare_in_background()
         if geometry_changed:
             with self.client.atomic():
                 self.ring.frame.remove()
@@ -312,7 +328,7 @@ class Session:
 
     def _apply_field(self, dataset: Dataset, name: str) -> None:
         figure = dataset.figure(name)
-        held_out = ~np.asarray(dataset.train_mask, dtype=bool)
+        held_out = dataset.held_out_mask
         a, b = self.orientation
         with self.client.atomic():
             self.field.set_values(dataset.campaign.orientations, figure.values, held_out)
@@ -397,6 +413,8 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
+        self._camera_due.close()
+        self._camera_catch_up.close()
         self._task.close()
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)

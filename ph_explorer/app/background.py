@@ -1,0 +1,122 @@
+"""Work beside the renders of `ph-explorer serve`, as plain threading code (no viser, no numpy).
+
+* `Throttle`, one per costly part of a render (a following camera): at most every so often, and
+  one call back once it may run again, so that the last values get it too;
+* `Later`, one for every app: the delayed calls of every throttle on one daemon thread;
+* `LatestFirst`, one per kind of background preparation (datasets' lattices): a job per object on
+  one daemon thread, the latest asked first, skipping an object nobody holds any more.
+"""
+
+from __future__ import annotations
+
+import heapq
+import threading
+import time
+import traceback
+import weakref
+from typing import Any, Callable
+
+
+class Throttle:
+    """`ready()` is True at most once every `interval_s`; when it says False, `later()` is called
+    once (on the Later thread) when it would say True, so that whoever asked can ask again."""
+
+    def __init__(self, interval_s: float, later: Callable[[], None]) -> None:
+        self.interval_s = interval_s
+        self.later = later
+        self._last = float("-inf")  # time.monotonic() of the last True
+        self._armed = False  # a call of later() is scheduled
+        self._closed = False
+        self._lock = threading.Lock()
+
+    def ready(self) -> bool:
+        with self._lock:
+            wait = self._last + self.interval_s - time.monotonic()
+            if wait <= 0.0:
+                self._last = time.monotonic()
+                return True
+            if not self._armed and not self._closed:
+                self._armed = True
+                LATER.call(wait, self._due)
+            return False
+
+    def _due(self) -> None:
+        with self._lock:
+            self._armed = False
+            if self._closed:
+                return
+        self.later()
+
+    def close(self) -> None:
+        with self._lock:
+            self._closed = True
+
+
+class Later:
+    """Calls at given delays on one daemon thread (a thread per call, as threading.Timer starts,
+    cost a render ~0.3 ms: starting a thread waits for it to run). Calls must be quick."""
+
+    def __init__(self, name: str = "later") -> None:
+        self.name = name
+        self._heap: list[tuple[float, int, Callable[[], None]]] = []
+        self._count = 0
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def call(self, delay_s: float, fn: Callable[[], None]) -> None:
+        with self._cond:
+            self._count += 1
+            heapq.heappush(self._heap, (time.monotonic() + delay_s, self._count, fn))
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
+                self._thread.start()
+            self._cond.notify()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._heap or self._heap[0][0] > time.monotonic():
+                    self._cond.wait(None if not self._heap else self._heap[0][0] - time.monotonic())
+                fn = heapq.heappop(self._heap)[2]
+            try:
+                fn()
+            except Exception:  # noqa: BLE001 - one failed call must not stop the others
+                traceback.print_exc()
+
+
+LATER = Later("ph-explorer-later")  # the delayed calls of every app (throttled cameras)
+
+
+class LatestFirst:
+    """`job(obj)` for each object added, one at a time on a daemon thread, the latest added first.
+
+    Only weak references are queued: an object dropped before its turn (a browser's data replaced
+    again) is skipped. A failed job is printed; the others go on.
+    """
+
+    def __init__(self, job: Callable[[Any], None], name: str = "latest-first") -> None:
+        self.job = job
+        self.name = name
+        self._waiting: list[weakref.ref[Any]] = []
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def add(self, obj: Any) -> None:
+        with self._cond:
+            self._waiting.append(weakref.ref(obj))
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
+                self._thread.start()
+            self._cond.notify()
+
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: bool(self._waiting))
+                obj = self._waiting.pop()()
+            if obj is not None:
+                try:
+                    self.job(obj)
+                except Exception:  # noqa: BLE001 - that object stays unprepared
+                    traceback.print_exc()
+                del obj

@@ -1,0 +1,159 @@
+"""A model's curves predicted once on a dense (A, B) lattice, then read by bilinear interpolation.
+
+Why: the explorer draws a curve per model on every slider move of every browser; a network's
+prediction of one orientation costs a call into torch (~0.3 ms) and a hybrid's more, while
+reading four lattice rows costs microseconds. The lattice is predicted in a few batches when a
+model loads (`PredictionLattice.build`), then `predict` answers any orientation.
+
+Accuracy: bilinear interpolation between nodes STEP_DEG apart. A trilinear model whose grid lines
+fall on lattice nodes (multiples of STEP_DEG, as every shipped campaign's do) is itself bilinear
+between them, so it is reproduced to float32 rounding; a smooth model (the network) is within
+step^2/8 times its curvature in (A, B), ~1e-4 um. A model need not be smooth everywhere (a
+hybrid's physics jumps where the ring's touches cross A = 0, at A0 = the stylus cone's
+half-angle): each band of A between two lattice rows is checked at its cell centres (A and B
+half a step off the nodes, every CHECK_EVERY-th column) and trusted only when all are within
+TOLERANCE_UM of the model; `covers` says False elsewhere and the caller predicts exactly there.
+tests/test_lattice.py checks the trusted bands against model.predict at random orientations.
+Curves are kept as float32: 0.5 deg over A in [0, 115] and all of B is 231 x 720 orientations
+x 64 points x 4 B = 43 MB per model; a lattice is kept under MAX_BYTES by a coarser step.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ph_explorer.models.base import DeviationModel, as_orientations
+
+STEP_DEG = 0.5
+# A lattice's curves stay under this many bytes: a campaign of 256 points per ring (or A from -115)
+# gets a coarser step (1 or 2 deg), where fewer bands pass the check and more is predicted exactly.
+MAX_BYTES = 64 * 2**20
+COARSER_STEPS_DEG = (1.0, 2.0, 2.5, 5.0)
+TOLERANCE_UM = 0.002  # a trusted band's largest error at its checked cell centres, um
+CHECK_EVERY = 8  # the cell centres checked: every 8th column of B (90 per band at 0.5 deg)
+BATCH = 8192  # orientations predicted per call while building (bounds the temporary arrays)
+
+
+@dataclass(frozen=True)
+class PredictionLattice:
+    """curves[i, j] = model.predict at (a_low + i step, -180 + j step), B periodic (j wraps)."""
+
+    a_low: float
+    step_deg: float
+    curves: NDArray[np.float32]  # (n_a, n_b, n_points) um
+    trusted: NDArray[np.bool_]  # (n_a - 1,): the band between rows i and i + 1 interpolates the model
+
+    @classmethod
+    def build(
+        cls, model: DeviationModel, n_points: int, a_range: tuple[float, float], step_deg: float | None = None
+    ) -> "PredictionLattice":
+        """Predict the model at every node of the lattice over a_range (deg) and all of B (the step:
+        `step_for` unless given)."""
+        step_deg = step_for(n_points, a_range) if step_deg is None else float(step_deg)
+        a_low = float(a_range[0])
+        n_a, n_b = cls.shape(a_range, step_deg)
+        a = a_low + step_deg * np.arange(n_a)
+        b = -180.0 + step_deg * np.arange(n_b)
+        grid = np.stack(np.meshgrid(a, b, indexing="ij"), axis=-1).reshape(-1, 2)
+        curves = _predict(model, grid, n_points).reshape(n_a, n_b, int(n_points))
+        lattice = cls(a_low, float(step_deg), curves, np.ones(max(n_a - 1, 0), dtype=bool))
+        # Cell centres of every band, a sample of columns: where the interpolation is checked.
+        centres = np.stack(np.meshgrid(a[:-1] + 0.5 * step_deg, b[::CHECK_EVERY] + 0.5 * step_deg, indexing="ij"), axis=-1)
+        exact = _predict(model, centres.reshape(-1, 2), n_points)
+        error = np.abs(lattice.predict(centres.reshape(-1, 2)) - exact).max(axis=1).reshape(centres.shape[:2])
+        lattice.trusted[:] = error.max(axis=1, initial=0.0) <= TOLERANCE_UM
+        return lattice
+
+    @staticmethod
+    def shape(a_range: tuple[float, float], step_deg: float = STEP_DEG) -> tuple[int, int]:
+        """(rows of A, columns of B) of the lattice over a_range."""
+        return int(np.ceil((float(a_range[1]) - float(a_range[0])) / step_deg - 1e-9)) + 1, int(round(360.0 / step_deg))
+
+    @classmethod
+    def node_count(cls, a_range: tuple[float, float], step_deg: float = STEP_DEG) -> int:
+        """How many orientations `build` predicts (the nodes and the checked cell centres)."""
+        n_a, n_b = cls.shape(a_range, step_deg)
+        return n_a * n_b + (n_a - 1) * len(range(0, n_b, CHECK_EVERY))
+
+    @property
+    def a_high(self) -> float:
+        return self.a_low + self.step_deg * (self.curves.shape[0] - 1)
+
+    @property
+    def n_points(self) -> int:
+        return int(self.curves.shape[2])
+
+    def covers(self, a_deg: float) -> bool:
+        """Whether the lattice answers at this A (any B): within its range, in a trusted band."""
+        x = (float(a_deg) - self.a_low) / self.step_deg
+        n_bands = self.trusted.size
+        if not -1e-9 <= x <= n_bands + 1e-9:
+            return False
+        return bool(self.trusted[min(int(max(x, 0.0)), n_bands - 1)]) if n_bands else True
+
+    def predict(self, orientations: ArrayLike) -> NDArray[np.float64]:
+        """(m, n_points) um: the bilinear interpolation of the four nodes around each orientation.
+        A outside the lattice is clamped to its edge (callers check `covers`)."""
+        o = as_orientations(orientations)
+        n_a, n_b, _ = self.curves.shape
+        x = np.clip((o[:, 0] - self.a_low) / self.step_deg, 0.0, n_a - 1)
+        i0 = np.minimum(np.floor(x).astype(int), max(n_a - 2, 0))
+        wa = (x - i0)[:, None]
+        i1 = np.minimum(i0 + 1, n_a - 1)
+        y = np.mod(o[:, 1] + 180.0, 360.0) / self.step_deg
+        j0 = np.floor(y).astype(int) % n_b
+        wb = (y - np.floor(y))[:, None]
+        j1 = (j0 + 1) % n_b
+        c = self.curves
+        low = (1.0 - wb) * c[i0, j0] + wb * c[i0, j1]
+        high = (1.0 - wb) * c[i1, j0] + wb * c[i1, j1]
+        return (1.0 - wa) * low + wa * high
+
+    def curve(self, a_deg: float, b_deg: float) -> NDArray[np.float64]:
+        """(n_points,) um at one orientation: `predict` in scalar arithmetic (a slider move's few microseconds)."""
+        n_a, n_b, _ = self.curves.shape
+        x = min(max((float(a_deg) - self.a_low) / self.step_deg, 0.0), n_a - 1.0)
+        i0 = min(int(x), max(n_a - 2, 0))
+        i1 = min(i0 + 1, n_a - 1)
+        y = ((float(b_deg) + 180.0) % 360.0) / self.step_deg
+        j0 = int(y)
+        wa, wb = x - i0, y - j0
+        j0 %= n_b
+        j1 = (j0 + 1) % n_b
+        c = self.curves
+        low = c[i0, j0] * (1.0 - wb) + c[i0, j1] * wb
+        high = c[i1, j0] * (1.0 - wb) + c[i1, j1] * wb
+        return (low * (1.0 - wa) + high * wa).astype(np.float64)
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.curves.nbytes)
+
+
+def _predict(model: DeviationModel, orientations: NDArray[np.float64], n_points: int) -> NDArray[np.float32]:
+    """model.predict in batches of BATCH orientations, as float32 (m, n_points)."""
+    curves = np.empty((orientations.shape[0], int(n_points)), dtype=np.float32)
+    for start in range(0, orientations.shape[0], BATCH):
+        curves[start : start + BATCH] = model.predict(orientations[start : start + BATCH], n_points=n_points)
+    return curves
+
+
+def step_for(n_points: int, a_range: tuple[float, float], max_bytes: int = MAX_BYTES) -> float:
+    """STEP_DEG, or the first coarser step whose lattice of n_points curves fits in max_bytes."""
+    for step in (STEP_DEG, *COARSER_STEPS_DEG):
+        n_a, n_b = PredictionLattice.shape(a_range, step)
+        if n_a * n_b * int(n_points) * 4 <= max_bytes:
+            return step
+    return COARSER_STEPS_DEG[-1]
+
+
+def build_cpu_s(model: DeviationModel, n_points: int, a_range: tuple[float, float], sample: int = 512) -> float:
+    """The CPU seconds (this thread's) `PredictionLattice.build` would take, from one batch of `sample` orientations."""
+    o = np.column_stack([np.linspace(a_range[0], a_range[1], sample), np.linspace(-180.0, 180.0, sample)])
+    start = time.thread_time()
+    model.predict(o, n_points=n_points)
+    return (time.thread_time() - start) * PredictionLattice.node_count(a_range, step_for(n_points, a_range)) / sample
