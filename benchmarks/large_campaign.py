@@ -4,7 +4,7 @@ The paper scenario with its lattice at A every 7.5 deg and B every 10 deg (4x th
 points per circle (4x the points): 16x the touches. Each command a user runs on it (simulate,
 train, evaluate, diagnose, serve) runs as its own process through the command line, at the paper's
 size and at this size; recorded per command: the wall seconds and the peak resident memory of
-that process (MiB, from the kernel's rusage of the child), and the growth exponent between the two
+that process (MiB, from the kernel's rusage of the child, through benchmarks/peak.py), and the growth exponent between the two
 sizes, log(large / paper) / log(touches large / touches paper): 1 is linear in the touches.
 """
 
@@ -28,6 +28,7 @@ import tomli_w
 
 from ph_explorer.paths import scenarios_dir
 
+REPOSITORY = Path(__file__).resolve().parent.parent
 DIAGNOSIS_TARGET = {"seconds": 120.0, "peak_mib": 4096.0}
 
 
@@ -49,8 +50,9 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     (the figures are then those of start-up).
     """
     start = time.perf_counter()
-    process = subprocess.Popen(
-        [sys.executable, "-m", "ph_explorer", *args],
+    process = subprocess.Popen(  # through benchmarks/peak.py: the command's own peak, not this process'
+        [sys.executable, "-m", "benchmarks.peak", sys.executable, "-m", "ph_explorer", *args],
+        cwd=REPOSITORY,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -72,14 +74,16 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
             killer.start()
             output.extend(process.stdout)  # what it says while it stops; EOF when it has
             break
-    _, status, usage = os.wait4(process.pid, 0)
+    _, status, _ = os.wait4(process.pid, 0)
     killer.cancel()
     process.stdout.close()
     wall = wall if wall is not None else time.perf_counter() - start
-    ok = stop_when is not None and wall is not None or os.waitstatus_to_exitcode(status) == 0
+    peaks = [int(line.split()[1]) for line in output if line.startswith("PEAK_KIB ")]
+    output = [line for line in output if not line.startswith("PEAK_KIB ")]
+    ok = (stop_when is not None and wall is not None or os.waitstatus_to_exitcode(status) == 0) and bool(peaks)
     return {
         "seconds": round(wall, 2),
-        "peak_mib": round(usage.ru_maxrss / 1024.0, 1),  # ru_maxrss is in KiB on Linux
+        "peak_mib": round(peaks[-1] / 1024.0, 1) if peaks else None,  # ru_maxrss is in KiB on Linux
         "ok": bool(ok),
         "tail": "".join(output[-3:]).strip()[-400:] if not ok else "",
     }
@@ -120,7 +124,7 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
         command: {
             key: round(math.log(sizes["dense"][command][key] / sizes["paper"][command][key]) / math.log(touches["dense"] / touches["paper"]), 2)
             for key in ("seconds", "peak_mib")
-            if sizes["paper"][command][key] > 0 and sizes["dense"][command][key] > 0
+            if (sizes["paper"][command][key] or 0) > 0 and (sizes["dense"][command][key] or 0) > 0
         }
         for command in sizes["paper"]
     }

@@ -1,0 +1,29 @@
+"""`python -m benchmarks.peak CMD [ARGS...]`: run CMD as this small process' child, then print
+`PEAK_KIB n`, the child's peak resident memory (KiB, from the kernel's rusage of it).
+
+Why a launcher: Linux keeps a process' memory high-water mark across exec (the larger of the old
+and the new image's), and a child forked from the benchmark's own process starts with that
+process' image, so measured directly its peak could never show less than the benchmark itself
+(which holds torch, a served app, ...). This launcher imports nothing but the standard library, so
+the command's figure is its own (floor: this interpreter, about 10 MiB). Ctrl-C (SIGINT) is passed
+on to the command; the launcher exits with the command's status.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+
+
+def main(argv: list[str]) -> int:
+    child = subprocess.Popen(argv)  # stdout and stderr inherited: the command's lines go straight through
+    signal.signal(signal.SIGINT, lambda *_: child.send_signal(signal.SIGINT))
+    _, status, usage = os.wait4(child.pid, 0)
+    print(f"PEAK_KIB {usage.ru_maxrss}", flush=True)
+    return os.waitstatus_to_exitcode(status)
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
