@@ -53,6 +53,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     process = subprocess.Popen(  # through benchmarks/peak.py: the command's own peak, not this process'
         [sys.executable, "-m", "benchmarks.peak", sys.executable, "-m", "ph_explorer", *args],
         cwd=REPOSITORY,
+        start_new_session=True,  # one group: the killer below stops the command, not only its launcher
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
@@ -61,7 +62,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     output: list[str] = []
     wall = None
     # A command that outlives the timeout (or a server that does not stop on Ctrl-C) is killed.
-    killer = threading.Timer(timeout, process.kill)
+    killer = threading.Timer(timeout, os.killpg, (process.pid, signal.SIGKILL))
     killer.start()
     assert process.stdout is not None
     for line in process.stdout:
@@ -70,7 +71,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
             wall = time.perf_counter() - start
             process.send_signal(signal.SIGINT)
             killer.cancel()
-            killer = threading.Timer(10.0, process.kill)  # SIGINT is ignored where the parent ignores it
+            killer = threading.Timer(10.0, os.killpg, (process.pid, signal.SIGKILL))  # a command that ignores Ctrl-C
             killer.start()
             output.extend(process.stdout)  # what it says while it stops; EOF when it has
             break

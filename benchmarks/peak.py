@@ -6,7 +6,8 @@ and the new image's), and a child forked from the benchmark's own process starts
 process' image, so measured directly its peak could never show less than the benchmark itself
 (which holds torch, a served app, ...). This launcher imports nothing but the standard library, so
 the command's figure is its own (floor: this interpreter, about 10 MiB). Ctrl-C (SIGINT) is passed
-on to the command; the launcher exits with the command's status.
+on to the command; the launcher exits with the command's status. The caller starts it in a session
+of its own, so that a kill of the group reaches the command too.
 """
 
 from __future__ import annotations
@@ -18,7 +19,9 @@ import sys
 
 
 def main(argv: list[str]) -> int:
-    child = subprocess.Popen(argv)  # stdout and stderr inherited: the command's lines go straight through
+    # stdout and stderr inherited: the command's lines go straight through. Its Ctrl-C restored: a
+    # job started in the background of a shell has SIGINT ignored, and that would be inherited.
+    child = subprocess.Popen(argv, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     signal.signal(signal.SIGINT, lambda *_: child.send_signal(signal.SIGINT))
     _, status, usage = os.wait4(child.pid, 0)
     print(f"PEAK_KIB {usage.ru_maxrss}", flush=True)
