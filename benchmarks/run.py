@@ -169,6 +169,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"--only: unknown section {unknown[0]!r} (sections: {', '.join(SECTIONS)})")
     sections = only or list(SECTIONS)
+    if only and not (out / "results.json").is_file():
+        parser.error(f"--only: {out / 'results.json'} does not exist (--only updates the sections of a previous run there)")
     quick: bool = args.quick
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
