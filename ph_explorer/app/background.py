@@ -52,25 +52,39 @@ class Throttle:
             self._closed = True
 
 
-class Later:
+class _Worker:
+    """One daemon thread running `_loop`, started by the first piece of work, woken by `_cond`."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+
+    def _wake(self) -> None:
+        """Start the thread if need be and wake it (call with `_cond` held, the work queued)."""
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
+            self._thread.start()
+        self._cond.notify()
+
+    def _loop(self) -> None:
+        raise NotImplementedError
+
+
+class Later(_Worker):
     """Calls at given delays on one daemon thread (a thread per call, as threading.Timer starts,
     cost a render ~0.3 ms: starting a thread waits for it to run). Calls must be quick."""
 
     def __init__(self, name: str = "later") -> None:
-        self.name = name
+        super().__init__(name)
         self._heap: list[tuple[float, int, Callable[[], None]]] = []
         self._count = 0
-        self._cond = threading.Condition()
-        self._thread: threading.Thread | None = None
 
     def call(self, delay_s: float, fn: Callable[[], None]) -> None:
         with self._cond:
             self._count += 1
             heapq.heappush(self._heap, (time.monotonic() + delay_s, self._count, fn))
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
-                self._thread.start()
-            self._cond.notify()
+            self._wake()
 
     def _loop(self) -> None:
         while True:
@@ -87,7 +101,7 @@ class Later:
 LATER = Later("ph-explorer-later")  # the delayed calls of every app (throttled cameras)
 
 
-class LatestFirst:
+class LatestFirst(_Worker):
     """`job(obj)` for each object added, one at a time on a daemon thread, the latest added first.
 
     Only weak references are queued: an object dropped before its turn (a browser's data replaced
@@ -95,19 +109,14 @@ class LatestFirst:
     """
 
     def __init__(self, job: Callable[[Any], None], name: str = "latest-first") -> None:
+        super().__init__(name)
         self.job = job
-        self.name = name
         self._waiting: list[weakref.ref[Any]] = []
-        self._cond = threading.Condition()
-        self._thread: threading.Thread | None = None
 
     def add(self, obj: Any) -> None:
         with self._cond:
             self._waiting.append(weakref.ref(obj))
-            if self._thread is None:
-                self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
-                self._thread.start()
-            self._cond.notify()
+            self._wake()
 
     def _loop(self) -> None:
         while True:
