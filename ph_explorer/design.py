@@ -115,11 +115,11 @@ def distinct_rings(pool: NDArray[np.float64], known: NDArray[np.float64]) -> NDA
     not information on the effects or the data part's coverage. The first candidate of each is kept."""
     directions = stylus_direction(pool[:, 0], pool[:, 1])
     taken = stylus_direction(known[:, 0], known[:, 1]) if known.size else np.zeros((0, 3))
-    keep = np.ones(len(pool), dtype=bool)
-    for i in range(len(pool)):
-        earlier = np.concatenate([taken, directions[:i][keep[:i]]])
-        keep[i] = not (earlier.size and (_angle_deg(directions[i : i + 1], earlier) < SAME_RING_DEG).any())
-    return pool[keep]
+    # "The same ring" is an equivalence (one direction), so an earlier candidate of a ring, kept or
+    # not, means this one is not the first: no need to know which earlier ones were kept.
+    earlier_same = np.tril(_angle_deg(directions, directions) < SAME_RING_DEG, k=-1).any(axis=1)
+    measured_same = (_angle_deg(directions, taken) < SAME_RING_DEG).any(axis=1)
+    return pool[~(earlier_same | measured_same)]
 
 
 def effect_instances(catalog: Iterable[type[Effect]]) -> list[Effect]:

@@ -100,7 +100,7 @@ class ReportPanel:
         study = session_study(loop, study_campaign(name, sha256, ds.campaign))
         # The orientation on screen first, then where the diagnosis fails worst and a check ring.
         chosen = [s.orientation]
-        for a, b in default_orientations(ds.campaign, ~ds.train_mask, loop.diagnosis):
+        for a, b in default_orientations(ds.campaign, ds.held_out_mask, loop.diagnosis):
             if ds.campaign.index_of(a, b) != ds.campaign.index_of(*chosen[0]):
                 chosen.append((a, b))
         campaign = ds.campaign
