@@ -95,13 +95,16 @@ def one_model(
     full, noise = band_coverage(bands, measured), band_coverage(bands, measured, "repeatability")
     cv_only = band_coverage(uncalibrated, measured)
     budget = {k: round(float(np.mean([b.budget_um[k] for b in bands])), 4) for k in bands[0].budget_um}
-    scales = [c.error.scale for c in calibrated]
+    # The scale each check ring's band used (local in A where its calibration rings chose a finite width).
+    scales = [float(c.error.scale_at(campaign.orientations[[ring]])[0]) for c, ring in zip(calibrated, np.flatnonzero(check))]
+    widths = [c.error.calibration_width_deg for c in calibrated]
     return {
         "full_band": {k: round(v, 4) for k, v in full.items()},
         "noise_only_band": {k: round(v, 4) for k, v in noise.items()},
         "cross_validation_only_band": {k: round(v, 4) for k, v in cv_only.items()},
         "model_error_scale": {"min": round(min(scales), 3), "median": round(float(np.median(scales)), 3), "max": round(max(scales), 3),
-                              "calibration_rings": calibrated[0].error.calibration_rings},
+                              "calibration_rings": calibrated[0].error.calibration_rings,
+                              "kernel_width_deg": sorted({"inf" if not np.isfinite(w) else round(w, 1) for w in widths}, key=str)},
         "in_target": all(TARGET[0] <= v <= TARGET[1] for v in full.values()),
         "budget_um_mean_over_check_rings": budget,
         "touches": int(measured.size),
@@ -173,8 +176,9 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
     in_target = {f"{c}/{m}": r["in_target"] for c, models in results.items() for m, r in models.items()}
     return {
         "mode": "quick" if quick else "full",
-        "method": "model error from 5-fold cross-validation per harmonic, kernel in A (one lattice step), its variance "
-        "scaled so that 95 % of the mean-curve points of the OTHER held-out rings lie in the mean band (leave one ring out); "
+        "method": "model error from the cross-validation in 5 folds and along A per harmonic, kernel in A (one lattice step), "
+        "its variance scaled (localized split-conformal: the 95 % quantile of the scales the mean-curve points of the OTHER "
+        "held-out rings need, weighted in A with the width those rings choose by leaving one ring out) (leave one ring out); "
         "hybrid parameters by the ring jackknife; adaptive Monte Carlo JCGM 101 7.9 (ndig 1, batches of 10^4)",
         "components": list(COMPONENTS),
         "target": list(TARGET),

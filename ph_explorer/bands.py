@@ -32,13 +32,18 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.models.base import DeviationModel, as_orientations, draw_repetitions
 from ph_explorer.campaign import Campaign
-from ph_explorer.models.model_error import OutOfSampleError, harmonic_power, out_of_sample_error, random_phase_curves
+from ph_explorer.models.model_error import (
+    MIN_CALIBRATION_RINGS,
+    OutOfSampleError,
+    harmonic_power,
+    out_of_sample_error,
+    random_phase_curves,
+)
 from ph_explorer.models.parameter_spread import ParameterSpread
 from ph_explorer.montecarlo import MAX_TRIALS, adaptive_monte_carlo
 from scipy.stats import norm
 
 COMPONENTS = ("repeatability", "model", "parameters")
-MIN_CALIBRATION_RINGS = 5  # held-out rings needed to calibrate the model error's size
 MAX_SCALE = 1e6  # the model error's calibration: a variance a million times the cross-validation's is not an estimate
 # Order of the quantities of one trial: two bands and the components (repeatability twice: touch, mean).
 QUANTITIES = ("touch", "mean", "repeatability", "repeatability_mean", "model", "parameters")
@@ -198,14 +203,15 @@ def band_variance(
 
     The components are Gaussian and independent, so the variances add: repeatability sigma^2
     (sigma^2 / R for the mean; sigma is the post-fit spread), the model's random-phase curve
-    sum_k max(s P_k - Q_k, 0) at every point (s the error's scale, or `scale`; Q_k the parameters'
+    sum_k max(s P_k - Q_k, 0) at every point (s the error's scale at the orientation, or `scale`; Q_k the parameters'
     power, which the hybrid's cross-validated error holds), the parameters' per-point variance.
     The Monte Carlo band's quantiles of these components are +-z sqrt(variance) (tested).
     """
-    fixed, power, q = _variance_parts(sources, as_orientations(orientations), n_points, band, components)
+    o = as_orientations(orientations)
+    fixed, power, q = _variance_parts(sources, o, n_points, band, components)
     if power is None:
         return fixed
-    return fixed + _model_variance(power, q, sources.error.scale if scale is None else scale)  # type: ignore[union-attr]
+    return fixed + _model_variance(power, q, sources.error.scale_at(o) if scale is None else scale)  # type: ignore[union-attr]
 
 
 def _variance_parts(
@@ -231,10 +237,15 @@ def _variance_parts(
     return fixed, power, q
 
 
-def _model_variance(power: NDArray[np.float64], q: NDArray[np.float64] | None, scale: float) -> NDArray[np.float64]:
-    """(m, 1) the model's random-phase curve at every point: sum_k max(scale P_k - Q_k, 0)."""
-    scaled = scale * power if q is None else np.maximum(scale * power - q, 0.0)
-    return scaled.sum(axis=1, keepdims=True)
+def _model_variance(power: NDArray[np.float64], q: NDArray[np.float64] | None, scale: ArrayLike) -> NDArray[np.float64]:
+    """The model's random-phase curve's variance at every point, sum_k max(s P_k - Q_k, 0), for one
+    scale s (a number: (m, 1)), one per orientation ((m,): (m, 1)) or one per point ((m, N): (m, N))."""
+    s = np.asarray(scale, dtype=float)
+    s = np.full((power.shape[0], 1), float(s)) if s.ndim == 0 else s.reshape(power.shape[0], -1)
+    scaled = s[..., None] * power[:, None, :]
+    if q is not None:
+        scaled = np.maximum(scaled - q[:, None, :], 0.0)
+    return scaled.sum(axis=2)
 
 
 def gaussian_band(
@@ -255,16 +266,19 @@ def gaussian_band(
 
 
 def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves: ArrayLike, level: float = 0.95) -> Sources:
-    """The sources with the model error's size calibrated on held-out rings (split-conformal in spirit).
+    """The sources with the model error's size calibrated on held-out rings (split-conformal).
 
     orientations (m, 2), mean_curves (m, N): rings the model was not fitted on, measured off its
-    lattice. The scale s >= 0 of the model error's variance is the smallest with which `level` of
-    their mean-curve points lie inside the mean band (Gaussian bounds +-z sqrt(variance), z the
+    lattice. Each of their mean-curve points scores the smallest scale s >= 0 of the model error's
+    variance with which it lies inside the mean band (Gaussian bounds +-z sqrt(variance), z the
     two-sided quantile of `level`, which the Monte Carlo band reproduces for these Gaussian
-    components); the shape over A and the harmonics stays the cross-validation's. Rings used here
-    must not be the rings a coverage is then measured on. With fewer than MIN_CALIBRATION_RINGS
-    rings a share of points says too little (one ring's 64 points move together): the sources are
-    returned as they are, the cross-validation's size, `calibration_rings` 0.
+    components; inf when no scale up to MAX_SCALE does). The error's scale at an orientation is
+    then the `level` quantile of the scores, over all rings (`scale`) or weighted by the kernel in A
+    (`OutOfSampleError.scale_at`, see models.model_error); the shape over the harmonics stays the
+    cross-validation's. Rings used here must not be the rings a coverage is then measured on. With
+    fewer than MIN_CALIBRATION_RINGS rings a share of points says too little (one ring's 64 points
+    move together): the sources are returned as they are, the cross-validation's size,
+    `calibration_rings` 0.
     """
     o = as_orientations(orientations)
     if sources.error is None or len(o) < MIN_CALIBRATION_RINGS:
@@ -273,22 +287,17 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     n = curves.shape[-1]
     residual = np.abs(curves - sources.model.predict(o, n_points=n))
     z = float(norm.ppf(0.5 + level / 2.0))
-
     fixed, power, q = _variance_parts(sources, o, n, "mean", COMPONENTS)
-
-    def covered(scale: float) -> float:
-        return float(np.mean(residual <= z * np.sqrt(fixed + _model_variance(power, q, scale))))  # type: ignore[arg-type]
-
-    low, high = 0.0, 1.0
-    if covered(low) >= level:
-        high = 0.0
-    else:
-        while covered(high) < level and high < MAX_SCALE:
-            low, high = high, high * 2.0
-        for _ in range(30):  # bisection to ~1e-9 of the bracket: the coverage is a step function of s
-            middle = 0.5 * (low + high)
-            low, high = (middle, high) if covered(middle) < level else (low, middle)
-    return replace(sources, error=sources.error.scaled(high, len(o)), _cache={})
+    needed = (residual / z) ** 2 - fixed  # (m, N) what the model error must add at each point
+    # The model's variance grows with s (piecewise linearly): bisect every point at once.
+    low, high = np.zeros_like(needed), np.full_like(needed, MAX_SCALE)
+    for _ in range(80):  # to ~1e-18 of MAX_SCALE: far below any scale that matters
+        middle = 0.5 * (low + high)
+        short = _model_variance(power, q, middle) < needed  # type: ignore[arg-type]
+        low, high = np.where(short, middle, low), np.where(short, high, middle)
+    scores = np.where(needed <= 0.0, 0.0, np.where(_model_variance(power, q, MAX_SCALE) < needed, np.inf, high))  # type: ignore[arg-type]
+    error = sources.error.calibrated(o[:, 0], scores, level)
+    return replace(sources, error=error, _cache={})
 
 
 def calibrated_model_error(

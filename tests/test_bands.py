@@ -227,10 +227,11 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     loaded, _ = load_errors(tmp_path)
     assert loaded["trilinear"].scale == scale and loaded["trilinear"].calibration_rings == len(check)
     with np.load(tmp_path / "uncertainty.npz") as data:
-        old = {k: data[k] for k in data.files if not k.endswith((".scale", ".calibration_rings"))}
+        old = {k: data[k] for k in data.files if not (k.endswith(".scale") or ".calibration_" in k)}
     np.savez(tmp_path / "uncertainty.npz", **old)
     loaded, _ = load_errors(tmp_path)
     assert loaded["trilinear"].scale == 1.0 and loaded["trilinear"].calibration_rings == 0
+    assert np.all(loaded["trilinear"].scale_at(orientations) == 1.0)
 
 
 def test_the_gaussian_band_is_the_monte_carlo_band_without_its_trials(twin, trilinear):
@@ -269,3 +270,45 @@ def test_the_explorers_band_holds_the_model_error_and_can_leave_it_out(twin):
     assert np.all(high - low > noise_high - noise_low)
     refit = dataset.with_model("trilinear", TrilinearModel().fit(campaign, dataset.train_mask))
     assert "trilinear" not in refit.errors and dataset.with_figures({}).errors["trilinear"] is error
+
+
+def test_the_calibration_is_local_in_a_where_the_check_rings_say_so(tmp_path):
+    """Localized conformal calibration: each point's score is the scale it needs; the scale at an A is
+    the weighted quantile of the check rings' scores. Rings whose points need 9 times the scale below
+    A = 20 deg make the rings choose a finite kernel width and a larger scale there; rings that all
+    need the same choose the campaign's scale (inf: the widest of equal choices); every local scale
+    rests on at least MIN_CALIBRATION_RINGS rings' worth of weight; the file keeps it all."""
+    from ph_explorer.models.model_error import (
+        MIN_CALIBRATION_RINGS,
+        calibration_width,
+        load_errors,
+        local_calibration_weights,
+        save_errors,
+        weighted_quantile,
+    )
+
+    # The weighted quantile: ring 0 (scores 1..4) with weight 3, ring 1 (scores 10..40) with weight 1.
+    scores = np.array([[1.0, 2.0, 3.0, 4.0], [10.0, 20.0, 30.0, 40.0]])
+    assert weighted_quantile(scores, [[3.0, 1.0]], 0.75).tolist() == [4.0]
+    assert weighted_quantile(scores, [[3.0, 1.0]], 0.76).tolist() == [10.0]
+    assert weighted_quantile(scores, [[0.0, 1.0]], 0.5).tolist() == [20.0]
+    a = np.array([3.0, 6.0, 9.0, 12.0, 15.0, 18.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0])
+    weights = local_calibration_weights(a, a, 10.0, leave_out=True)
+    assert np.all(np.diag(weights) == 0) and np.allclose(weights.sum(axis=1), 1)
+    assert np.all(1.0 / np.sum(weights**2, axis=1) >= MIN_CALIBRATION_RINGS - 1e-9)
+    rng = np.random.default_rng(3)
+    base = rng.exponential(1.0, (a.size, 64))
+    steep = base * np.where(a < 20.0, 9.0, 1.0)[:, None]
+    width = calibration_width(a, steep, 0.95, 10.0)
+    assert np.isfinite(width)
+    error = OutOfSampleError(np.c_[a, np.zeros_like(a)], np.ones((a.size, 33)), 10.0).calibrated(a, steep, 0.95)
+    assert error.calibration_width_deg == width and error.calibration_rings == a.size
+    near, far = error.scale_at([[8.0, 0.0], [70.0, 0.0]])
+    assert near > 4.0 * far and far < error.scale < near
+    same = np.tile(base[:1], (a.size, 1))
+    assert calibration_width(a, same, 0.95, 10.0) == float("inf")
+    flat = OutOfSampleError(np.c_[a, np.zeros_like(a)], np.ones((a.size, 33)), 10.0).calibrated(a, same, 0.95)
+    assert np.all(flat.scale_at([[8.0, 0.0], [70.0, 0.0]]) == flat.scale)
+    save_errors({"trilinear": error}, tmp_path, 10)
+    loaded = load_errors(tmp_path)[0]["trilinear"]
+    np.testing.assert_array_equal(loaded.scale_at([[8.0, 0.0], [70.0, 0.0]]), [near, far])

@@ -31,10 +31,16 @@ Off the lattice. A ring left out of the cross-validation is predicted from neigh
 as an orientation between the lattice's nodes is, and an error the lattice aliases (a period of
 one lattice step) is the same at every node, invisible to any fold. Where the campaign has
 held-out check rings, measured off the lattice, the size of this estimate is calibrated on them
-(`bands.calibrate_model_error`): `scale` multiplies every variance, chosen so that the stated
-share of their mean-curve points falls inside the mean band; its shape in A and over the
-harmonics stays the cross-validation's. Without check rings `scale` is 1 and
-`calibration_rings` 0: the band is then not checked off the lattice.
+(`bands.calibrate_model_error`, split-conformal): each of their mean-curve points gets a score,
+the smallest scale of the variance whose mean band holds it; `scale` (the campaign's) is the
+stated quantile of all scores. How much the cross-validation misses is not the same everywhere
+(between the vertical and the first lattice row the curves change fastest, and no fold leaves
+that gap), so at an orientation the variance is multiplied by the local scale: the same quantile
+with every check ring weighted by the model error's kernel in A (localized conformal), the
+kernel widened until the weights count at least MIN_CALIBRATION_RINGS rings (n_eff = (sum w)^2 / sum
+w^2), so that no single ring decides. The shape over the harmonics stays the cross-validation's.
+Without check rings `scale` is 1 and `calibration_rings` 0: the band is then not checked off the
+lattice.
 
 A draw of the error is a random-phase Gaussian curve with that variance per harmonic: at an
 orientation it has not measured, the model does not know the phase of its own error. Phase-locked
@@ -60,6 +66,9 @@ FILE_NAME = "uncertainty.npz"
 # Groups of the cross-validation: every FOLDS-th training ring in measuring order left out together
 # (on a lattice measured row by row, each left-out ring has its B neighbours in the fit).
 FOLDS = 5
+# Held-out rings needed to calibrate the model error's size, and the rings' worth of weight (n_eff,
+# see the docstring) behind a local scale: a local scale rests on as much as the campaign's.
+MIN_CALIBRATION_RINGS = 5
 
 
 def harmonic_power(curves: ArrayLike) -> NDArray[np.float64]:
@@ -104,8 +113,12 @@ class OutOfSampleError:
     orientations: NDArray[np.float64]  # (n_rings, 2) training orientations, deg
     power: NDArray[np.float64]  # (n_rings, N//2 + 1) um^2, noise removed (may be < 0 at one ring)
     width_deg: float  # the kernel's width in A (inf: pooled over every ring)
-    scale: float = 1.0  # the variance's calibration on held-out rings off the lattice (see the docstring)
+    scale: float = 1.0  # the variance's calibration on held-out rings off the lattice, the campaign's (see the docstring)
     calibration_rings: int = 0  # the held-out rings that calibrated `scale` (0: not calibrated)
+    calibration_a_deg: NDArray[np.float64] | None = None  # (m,) their A, for the local scale
+    calibration_scores: NDArray[np.float64] | None = None  # (m, N) each mean-curve point's scale to be inside
+    calibration_level: float = 0.95  # the share of points the calibration holds
+    calibration_width_deg: float = float("inf")  # the local scale's kernel in A (inf: the campaign's scale everywhere)
 
     @property
     def n_points(self) -> int:
@@ -121,20 +134,33 @@ class OutOfSampleError:
 
     def weights(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, n_rings) kernel weights in A, rows summing to 1."""
-        o = as_orientations(orientations)
-        if not np.isfinite(self.width_deg) or self.width_deg <= 0:
-            return np.full((len(o), len(self.orientations)), 1.0 / len(self.orientations))
-        z = (o[:, None, 0] - self.orientations[None, :, 0]) / self.width_deg
-        w = np.exp(-0.5 * z**2)
-        return w / w.sum(axis=1, keepdims=True)
+        return a_kernel(as_orientations(orientations)[:, 0], self.orientations[:, 0], self.width_deg)
 
     def variance(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, N//2 + 1) the model's error power per harmonic at each orientation, um^2, >= 0."""
-        return self.scale * np.maximum(self.weights(orientations) @ self.power, 0.0)
+        return self.scale_at(orientations)[:, None] * np.maximum(self.weights(orientations) @ self.power, 0.0)
+
+    def scale_at(self, orientations: ArrayLike) -> NDArray[np.float64]:
+        """(m,) the variance's calibration scale at each orientation: local where check rings scored it."""
+        o = as_orientations(orientations)
+        if self.calibration_scores is None or self.calibration_a_deg is None:
+            return np.full(len(o), self.scale)
+        weights = local_calibration_weights(o[:, 0], self.calibration_a_deg, self.calibration_width_deg)
+        return weighted_quantile(self.calibration_scores, weights, self.calibration_level)
 
     def scaled(self, scale: float, calibration_rings: int) -> "OutOfSampleError":
-        """The same error with its variance calibrated by `scale` on that many held-out rings."""
-        return replace(self, scale=float(scale), calibration_rings=int(calibration_rings))
+        """The same error with its variance calibrated by one `scale` on that many held-out rings."""
+        return replace(self, scale=float(scale), calibration_rings=int(calibration_rings), calibration_a_deg=None, calibration_scores=None,
+                       calibration_width_deg=float("inf"))
+
+    def calibrated(self, a_deg: ArrayLike, scores: ArrayLike, level: float) -> "OutOfSampleError":
+        """The same error calibrated on held-out rings at A = a_deg (m,) whose mean-curve points need
+        the scales `scores` (m, N) to be inside their band: `level` of them overall, and locally in A
+        with the kernel width the rings choose (`calibration_width`)."""
+        a, s = np.asarray(a_deg, dtype=float), np.asarray(scores, dtype=float)
+        scale = float(weighted_quantile(s, np.ones((1, a.size)), level)[0])
+        return replace(self, scale=scale, calibration_rings=a.size, calibration_a_deg=a, calibration_scores=s, calibration_level=float(level),
+                       calibration_width_deg=calibration_width(a, s, level, self.width_deg))
 
     def draw(self, orientation: ArrayLike, n_trials: int, n_points: int, rng: np.random.Generator) -> NDArray[np.float64]:
         """(n_trials, n_points) draws of the model's error curve at one orientation."""
@@ -147,7 +173,72 @@ class OutOfSampleError:
             f"{prefix}.width_deg": np.array(self.width_deg),
             f"{prefix}.scale": np.array(self.scale),
             f"{prefix}.calibration_rings": np.array(self.calibration_rings),
-        }
+            f"{prefix}.calibration_level": np.array(self.calibration_level),
+            f"{prefix}.calibration_width_deg": np.array(self.calibration_width_deg),
+        } | ({} if self.calibration_scores is None else {
+            f"{prefix}.calibration_a_deg": np.asarray(self.calibration_a_deg, dtype=float),
+            f"{prefix}.calibration_scores": self.calibration_scores,
+        })
+
+
+def a_kernel(a_deg: ArrayLike, centres_a_deg: ArrayLike, width_deg: float) -> NDArray[np.float64]:
+    """(m, n) Gaussian weights in A of n centres at m values of A, rows summing to 1 (uniform when
+    the width is not finite)."""
+    a, centres = np.asarray(a_deg, dtype=float), np.asarray(centres_a_deg, dtype=float)
+    if not np.isfinite(width_deg) or width_deg <= 0:
+        return np.full((a.size, centres.size), 1.0 / centres.size)
+    w = np.exp(-0.5 * ((a[:, None] - centres[None, :]) / width_deg) ** 2)
+    return w / w.sum(axis=1, keepdims=True)
+
+
+def local_calibration_weights(a_deg: ArrayLike, centres_a_deg: ArrayLike, width_deg: float, leave_out: bool = False) -> NDArray[np.float64]:
+    """(m, n) the check rings' weights at each A: the kernel in A, widened by steps of 2^(1/4) until
+    they count at least MIN_CALIBRATION_RINGS rings (n_eff = 1 / sum w^2 for rows summing to 1); all
+    rings alike when the width is inf or nothing narrower does. leave_out: the A values are the
+    centres' own and each row leaves its own ring out (weight 0)."""
+    a = np.asarray(a_deg, dtype=float)
+    n = np.asarray(centres_a_deg).size
+    own = np.eye(a.size, n, dtype=bool) if leave_out else np.zeros((a.size, n), dtype=bool)
+    out = np.where(own, 0.0, 1.0 / max(n - int(leave_out), 1))
+    pending = np.ones(a.size, dtype=bool) if np.isfinite(width_deg) and width_deg > 0 else np.zeros(a.size, dtype=bool)
+    for factor in 2.0 ** (np.arange(41) / 4.0):
+        if not pending.any():
+            break
+        w = np.where(own[pending], 0.0, a_kernel(a[pending], centres_a_deg, width_deg * factor))
+        w /= w.sum(axis=1, keepdims=True)
+        enough = 1.0 / np.sum(w**2, axis=1) >= min(MIN_CALIBRATION_RINGS, n - int(leave_out)) - 1e-9
+        rows = np.flatnonzero(pending)[enough]
+        out[rows], pending[rows] = w[enough], False
+    return out
+
+
+def calibration_width(a_deg: ArrayLike, scores: ArrayLike, level: float, step_deg: float) -> float:
+    """The local calibration's kernel width in A, chosen by the check rings themselves: each ring's
+    scale from the others (leave one ring out) at widths of 1 to 8 A steps and inf (the campaign's
+    scale everywhere); the width whose rings hold closest to `level` of their own points, ring by
+    ring (mean squared difference), the widest among equals. Localising helps only where what
+    the cross-validation misses changes along A more than the rings' scatter: otherwise the
+    campaign's scale wins."""
+    a, s = np.asarray(a_deg, dtype=float), np.asarray(scores, dtype=float)
+    widths = [float("inf")] + ([step_deg * 2.0 ** (i / 2.0) for i in range(6, -1, -1)] if np.isfinite(step_deg) and step_deg > 0 else [])
+    losses = []
+    for width in widths:
+        scale = weighted_quantile(s, local_calibration_weights(a, a, width, leave_out=True), level)
+        losses.append(float(np.mean((np.mean(s <= scale[:, None], axis=1) - level) ** 2)))
+    return widths[int(np.argmin(losses))]  # the first of equals: the widest
+
+
+def weighted_quantile(scores: ArrayLike, weights: ArrayLike, level: float) -> NDArray[np.float64]:
+    """(q,) the smallest score s with which `level` of the weight lies at scores <= s: the N points of
+    ring j (scores (m, N)) share its weight weights[:, j] (q, m) equally. A score may be inf (no scale
+    holds that point)."""
+    s = np.asarray(scores, dtype=float)
+    w = np.asarray(weights, dtype=float)
+    flat = s.ravel()
+    order = np.argsort(flat, kind="stable")
+    cumulative = np.cumsum(np.repeat(w / s.shape[1], s.shape[1], axis=1)[:, order], axis=1)  # (q, m N) in score order
+    first = np.argmax(cumulative >= level * cumulative[:, -1:] * (1.0 - 1e-12), axis=1)
+    return flat[order][first]
 
 
 def error_power(residuals: ArrayLike, noise_variance: ArrayLike) -> NDArray[np.float64]:
@@ -228,6 +319,11 @@ def load_errors(directory: str | Path) -> tuple[dict[str, OutOfSampleError], int
                 float(data[f"{name}.width_deg"]),
                 float(data[f"{name}.scale"]) if f"{name}.scale" in data else 1.0,
                 int(data[f"{name}.calibration_rings"]) if f"{name}.calibration_rings" in data else 0,
+                # Files written before the local calibration hold the campaign's scale alone.
+                data[f"{name}.calibration_a_deg"] if f"{name}.calibration_a_deg" in data else None,
+                data[f"{name}.calibration_scores"] if f"{name}.calibration_scores" in data else None,
+                float(data[f"{name}.calibration_level"]) if f"{name}.calibration_level" in data else 0.95,
+                float(data[f"{name}.calibration_width_deg"]) if f"{name}.calibration_width_deg" in data else float("inf"),
             )
             for name in data["models"]
         }
