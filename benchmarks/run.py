@@ -132,6 +132,15 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
             room["clients"] = load["clients"]
             results["scale_100"] = room
             log(f"  {json.dumps(room)}")
+            # The previous design in the same run: the same app with its lattices dropped, so every
+            # slider move predicts its models on demand (as before the lattice cache).
+            app.dataset.drop_lattices()
+            before = scale.drive(app, n_browsers, 20.0, seconds)
+            load["previous_design"] = {
+                "design": "on-demand prediction (no lattice cache), same app, same browsers and rate",
+                **{k: before[k] for k in ("latency_ms", "server_update_ms", "renders_per_update", "errors", "server_cpu_ms_per_update")},
+            }
+            log(f"  previous design {json.dumps(load['previous_design'])}")
     finally:
         app.stop()
 

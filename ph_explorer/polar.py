@@ -183,8 +183,9 @@ def polar_svg(
     outer = max(scale.outer_mm, profile_max, scale.base_mm)
     extent = 1.28 * outer
     font = 0.055 * extent
-    legend_rows = 1 + (len(series) + (band is not None)) // 3
-    top, height = -extent - 1.6 * font, 2 * extent + 1.6 * font + legend_rows * 1.6 * font
+    legend_rows = -(-(len(series) + (band is not None)) // 3)  # three entries a row
+    # Below the last row's baseline, room for its descenders (0.6 font).
+    top, height = -extent - 1.6 * font, 2 * extent + 1.6 * font + legend_rows * 1.6 * font + 0.6 * font
     parts = [
         f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="{-extent:.3f} {top:.3f} {2 * extent:.3f} {height:.3f}" '
         f'width="100%" role="img" aria-label="polar plot {title}" style="font-family:sans-serif;background:#fff">'

@@ -119,6 +119,8 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
     assert scale["p95_target_ms"] == 50 and scale["server_p95_target_ms"] == 2 and isinstance(scale["holds"], bool)
+    previous = scale["previous_design"]  # the same browsers without the lattice cache, in the same run
+    assert previous["errors"] == 0 and previous["latency_ms"]["p95"] > 0 and previous["design"].startswith("on-demand")
     room = results["scale_100"]
     assert room["browsers"] == 3 and room["rate_hz"] == 5.0 and room["errors"] == 0 and room["latency_ms"]["p95"] > 0
     for key in ("p50", "p95"):

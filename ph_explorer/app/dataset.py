@@ -200,6 +200,14 @@ class Dataset:
         finally:
             self.prepared.set()
 
+    def drop_lattices(self) -> None:
+        """Forget the lattices and the unmeasured views drawn from them: every later slider move
+        predicts its models on demand (the design before the lattice cache, which the scale
+        benchmark measures beside it)."""
+        with self._lock:
+            self.lattices.clear()
+            self._views.clear()
+
     def prepare_in_background(self) -> None:
         """`prepare` on the app's one background thread, once per dataset; views are computed on demand meanwhile."""
         with self._lock:
