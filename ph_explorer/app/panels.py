@@ -192,8 +192,9 @@ def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = F
         if view.measured:
             tasks["measured"] = dataset.measured_task(view.measured_index)
         ront = {n: task_cell(task) for n, task in tasks.items()}
-        note = (f"_RONt ± U (k = 2) of one measurement of {dataset.campaign.n_points} touches: measured, the mean of the "
-                "repetitions and twice their spread; a model, its Monte Carlo with every component of its band (… while it computes)._")
+        measured = "measured, the mean of the repetitions and twice their spread; " if view.measured else ""
+        note = (f"_RONt ± U (k = 2) of one measurement of {dataset.campaign.n_points} touches: {measured}"
+                "a model, its Monte Carlo with every component of its band (… while it computes)._")
     return orientation_tables_markdown(
         view.tables, view.a_deg, view.b_deg, dataset.model_names, dataset.noise_floor_um, view.measured, view.held_out, ront, note or ""
     )
