@@ -272,7 +272,8 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     lattice. Each of their mean-curve points scores the smallest scale s >= 0 of the model error's
     variance with which it lies inside the mean band (Gaussian bounds +-z sqrt(variance), z the
     two-sided quantile of `level`, which the Monte Carlo band reproduces for these Gaussian
-    components; inf when no scale up to MAX_SCALE does). The error's scale at an orientation is
+    components; MAX_SCALE when no scale up to it does: a model error the cross-validation saw as
+    nothing stays nothing, never inf x 0). The error's scale at an orientation is
     then the `level` quantile of the scores, over all rings (`scale`) or weighted by the kernel in A
     (`OutOfSampleError.scale_at`, see models.model_error); the shape over the harmonics stays the
     cross-validation's. Rings used here must not be the rings a coverage is then measured on. With
@@ -295,7 +296,7 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
         middle = 0.5 * (low + high)
         short = _model_variance(power, q, middle) < needed  # type: ignore[arg-type]
         low, high = np.where(short, middle, low), np.where(short, high, middle)
-    scores = np.where(needed <= 0.0, 0.0, np.where(_model_variance(power, q, MAX_SCALE) < needed, np.inf, high))  # type: ignore[arg-type]
+    scores = np.where(needed <= 0.0, 0.0, high)  # a point no scale holds ends at MAX_SCALE
     error = sources.error.calibrated(o[:, 0], scores, level)
     return replace(sources, error=error, _cache={})
 

@@ -215,6 +215,9 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     # Rings whose error is twice as large need a larger scale (about four times, in variance).
     doubled = calibrate_model_error(sources, orientations, model.predict(orientations, n_points=campaign.n_points) + 2 * (means - model.predict(orientations, n_points=campaign.n_points)))
     assert doubled.error.scale > 2.5 * scale
+    # A model error the cross-validation saw as nothing cannot be scaled up: the band stays finite.
+    nothing = calibrate_model_error(Sources(model, campaign.n_repetitions, dataclasses.replace(error, power=0 * error.power)), orientations, means)
+    assert np.all(np.isfinite(band_variance(nothing, orientations, campaign.n_points)))
     # Too few rings say too little: the cross-validation's size is kept.
     assert calibrate_model_error(sources, orientations[:4], means[:4]) is sources
     # Calibrated on the first half of the check rings, the band covers the mean curves of the second.
