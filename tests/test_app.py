@@ -302,6 +302,16 @@ def test_the_band_shows_what_the_model_uncertainty_adds_and_table_1_the_tasks_ro
     assert 0 < without < with_error
     s.controls.band_model_error.value = True
     assert band_width() == pytest.approx(with_error)
+    # The band of the mean of the repetitions (to compare with the measured mean): narrower, and the
+    # model uncertainty a larger share of it.
+    s.controls.band_of.value = s.controls.band_of.options[1]
+    mean_with = band_width()
+    s.controls.band_model_error.value = False
+    mean_without = band_width()
+    assert 0 < mean_without < mean_with < with_error and mean_with / mean_without > with_error / without
+    s.controls.band_model_error.value = True
+    s.controls.band_of.value = s.controls.band_of.options[0]
+    assert band_width() == pytest.approx(with_error)
     row = lambda: next(l for l in s.tables.markdown.content.splitlines() if l.startswith("| RONt, 1 meas."))
     assert wait_for(lambda: "…" not in row(), timeout=120), row()
     cells = [c.strip() for c in row().strip("|").split("|")[1:]]

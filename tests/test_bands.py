@@ -268,6 +268,11 @@ def test_the_explorers_band_holds_the_model_error_and_can_leave_it_out(twin):
     assert dataset.errors == {}
     low, high = dataset.band("trilinear", 52.0, 10.0)
     noise_low, noise_high = dataset.band("trilinear", 52.0, 10.0, with_model_error=False)
+    # The band of the mean of the repetitions is narrower, and the model's error is a larger share of it.
+    mean_low, mean_high = dataset.band("trilinear", 52.0, 10.0, kind="mean")
+    mean_noise_low, mean_noise_high = dataset.band("trilinear", 52.0, 10.0, with_model_error=False, kind="mean")
+    assert np.all(mean_high - mean_low < high - low)
+    assert np.mean(mean_high - mean_low) / np.mean(mean_noise_high - mean_noise_low) > np.mean(high - low) / np.mean(noise_high - noise_low)
     error = dataset.errors["trilinear"]
     assert error.calibration_rings == len(CHECKS) and error.scale > 0
     assert np.all(high - low > noise_high - noise_low)

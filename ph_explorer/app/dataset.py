@@ -232,12 +232,15 @@ class Dataset:
         with self._lock:
             return self.errors.setdefault(model, error)
 
-    def band(self, model: str, a_deg: float, b_deg: float, with_model_error: bool = True, level: float = 0.95) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """The model's band for one touch (lower, upper) in um: repeatability and, when asked and known,
-        the model's own error (bands.gaussian_band: the Monte Carlo's bounds without its trials)."""
+    def band(
+        self, model: str, a_deg: float, b_deg: float, with_model_error: bool = True, kind: str = "touch", level: float = 0.95
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The model's band (lower, upper) in um of one touch (kind "touch") or of the mean of the
+        campaign's repetitions ("mean"): repeatability and, when asked and known, the model's own
+        error (bands.gaussian_band: the Monte Carlo's bounds without its trials)."""
         error = self.model_error(model) if with_model_error else None
         sources = Sources(self.models[model], self.campaign.n_repetitions, error)
-        return gaussian_band(sources, (a_deg, b_deg), level, n_points=self.campaign.n_points)
+        return gaussian_band(sources, (a_deg, b_deg), level, n_points=self.campaign.n_points, band=kind)
 
     def task(self, model: str, a_deg: float, b_deg: float) -> dict[str, float]:
         """RONt of one measurement of N touches at (A, B) by the model's Monte Carlo (task.task_uncertainty,

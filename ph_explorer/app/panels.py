@@ -57,7 +57,12 @@ class ControlsPanel:
                 )
             }
             self.repetitions = gui.add_checkbox("Each repetition (faint)", False)
-            self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % of one touch's deviation by a model's Monte Carlo")
+            self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % band of a model's Monte Carlo")
+            self.band_of = gui.add_dropdown(
+                "Band of",
+                BAND_OF,
+                hint="one touch's deviation, or the mean of the campaign's repetitions: the one to compare with the measured mean",
+            )
             self.band_model_error = gui.add_checkbox(
                 "Band: model uncertainty",
                 initial_value=True,
@@ -120,6 +125,10 @@ def legend_html(names: Iterable[str]) -> str:
         )
         items.append(f'<div style="white-space:nowrap">Monte Carlo 95 % band:{swatches}</div>')
     return '<div style="font-size:0.8em;line-height:1.8em">' + "".join(items) + "</div>"
+
+
+# What the Monte Carlo band bounds (bands.gaussian_band's "touch" and "mean").
+BAND_OF = ("one touch", "the mean of the repetitions")
 
 
 class PolarPanel:

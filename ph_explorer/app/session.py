@@ -23,6 +23,7 @@ from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
 from ph_explorer.app.panels import (
+    BAND_OF,
     PAPER_PRESETS,
     ChartsPanel,
     ControlsPanel,
@@ -135,7 +136,7 @@ class Session:
     # -- wiring: GUI events -> calls, nothing else ---------------------------------------------------
     def _wire(self) -> None:
         c, p, data = self.controls, self.physics, self.data_panel
-        for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, c.band_model_error, self.tables.task, *c.show.values()):
+        for handle in (c.a, c.b, c.magnification, c.repetitions, c.band, c.band_of, c.band_model_error, self.tables.task, *c.show.values()):
             handle.on_update(self._control_changed)
         c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
         c.view_ring.on_click(lambda event: self.look(event.target.value))
@@ -240,7 +241,8 @@ class Session:
         view = ds.view(a, b)
         shown = self.controls.shown()
         band_model = self.controls.band.value
-        band = (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value))) if band_model in ds.models else None
+        kind = "touch" if self.controls.band_of.value == BAND_OF[0] else "mean"
+        band = (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value), kind)) if band_model in ds.models else None
         if view.measured:
             title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"
         else:
