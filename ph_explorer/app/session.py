@@ -22,16 +22,7 @@ from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
-from ph_explorer.app.panels import (
-    BAND_OF,
-    PAPER_PRESETS,
-    ChartsPanel,
-    ControlsPanel,
-    DataPanel,
-    FiguresPanel,
-    TablesPanel,
-    orientation_label,
-)
+from ph_explorer.app.panels import BAND_OF, PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, orientation_label
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.background import Throttle
