@@ -23,16 +23,7 @@ the cross-validation chooses, a term is judged identifiable on the campaign's to
   makes the same guess between the rings (the seat lobing on 15-deg A rows);
 - otherwise the term is carried only together with its aliases that the candidates hold (one
   group, kept or dropped as one, so that each holds its own share), and not at all when it has an
-  alias the candidates do not hold;
-- nor when the data cannot tell it from a catalog alternative that predicts otherwise between the
-  rings although their columns share less (`displacing`): fitted beside the other candidates the
-  term explains beyond noise, fitted beside them and the alternative no longer (the diagnosis's
-  own test: more than NULL_MARGIN times the most that pure touch noise explains in the same
-  fits). What the term held, the alternative holds as well; which of the two is in the head
-  the campaign does not say, and between the rings they differ. The other candidates are in the
-  fits because the diagnosis saw them in the data, carried or not: an effect found but left out
-  (aliased) still shapes what the rest explain (the 3-B-column subset of a head with B 2/rev and a
-  hidden B 22/rev: alone B 25/rev explains most of it, beside B 2/rev B 22/rev does).
+  alias the candidates do not hold.
 
 The candidates are what the diagnosis found plus what it saw present (beyond noise, plausible, but
 not material on its check rings): omitting a present term biases the terms that share columns
@@ -53,8 +44,8 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.design import A_STEP_DEG, B_STEP_DEG, candidate_orientations
-from ph_explorer.diagnosis.results import NULL_MARGIN, effect_label
-from ph_explorer.diagnosis.search import CONFOUNDED, CandidateSearch, shared_variance
+from ph_explorer.diagnosis.results import effect_label
+from ph_explorer.diagnosis.search import CONFOUNDED, shared_variance
 from ph_explorer.diagnosis.separation import shared_over
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
@@ -139,8 +130,6 @@ class Identification:
         self.between = interpolation_weights(campaign.orientations, self.domain.orientations)
         self.alternatives = catalog_alternatives() if alternatives is None else list(alternatives)
         self._designs: dict[str, Design | None] = {}
-        self._noisy: Design | None = None
-        self._crosses: dict[tuple[str, str], NDArray[np.float64]] = {}
 
     def design(self, effect: Effect) -> Design | None:
         """The effect's columns through the smoother (None: the touches cannot show it)."""
@@ -184,62 +173,6 @@ class Identification:
                 found.append((other, shared))
         return sorted(found, key=lambda item: -item[1])
 
-    def noise_targets(self) -> Design:
-        """The residual (column 0) beside draws of pure touch noise through the same smoother: the
-        diagnosis's own null (diagnosis.search.CandidateSearch, every ring in the smoother)."""
-        if self._noisy is None:
-            every = np.ones(self.campaign.n_orientations, dtype=bool)
-            self._noisy = CandidateSearch(self.campaign, every, detail=False).targets
-        return self._noisy
-
-    def _cross(self, a: Effect | None, b: Effect | None) -> NDArray[np.float64]:
-        """a'b over single touches (None: the targets), each pair made once."""
-        key = (effect_label(a) if a else "", effect_label(b) if b else "")
-        if key not in self._crosses:
-            x, y = (self.design(a) if a else self.noise_targets()), (self.design(b) if b else self.noise_targets())
-            xm, xw = x.flat()
-            ym, yw = y.flat()
-            product = x.n_rep * xm.T @ ym
-            self._crosses[key] = product if xw is None or yw is None else product + xw.T @ yw
-        return self._crosses[key]
-
-    def _explained(self, terms: Sequence[Effect]) -> NDArray[np.float64]:
-        """The sum of squares the terms explain of the residual and of each noise draw, jointly."""
-        if not terms:
-            return np.zeros(self.noise_targets().n_columns)
-        gram = np.block([[self._cross(a, b) for b in terms] for a in terms])
-        dot = np.concatenate([self._cross(a, None) for a in terms])
-        scale = max(self.design(t).scale for t in terms)
-        return design.solve(gram, dot, scale, self.targets.mean.shape[0] * self.targets.mean.shape[1])[1]
-
-    def displacing(self, effect: Effect, others: Sequence[Effect]) -> tuple[Effect, float, float] | None:
-        """The catalog alternative beside which (and the other candidates) the effect no longer explains
-        beyond noise while it does beside the others alone, that predicts otherwise between the rings,
-        with what the effect explains beside it and the noise threshold; None when there is none.
-
-        The threshold is NULL_MARGIN times the most any noise draw has the effect explain in these
-        fits (beside the others alone and beside each alternative): look-elsewhere over the
-        alternatives tried, as the diagnosis's scan is over its scan values. An effect not beyond
-        noise beside the others alone is the cross-validation's to judge (carried_effects).
-        """
-        others = [o for o in others if self.design(o) is not None]
-        before = self._explained(others)
-        alone = self._explained([*others, effect]) - before
-        beside = []
-        for other in self.alternatives:
-            if any(_same(other, c) for c in (effect, *others)) or self.design(other) is None:
-                continue
-            base = self._explained([*others, other])
-            beside.append((self._explained([*others, other, effect]) - base, other))
-        threshold = NULL_MARGIN * max([float(alone[1:].max())] + [float(e[1:].max()) for e, _ in beside])
-        if alone[0] <= threshold:
-            return None
-        taken = sorted((float(e[0]), i) for i, (e, _) in enumerate(beside) if e[0] <= threshold)
-        for explained, i in taken:
-            if not self._alike_between(effect, beside[i][1]):
-                return beside[i][1], explained, threshold
-        return None
-
     def groups(self, effects: Sequence[Effect]) -> tuple[list[list[Effect]], list[dict[str, Any]]]:
         """The candidate terms as groups carried together, and why each term is or is not carried.
 
@@ -250,10 +183,6 @@ class Identification:
         kept: list[Effect] = []
         report: list[dict[str, Any]] = []
         partners: list[list[Effect]] = []  # each kept term's aliases among the candidates
-        distinct: list[Effect] = []  # the candidates less those that predict as an earlier one does
-        for effect in effects:
-            if self.design(effect) is not None and not any(self._redundant(effect, d) for d in distinct):
-                distinct.append(effect)
         for effect in effects:
             entry: dict[str, Any] = {"effect": effect_label(effect)}
             report.append(entry)
@@ -276,12 +205,6 @@ class Identification:
             entry["aliases"] = [f"{effect_label(a)} ({s:.2f})" for a, s in aliases[:5]]
             if outside:
                 entry.update(carried=False, reason=f"aliased with {effect_label(outside[0][0])} on these rings ({outside[0][1]:.2f} shared)")
-                continue
-            displaced = self.displacing(effect, [d for d in distinct if d is not effect])
-            if displaced is not None:
-                other, explained, threshold = displaced
-                entry.update(carried=False, reason=f"beside {effect_label(other)} it explains {explained:.3g} of the data, within noise "
-                             f"({threshold:.3g}): these rings cannot tell them apart")
                 continue
             kept.append(effect)
             partners.append(inside)
