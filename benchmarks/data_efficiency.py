@@ -18,7 +18,8 @@ diagnosis's own choice: a quarter of the subset's rings, spread, play the check 
 materiality on; never the scenario's effects, never the benchmark's check rings) with those it saw
 present beyond noise but not material there, of which it keeps those the subset identifies (no
 catalog alias it cannot tell from them that predicts otherwise between its rings, unless the data
-part reproduces them there; a plausible fit) and its own cross-validation says the data can carry
+part reproduces them there; a scanned setting the subset itself chooses beside the candidates it
+cannot carry; a plausible fit) and its own cross-validation says the data can carry
 (models.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
 Data part = trilinear. The hybrid is fitted on a
 campaign holding the training orientations only, so neither its physical terms nor its data part

@@ -23,7 +23,17 @@ the cross-validation chooses, a term is judged identifiable on the campaign's to
   makes the same guess between the rings (the seat lobing on 15-deg A rows);
 - otherwise the term is carried only together with its aliases that the candidates hold (one
   group, kept or dropped as one, so that each holds its own share), and not at all when it has an
-  alias the candidates do not hold.
+  alias the candidates do not hold;
+- nor when its setting (a scanned parameter: cycles per revolution, ...) is not the data's own
+  choice whatever the subset cannot settle (`setting_moves`): the diagnosis chose it on part of
+  the rings, in its chain's order; the setting kept must be the one of its effect that explains
+  most of the data beside the other carried terms, beside each candidate not carried (found or
+  seen present, so in the data, but not identifiable here), and beside all of those. A setting
+  that moves to one predicting otherwise between the rings when a term the campaign cannot
+  settle is or is not accounted for is not identified by it (the 3-B-column subset of a head with
+  B 2/rev and a hidden B 22/rev: beside the rest B 25/rev explains most, beside the aliased
+  B 2/rev B 22/rev does). No threshold: a comparison of settings of one effect, alike meaning
+  more than CONFOUNDED shared over the prediction domain.
 
 The candidates are what the diagnosis found plus what it saw present (beyond noise, plausible, but
 not material on its check rings): omitting a present term biases the terms that share columns
@@ -130,6 +140,7 @@ class Identification:
         self.between = interpolation_weights(campaign.orientations, self.domain.orientations)
         self.alternatives = catalog_alternatives() if alternatives is None else list(alternatives)
         self._designs: dict[str, Design | None] = {}
+        self._crosses: dict[tuple[str, str], NDArray[np.float64]] = {}
 
     def design(self, effect: Effect) -> Design | None:
         """The effect's columns through the smoother (None: the touches cannot show it)."""
@@ -173,6 +184,43 @@ class Identification:
                 found.append((other, shared))
         return sorted(found, key=lambda item: -item[1])
 
+    def _cross(self, a: Effect | None, b: Effect | None) -> NDArray[np.float64]:
+        """a'b over single touches through the smoother (None: the data), each pair made once."""
+        key = (effect_label(a) if a else "", effect_label(b) if b else "")
+        if key not in self._crosses:
+            x, y = (self.design(a) if a else self.targets), (self.design(b) if b else self.targets)
+            (xm, xw), (ym, yw) = x.flat(), y.flat()
+            product = x.n_rep * xm.T @ ym
+            self._crosses[key] = product if xw is None or yw is None else product + xw.T @ yw
+        return self._crosses[key]
+
+    def explained(self, terms: Sequence[Effect]) -> float:
+        """The sum of squares of the data the terms explain jointly (through the smoother)."""
+        terms = [t for t in terms if self.design(t) is not None]
+        if not terms:
+            return 0.0
+        gram = np.block([[self._cross(a, b) for b in terms] for a in terms])
+        dot = np.concatenate([self._cross(a, None) for a in terms])
+        scale = max(self.design(t).scale for t in terms)
+        return float(design.solve(gram, dot, scale, self.targets.mean.shape[0] * self.targets.mean.shape[1])[1][0])
+
+    def setting_moves(self, effect: Effect, carried: Sequence[Effect], dropped: Sequence[Effect]) -> tuple[Effect, str] | None:
+        """The setting of the effect that explains most of the data instead of the effect's own, and
+        beside what, when it predicts otherwise between the rings; None when the effect's own
+        setting is the best beside the other carried terms, beside each dropped candidate and
+        beside all of them (module docstring)."""
+        family = [a for a in self.alternatives if a.id == effect.id and self.design(a) is not None]
+        rest = [c for c in carried if c is not effect]
+        extras = [[], *([d] for d in dropped)] + ([list(dropped)] if len(dropped) > 1 else [])
+        for extra in extras if len(family) > 1 else []:
+            beside = [*rest, *extra]
+            before = self.explained(beside)
+            scores = [-np.inf if any(_same(a, b) for b in beside) else self.explained([*beside, a]) - before for a in family]
+            best = family[int(np.argmax(scores))]
+            if not _same(best, effect) and not self._alike_between(effect, best):
+                return best, ", ".join(effect_label(e) for e in extra) or "the other carried terms"
+        return None
+
     def groups(self, effects: Sequence[Effect]) -> tuple[list[list[Effect]], list[dict[str, Any]]]:
         """The candidate terms as groups carried together, and why each term is or is not carried.
 
@@ -209,6 +257,16 @@ class Identification:
             kept.append(effect)
             partners.append(inside)
             entry.update(carried=True, reason="identifiable" if not inside else "carried with its aliases among the candidates")
+        # A setting the data choose only with or without a term the campaign cannot settle: out.
+        left_out = [e for e in effects if self.design(e) is not None and not any(k is e for k in kept)
+                    and not any(self._redundant(e, k) for k in kept)]
+        for i in reversed(range(len(kept))):
+            entry = next(r for r in report if r["effect"] == effect_label(kept[i]))
+            moved = None if entry["learnable_between"] > CONFOUNDED else self.setting_moves(kept[i], kept, left_out)
+            if moved is not None:
+                entry.update(carried=False, reason=f"beside {moved[1]}, {effect_label(moved[0])} explains more of the data: "
+                             "its setting is not settled by these rings")
+                del kept[i], partners[i]
         # A term carried with an alias that is itself not carried would hold the alias's share: out too.
         dropped = True
         while dropped:
