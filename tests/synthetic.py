@@ -4,6 +4,7 @@ Smooth lobing-like systematic curves that vary with the orientation the way the 
 (physics.md): a 3-lobe pattern whose phase turns with B0 at A0 = 0 and less as A0 grows, whose
 amplitude grows with the lateral share of gravity (sin A0), a 2-lobe term and a 6-lobe term,
 plus Gaussian touch noise; every repetition goes through its own least-squares circle fit.
+Beside it, `training_columns`: the training subsets the hybrid's tests share.
 """
 
 from __future__ import annotations
@@ -55,3 +56,10 @@ def lobing_campaign(
         check_orientations=check_orientations,
         source="synthetic lobing campaign",
     )
+
+
+def training_columns(campaign: Campaign, k: int) -> Campaign:
+    """The campaign's training rings on every A row x k B columns (the data-efficiency benchmark's subset)."""
+    from benchmarks.data_efficiency import lattice_subsets
+
+    return campaign.subset(lattice_subsets(campaign, ~campaign.holdout_mask(), (k,))[0])

@@ -8,7 +8,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.data_efficiency import lattice_subsets
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -17,6 +16,7 @@ from ph_explorer.models import design
 from ph_explorer.models.carried import Identification, carried_effects
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.twin import load_scenario, simulate
+from synthetic import training_columns
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 
@@ -28,13 +28,9 @@ def head() -> Campaign:
     return simulate(scenario, scenario.seed)
 
 
-def columns(campaign: Campaign, k: int) -> Campaign:
-    return campaign.subset(lattice_subsets(campaign, ~campaign.holdout_mask(), (k,))[0])
-
-
 @pytest.fixture(scope="module")
 def three_columns(head: Campaign) -> Identification:
-    return Identification(columns(head, 3))
+    return Identification(training_columns(head, 3))
 
 
 def check_mae(effects, subset: Campaign, campaign: Campaign) -> float:
@@ -68,7 +64,7 @@ def test_a_setting_that_moves_beside_a_term_not_carried_is_not_carried(three_col
 
 def test_a_setting_the_data_choose_is_carried(head: Campaign) -> None:
     """Six B columns: B 22/rev is what the data choose beside B 2/rev and B 4/rev."""
-    check = Identification(columns(head, 6))
+    check = Identification(training_columns(head, 6))
     effects = [B_AXIS(cycles_per_rev=n) for n in (22, 2, 4)]
     assert check.setting_moves(effects[0], effects, []) is None
     groups, report = check.groups(effects)

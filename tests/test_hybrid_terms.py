@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.data_efficiency import lattice_subsets
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -18,6 +17,7 @@ from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import load_scenario, simulate
+from synthetic import training_columns
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 
@@ -28,14 +28,9 @@ def paper() -> Campaign:
     return simulate(scenario, scenario.seed)
 
 
-def columns(campaign: Campaign, k: int) -> Campaign:
-    """The paper campaign's training rings on 7 A rows x k B columns."""
-    return campaign.subset(lattice_subsets(campaign, ~campaign.holdout_mask(), (k,))[0])
-
-
 @pytest.fixture(scope="module")
 def three_columns(paper: Campaign) -> Campaign:
-    return columns(paper, 3)
+    return training_columns(paper, 3)
 
 
 def check_mae(effects, subset: Campaign, paper: Campaign) -> float:
@@ -73,7 +68,7 @@ def test_an_aliased_term_is_not_carried_though_the_cross_validation_likes_it(thr
 def test_aliases_the_candidates_hold_are_carried_together(paper: Campaign) -> None:
     """Six B columns: 4/rev = -2/rev at every column. The joint fit separates the two through the
     rings' B sweeps; alone, B 4/rev would hold the share of the 2/rev error and is not carried."""
-    six = columns(paper, 6)
+    six = training_columns(paper, 6)
     check = Identification(six)
     four, two = B_AXIS(cycles_per_rev=4), B_AXIS(cycles_per_rev=2)
     alone, report = check.groups([four])
@@ -87,7 +82,7 @@ def test_aliases_the_candidates_hold_are_carried_together(paper: Campaign) -> No
 
 def test_an_identifiable_term_is_carried(paper: Campaign) -> None:
     """Nine B columns 40 deg apart: no catalog term shares more than 0.8 with B 4/rev there."""
-    nine = columns(paper, 9)
+    nine = training_columns(paper, 9)
     kept, _, report = carried_effects(nine, [B_AXIS(cycles_per_rev=4)])
     assert report[0]["carried"] and report[0]["aliases"] == []
     assert [e.settings()["cycles_per_rev"] for e in kept] == [4.0]
