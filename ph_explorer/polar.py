@@ -181,9 +181,8 @@ def polar_svg(
     theta = 360.0 * np.arange(n_pt) / n_pt
     profile_max = max((float(np.max(scale.radius_mm(s.deviations_um))) for s in series), default=scale.base_mm)
     outer = max(scale.outer_mm, profile_max, scale.base_mm)
-    extent = 1.28 * outer
-    font = 0.055 * extent
-    legend_rows = -(-(len(series) + (band is not None)) // 3)  # three entries a row
+    extent, font, stroke = _layout(outer)
+    legend_rows = -(-(len(series) + (band is not None)) // 3)  # three entries a row (_chart_frame's legend)
     # Below the last row's baseline, room for its descenders (0.6 font).
     top, height = -extent - 1.6 * font, 2 * extent + 1.6 * font + legend_rows * 1.6 * font + 0.6 * font
     parts = [
@@ -201,7 +200,6 @@ def polar_svg(
             f'<path d="{_path(_xy(scale.radius_mm(high), theta))} {_path(_xy(scale.radius_mm(low), theta)[::-1])}" '
             f'fill="{color}" fill-opacity="0.55" fill-rule="evenodd" stroke="none"/>'
         )
-    stroke = 0.004 * extent
     entries = tuple((s.label, s.color, s.opacity) for s in series) + (((f"{band[0]} 95 % band", band[3], 0.55),) if band else ())
     circles, tail = _chart_frame(scale, outer, n_pt, point_labels, entries)
     parts.append(circles)
@@ -216,6 +214,13 @@ def polar_svg(
     return "".join(parts)
 
 
+def _layout(outer: float) -> tuple[float, float, float]:
+    """(extent, font, stroke) of a chart whose outermost circle or profile is at `outer` (mm): the
+    half-width of its square, its font size and its line width, one set for the frame and the profiles."""
+    extent = 1.28 * outer
+    return extent, 0.055 * extent, 0.004 * extent
+
+
 @lru_cache(maxsize=64)
 def _chart_frame(
     scale: PolarScale, outer: float, n_pt: int, point_labels: int, entries: tuple[tuple[str, str, float], ...]
@@ -225,9 +230,7 @@ def _chart_frame(
     Kept: the explorer redraws the chart on every slider move, mostly on the same scale."""
     theta = 360.0 * np.arange(n_pt) / n_pt
     numbers_r = 1.08 * outer
-    extent = 1.28 * outer
-    font = 0.055 * extent
-    stroke = 0.004 * extent
+    extent, font, stroke = _layout(outer)
     parts: list[str] = []
     for text, radius in scale.labelled_circles():
         reference = text == scale_label(0.0)

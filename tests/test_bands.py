@@ -247,7 +247,7 @@ def test_the_gaussian_band_is_the_monte_carlo_band_without_its_trials(twin, tril
     model, error = trilinear
     train = ~campaign.holdout_mask()
     hybrid = HybridModel([e for e in scenario.starting_effects if e.candidate], "trilinear").fit(campaign.subset(train))
-    for sources in (Sources(model, campaign.n_repetitions, error.scaled(1.7, 12)),
+    for sources in (Sources(model, campaign.n_repetitions, dataclasses.replace(error, scale=1.7, calibration_rings=12)),
                     Sources(hybrid, campaign.n_repetitions, None, parameter_spread(hybrid, campaign.subset(train)))):
         mc = orientation_band(sources, (52.0, 10.0), rng=np.random.default_rng(5), ndig=2)
         for band in ("touch", "mean"):

@@ -60,7 +60,7 @@ class ControlsPanel:
             self.band = gui.add_dropdown("Monte Carlo band", ("none",), hint="95 % band of a model's Monte Carlo")
             self.band_of = gui.add_dropdown(
                 "Band of",
-                BAND_OF,
+                tuple(BAND_OF),
                 hint="one touch's deviation, or the mean of the campaign's repetitions: the one to compare with the measured mean",
             )
             self.band_model_error = gui.add_checkbox(
@@ -95,6 +95,10 @@ class ControlsPanel:
     def shown(self) -> dict[str, bool]:
         return {name: bool(box.value) and box.visible for name, box in self.show.items()}
 
+    def band_kind(self) -> str:
+        """What the band bounds: "touch" or "mean" (bands.gaussian_band's band)."""
+        return BAND_OF[self.band_of.value]
+
     def working(self, text: str, fraction: float) -> None:
         """Show a slow step in progress under the orientation (above the fold)."""
         self.busy_text.content = f"_{text}_"
@@ -127,8 +131,8 @@ def legend_html(names: Iterable[str]) -> str:
     return '<div style="font-size:0.8em;line-height:1.8em">' + "".join(items) + "</div>"
 
 
-# What the Monte Carlo band bounds (bands.gaussian_band's "touch" and "mean").
-BAND_OF = ("one touch", "the mean of the repetitions")
+# What the Monte Carlo band bounds: the option shown -> bands.gaussian_band's band.
+BAND_OF = {"one touch": "touch", "the mean of the repetitions": "mean"}
 
 
 class PolarPanel:

@@ -22,7 +22,7 @@ from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
-from ph_explorer.app.panels import BAND_OF, PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, orientation_label
+from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, orientation_label
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.background import Throttle
@@ -232,7 +232,7 @@ class Session:
         view = ds.view(a, b)
         shown = self.controls.shown()
         band_model = self.controls.band.value
-        kind = "touch" if self.controls.band_of.value == BAND_OF[0] else "mean"
+        kind = self.controls.band_kind()
         band = (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value), kind)) if band_model in ds.models else None
         if view.measured:
             title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"

@@ -148,11 +148,6 @@ class OutOfSampleError:
         weights = local_calibration_weights(o[:, 0], self.calibration_a_deg, self.calibration_width_deg)
         return weighted_quantile(self.calibration_scores, weights, self.calibration_level)
 
-    def scaled(self, scale: float, calibration_rings: int) -> "OutOfSampleError":
-        """The same error with its variance calibrated by one `scale` on that many held-out rings."""
-        return replace(self, scale=float(scale), calibration_rings=int(calibration_rings), calibration_a_deg=None, calibration_scores=None,
-                       calibration_width_deg=float("inf"))
-
     def calibrated(self, a_deg: ArrayLike, scores: ArrayLike, level: float) -> "OutOfSampleError":
         """The same error calibrated on held-out rings at A = a_deg (m,) whose mean-curve points need
         the scales `scores` (m, N) to be inside their band: `level` of them overall, and locally in A
