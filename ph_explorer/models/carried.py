@@ -40,7 +40,7 @@ not material on its check rings): omitting a present term biases the terms that 
 with it. A set of terms whose fit on the campaign is implausible for a PH20/TP20-class head
 (Effect.implausible) is never carried. Among the admissible sets, backward elimination on the
 hybrid's cross-validated error (crossval.cross_val_predict, strict) with the one-standard-error
-rule: see carried_effects.
+rule: see carried_effects. The data part beside the terms is chosen the same way: carried_hybrid.
 """
 
 from __future__ import annotations
@@ -61,9 +61,9 @@ from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import design
 from ph_explorer.models.base import training_mask
-from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
+from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, unit_campaign
 from ph_explorer.models.design import Design
-from ph_explorer.models.hybrid import HybridModel, fitted_basis
+from ph_explorer.models.hybrid import HybridModel, fitted_basis, make_data_model, smoother_type
 from ph_explorer.models.trilinear import TrilinearModel
 
 # Rings up to which the term selection leaves one ring out at a time; beyond, CARRIED_FOLDS groups
@@ -111,11 +111,12 @@ def prediction_domain(campaign: Campaign) -> Touches:
     return touch_kinematics(grid[inside], campaign.geometry, 1)
 
 
-def interpolation_weights(orientations: ArrayLike, at: ArrayLike) -> NDArray[np.float64]:
-    """(m, n_o): the trilinear data part's interpolation, from the rings at `orientations`, at `at`
-    (the model is linear in its data: fitted on unit vectors, its interpolation is its weights)."""
-    o = np.asarray(orientations, dtype=float)
-    return TrilinearModel().fit(Campaign(o, np.eye(len(o))[:, None, :])).interpolate(at)
+def interpolation_weights(
+    orientations: ArrayLike, at: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel
+) -> NDArray[np.float64]:
+    """(m, n_o): a linear data part's interpolation, from the rings at `orientations`, at `at`
+    (fitted on unit vectors, its interpolation is its weights: crossval.unit_campaign)."""
+    return model_type().fit(unit_campaign(orientations)).interpolate(at)
 
 
 def catalog_alternatives(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
@@ -130,14 +131,15 @@ def _same(a: Effect, b: Effect) -> bool:
 class Identification:
     """What a campaign's touches identify of candidate terms (see the module docstring)."""
 
-    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None) -> None:
+    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None, data_model: str = "trilinear") -> None:
         self.campaign = campaign
         self.touches = campaign_touches(campaign)
         every = np.ones(campaign.n_orientations, dtype=bool)
-        self.smoother = OutOfSampleSmoother(campaign.orientations, every)
+        linear = smoother_type(make_data_model(data_model))  # the data part the terms sit beside
+        self.smoother = OutOfSampleSmoother(campaign.orientations, every, linear)
         self.targets = Design(self.smoother.residual(campaign.deviations)[..., None], None)
         self.domain = prediction_domain(campaign)
-        self.between = interpolation_weights(campaign.orientations, self.domain.orientations)
+        self.between = interpolation_weights(campaign.orientations, self.domain.orientations, linear)
         self.alternatives = catalog_alternatives() if alternatives is None else list(alternatives)
         self._designs: dict[str, Design | None] = {}
         self._crosses: dict[tuple[str, str], NDArray[np.float64]] = {}
@@ -341,7 +343,7 @@ def carried_effects(
     """
     mask = training_mask(campaign, train)
     fitted = campaign.subset(mask)
-    check = identification if identification is not None else Identification(fitted)
+    check = identification if identification is not None else Identification(fitted, data_model=data_model)
     groups, report = check.groups(effects) if effects else ([], [])
     path: list[dict[str, Any]] = []
     tried: dict[tuple, NDArray[np.float64]] = {}
@@ -373,3 +375,40 @@ def carried_effects(
     if kept and len(kept) < len(groups) and _gain_beyond_noise(errors([]), current) <= 1.0:
         kept = []
     return flat(kept), path, report
+
+
+# The data parts linear in their data (out-of-sample weights), the default first: the interpolation
+# learns what no catalog term holds.
+LINEAR_DATA_PARTS = ("trilinear", "mean_curve")
+
+
+def carried_hybrid(
+    campaign: Campaign, effects: Sequence[Effect], train: ArrayLike | None = None
+) -> tuple[str, list[Effect], dict[str, Any]]:
+    """The hybrid's data part and the effects it carries on a campaign, both chosen by its own
+    cross-validation.
+
+    For each data part, the terms the data can carry beside it (carried_effects). The trilinear
+    interpolation is the default. The mean curve (models.trilinear.MeanCurveModel) replaces it only
+    when the hybrid with it predicts the rings left out better beyond noise (by more than one
+    standard error of the rings' paired differences): when the terms carry the orientation
+    dependence, the mean curve averages every ring's noise where the interpolation takes that of
+    the few rings around each. Returns the data part, its effects, and per data part the effects
+    kept, the path of sets tried, the identifiability report and the cross-validated MAE (um).
+    """
+    mask = training_mask(campaign, train)
+    kept: dict[str, list[Effect]] = {}
+    errors: dict[str, NDArray[np.float64]] = {}
+    details: dict[str, Any] = {}
+    for data_model in LINEAR_DATA_PARTS:
+        kept[data_model], path, report = carried_effects(campaign, effects, data_model, mask)
+        errors[data_model] = cross_validated_errors(kept[data_model], campaign, mask, data_model)
+        details[data_model] = {
+            "kept": [effect_label(e) for e in kept[data_model]],
+            "cv_mae_um": round(float(errors[data_model].mean()), 5),
+            "cross_validation": path,
+            "identifiability": report,
+        }
+    gain = _gain_beyond_noise(errors["trilinear"], errors["mean_curve"])
+    chosen = "mean_curve" if gain > 1.0 else "trilinear"
+    return chosen, kept[chosen], {"data_part": chosen, "mean_curve_gain_in_standard_errors": round(gain, 2), **details}

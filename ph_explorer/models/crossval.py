@@ -103,25 +103,28 @@ def held_out_ring_mae(model: DeviationModel, campaign: Campaign, mask: ArrayLike
     return metrics.ring_mae(model.predict_held_out(campaign, rings), campaign.deviations[rings])
 
 
-def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike) -> NDArray[np.float64]:
-    """W (n_o x n_o) of the trilinear model: row i predicts orientation i out of sample.
-
-    The model is linear in its data: fitted on unit vectors (one per orientation, in place of the
-    points) its interpolation, before any circle fit, is its weights.
-    """
+def unit_campaign(orientations: ArrayLike) -> Campaign:
+    """One ring per orientation holding a unit vector in place of its points: a model linear in its
+    data (the trilinear tables, the mean curve), fitted on it, interpolates its own weights."""
     o = as_orientations(orientations)
-    identity = Campaign(o, np.eye(len(o))[:, None, :])
-    return _out_of_sample(TrilinearModel, identity, train, lambda model, at: model.interpolate(at))
+    return Campaign(o, np.eye(len(o))[:, None, :])
+
+
+def out_of_sample_weights(
+    orientations: ArrayLike, train: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel
+) -> NDArray[np.float64]:
+    """W (n_o x n_o) of a model linear in its data: row i predicts orientation i out of sample
+    (its interpolation of unit vectors, before any circle fit: unit_campaign)."""
+    return _out_of_sample(model_type, unit_campaign(orientations), train, lambda model, at: model.interpolate(at))
 
 
 class OutOfSampleSmoother:
     """W (n_o x n_o) and what it does to arrays over orientations (see out_of_sample_weights)."""
 
-    model_name = TrilinearModel.name  # the model whose out-of-sample predictions W makes
-
-    def __init__(self, orientations: ArrayLike, train: ArrayLike) -> None:
+    def __init__(self, orientations: ArrayLike, train: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel) -> None:
         self.train = np.asarray(train, dtype=bool)
-        self.weights = out_of_sample_weights(orientations, self.train)
+        self.model_name = model_type.name  # the model whose out-of-sample predictions W makes
+        self.weights = out_of_sample_weights(orientations, self.train, model_type)
 
     def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """Out-of-sample prediction of values shaped (n_o, ...)."""

@@ -33,6 +33,7 @@ CARD_FORMAT = 1
 MODEL_TYPES: dict[str, tuple[type[DeviationModel], str]] = {
     "network": (network.FourierNetwork, network.FILE_NAME),
     "trilinear": (trilinear.TrilinearModel, trilinear.FILE_NAME),
+    "mean_curve": (trilinear.MeanCurveModel, trilinear.MeanCurveModel.file_name),  # a hybrid's data part
 }
 
 

@@ -34,6 +34,7 @@ from ph_explorer.models.base import DeviationModel, as_orientations, training_ma
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.design import Design
 from ph_explorer.models.folder import MODEL_TYPES
+from ph_explorer.models.trilinear import TrilinearModel
 
 
 # A basis column whose part left by the circle fit is below this fraction of its size is absorbed.
@@ -132,7 +133,7 @@ class HybridModel(DeviationModel):
         self.geometry = campaign.geometry
         self.n_points = campaign.n_points
         touches = campaign_touches(campaign)
-        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask)
+        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_model))
         self.fit_targets_ = Design(self.smoother_.residual(campaign.deviations)[..., None], None)
         if self.effects:
             self._report("physical terms", 0.0)
@@ -231,6 +232,13 @@ class HybridModel(DeviationModel):
         model.widths_ = list(record["widths"])
         model.ridge_ = float(record["ridge"])
         return model
+
+
+def smoother_type(data_model: DeviationModel) -> type[TrilinearModel]:
+    """The linear model whose out-of-sample weights stand for the data part in the physical fit: the
+    data part itself when it is linear in its data (trilinear, mean curve), else the trilinear
+    model (for the network, its nearest linear stand-in)."""
+    return type(data_model) if isinstance(data_model, TrilinearModel) else TrilinearModel
 
 
 def make_data_model(data_model: DataModel) -> DeviationModel:

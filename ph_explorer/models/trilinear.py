@@ -87,6 +87,7 @@ class TrilinearModel(DeviationModel):
     """Mean and spread tables over (A, B, theta), trilinearly interpolated (Gaska et al. 2016)."""
 
     name = "trilinear"
+    file_name = FILE_NAME
 
     def __init__(self) -> None:
         self.a_axis: NDArray[np.float64] | None = None  # (n_a,) deg, ascending
@@ -170,7 +171,7 @@ class TrilinearModel(DeviationModel):
     def save(self, directory: str | Path) -> Path:
         if self.mean_table is None:
             raise RuntimeError("the trilinear model is not fitted")
-        path = Path(directory) / FILE_NAME
+        path = Path(directory) / self.file_name
         path.parent.mkdir(parents=True, exist_ok=True)
         with open(path, "wb") as handle:
             np.savez_compressed(
@@ -186,7 +187,7 @@ class TrilinearModel(DeviationModel):
 
     @classmethod
     def load(cls, directory: str | Path) -> Self:
-        path = Path(directory) / FILE_NAME
+        path = Path(directory) / cls.file_name
         model = cls()
         with np.load(path, allow_pickle=False) as data:
             model.a_axis = data["a_axis"].astype(float)
@@ -196,6 +197,34 @@ class TrilinearModel(DeviationModel):
             model.measured = data["measured"].astype(bool)
             model.n_points = int(data["n_points"])
         return model
+
+
+class MeanCurveModel(TrilinearModel):
+    """The mean deviation curve of the training rings, the same at every orientation.
+
+    The trilinear model on a single node: the least flexible data-driven part. Beside physical
+    terms that carry the orientation dependence, it predicts a ring with the noise of every
+    training ring averaged, where the interpolation carries the noise of the few rings around it
+    (MAE against the mean: the floor times sqrt(1 + sum of squared weights)). A hybrid uses it only
+    when its own cross-validation says so (models.carried.carried_hybrid).
+    """
+
+    name = "mean_curve"
+    file_name = "mean_curve.npz"
+
+    def fit(self, campaign: Campaign, train: ArrayLike | None = None) -> Self:
+        mask = training_mask(campaign, train)
+        if not mask.any():
+            raise ValueError("the mean curve needs at least one training orientation")
+        deviations = campaign.deviations[mask]  # (n_train, n_rep, n_pt)
+        # The spread of single touches about their ring's mean, pooled over the rings (ddof=1).
+        variance = deviations.var(axis=1, ddof=1).mean(axis=0) if deviations.shape[1] > 1 else np.zeros(campaign.n_points)
+        self.a_axis, self.b_axis = np.zeros(1), np.zeros(1)
+        self.measured = np.ones((1, 1), dtype=bool)
+        self.mean_table = deviations.mean(axis=(0, 1))[None, None]
+        self.sigma_table = np.sqrt(variance)[None, None]
+        self.n_points = campaign.n_points
+        return self
 
 
 def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.int64]:

@@ -1,0 +1,96 @@
+"""The hybrid's data part: the trilinear interpolation, or the mean curve of the training rings
+(models.trilinear.MeanCurveModel), chosen by the hybrid's own cross-validation
+(models.carried.carried_hybrid)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ph_explorer import metrics
+from ph_explorer.campaign import Campaign
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.geometry import point_angles_deg
+from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models.carried import carried_hybrid
+from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.hybrid import HybridModel
+from ph_explorer.models.trilinear import MeanCurveModel
+from ph_explorer.twin import load_scenario, simulate
+from synthetic import lobing_campaign
+
+B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
+
+
+def test_the_mean_curve_is_the_same_at_every_orientation_and_round_trips(tmp_path) -> None:
+    campaign = lobing_campaign(seed=1)
+    train = ~campaign.holdout_mask()
+    model = MeanCurveModel().fit(campaign, train)
+    expected = campaign.deviations[train].mean(axis=(0, 1))
+    predicted = model.predict([[0.0, 0.0], [43.0, 91.0], [90.0, -170.0]])
+    assert np.allclose(predicted, expected[None, :], atol=1e-12)
+    # The spread of single touches about their own ring's mean, pooled: the touch noise (0.175 um).
+    assert model.repetition_sigma([[10.0, 20.0]]).mean() == pytest.approx(0.175, rel=0.05)
+    # Another number of points: the curve interpolated round the ring, then circle-fitted.
+    coarse = model.predict([[10.0, 20.0]], n_points=32)[0]
+    assert np.allclose(coarse, remove_size_and_centre(np.interp(point_angles_deg(32), point_angles_deg(64), expected, period=360.0)))
+    again = MeanCurveModel.load(model.save(tmp_path).parent)
+    assert np.array_equal(again.predict([[5.0, 5.0]]), model.predict([[5.0, 5.0]]))
+
+
+def test_its_out_of_sample_weights_are_the_mean_of_the_other_training_rings() -> None:
+    orientations = np.array([[0.0, 0.0], [15.0, 20.0], [30.0, 40.0], [45.0, 60.0], [60.0, 80.0]])
+    train = np.array([True, True, True, True, False])
+    weights = OutOfSampleSmoother(orientations, train, MeanCurveModel).weights
+    expected = np.array([[0, 1, 1, 1, 0], [1, 0, 1, 1, 0], [1, 1, 0, 1, 0], [1, 1, 1, 0, 0], [1, 1, 1, 1, 0]]) / np.array([3, 3, 3, 3, 4])[:, None]
+    assert np.allclose(weights, expected)
+
+
+def scenario_with(*effects):
+    """The paper's rings, repetitions and noise with only these effects (and the ring's form)."""
+    paper = load_scenario("paper")
+    kept = [DEFAULT_CATALOG["noise"](sigma_um=0.175), DEFAULT_CATALOG["ring_form"](form_um=0.2, shape_seed=7), *effects]
+    return dataclasses.replace(paper, effects=kept, hidden=[False] * len(kept))
+
+
+def designed_twelve(campaign: Campaign) -> Campaign:
+    from benchmarks.data_efficiency import designed_subsets
+
+    return campaign.subset(designed_subsets(campaign, ~campaign.holdout_mask(), (12,))[0][0])
+
+
+def check_mae(model: HybridModel, campaign: Campaign) -> float:
+    check = campaign.holdout_mask()
+    return metrics.mae(model.predict_touches(campaign_touches(campaign.subset(check))), campaign.deviations[check])["mean"]
+
+
+def test_when_the_terms_carry_the_orientation_dependence_the_mean_curve_is_chosen() -> None:
+    """A head whose only orientation-dependent error is a B 2/rev error, measured on 12 designed
+    rings: beside the term, interpolating the residuals between the 12 rings only carries their
+    noise into every prediction; the mean curve averages it away. The cross-validation sees it and
+    the check rings confirm it."""
+    campaign = simulate(scenario_with(B_AXIS(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), 3)
+    subset = designed_twelve(campaign)
+    data_part, kept, details = carried_hybrid(subset, [B_AXIS(cycles_per_rev=2)])
+    assert data_part == "mean_curve" and details["mean_curve_gain_in_standard_errors"] > 1.0
+    assert [e.settings() for e in kept] == [{"cycles_per_rev": 2}]
+    chosen = check_mae(HybridModel(kept, "mean_curve").fit(subset), campaign)
+    interpolated = check_mae(HybridModel(kept, "trilinear").fit(subset), campaign)
+    assert chosen < 0.95 * interpolated
+
+
+def test_an_orientation_dependence_no_term_holds_keeps_the_interpolation() -> None:
+    """The same head with an error no catalog effect describes (a 5-lobe pattern growing with A and
+    turning with B): only an interpolation between the rings learns it."""
+    base = simulate(scenario_with(B_AXIS(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), 3)
+    a, b = np.radians(base.orientations[:, :1]), np.radians(base.orientations[:, 1:])
+    theta = np.radians(point_angles_deg(base.n_points))[None, :]
+    unknown = remove_size_and_centre(0.3 * np.sin(a) * np.cos(5 * theta - b))
+    campaign = dataclasses.replace(base, deviations=base.deviations + unknown[:, None, :])
+    subset = campaign.subset(~campaign.holdout_mask())
+    data_part, _, details = carried_hybrid(subset, [B_AXIS(cycles_per_rev=2)])
+    assert data_part == "trilinear"
+    assert details["trilinear"]["cv_mae_um"] < details["mean_curve"]["cv_mae_um"]
