@@ -1,8 +1,8 @@
 """`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS]`: every benchmark, one JSON and PNG plots.
 
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
-DIR/calibration.png. The full run takes several minutes on 2 cores (the scale test alone runs
-60 s, the diagnosis calibration a few minutes); --quick is a smoke-test mode (two subsets, a
+DIR/calibration.png. The full run takes about 45 minutes on 2 cores (the diagnosis
+calibration about 22 of them); --quick is a smoke-test mode (two subsets, a
 short network, 2 browsers for 2 s, a few diagnoses) that keeps every key. --only runs some
 sections and updates them in the last run's results.json, each stamped under "updated" with its
 date and the code it was measured on.
@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         for name in sections:
             results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version()}
     else:
-        results = {**stamp, "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "torch_threads": 1, "platform": platform.platform()}}
+        results = {**stamp, "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "torch_threads": torch.get_num_threads(), "platform": platform.platform()}}
 
     if "data_efficiency" in sections:
         log("data efficiency")
