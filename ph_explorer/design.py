@@ -169,10 +169,12 @@ def orthonormal_rows(columns: NDArray[np.float64]) -> NDArray[np.float64]:
     flat = columns.reshape(-1, c)
     scale = np.sqrt((flat**2).sum(axis=0))
     flat = flat / np.where(scale > 0, scale, 1.0)
-    # From the c x c Gram matrix (c is small, the rows many): U = X V / sqrt(lambda).
-    values, vectors = np.linalg.eigh(flat.T @ flat)
-    keep = values > RANK_RTOL**2 * max(values.max(initial=0.0), 1e-300)
-    return (flat @ (vectors[:, keep] / np.sqrt(values[keep]))).reshape(n_o, n_pt, int(keep.sum()))
+    # The singular values of the columns themselves, not the eigenvalues of their Gram matrix: the
+    # Gram squares the condition, and at RANK_RTOL**2 = 1e-16 of its largest eigenvalue rounding
+    # decided the rank (157 or 158 columns with 1 or 2 BLAS threads, and so another design).
+    left, singular, _ = np.linalg.svd(flat, full_matrices=False)
+    keep = singular > RANK_RTOL * max(singular.max(initial=0.0), 1e-300)
+    return left[:, keep].reshape(n_o, n_pt, int(keep.sum()))
 
 
 def _angle_deg(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:

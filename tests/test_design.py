@@ -152,3 +152,21 @@ def test_cli_design_bad_input_is_one_line_and_exit_2(args: tuple[str, ...], expe
     assert result.returncode == 2, result.stdout
     assert expected in result.stderr and len(result.stderr.strip().splitlines()) == 1
     assert "Traceback" not in result.stderr
+
+
+def test_the_design_does_not_depend_on_the_blas_threads() -> None:
+    """The rank of the effects' columns is read from their singular values: from the eigenvalues
+    of their Gram matrix (the condition squared, 1e-16 of the largest) it changed with the number
+    of BLAS threads, and the 14-ring design among the paper's training rings with it."""
+    from threadpoolctl import threadpool_limits
+
+    from ph_explorer.twin import load_scenario, simulate
+
+    scenario = load_scenario("paper")
+    campaign = simulate(scenario, scenario.seed)
+    pool = campaign.orientations[~campaign.holdout_mask()]
+    designs = []
+    for threads in (1, 2):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            designs.append(propose_rings(14, pool, campaign.geometry).orientations)
+    assert np.array_equal(designs[0], designs[1])
