@@ -9,18 +9,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from ph_explorer import metrics
-from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.carried import carried_hybrid
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import MeanCurveModel
 from ph_explorer.twin import load_scenario, simulate
-from synthetic import lobing_campaign
+from synthetic import check_ring_mae, designed_rings, lobing_campaign
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 
@@ -56,29 +53,18 @@ def scenario_with(*effects):
     return dataclasses.replace(paper, effects=kept, hidden=[False] * len(kept))
 
 
-def designed_twelve(campaign: Campaign) -> Campaign:
-    from benchmarks.data_efficiency import designed_subsets
-
-    return campaign.subset(designed_subsets(campaign, ~campaign.holdout_mask(), (12,))[0][0])
-
-
-def check_mae(model: HybridModel, campaign: Campaign) -> float:
-    check = campaign.holdout_mask()
-    return metrics.mae(model.predict_touches(campaign_touches(campaign.subset(check))), campaign.deviations[check])["mean"]
-
-
 def test_when_the_terms_carry_the_orientation_dependence_the_mean_curve_is_chosen() -> None:
     """A head whose only orientation-dependent error is a B 2/rev error, measured on 12 designed
     rings: beside the term, interpolating the residuals between the 12 rings only carries their
     noise into every prediction; the mean curve averages it away. The cross-validation sees it and
     the check rings confirm it."""
     campaign = simulate(scenario_with(B_AXIS(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), 3)
-    subset = designed_twelve(campaign)
+    subset = designed_rings(campaign, 12)
     data_part, kept, details = carried_hybrid(subset, [B_AXIS(cycles_per_rev=2)])
     assert data_part == "mean_curve" and details["mean_curve_gain_in_standard_errors"] > 1.0
     assert [e.settings() for e in kept] == [{"cycles_per_rev": 2}]
-    chosen = check_mae(HybridModel(kept, "mean_curve").fit(subset), campaign)
-    interpolated = check_mae(HybridModel(kept, "trilinear").fit(subset), campaign)
+    chosen = check_ring_mae(HybridModel(kept, "mean_curve").fit(subset), campaign)
+    interpolated = check_ring_mae(HybridModel(kept, "trilinear").fit(subset), campaign)
     assert chosen < 0.95 * interpolated
 
 
