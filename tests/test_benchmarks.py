@@ -105,6 +105,12 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         assert len(details["design"]) == 3 and details["design"][2].startswith("design 12")
         assert [p["orientations"] for p in details["never_worse"]] == [123, 21, 12]
         assert isinstance(details["design_target"]["holds"], bool)
+    seeds = results["data_efficiency_details"]["paper"]["design_target"]["over_noise_seeds"]
+    assert [r["seed"] for r in seeds["per_seed"]] == seeds["seeds"] and seeds["budget"] == 12
+    for row in seeds["per_seed"]:
+        assert row["data_part"] != row["other_data_part"]["model"]
+        assert all(0 < row[k] < 1 for k in ("full_data_trilinear", "trilinear", "hybrid"))
+        assert row["ratio"] == round(row["hybrid"] / row["full_data_trilinear"], 3)
     assert isinstance(results["target"]["holds"], bool) and results["target"]["detail"]
     speed = results["speed"]
     for key in ("simulate", "network_training", "physics_refit", "diagnosis", "predict_one_orientation_us",
