@@ -21,18 +21,19 @@ catalog alias it cannot tell from them that predicts otherwise between its rings
 part reproduces them there; a scanned setting the subset itself chooses beside the candidates it
 cannot carry; a plausible fit) and its own cross-validation says the data can carry
 (models.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
-Its data part is the trilinear interpolation, or the mean curve of the subset's rings when its own
-cross-validation says the terms then predict better beyond noise (models.carried.carried_hybrid).
-The hybrid is fitted on a
+Its data part is the weighted average of the hybrid with the trilinear interpolation and the hybrid
+with the mean curve of the subset's rings, the weight chosen by its own cross-validation
+(models.stacking.carried_hybrid). The hybrid is fitted on a
 campaign holding the training orientations only, so neither its physical terms nor its data part
 see a check ring or an orientation left out of the subset; it then predicts every touch of the
 check rings. The rule (issue 16): at every subset the hybrid's check-ring MAE is at most 1.05 x
-min(trilinear, its own data part alone) fitted on the same subset (the data part the hybrid chose).
+min(trilinear, its own data part alone) fitted on the same subset (the data parts alone, averaged
+with the hybrid's weights).
 
 The curves come from one campaign, the scenario's own noise draw, and one campaign decides nothing:
 the 12-ring goal is measured again on NOISE_SEEDS other draws of the paper scenario (the same
-effects, the same designed rings; design_target_over_noise_seeds), with the hybrid's other data
-part beside it.
+effects, the same designed rings; design_target_over_noise_seeds), with the hybrid at each end of
+its weights (the trilinear, the mean curve) beside it.
 """
 
 from __future__ import annotations
@@ -52,9 +53,9 @@ from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.carried import LINEAR_DATA_PARTS, carried_hybrid
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
+from ph_explorer.models.stacking import LINEAR_DATA_PARTS, StackedHybrid, carried_hybrid
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import Scenario, load_scenario, simulate
 
@@ -124,10 +125,14 @@ def designed_subsets(campaign: Campaign, train: NDArray[np.bool_], budgets: tupl
 
 
 def fit_model(
-    name: str, campaign: Campaign, train: NDArray[np.bool_], network_config: NetworkConfig, data_part: str = "trilinear"
+    name: str,
+    campaign: Campaign,
+    train: NDArray[np.bool_],
+    network_config: NetworkConfig,
+    weights: dict[str, float] | None = None,
 ) -> tuple[DeviationModel, float, dict[str, Any]]:
-    """The model fitted on the training orientations; for the hybrid, what it was given and kept
-    (`data_part`: the data part fitted alone as "data_part")."""
+    """The model fitted on the training orientations; for the hybrid, what it was given and kept.
+    "data_part": the hybrid's data parts alone, averaged with its `weights` (default: the trilinear)."""
     start = time.perf_counter()
     chosen: dict[str, Any] = {}
     if name == "network":
@@ -135,31 +140,26 @@ def fit_model(
     elif name == "trilinear":
         model = TrilinearModel().fit(campaign, train)
     elif name == "data_part":
-        model = HybridModel([], data_part).fit(campaign.subset(train))
+        weights = weights or {"trilinear": 1.0}
+        alone = [HybridModel([], part).fit(campaign.subset(train)) for part in weights]
+        model = StackedHybrid(alone, list(weights.values()))
     else:
-        models, chosen = diagnosed_hybrids(campaign.subset(train))
-        model = models[chosen["data_part"]]
+        model, chosen = diagnosed_hybrid(campaign.subset(train))
     return model, time.perf_counter() - start, chosen
 
 
-def diagnosed_hybrids(subset: Campaign) -> tuple[dict[str, HybridModel], dict[str, Any]]:
-    """The hybrid of the benchmark on a training subset, fitted with each linear data part beside
-    the effects carried_hybrid keeps with it ({data part: model}), and what it was given and kept:
-    effects from the diagnosis on the subset, kept and the data part chosen (chosen["data_part"]) by
-    the hybrid's own cross-validation."""
+def diagnosed_hybrid(subset: Campaign) -> tuple[StackedHybrid, dict[str, Any]]:
+    """The hybrid of the benchmark on a training subset, and what it was given and kept: effects from
+    the diagnosis on the subset, kept per data part and the data parts weighted (chosen["weights"])
+    by the hybrid's own cross-validation (carried_hybrid)."""
     found, present = diagnosed_effects(subset)
-    candidates = found + present
-    chosen_part, kept, per_part = carried_hybrid(subset, candidates)
-    carried = {part: [e for e in candidates if effect_label(e) in per_part[part]["kept"]] for part in LINEAR_DATA_PARTS}
-    carried[chosen_part] = kept
-    models = {part: HybridModel(effects, part).fit(subset) for part, effects in carried.items()}
-    chosen = {
-        "found": [effect_label(e) for e in found],
-        "present": [effect_label(e) for e in present],
-        "kept": [effect_label(e) for e in kept],
-        **per_part,
-    }
-    return models, chosen
+    model, details = carried_hybrid(subset, found + present)
+    return model, {"found": [effect_label(e) for e in found], "present": [effect_label(e) for e in present], **details}
+
+
+def kept_summary(chosen: dict[str, Any]) -> str:
+    """What the hybrid kept beside each data part, with its weight (for the log)."""
+    return "; ".join(f"{chosen['weights'][p]:.1f} x {p} + {chosen[p]['kept']}" for p in LINEAR_DATA_PARTS)
 
 
 def run_scenario(
@@ -190,12 +190,12 @@ def run_scenario(
         n = int(mask.sum())
         designs.append(design)
         mae: dict[str, float] = {}
-        data_part = "trilinear"
+        weights = None
         for model_name in (*MODELS, "data_part"):
             if model_name == "network" and not design.startswith("lattice"):
                 continue  # the network's data efficiency is the lattice family's (the paper's question)
-            model, took, chosen = fit_model(model_name, campaign, mask, network_config, data_part)
-            data_part = chosen.get("data_part", data_part)
+            model, took, chosen = fit_model(model_name, campaign, mask, network_config, weights)
+            weights = chosen.get("weights", weights)
             predicted = model.predict_touches(check_touches)
             ok = bool(np.isfinite(predicted).all())
             finite &= ok
@@ -208,7 +208,7 @@ def run_scenario(
             if chosen:
                 hybrid_effects_chosen.append({"orientations": n, "design": design, **chosen})
             log(f"  {name}: {model_name:9s} n={n:3d} ({design})  MAE vs mean {mae[model_name]:.4f} um  ({took:.1f} s)"
-                + (f"  effects {chosen['found']} + present {chosen['present']} -> kept {chosen['kept']} beside {chosen['data_part']}" if chosen else ""))
+                + (f"  effects {chosen['found']} + present {chosen['present']} -> {kept_summary(chosen)}" if chosen else ""))
         better = min(mae["trilinear"], mae["data_part"])
         never_worse.append({
             "orientations": n,
@@ -216,7 +216,7 @@ def run_scenario(
             "hybrid": round(mae["hybrid"], 5),
             "trilinear": round(mae["trilinear"], 5),
             "data_part": round(mae["data_part"], 5),
-            "data_part_model": data_part,
+            "data_part_weights": weights,
             "ratio": round(mae["hybrid"] / better, 3),
             "holds": bool(mae["hybrid"] <= NEVER_WORSE * better),
         })
@@ -231,12 +231,12 @@ def run_scenario(
             "design": designs,  # the design of each point of the trilinear and hybrid curves, in order
             "hybrid_effects_source": "diagnosis",
             "hybrid_effects": hybrid_effects_chosen,
-            "hybrid_data_model": "chosen on each subset by its own cross-validation (models.carried.carried_hybrid): "
-            "trilinear, or mean_curve (hybrid_effects[].data_part)",
+            "hybrid_data_model": "the hybrids with the trilinear and with the mean curve averaged, the weight chosen on each "
+            "subset by its own cross-validation (models.stacking.carried_hybrid; hybrid_effects[].weights)",
             "hybrid_protocol": "effects from the diagnosis on the training subset, kept by the hybrid's own cross-validation; "
             "fitted on the training orientations only; predicts every check-ring touch",
             "never_worse": never_worse,
-            "never_worse_rule": f"hybrid <= {NEVER_WORSE} x min(trilinear, data part alone) on the same subset",
+            "never_worse_rule": f"hybrid <= {NEVER_WORSE} x min(trilinear, data parts alone with the hybrid's weights) on the same subset",
             "never_worse_holds": all(p["holds"] for p in never_worse),
             "predictions_finite": finite,
             "fit_seconds": seconds,
@@ -299,7 +299,7 @@ def design_target_over_noise_seeds(
     """design_target on other noise draws of the same scenario (the same effects, the same rings):
     one campaign decides nothing, so how often the designed rings reach the goal, and the ratio's
     spread. Per seed the full-data trilinear, the trilinear on the designed rings, the hybrid as the
-    benchmark builds it, and the hybrid with its other data part (what its own choice passed over)."""
+    benchmark builds it, and the hybrid at each end of its weights (one data part alone)."""
     scenario = load_scenario(name)
     per_seed = []
     for seed in seeds:
@@ -309,39 +309,37 @@ def design_target_over_noise_seeds(
         check_touches = campaign_touches(campaign.subset(check))
         measured = campaign.deviations[check]
 
-        def check_mae(model: DeviationModel) -> float:
-            return float(metrics.mae(model.predict_touches(check_touches), measured)["mean"])
+        def ratio(model: DeviationModel) -> float:
+            return round(float(metrics.mae(model.predict_touches(check_touches), measured)["mean"]) / full, 3)
 
         ((mask, _),) = designed_subsets(campaign, train, (budget,))
-        subset = campaign.subset(mask)
-        full = check_mae(TrilinearModel().fit(campaign, train))
-        models, chosen = diagnosed_hybrids(subset)
-        other_part = next(p for p in LINEAR_DATA_PARTS if p != chosen["data_part"])
+        full = float(metrics.mae(TrilinearModel().fit(campaign, train).predict_touches(check_touches), measured)["mean"])
+        model, chosen = diagnosed_hybrid(campaign.subset(mask))
         row = {
             "seed": int(seed),
             "full_data_trilinear": round(full, 5),
-            "trilinear": round(check_mae(TrilinearModel().fit(campaign, mask)), 5),
-            "hybrid": round(check_mae(models[chosen["data_part"]]), 5),
-            "data_part": chosen["data_part"],
-            "kept": chosen["kept"],
+            "trilinear_ratio": ratio(TrilinearModel().fit(campaign, mask)),
+            "ratio": ratio(model),
+            "weights": chosen["weights"],
             "mean_curve_gain_in_standard_errors": chosen["mean_curve_gain_in_standard_errors"],
-            "other_data_part": {"model": other_part, "kept": chosen[other_part]["kept"], "hybrid": round(check_mae(models[other_part]), 5)},
+            "ends": {m.data_model.name: {"kept": chosen[m.data_model.name]["kept"], "ratio": ratio(m)} for m in model.members},
         }
-        row["ratio"] = round(row["hybrid"] / row["full_data_trilinear"], 3)
-        row["other_data_part"]["ratio"] = round(row["other_data_part"]["hybrid"] / row["full_data_trilinear"], 3)
         per_seed.append(row)
-        log(f"  {name} noise seed {seed}: design {budget} hybrid {row['hybrid']:.4f} um = {row['ratio']:.3f} x full-data trilinear "
-            f"{full:.4f} ({row['data_part']}); with {other_part} {row['other_data_part']['hybrid']:.4f} = {row['other_data_part']['ratio']:.3f} x")
-    ratios = np.array([r["ratio"] for r in per_seed])
-    others = np.array([r["other_data_part"]["ratio"] for r in per_seed])
+        log(f"  {name} noise seed {seed}: design {budget} hybrid {row['ratio']:.3f} x full-data trilinear {full:.4f} "
+            f"(weights {row['weights']}); ends " + ", ".join(f"{p} {e['ratio']:.3f} x" for p, e in row["ends"].items()))
+
+    def spread(ratios: NDArray[np.float64]) -> dict[str, Any]:
+        return {
+            "within_tolerance": int((ratios <= tolerance).sum()),
+            "ratio_median": round(float(np.median(ratios)), 3),
+            "ratio_range": [round(float(ratios.min()), 3), round(float(ratios.max()), 3)],
+        }
+
     return {
         "budget": budget,
         "tolerance": tolerance,
         "seeds": [int(s) for s in seeds],
-        "within_tolerance": int((ratios <= tolerance).sum()),
-        "ratio_median": round(float(np.median(ratios)), 3),
-        "ratio_range": [round(float(ratios.min()), 3), round(float(ratios.max()), 3)],
-        "other_data_part_within_tolerance": int((others <= tolerance).sum()),
-        "other_data_part_ratio_median": round(float(np.median(others)), 3),
+        **spread(np.array([r["ratio"] for r in per_seed])),
+        "ends": {p: spread(np.array([r["ends"][p]["ratio"] for r in per_seed])) for p in LINEAR_DATA_PARTS},
         "per_seed": per_seed,
     }

@@ -40,7 +40,7 @@ not material on its check rings): omitting a present term biases the terms that 
 with it. A set of terms whose fit on the campaign is implausible for a PH20/TP20-class head
 (Effect.implausible) is never carried. Among the admissible sets, backward elimination on the
 hybrid's cross-validated error (crossval.cross_val_predict, strict) with the one-standard-error
-rule: see carried_effects. The data part beside the terms is chosen the same way: carried_hybrid.
+rule: see carried_effects. The data part beside the terms: models.stacking.carried_hybrid.
 """
 
 from __future__ import annotations
@@ -72,16 +72,24 @@ CARRIED_LEAVE_ONE_OUT_MAX = 30
 CARRIED_FOLDS = 10
 
 
-def cross_validated_errors(
+def cross_validated_curves(
     effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
 ) -> NDArray[np.float64]:
-    """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with these
-    effects: every ring predicted by the hybrid fitted without it (crossval.cross_val_predict,
-    strict: neither its physical terms nor its data part see the ring)."""
+    """Each training ring's out-of-sample curve (n_train, n_pt) um of a hybrid with these effects:
+    every ring predicted by the hybrid fitted without it (crossval.cross_val_predict, strict:
+    neither its physical terms nor its data part see the ring)."""
     rings = int(train.sum())
     folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
     predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
-    return metrics.ring_mae(predicted[train], campaign.deviations[train])["mean"]
+    return predicted[train]
+
+
+def cross_validated_errors(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+) -> NDArray[np.float64]:
+    """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with
+    these effects (cross_validated_curves)."""
+    return metrics.ring_mae(cross_validated_curves(effects, campaign, train, data_model), campaign.deviations[train])["mean"]
 
 
 def cross_validated_mae(
@@ -91,7 +99,7 @@ def cross_validated_mae(
     return float(cross_validated_errors(effects, campaign, train, data_model).mean())
 
 
-def _gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
+def gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
     """How far the fuller model's cross-validated error lies below the simpler one's, in standard
     errors of the mean paired difference over the rings (> 1: the terms earn their place)."""
     difference = simpler - fuller
@@ -365,50 +373,13 @@ def carried_effects(
     while kept:
         admissible = plausible_fit(flat(kept), fitted, data_model)
         trials = [(errors(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
-        gains = [_gain_beyond_noise(without, current) for without, _ in trials]
+        gains = [gain_beyond_noise(without, current) for without, _ in trials]
         cheapest = int(np.argmin(gains))
         if gains[cheapest] > 1.0 and admissible:
             break
         current, index = trials[cheapest]
         kept = kept[:index] + kept[index + 1 :]
     # Elimination stops at a local minimum: the data part alone is compared with it too.
-    if kept and len(kept) < len(groups) and _gain_beyond_noise(errors([]), current) <= 1.0:
+    if kept and len(kept) < len(groups) and gain_beyond_noise(errors([]), current) <= 1.0:
         kept = []
     return flat(kept), path, report
-
-
-# The data parts linear in their data (out-of-sample weights), the default first: the interpolation
-# learns what no catalog term holds.
-LINEAR_DATA_PARTS = ("trilinear", "mean_curve")
-
-
-def carried_hybrid(
-    campaign: Campaign, effects: Sequence[Effect], train: ArrayLike | None = None
-) -> tuple[str, list[Effect], dict[str, Any]]:
-    """The hybrid's data part and the effects it carries on a campaign, both chosen by its own
-    cross-validation.
-
-    For each data part, the terms the data can carry beside it (carried_effects). The trilinear
-    interpolation is the default. The mean curve (models.trilinear.MeanCurveModel) replaces it only
-    when the hybrid with it predicts the rings left out better beyond noise (by more than one
-    standard error of the rings' paired differences): when the terms carry the orientation
-    dependence, the mean curve averages every ring's noise where the interpolation takes that of
-    the few rings around each. Returns the data part, its effects, and per data part the effects
-    kept, the path of sets tried, the identifiability report and the cross-validated MAE (um).
-    """
-    mask = training_mask(campaign, train)
-    kept: dict[str, list[Effect]] = {}
-    errors: dict[str, NDArray[np.float64]] = {}
-    details: dict[str, Any] = {}
-    for data_model in LINEAR_DATA_PARTS:
-        kept[data_model], path, report = carried_effects(campaign, effects, data_model, mask)
-        errors[data_model] = cross_validated_errors(kept[data_model], campaign, mask, data_model)
-        details[data_model] = {
-            "kept": [effect_label(e) for e in kept[data_model]],
-            "cv_mae_um": round(float(errors[data_model].mean()), 5),
-            "cross_validation": path,
-            "identifiability": report,
-        }
-    gain = _gain_beyond_noise(errors["trilinear"], errors["mean_curve"])
-    chosen = "mean_curve" if gain > 1.0 else "trilinear"
-    return chosen, kept[chosen], {"data_part": chosen, "mean_curve_gain_in_standard_errors": round(gain, 2), **details}
