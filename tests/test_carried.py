@@ -46,7 +46,7 @@ def test_a_setting_that_moves_beside_a_term_not_carried_is_not_carried(three_col
     found = [B_AXIS(cycles_per_rev=25), B_AXIS(cycles_per_rev=2), DEFAULT_CATALOG["lobing"]()]
     moved = three_columns.setting_moves(found[0], [found[0], found[2]], [found[1]])
     assert moved is not None and moved[0].settings()["cycles_per_rev"] == 22 and "b_axis_cyclic 2" in moved[1]
-    kept, _, report = carried_effects(subset, found, identification=three_columns)
+    kept, _, report, _ = carried_effects(subset, found, identification=three_columns)
     assert not report[0]["carried"] and "setting" in report[0]["reason"]
     assert all(e.id != "b_axis_cyclic" for e in kept)
     assert check_ring_mae(HybridModel(found[:1]).fit(subset), head) > 1.05 * check_ring_mae(HybridModel(kept).fit(subset), head)

@@ -48,7 +48,7 @@ def test_an_aliased_term_is_not_carried_though_the_cross_validation_likes_it(thr
     every = np.ones(three_columns.n_orientations, dtype=bool)
     assert cross_validated_mae([cyclic], three_columns, every) < 0.7 * cross_validated_mae([], three_columns, every)
     assert check_ring_mae(HybridModel([cyclic]).fit(three_columns), paper) > check_ring_mae(HybridModel([]).fit(three_columns), paper)
-    kept, path, report = carried_effects(three_columns, [cyclic, lobing])
+    kept, path, report, _ = carried_effects(three_columns, [cyclic, lobing])
     assert not any(e.id == cyclic.id for e in kept)
     by_effect = {r["effect"]: r for r in report}
     cyclic_entry = by_effect["b_axis_cyclic 4 cycles/rev"]
@@ -67,7 +67,7 @@ def test_aliases_the_candidates_hold_are_carried_together(paper: Campaign) -> No
     assert alone == [] and not report[0]["carried"]
     together, _ = check.groups([four, two])
     assert [[e.settings()["cycles_per_rev"] for e in g] for g in together] == [[4.0, 2.0]]
-    kept, _, _ = carried_effects(six, [four, two], identification=check)
+    kept, _, _, _ = carried_effects(six, [four, two], identification=check)
     assert len(kept) == 2
     assert check_ring_mae(HybridModel(kept).fit(six), paper) < check_ring_mae(HybridModel([]).fit(six), paper)
 
@@ -75,7 +75,7 @@ def test_aliases_the_candidates_hold_are_carried_together(paper: Campaign) -> No
 def test_an_identifiable_term_is_carried(paper: Campaign) -> None:
     """Nine B columns 40 deg apart: no catalog term shares more than 0.8 with B 4/rev there."""
     nine = training_columns(paper, 9)
-    kept, _, report = carried_effects(nine, [B_AXIS(cycles_per_rev=4)])
+    kept, _, report, _ = carried_effects(nine, [B_AXIS(cycles_per_rev=4)])
     assert report[0]["carried"] and report[0]["aliases"] == []
     assert [e.settings()["cycles_per_rev"] for e in kept] == [4.0]
 
@@ -85,5 +85,5 @@ def test_on_touch_noise_alone_nothing_is_kept(three_columns: Campaign) -> None:
     noise = remove_size_and_centre(rng.normal(0.0, 0.175, three_columns.deviations.shape))
     campaign = Campaign(three_columns.orientations, noise, geometry=three_columns.geometry)
     effects = [B_AXIS(cycles_per_rev=4), DEFAULT_CATALOG["lobing"]()]
-    kept, _, _ = carried_effects(campaign, effects)
+    kept, _, _, _ = carried_effects(campaign, effects)
     assert kept == []

@@ -337,7 +337,7 @@ def carried_effects(
     data_model: str = "trilinear",
     train: ArrayLike | None = None,
     identification: Identification | None = None,
-) -> tuple[list[Effect], list[dict[str, Any]], list[dict[str, Any]]]:
+) -> tuple[list[Effect], list[dict[str, Any]], list[dict[str, Any]], NDArray[np.float64]]:
     """The effects the data can carry: identifiable (module docstring), plausible, and kept by
     backward elimination on the hybrid's own cross-validated error.
 
@@ -347,14 +347,15 @@ def carried_effects(
     apart, the simpler), or while what is left fits implausibly; the data part alone (no effect) is
     compared with what is left the same way: on touch noise alone nothing is kept. Returns the
     effects kept (in their given order), the path [{"effects": [labels], "cv_mae_um"}, ...] of every
-    set tried, once each, and the identifiability report of every candidate.
+    set tried, once each, the identifiability report of every candidate, and the training rings'
+    out-of-sample curves of the hybrid with the effects kept (cross_validated_curves).
     """
     mask = training_mask(campaign, train)
     fitted = campaign.subset(mask)
     check = identification if identification is not None else Identification(fitted, data_model=data_model)
     groups, report = check.groups(effects) if effects else ([], [])
     path: list[dict[str, Any]] = []
-    tried: dict[tuple, NDArray[np.float64]] = {}
+    tried: dict[tuple, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}  # labels -> curves, ring errors
 
     def flat(chosen: list[list[Effect]]) -> list[Effect]:
         members = [e for g in chosen for e in g]
@@ -364,9 +365,10 @@ def carried_effects(
         terms = flat(chosen)
         key = tuple(effect_label(e) for e in terms)
         if key not in tried:  # a set reached twice (the data part alone) is cross-validated once
-            tried[key] = cross_validated_errors(terms, campaign, mask, data_model)
-            path.append({"effects": list(key), "cv_mae_um": round(float(tried[key].mean()), 5)})
-        return tried[key]
+            curves = cross_validated_curves(terms, campaign, mask, data_model)
+            tried[key] = curves, metrics.ring_mae(curves, campaign.deviations[mask])["mean"]
+            path.append({"effects": list(key), "cv_mae_um": round(float(tried[key][1].mean()), 5)})
+        return tried[key][1]
 
     kept = list(groups)
     current = errors(kept)
@@ -382,4 +384,5 @@ def carried_effects(
     # Elimination stops at a local minimum: the data part alone is compared with it too.
     if kept and len(kept) < len(groups) and gain_beyond_noise(errors([]), current) <= 1.0:
         kept = []
-    return flat(kept), path, report
+    terms = flat(kept)  # its set was cross-validated on the way (the start, a trial or the data part alone)
+    return terms, path, report, tried[tuple(effect_label(e) for e in terms)][0]

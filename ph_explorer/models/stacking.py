@@ -38,7 +38,7 @@ from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.kinematics import Touches
 from ph_explorer.models.base import DeviationModel, training_mask
-from ph_explorer.models.carried import carried_effects, cross_validated_curves, gain_beyond_noise
+from ph_explorer.models.carried import carried_effects, gain_beyond_noise
 from ph_explorer.models.hybrid import HybridModel
 
 # The data parts linear in their data (out-of-sample weights), the default first: the interpolation
@@ -120,8 +120,7 @@ def carried_hybrid(
     curves: dict[str, NDArray[np.float64]] = {}
     details: dict[str, Any] = {}
     for data_model in LINEAR_DATA_PARTS:
-        kept[data_model], path, report = carried_effects(campaign, effects, data_model, mask)
-        curves[data_model] = cross_validated_curves(kept[data_model], campaign, mask, data_model)
+        kept[data_model], path, report, curves[data_model] = carried_effects(campaign, effects, data_model, mask)
         details[data_model] = {
             "kept": [effect_label(e) for e in kept[data_model]],
             "cv_mae_um": round(float(metrics.ring_mae(curves[data_model], measured)["mean"].mean()), 5),
