@@ -47,7 +47,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     """`python -m ph_explorer ARGS` in its own process: wall seconds and peak RSS (MiB).
 
     stop_when: for a server, a test on each output line; the process is interrupted once it holds
-    (the figures are then those of start-up).
+    (the figures are then those of start-up) and must then stop with status 0.
     """
     start = time.perf_counter()
     process = subprocess.Popen(  # through benchmarks/peak.py: the command's own peak, not this process'
@@ -61,6 +61,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     )
     output: list[str] = []
     wall = None
+    stopped = False  # a server's line seen, Ctrl-C sent
     # A command that outlives the timeout (or a server that does not stop on Ctrl-C) is killed.
     killer = threading.Timer(timeout, os.killpg, (process.pid, signal.SIGKILL))
     killer.start()
@@ -69,6 +70,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
         output.append(line)
         if stop_when is not None and stop_when(line):
             wall = time.perf_counter() - start
+            stopped = True
             process.send_signal(signal.SIGINT)
             killer.cancel()
             killer = threading.Timer(10.0, os.killpg, (process.pid, signal.SIGKILL))  # a command that ignores Ctrl-C
@@ -81,12 +83,14 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     wall = wall if wall is not None else time.perf_counter() - start
     peaks = [int(line.split()[1]) for line in output if line.startswith("PEAK_KIB ")]
     output = [line for line in output if not line.startswith("PEAK_KIB ")]
-    ok = (stop_when is not None and wall is not None or os.waitstatus_to_exitcode(status) == 0) and bool(peaks)
+    # A server counts only if it printed its line and then stopped on Ctrl-C with status 0.
+    exit_status = os.waitstatus_to_exitcode(status)
+    ok = exit_status == 0 and bool(peaks) and (stop_when is None or stopped)
     return {
         "seconds": round(wall, 2),
         "peak_mib": round(peaks[-1] / 1024.0, 1) if peaks else None,  # ru_maxrss is in KiB on Linux
         "ok": bool(ok),
-        "tail": "".join(output[-3:]).strip()[-400:] if not ok else "",
+        "tail": f"exit status {exit_status}: " + "".join(output[-3:]).strip()[-400:] if not ok else "",
     }
 
 

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.app.dataset import Dataset, default_dataset
 from ph_explorer.app.background import LatestFirst
 from ph_explorer.models.base import DeviationModel, as_orientations
-from ph_explorer.models.lattice import TOLERANCE_UM, PredictionLattice, build_cpu_s
+from ph_explorer.models.lattice import TOLERANCE_UM, BuildStopped, PredictionLattice, build_cpu_s
 
 A_RANGE = (0.0, 40.0)  # a part of the A range keeps the builds short
 
@@ -142,6 +142,39 @@ def test_latest_first_runs_the_latest_and_skips_the_dropped() -> None:
     gate.set()
     assert finished.wait(10.0)
     assert done == [0, 2, 1]
+
+
+def test_stop_ends_the_running_build_between_batches_and_takes_no_more() -> None:
+    """What runs at the process' exit: the running job sees `stopping`, its build stops at the next
+    batch (BuildStopped), `stop` returns once it has, and nothing added afterwards runs."""
+    calls: list[int] = []
+    started = threading.Event()
+
+    class Slow(JumpModel):
+        def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
+            calls.append(len(as_orientations(orientations)))
+            started.set()
+            threading.Event().wait(0.05)  # a batch takes a while
+            return super().predict(orientations, n_points)
+
+    outcome: list[str] = []
+
+    def job(model: Slow) -> None:
+        try:
+            PredictionLattice.build(model, 64, (0.0, 115.0), stop=runner.stopping.is_set)
+            outcome.append("built")
+        except BuildStopped:
+            outcome.append("stopped")
+
+    runner = LatestFirst(job, name="test-stop")
+    model = Slow()
+    runner.add(model)
+    assert started.wait(10.0)
+    assert runner.stop(10.0) and outcome == ["stopped"]
+    assert 1 <= len(calls) <= 2  # of the 21 batches of the whole lattice
+    runner.add(Slow())
+    threading.Event().wait(0.2)
+    assert outcome == ["stopped"] and len(calls) <= 2
 
 
 def test_a_large_campaigns_lattice_keeps_under_its_memory_bound_with_a_coarser_step() -> None:

@@ -4,7 +4,9 @@
   one call back once it may run again, so that the last values get it too;
 * `Later`, one for every app: the delayed calls of every throttle on one daemon thread;
 * `LatestFirst`, one per kind of background preparation (datasets' lattices): a job per object on
-  one daemon thread, the latest asked first, skipping an object nobody holds any more.
+  one daemon thread, the latest asked first, skipping an object nobody holds any more; `stop`
+  ends it before the process exits (a daemon thread inside torch when the interpreter finalises
+  aborts the process: "terminate called without an active exception").
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class _Worker:
         if self._thread is None:
             self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
             self._thread.start()
-        self._cond.notify()
+        self._cond.notify_all()  # the loop, and a `stop` waiting for it
 
     def _loop(self) -> None:
         raise NotImplementedError
@@ -105,27 +107,44 @@ class LatestFirst(_Worker):
     """`job(obj)` for each object added, one at a time on a daemon thread, the latest added first.
 
     Only weak references are queued: an object dropped before its turn (a browser's data replaced
-    again) is skipped. A failed job is printed; the others go on.
+    again) is skipped. A failed job is printed; the others go on. A job that takes long should
+    return soon after `stopping` is set.
     """
 
     def __init__(self, job: Callable[[Any], None], name: str = "latest-first") -> None:
         super().__init__(name)
         self.job = job
         self._waiting: list[weakref.ref[Any]] = []
+        self._busy = False  # a job is running
+        self.stopping = threading.Event()
 
     def add(self, obj: Any) -> None:
         with self._cond:
+            if self.stopping.is_set():
+                return
             self._waiting.append(weakref.ref(obj))
             self._wake()
+
+    def stop(self, timeout_s: float) -> bool:
+        """Take no more jobs, drop the waiting ones and wait (at most timeout_s) for the running
+        one to return; whether none runs any more. For the end of the process: nothing is taken after."""
+        with self._cond:
+            self.stopping.set()
+            self._waiting.clear()
+            return self._cond.wait_for(lambda: not self._busy, timeout_s)
 
     def _loop(self) -> None:
         while True:
             with self._cond:
                 self._cond.wait_for(lambda: bool(self._waiting))
                 obj = self._waiting.pop()()
+                self._busy = obj is not None
             if obj is not None:
                 try:
                     self.job(obj)
                 except Exception:  # noqa: BLE001 - that object stays unprepared
                     traceback.print_exc()
                 del obj
+                with self._cond:
+                    self._busy = False
+                    self._cond.notify_all()

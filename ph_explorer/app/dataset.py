@@ -9,6 +9,7 @@ a slider move) and the measured rings' views are computed: a render then never p
 
 from __future__ import annotations
 
+import atexit
 import tempfile
 import threading
 from collections import OrderedDict
@@ -32,7 +33,7 @@ from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.folder import campaign_models
-from ph_explorer.models.lattice import PredictionLattice, build_cpu_s
+from ph_explorer.models.lattice import BuildStopped, PredictionLattice, build_cpu_s
 from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.orientation_map import MapFigure, ranked_rings
@@ -187,16 +188,24 @@ class Dataset:
     def prepare(self) -> None:
         """Build the missing models' lattices and every measured ring's view (a few seconds, once):
         afterwards no slider move predicts. A model whose lattice would take more than
-        LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand."""
+        LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand.
+        Returns early (unprepared) once the process is stopping."""
+        stopping = _PREPARER.stopping.is_set
         try:
             for name in self.model_names:
                 if name not in self.lattices and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
-                    lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range)
+                    lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range, stop=stopping)
                     with self._lock:
                         self.lattices.setdefault(name, lattice)
-            views = {_view_key(a, b): self._compute_view(float(a), float(b)) for a, b in self.campaign.orientations}
+            views = {}
+            for a, b in self.campaign.orientations:  # a ring at a time: each may predict a model
+                if stopping():
+                    return
+                views[_view_key(a, b)] = self._compute_view(float(a), float(b))
             with self._lock:
                 self._measured_views = views
+        except BuildStopped:
+            return
         finally:
             self.prepared.set()
 
@@ -337,6 +346,10 @@ class Dataset:
 LATTICE_BUDGET_S = 5.0  # CPU seconds a model's lattice may take to build (a network's: ~2 s)
 # Datasets are prepared one at a time beside the renders, the latest first; one nobody holds is skipped.
 _PREPARER = LatestFirst(Dataset.prepare, name="ph-explorer-prepare")
+# Before the interpreter finalises (atexit runs first): a preparation still predicting a network
+# would be inside torch while torch's threads are destroyed, and the process would abort.
+STOP_WAIT_S = 10.0
+atexit.register(_PREPARER.stop, STOP_WAIT_S)
 
 
 # -- loading -----------------------------------------------------------------------------------------

@@ -35,22 +35,22 @@ def serve_command(**options: Any) -> int:
     except BaseException:
         server.stop()
         raise
-    print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
-    for note in app.dataset.notes:
-        print(f"  - {note}")
-    if options.get("effects") is not None:
-        own = [effect_id for effect_id in app.shared.catalog if effect_id not in DEFAULT_CATALOG]
-        print(f"ph-explorer: effects of {options['effects']}: {', '.join(own)} (candidates in every browser's Physics tab)")
-    if app.study is not None:
-        saved = app.study.current()
-        count = 0 if saved is None else len(saved["runs"])
-        runs = f"{count} run{'s' if count != 1 else ''} so far" if saved is not None else "new: written on the first Save study"
-        print(f"ph-explorer: study {app.study.path} ({runs}); Save study writes this file and no other")
-    since_start = seconds_since_process_start()
-    # Benchmarks read this line in both forms.
-    ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"
-    print(f"ph-explorer: serving at http://{shown_host}:{app.port}  ({ready}; Ctrl-C stops)", flush=True)
-    try:
+    try:  # from here a Ctrl-C stops the app, whenever it comes
+        print(f"ph-explorer: {app.dataset.label}; models: {', '.join(app.dataset.model_names) or 'none'}")
+        for note in app.dataset.notes:
+            print(f"  - {note}")
+        if options.get("effects") is not None:
+            own = [effect_id for effect_id in app.shared.catalog if effect_id not in DEFAULT_CATALOG]
+            print(f"ph-explorer: effects of {options['effects']}: {', '.join(own)} (candidates in every browser's Physics tab)")
+        if app.study is not None:
+            saved = app.study.current()
+            count = 0 if saved is None else len(saved["runs"])
+            runs = f"{count} run{'s' if count != 1 else ''} so far" if saved is not None else "new: written on the first Save study"
+            print(f"ph-explorer: study {app.study.path} ({runs}); Save study writes this file and no other")
+        since_start = seconds_since_process_start()
+        # Benchmarks read this line in both forms.
+        ready = f"ready {since_start:.1f} s after the command started" if since_start is not None else f"ready in {app.startup_s:.1f} s"
+        print(f"ph-explorer: serving at http://{shown_host}:{app.port}  ({ready}; Ctrl-C stops)", flush=True)
         while True:
             time.sleep(3600)
     except KeyboardInterrupt:

@@ -21,6 +21,7 @@ x 64 points x 4 B = 43 MB per model; a lattice is kept under MAX_BYTES by a coar
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,14 @@ CHECK_EVERY = 8  # the cell centres checked: every 8th column of B (90 per band 
 BATCH = 8192  # orientations predicted per call while building (bounds the temporary arrays)
 
 
+class BuildStopped(Exception):
+    """`PredictionLattice.build` stopped between two batches because its `stop()` said so."""
+
+
+def _never() -> bool:
+    return False
+
+
 @dataclass(frozen=True)
 class PredictionLattice:
     """curves[i, j] = model.predict at (a_low + i step, -180 + j step), B periodic (j wraps)."""
@@ -49,21 +58,27 @@ class PredictionLattice:
 
     @classmethod
     def build(
-        cls, model: DeviationModel, n_points: int, a_range: tuple[float, float], step_deg: float | None = None
+        cls,
+        model: DeviationModel,
+        n_points: int,
+        a_range: tuple[float, float],
+        step_deg: float | None = None,
+        stop: Callable[[], bool] = _never,
     ) -> "PredictionLattice":
         """Predict the model at every node of the lattice over a_range (deg) and all of B (the step:
-        `step_for` unless given)."""
+        `step_for` unless given). `stop` is asked before each batch; when it says True the build
+        raises BuildStopped (a process that exits must not leave a model's prediction running)."""
         step_deg = step_for(n_points, a_range) if step_deg is None else float(step_deg)
         a_low = float(a_range[0])
         n_a, n_b = cls.shape(a_range, step_deg)
         a = a_low + step_deg * np.arange(n_a)
         b = -180.0 + step_deg * np.arange(n_b)
         grid = np.stack(np.meshgrid(a, b, indexing="ij"), axis=-1).reshape(-1, 2)
-        curves = _predict(model, grid, n_points).reshape(n_a, n_b, int(n_points))
+        curves = _predict(model, grid, n_points, stop).reshape(n_a, n_b, int(n_points))
         lattice = cls(a_low, float(step_deg), curves, np.ones(max(n_a - 1, 0), dtype=bool))
         # Cell centres of every band, a sample of columns: where the interpolation is checked.
         centres = np.stack(np.meshgrid(a[:-1] + 0.5 * step_deg, b[::CHECK_EVERY] + 0.5 * step_deg, indexing="ij"), axis=-1)
-        exact = _predict(model, centres.reshape(-1, 2), n_points)
+        exact = _predict(model, centres.reshape(-1, 2), n_points, stop)
         error = np.abs(lattice.predict(centres.reshape(-1, 2)) - exact).max(axis=1).reshape(centres.shape[:2])
         lattice.trusted[:] = error.max(axis=1, initial=0.0) <= TOLERANCE_UM
         return lattice
@@ -134,10 +149,14 @@ class PredictionLattice:
         return int(self.curves.nbytes)
 
 
-def _predict(model: DeviationModel, orientations: NDArray[np.float64], n_points: int) -> NDArray[np.float32]:
-    """model.predict in batches of BATCH orientations, as float32 (m, n_points)."""
+def _predict(
+    model: DeviationModel, orientations: NDArray[np.float64], n_points: int, stop: Callable[[], bool] = _never
+) -> NDArray[np.float32]:
+    """model.predict in batches of BATCH orientations, as float32 (m, n_points); BuildStopped when stop() says so."""
     curves = np.empty((orientations.shape[0], int(n_points)), dtype=np.float32)
     for start in range(0, orientations.shape[0], BATCH):
+        if stop():
+            raise BuildStopped
         curves[start : start + BATCH] = model.predict(orientations[start : start + BATCH], n_points=n_points)
     return curves
 
