@@ -90,6 +90,9 @@ def test_ctrl_c_as_soon_as_it_serves_stops_it_cleanly() -> None:
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
+            # Ctrl-C as in a terminal: a test run started in a shell's background (CI's may be) has
+            # SIGINT ignored, and a Python started so keeps ignoring it.
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         try:
             for line in process.stdout:
