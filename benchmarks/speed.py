@@ -125,6 +125,8 @@ def serve_startup(launches: int = 5, timeout: float = 120.0) -> dict[str, Any]:
             stderr=subprocess.STDOUT,
             text=True,
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            # The Ctrl-C below as in a terminal: a run in a shell's background has SIGINT ignored (inherited).
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )
         timer = threading.Timer(timeout, process.kill)
         timer.start()
