@@ -60,8 +60,7 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     output: list[str] = []
-    wall = None
-    stopped = False  # a server's line seen, Ctrl-C sent
+    wall = None  # set when a server's line is seen (then Ctrl-C is sent)
     # A command that outlives the timeout (or a server that does not stop on Ctrl-C) is killed.
     killer = threading.Timer(timeout, os.killpg, (process.pid, signal.SIGKILL))
     killer.start()
@@ -70,7 +69,6 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
         output.append(line)
         if stop_when is not None and stop_when(line):
             wall = time.perf_counter() - start
-            stopped = True
             process.send_signal(signal.SIGINT)
             killer.cancel()
             killer = threading.Timer(10.0, os.killpg, (process.pid, signal.SIGKILL))  # a command that ignores Ctrl-C
@@ -80,12 +78,13 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     _, status, _ = os.wait4(process.pid, 0)
     killer.cancel()
     process.stdout.close()
-    wall = wall if wall is not None else time.perf_counter() - start
+    served = wall is not None
+    wall = wall if served else time.perf_counter() - start
     peaks = [int(line.split()[1]) for line in output if line.startswith("PEAK_KIB ")]
     output = [line for line in output if not line.startswith("PEAK_KIB ")]
     # A server counts only if it printed its line and then stopped on Ctrl-C with status 0.
     exit_status = os.waitstatus_to_exitcode(status)
-    ok = exit_status == 0 and bool(peaks) and (stop_when is None or stopped)
+    ok = exit_status == 0 and bool(peaks) and (stop_when is None or served)
     return {
         "seconds": round(wall, 2),
         "peak_mib": round(peaks[-1] / 1024.0, 1) if peaks else None,  # ru_maxrss is in KiB on Linux

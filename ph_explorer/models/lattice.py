@@ -150,7 +150,7 @@ class PredictionLattice:
 
 
 def _predict(
-    model: DeviationModel, orientations: NDArray[np.float64], n_points: int, stop: Callable[[], bool] = _never
+    model: DeviationModel, orientations: NDArray[np.float64], n_points: int, stop: Callable[[], bool]
 ) -> NDArray[np.float32]:
     """model.predict in batches of BATCH orientations, as float32 (m, n_points); BuildStopped when stop() says so."""
     curves = np.empty((orientations.shape[0], int(n_points)), dtype=np.float32)

@@ -116,6 +116,7 @@ def carried_hybrid(
     out better than the interpolation alone, in standard errors of their paired differences."""
     mask = training_mask(campaign, train)
     measured = campaign.deviations[mask]
+    ends = {"trilinear": 1.0, "mean_curve": 0.0}  # each data part alone: its weight on the trilinear
     kept: dict[str, list[Effect]] = {}
     curves: dict[str, NDArray[np.float64]] = {}
     details: dict[str, Any] = {}
@@ -123,7 +124,6 @@ def carried_hybrid(
         kept[data_model], path, report, curves[data_model] = carried_effects(campaign, effects, data_model, mask)
         details[data_model] = {
             "kept": [effect_label(e) for e in kept[data_model]],
-            "cv_mae_um": round(float(metrics.ring_mae(curves[data_model], measured)["mean"].mean()), 5),
             "cross_validation": path,
             "identifiability": report,
         }
@@ -133,11 +133,13 @@ def carried_hybrid(
     }
     cv_mae = {w: float(e.mean()) for w, e in ring_errors.items()}
     weight = min(cv_mae, key=lambda w: (cv_mae[w], -w))  # a tie goes to the interpolation
+    for data_model, end in ends.items():
+        details[data_model]["cv_mae_um"] = round(cv_mae[end], 5)
     members = [HybridModel(kept[p], p).fit(campaign.subset(mask)) for p in LINEAR_DATA_PARTS]
     model = StackedHybrid(members, [weight, 1.0 - weight])
     details |= {
         "weights": {"trilinear": weight, "mean_curve": round(1.0 - weight, 6)},
         "cv_mae_um_by_trilinear_weight": {f"{w:g}": round(v, 5) for w, v in cv_mae.items()},
-        "mean_curve_gain_in_standard_errors": round(gain_beyond_noise(ring_errors[1.0], ring_errors[0.0]), 2),
+        "mean_curve_gain_in_standard_errors": round(gain_beyond_noise(ring_errors[ends["trilinear"]], ring_errors[ends["mean_curve"]]), 2),
     }
     return model, details
