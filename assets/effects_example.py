@@ -8,7 +8,7 @@ It writes the same mechanism as the built-in `ball_form` (ph_explorer/effects/st
 you can compare the two: copy this file, change the id (an id must not repeat a built-in one: the
 catalog refuses the file with one line saying so) and write your own mechanism in `basis`.
 
-An effect is a subclass of ph_explorer.effects.base.Effect with an id, a name, a teaching text, its
+An effect is a subclass of ph_explorer.effects.effect.Effect with an id, a name, a teaching text, its
 parameters (with units, defaults and, for a magnitude, the plausible range of its size; for a phase,
 its period), the values a diagnosis should try for its non-linear
 parameters (`scan`), and a linear `basis` at the instance's own values of them; `forward` (the
@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Parameter, full_shape
+from ph_explorer.effects.effect import Effect, Parameter, full_shape
 from ph_explorer.kinematics import Touches
 
 

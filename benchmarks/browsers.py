@@ -32,7 +32,9 @@ def final_orientation(k: int) -> tuple[float, float]:
     return float(10 + (k * 7) % 100), float(-170 + (k * 13) % 340)
 
 
-def browser(k: int, port: int, rate_hz: float, seconds: float, start_at: float, out: dict[str, Any], done: threading.Event, release: threading.Event) -> None:
+def browser(
+    k: int, port: int, rate_hz: float, seconds: float, start_at: float, out: dict[str, Any], done: threading.Event, release: threading.Event
+) -> None:
     """One browser's run, reported in `out`; every failure goes to out["errors"], never raised."""
     try:
         client = FakeBrowser(port, labels=(A_LABEL, B_LABEL))

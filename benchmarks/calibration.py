@@ -41,8 +41,9 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 from scipy.stats import binomtest  # noqa: E402
 
-from ph_explorer.diagnosis import VERDICTS, diagnose, noise_test  # noqa: E402
 import ph_explorer  # noqa: E402
+from ph_explorer.diagnosis import VERDICTS, diagnose  # noqa: E402
+from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL  # noqa: E402
 from ph_explorer.paths import scenarios_dir  # noqa: E402
 from ph_explorer.twin import scenario_from_dict, simulate  # noqa: E402
 
@@ -104,7 +105,13 @@ def power_data(amplitude_arcsec: float) -> dict[str, Any]:
     data = copy.deepcopy(scenario_data("paper"))
     data["name"] = f"paper+b_axis_{POWER_CYCLES}@{amplitude_arcsec:g}"
     data["effects"].append(
-        {"id": "b_axis_cyclic", "hidden": True, "amplitude_arcsec": float(amplitude_arcsec), "cycles_per_rev": POWER_CYCLES, "phase_deg": 0.0}
+        {
+            "id": "b_axis_cyclic",
+            "hidden": True,
+            "amplitude_arcsec": float(amplitude_arcsec),
+            "cycles_per_rev": POWER_CYCLES,
+            "phase_deg": 0.0,
+        }
     )
     return data
 
@@ -122,7 +129,13 @@ def hidden_b_axis(data: dict[str, Any]) -> dict[str, float]:
 def _test_dict(test: Any) -> dict[str, Any] | None:
     if test is None:
         return None
-    return {"fails": bool(test.fails), "failing_rings": int(test.failing_rings), "statistic": round(float(test.statistic), 3), "critical": round(float(test.critical), 3), "p_value": round(float(test.p_value), 4)}
+    return {
+        "fails": bool(test.fails),
+        "failing_rings": int(test.failing_rings),
+        "statistic": round(float(test.statistic), 3),
+        "critical": round(float(test.critical), 3),
+        "p_value": round(float(test.p_value), 4),
+    }
 
 
 def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
@@ -217,7 +230,11 @@ def ring_counts(records: list[dict[str, Any]]) -> dict[str, Any]:
     if not tests:
         return {"median": None, "max": None, "critical": []}
     failing = [t["failing_rings"] for t in tests]
-    return {"median": float(np.median(failing)), "max": int(max(failing)), "critical_statistic": [round(min(t["critical"] for t in tests), 3), round(max(t["critical"] for t in tests), 3)]}
+    return {
+        "median": float(np.median(failing)),
+        "max": int(max(failing)),
+        "critical_statistic": [round(min(t["critical"] for t in tests), 3), round(max(t["critical"] for t in tests), 3)],
+    }
 
 
 def null_figures(records: list[dict[str, Any]], seeds: list[int], description: str) -> dict[str, Any]:
@@ -301,11 +318,17 @@ def after_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "reference": "MAE against the mean of the repetitions (um), mean over the seeds",
         "seeds_with_effects_found": len(pairs),
-        "check_rings": {"before": mean_of(check_before), "after": mean_of(check_after),
-                        "share_removed": mean_of([1 - a / b for a, b in zip(check_after, check_before)])},
-        "nested": {"before": mean_of(nested_before), "after": mean_of(nested_after),
-                   "share_removed": mean_of([1 - a / b for a, b in zip(nested_after, nested_before)]),
-                   "folds": pairs[0]["nested_after"]["folds"] if pairs else None},
+        "check_rings": {
+            "before": mean_of(check_before),
+            "after": mean_of(check_after),
+            "share_removed": mean_of([1 - a / b for a, b in zip(check_after, check_before)]),
+        },
+        "nested": {
+            "before": mean_of(nested_before),
+            "after": mean_of(nested_after),
+            "share_removed": mean_of([1 - a / b for a, b in zip(nested_after, nested_before)]),
+            "folds": pairs[0]["nested_after"]["folds"] if pairs else None,
+        },
         "noise_floor_mean": mean_of([r["nested_after"]["noise_floor_um"]["mean"] for r in pairs]),
     }
 
@@ -365,8 +388,15 @@ def jobs(quick: bool) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     out += [{"group": "effect", "key": "head_3", "data": b22, "seed": s} for s in effect_seeds]
     for a in amplitudes:
         out += [{"group": "power", "key": a, "data": power_data(a), "seed": s} for s in power_seeds]
-    plan = {"false_alarm": fa_seeds, "designs": design_seeds, "effect": effect_seeds, "power": power_seeds,
-            "amplitudes": amplitudes, "design_data": designs, "b22": b22}
+    plan = {
+        "false_alarm": fa_seeds,
+        "designs": design_seeds,
+        "effect": effect_seeds,
+        "power": power_seeds,
+        "amplitudes": amplitudes,
+        "design_data": designs,
+        "b22": b22,
+    }
     return out, plan
 
 
@@ -386,12 +416,17 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         counts = dict(Counter(r["verdict"] for r in rs))
         found = dict(Counter(label(c) for r in rs for c in r.get("found", [])))
         if group == "power":
-            log(f"  power {key:g} arcsec: {len(rs)} seeds, verdicts {counts}, found b_axis 22/rev {sum(finds(r) is not None for r in rs)}/{len(rs)}")
+            log(
+                f"  power {key:g} arcsec: {len(rs)} seeds, verdicts {counts}, found b_axis 22/rev {sum(finds(r) is not None for r in rs)}/{len(rs)}"
+            )
         elif group == "effect":
             log(f"  {key}: {len(rs)} seeds, verdicts {counts}, found b_axis 22/rev {sum(finds(r) is not None for r in rs)}/{len(rs)}")
         else:
             alarms = sum(r["verdict"] != "none" for r in rs)
-            log(f"  {group} {key}: {len(rs)} seeds, verdicts {counts}, false alarms {alarms}/{len(rs)}" + (f", found {found}" if found else ""))
+            log(
+                f"  {group} {key}: {len(rs)} seeds, verdicts {counts}, false alarms {alarms}/{len(rs)}"
+                + (f", found {found}" if found else "")
+            )
 
     def take(record: dict[str, Any]) -> None:
         nonlocal done
@@ -415,25 +450,35 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
             take(diagnose_one(job))
 
     null_test = {
-        "ring_level": noise_test.RING_LEVEL,
-        "campaign_false_alarm": noise_test.FALSE_ALARM,
-        "mean_tolerance": noise_test.MEAN_TOLERANCE,
+        "ring_level": RING_LEVEL,
+        "campaign_false_alarm": FALSE_ALARM,
+        "mean_tolerance": MEAN_TOLERANCE,
         "statistic": "sum over the rings but the worst of log(ring_level / p), worst ring's share in its neighbours undone",
         "diagnose_seed": DIAGNOSE_SEED,
     }
     out: dict[str, Any] = {
         "mode": "quick" if quick else "full",
         "code_sha256": code,  # of ph_explorer/**/*.py when the run started
-        "targets": {"false_alarm_rate_max": TARGET_FALSE_ALARM, "stability_min": TARGET_STABILITY, "seconds_per_diagnosis_max": TARGET_SECONDS},
+        "targets": {
+            "false_alarm_rate_max": TARGET_FALSE_ALARM,
+            "stability_min": TARGET_STABILITY,
+            "seconds_per_diagnosis_max": TARGET_SECONDS,
+        },
         "within_noise_test": null_test,
-        "false_alarm": {"scenario": "paper", **null_figures(records[("false_alarm", "paper")], plan["false_alarm"], "the paper campaign as shipped")},
+        "false_alarm": {
+            "scenario": "paper",
+            **null_figures(records[("false_alarm", "paper")], plan["false_alarm"], "the paper campaign as shipped"),
+        },
         "designs": {
             design: {"scenario": "paper", **null_figures(records[("designs", design)], plan["designs"], text)}
             for design, text in DESIGNS.items()
         },
     }
     out["designs"]["b_step_30"]["check_orientations"] = plan["design_data"]["b_step_30"]["check_orientations"]
-    out["stability_with_effect"] = {"scenario": "head_3", **effect_figures(records[("effect", "head_3")], plan["effect"], hidden_b_axis(plan["b22"]))}
+    out["stability_with_effect"] = {
+        "scenario": "head_3",
+        **effect_figures(records[("effect", "head_3")], plan["effect"], hidden_b_axis(plan["b22"])),
+    }
     out["power"] = {
         "scenario": f"paper + hidden b_axis_cyclic {POWER_CYCLES}/rev, phase 0",
         "detected": f"verdict missing or partial with b_axis_cyclic at {POWER_CYCLES}/rev among the effects found",
@@ -476,6 +521,8 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
     out["diagnoses"] = total
     out["workers"] = workers
     out["seconds"] = round(time.perf_counter() - started, 1)
-    log(f"  calibration: {total} diagnoses in {out['seconds']} s; false alarms {out['false_alarm']['verdicts']}, "
-        f"rate {out['false_alarm']['false_alarm_rate']} {out['false_alarm']['false_alarm_ci95']}")
+    log(
+        f"  calibration: {total} diagnoses in {out['seconds']} s; false alarms {out['false_alarm']['verdicts']}, "
+        f"rate {out['false_alarm']['false_alarm_rate']} {out['false_alarm']['false_alarm_ci95']}"
+    )
     return out

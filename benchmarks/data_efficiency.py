@@ -7,7 +7,7 @@ shared by at least half as many training orientations as the most common one, so
 subset would silently lose orientations. The check rings (the scenario's check orientations) are
 never in training.
 
-Beside them, designed subsets (ph_explorer.design, as `ph-explorer design --budget N` proposes
+Beside them, designed subsets (ph_explorer.planning.ring_design, as `ph-explorer design --budget N` proposes
 them, chosen among the training orientations): D-optimal on the catalog's effect bases + space
 filling, a lattice the trilinear model keeps whole (every B value once, every A row two to four
 times). Each point of the curves names its design (details["design"]).
@@ -45,23 +45,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from benchmarks.stacking import LINEAR_DATA_PARTS, StackedHybrid, carried_hybrid
 from ph_explorer import metrics
 from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_match
-from ph_explorer.design import propose_rings
 from ph_explorer.diagnosis.choice import choose_effects
-from ph_explorer.diagnosis.results import effect_label
-from ph_explorer.effects import DEFAULT_CATALOG, Effect
+from ph_explorer.effects import DEFAULT_CATALOG, Effect, effect_label
 from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
-from ph_explorer.models.stacking import LINEAR_DATA_PARTS, StackedHybrid, carried_hybrid
 from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.planning.ring_design import propose_rings
 from ph_explorer.twin import Scenario, load_scenario, simulate
 
 # Columns of the 18-column B grid kept per row: every row times 18, 9, 6, 3, 2, 1 B columns.
 B_COLUMNS = (18, 9, 6, 3, 2, 1)
-# Rings of the designed subsets (ph_explorer.design): the issue's goal is at most 12.
+# Rings of the designed subsets (ph_explorer.planning.ring_design): the issue's goal is at most 12.
 DESIGN_BUDGETS = (7, 12, 14, 21)
 MODELS = ("network", "trilinear", "hybrid")
 # The rule of issue 16: the hybrid at most this times the better of the trilinear and its data part.
@@ -114,7 +113,9 @@ def diagnosed_effects(campaign: Campaign, seed: int = 0) -> tuple[list[Effect], 
     return choice.chain, present
 
 
-def designed_subsets(campaign: Campaign, train: NDArray[np.bool_], budgets: tuple[int, ...] = DESIGN_BUDGETS) -> list[tuple[NDArray[np.bool_], str]]:
+def designed_subsets(
+    campaign: Campaign, train: NDArray[np.bool_], budgets: tuple[int, ...] = DESIGN_BUDGETS
+) -> list[tuple[NDArray[np.bool_], str]]:
     """Training masks of the designs `ph-explorer design --budget N` proposes among the training rings."""
     out = []
     for budget in budgets:
@@ -207,27 +208,34 @@ def run_scenario(
                 epochs.append([n, int(model.log.epochs) if hasattr(model.log, "epochs") else -1])
             if chosen:
                 hybrid_effects_chosen.append({"orientations": n, "design": design, **chosen})
-            log(f"  {name}: {model_name:9s} n={n:3d} ({design})  MAE vs mean {mae[model_name]:.4f} um  ({took:.1f} s)"
-                + (f"  effects {chosen['found']} + present {chosen['present']} -> {kept_summary(chosen)}" if chosen else ""))
+            log(
+                f"  {name}: {model_name:9s} n={n:3d} ({design})  MAE vs mean {mae[model_name]:.4f} um  ({took:.1f} s)"
+                + (f"  effects {chosen['found']} + present {chosen['present']} -> {kept_summary(chosen)}" if chosen else "")
+            )
         better = min(mae["trilinear"], mae["data_part"])
-        never_worse.append({
-            "orientations": n,
-            "design": design,
-            "hybrid": round(mae["hybrid"], 5),
-            "trilinear": round(mae["trilinear"], 5),
-            "data_part": round(mae["data_part"], 5),
-            "data_part_weights": weights,
-            "ratio": round(mae["hybrid"] / better, 3),
-            "holds": bool(mae["hybrid"] <= NEVER_WORSE * better),
-        })
+        never_worse.append(
+            {
+                "orientations": n,
+                "design": design,
+                "hybrid": round(mae["hybrid"], 5),
+                "trilinear": round(mae["trilinear"], 5),
+                "data_part": round(mae["data_part"], 5),
+                "data_part_weights": weights,
+                "ratio": round(mae["hybrid"] / better, 3),
+                "holds": bool(mae["hybrid"] <= NEVER_WORSE * better),
+            }
+        )
     return {
         "curves": curves,
         "details": {
             "noise_floor_um": {k: round(v, 5) for k, v in metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions).items()},
             "reference": "MAE (um) over the check rings' touches against the 10-repetition mean",
             "check_orientations": campaign.orientations[check].tolist(),
-            "subsets": "every A row x k evenly spread B columns of the 7 x 18 grid, k = " + ", ".join(map(str, columns))
-            + "; and the designs of ph_explorer.design with " + ", ".join(map(str, budgets)) + " rings among the training rings",
+            "subsets": "every A row x k evenly spread B columns of the 7 x 18 grid, k = "
+            + ", ".join(map(str, columns))
+            + "; and the designs of ph_explorer.planning.ring_design with "
+            + ", ".join(map(str, budgets))
+            + " rings among the training rings",
             "design": designs,  # the design of each point of the trilinear and hybrid curves, in order
             "hybrid_effects_source": "diagnosis",
             "hybrid_effects": hybrid_effects_chosen,
@@ -325,8 +333,10 @@ def design_target_over_noise_seeds(
             "ends": {m.data_model.name: {"kept": chosen[m.data_model.name]["kept"], "ratio": ratio(m)} for m in model.members},
         }
         per_seed.append(row)
-        log(f"  {name} noise seed {seed}: design {budget} hybrid {row['ratio']:.3f} x full-data trilinear {full:.4f} "
-            f"(weights {row['weights']}); ends " + ", ".join(f"{p} {e['ratio']:.3f} x" for p, e in row["ends"].items()))
+        log(
+            f"  {name} noise seed {seed}: design {budget} hybrid {row['ratio']:.3f} x full-data trilinear {full:.4f} "
+            f"(weights {row['weights']}); ends " + ", ".join(f"{p} {e['ratio']:.3f} x" for p, e in row["ends"].items())
+        )
 
     def spread(ratios: NDArray[np.float64]) -> dict[str, Any]:
         return {

@@ -26,10 +26,22 @@ from ph_explorer.twin import scenario_from_dict, simulate
 CASES: dict[str, dict[str, float]] = {
     "b_axis_radial_motion": {"x_amplitude_um": 0.5, "x_phase_deg": 30.0, "y_amplitude_um": 0.3, "y_phase_deg": 120.0, "cycles_per_rev": 17},
     "b_axis_axial_motion": {"amplitude_um": 0.6, "phase_deg": 60.0, "cycles_per_rev": 19},
-    "b_axis_tilt_motion": {"about_x_amplitude_arcsec": 1.0, "about_x_phase_deg": 10.0, "about_y_amplitude_arcsec": 0.5, "about_y_phase_deg": 200.0, "cycles_per_rev": 14},
+    "b_axis_tilt_motion": {
+        "about_x_amplitude_arcsec": 1.0,
+        "about_x_phase_deg": 10.0,
+        "about_y_amplitude_arcsec": 0.5,
+        "about_y_phase_deg": 200.0,
+        "cycles_per_rev": 14,
+    },
     "a_axis_radial_motion": {"y_amplitude_um": 0.6, "y_phase_deg": 50.0, "z_amplitude_um": 0.4, "z_phase_deg": 140.0, "cycles_per_rev": 23},
     "a_axis_axial_motion": {"amplitude_um": 0.8, "phase_deg": 20.0, "cycles_per_rev": 21},
-    "a_axis_tilt_motion": {"about_y_amplitude_arcsec": 1.2, "about_y_phase_deg": 70.0, "about_z_amplitude_arcsec": 0.8, "about_z_phase_deg": 300.0, "cycles_per_rev": 25},
+    "a_axis_tilt_motion": {
+        "about_y_amplitude_arcsec": 1.2,
+        "about_y_phase_deg": 70.0,
+        "about_z_amplitude_arcsec": 0.8,
+        "about_z_phase_deg": 300.0,
+        "cycles_per_rev": 25,
+    },
     "ball_form": {"amplitude_um": 0.2, "phase_deg": 40.0, "lobes": 4.0},
 }
 # The rotary axes' location errors, hidden in the near_vertical design (the paper's campaign and five
@@ -68,8 +80,12 @@ def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[
     result = diagnose(campaign)
     seconds = time.perf_counter() - start
     found = [
-        {"effect": c.effect, "settings": {k: float(v) for k, v in c.settings.items()},
-         "params": {k: round(float(v), 4) for k, v in c.params.items()}, "params_u": {k: round(float(v), 4) for k, v in c.params_u.items()}}
+        {
+            "effect": c.effect,
+            "settings": {k: float(v) for k, v in c.settings.items()},
+            "params": {k: round(float(v), 4) for k, v in c.params.items()},
+            "params_u": {k: round(float(v), 4) for k, v in c.params_u.items()},
+        }
         for c in result.found
     ]
     scanned = {k: float(v) for k, v in truth.items() if k in DEFAULT_CATALOG[effect_id].scan}
@@ -87,7 +103,9 @@ def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[
         "check_rings_mae_mean_um": {"before": round(result.steps[0].mae_um["mean"], 4), "after": round(result.steps[-1].mae_um["mean"], 4)},
         "noise_floor_mean_um": round(result.steps[-1].noise_floor_um["mean"], 4),
         "after_over_floor": round(result.steps[-1].mae_um["mean"] / result.steps[-1].noise_floor_um["mean"], 3),
-        "nested_mae_mean_um": None if result.nested is None else {"before": round(result.nested.before_um["mean"], 4), "after": round(result.nested.after_um["mean"], 4)},
+        "nested_mae_mean_um": None
+        if result.nested is None
+        else {"before": round(result.nested.before_um["mean"], 4), "after": round(result.nested.after_um["mean"], 4)},
         "seconds": round(seconds, 1),
     }
 
@@ -100,10 +118,16 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
     out = {}
     for name, (design, effect_id, truth) in cases.items():
         out[name] = r = one(effect_id, truth, design)
-        log(f"  {name}: {r['verdict']}, found {[f['effect'] for f in r['found']]}, named first {r['named_first_at_its_period']}, "
-            f"truth within U {r['truth_within_u']}, check MAE {r['check_rings_mae_mean_um']} (floor {r['noise_floor_mean_um']}), {r['seconds']} s")
+        log(
+            f"  {name}: {r['verdict']}, found {[f['effect'] for f in r['found']]}, named first {r['named_first_at_its_period']}, "
+            f"truth within U {r['truth_within_u']}, check MAE {r['check_rings_mae_mean_um']} (floor {r['noise_floor_mean_um']}), {r['seconds']} s"
+        )
     paper = [r for name, r in out.items() if name in CASES]
-    return {"mode": "quick" if quick else "full",
-            "scenario": "paper (or near_vertical where the case says) + one hidden effect (the scenario's seed)", "cases": out,
-            "named_first": sum(r["named_first_at_its_period"] for r in paper), "of": len(paper),
-            "within_1_3_floor": sum(r["after_over_floor"] <= 1.3 for r in paper)}
+    return {
+        "mode": "quick" if quick else "full",
+        "scenario": "paper (or near_vertical where the case says) + one hidden effect (the scenario's seed)",
+        "cases": out,
+        "named_first": sum(r["named_first_at_its_period"] for r in paper),
+        "of": len(paper),
+        "within_1_3_floor": sum(r["after_over_floor"] <= 1.3 for r in paper),
+    }

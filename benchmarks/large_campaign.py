@@ -126,7 +126,9 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
     touches = {name: touch_count(folder / f"{name}.csv") for name in sizes}
     growth = {
         command: {
-            key: round(math.log(sizes["dense"][command][key] / sizes["paper"][command][key]) / math.log(touches["dense"] / touches["paper"]), 2)
+            key: round(
+                math.log(sizes["dense"][command][key] / sizes["paper"][command][key]) / math.log(touches["dense"] / touches["paper"]), 2
+            )
             for key in ("seconds", "peak_mib")
             if (sizes["paper"][command][key] or 0) > 0 and (sizes["dense"][command][key] or 0) > 0
         }
@@ -142,7 +144,11 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
         "dense": sizes["dense"],
         "growth_exponent": growth,
         "diagnosis_target": DIAGNOSIS_TARGET,
-        "diagnosis_holds": bool(diagnosis["ok"] and diagnosis["seconds"] <= DIAGNOSIS_TARGET["seconds"] and diagnosis["peak_mib"] <= DIAGNOSIS_TARGET["peak_mib"]),
+        "diagnosis_holds": bool(
+            diagnosis["ok"]
+            and diagnosis["seconds"] <= DIAGNOSIS_TARGET["seconds"]
+            and diagnosis["peak_mib"] <= DIAGNOSIS_TARGET["peak_mib"]
+        ),
         "note": "each command a separate process through the command line (interpreter and imports included); serve: until it prints its URL",
     }
 

@@ -20,7 +20,7 @@ def data_efficiency_plot(results: dict[str, Any], path: Path) -> Path:
     for ax, (scenario, models) in zip(axes[0], curves.items()):
         designs = details[scenario].get("design")
         for name, points in models.items():
-            # Lattice subsets joined by a line; designed subsets (ph_explorer.design) as open squares.
+            # Lattice subsets joined by a line; designed subsets (ph_explorer.planning.ring_design) as open squares.
             kinds = designs if designs and len(designs) == len(points) else ["lattice"] * len(points)
             lattice = [p for p, d in zip(points, kinds) if d.startswith("lattice")]
             designed = [p for p, d in zip(points, kinds) if not d.startswith("lattice")]
@@ -76,7 +76,10 @@ def speed_plot(results: dict[str, Any], path: Path) -> Path:
     axes[0].set_xlabel("seconds")
     axes[0].set_title(f"speed on {speed['cpu_count']} cores")
     one = speed["slider_update_ms"]
-    ms = [("1 browser", one, one.get("latency_ms", {})), (f"{scale.get('browsers', '?')} browsers", scale.get("server_update_ms", {}), scale.get("latency_ms", {}))]
+    ms = [
+        ("1 browser", one, one.get("latency_ms", {})),
+        (f"{scale.get('browsers', '?')} browsers", scale.get("server_update_ms", {}), scale.get("latency_ms", {})),
+    ]
     names = [m[0] for m in ms]
     # Render time (server time of the render) and latency (slider event -> end of its render).
     bars = [("render p50", 1, "p50"), ("render p95", 1, "p95"), ("latency p50", 2, "p50"), ("latency p95", 2, "p95")]

@@ -194,7 +194,15 @@ def main(argv: list[str] | None = None) -> int:
         for name in sections:
             results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version()}
     else:
-        results = {**stamp, "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(), "torch_threads": torch.get_num_threads(), "platform": platform.platform()}}
+        results = {
+            **stamp,
+            "machine": {
+                "cpu_count": os.cpu_count(),
+                "python": platform.python_version(),
+                "torch_threads": torch.get_num_threads(),
+                "platform": platform.platform(),
+            },
+        }
 
     if "data_efficiency" in sections:
         log("data efficiency")

@@ -110,7 +110,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     wall = time.perf_counter() - start
     browsers: list[dict[str, Any]] = []
     client_errors: list[str] = []
-    lines = [l for l in (out or "").splitlines() if l.startswith("{")]
+    lines = [line for line in (out or "").splitlines() if line.startswith("{")]
     if process.returncode != 0 or not lines:
         client_errors.append(f"browsers process exit {process.returncode}: {(err or '').strip()[-500:]}")
     else:
@@ -135,7 +135,9 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         "renders": renders,
         # Renders per slider update sent: below 1 when moves were coalesced (the latest value drawn).
         "renders_per_update": round(renders / sent, 3) if sent else None,
-        "renders_per_session": {"min": min(per_session), "median": float(np.median(per_session)), "max": max(per_session)} if per_session else None,
+        "renders_per_session": {"min": min(per_session), "median": float(np.median(per_session)), "max": max(per_session)}
+        if per_session
+        else None,
         "renders_in_percentiles": len(times),  # app.stats.render_times keeps the last 10 000
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
@@ -149,7 +151,12 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         "sessions_not_on_their_last_orientation": missed,
         "sessions_left_open": len(set(app.sessions) - before_sessions),
         "errors": len(client_errors) + render_errors + (missed if missed is not None else n_browsers) + (n_browsers - completed),
-        "rss_mb": {"before": round(rss_before, 1), "after": round(rss_after, 1), "growth": round(rss_after - rss_before, 1), "peak": round(rss_mb("VmHWM"), 1)},
+        "rss_mb": {
+            "before": round(rss_before, 1),
+            "after": round(rss_after, 1),
+            "growth": round(rss_after - rss_before, 1),
+            "peak": round(rss_mb("VmHWM"), 1),
+        },
     }
 
 

@@ -11,14 +11,15 @@ import sys
 import threading
 import time
 import urllib.request
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import add_effects, diagnose
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.twin import load_scenario, simulate
 
 
@@ -45,7 +46,11 @@ def refit_speed(campaign: Campaign) -> tuple[dict[str, Any], DeviationModel]:
     start = time.perf_counter()
     hybrid, step = add_effects(campaign, effects)
     seconds = time.perf_counter() - start
-    figures = {"effects": ["lobing", "b_axis_cyclic (2/rev)"], "seconds": round(seconds, 3), "check_mae_um": {k: round(v, 5) for k, v in step.mae_um.items()}}
+    figures = {
+        "effects": ["lobing", "b_axis_cyclic (2/rev)"],
+        "seconds": round(seconds, 3),
+        "check_mae_um": {k: round(v, 5) for k, v in step.mae_um.items()},
+    }
     return figures, hybrid
 
 
@@ -93,7 +98,9 @@ def prediction_speed(models: dict[str, DeviationModel], repeat: int = 200) -> di
     return out
 
 
-def monte_carlo_speed(models: dict[str, DeviationModel], orientations: np.ndarray, n_repetitions: int = 10, repeat: int = 3) -> dict[str, Any]:
+def monte_carlo_speed(
+    models: dict[str, DeviationModel], orientations: np.ndarray, n_repetitions: int = 10, repeat: int = 3
+) -> dict[str, Any]:
     """Simulated touches per second of model.simulate over a campaign's orientations."""
     rng = np.random.default_rng(0)
     touches = len(orientations) * n_repetitions * 64

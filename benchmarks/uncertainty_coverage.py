@@ -1,6 +1,6 @@
 """Do the 95 % bands hold 95 % of held-out measurements? And the task's E_n check (issue 17).
 
-For the shipped paper campaign (assets/data/paper.csv with the shipped model/paper) and every
+For the shipped paper campaign (assets/data/paper.csv with the shipped assets/models/paper) and every
 shipped teaching scenario (simulated with its own seed), each model trained without the check
 rings: the trilinear tables, the network, and the hybrid (the scenario's known, i.e. not hidden,
 effects + a trilinear data part, fitted on the training rings only). Each model's own error comes
@@ -23,19 +23,19 @@ from typing import Any
 
 import numpy as np
 
-from ph_explorer.bands import COMPONENTS, Sources, band_coverage, calibrate_model_error, model_bands
 from ph_explorer.campaign import Campaign
 from ph_explorer.io import read_campaign
-from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.hybrid import HybridModel
-from ph_explorer.models.model_error import out_of_sample_error
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
-from ph_explorer.models.parameter_spread import parameter_spread
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, default_model_dir
-from ph_explorer.task import measured_task, normalised_error, task_uncertainty
 from ph_explorer.twin import Scenario, list_scenarios, load_scenario, simulate
+from ph_explorer.uncertainty.bands import COMPONENTS, Sources, band_coverage, calibrate_model_error, model_bands
+from ph_explorer.uncertainty.model_error import out_of_sample_error
+from ph_explorer.uncertainty.parameter_spread import parameter_spread
+from ph_explorer.uncertainty.task import measured_task, normalised_error, task_uncertainty
 
 TARGET = (0.93, 0.97)
 NDIG = 1  # numerical tolerance: one significant digit of u (JCGM 101 7.9.2); >= 2 batches of 10^4
@@ -102,26 +102,39 @@ def one_model(
         "full_band": {k: round(v, 4) for k, v in full.items()},
         "noise_only_band": {k: round(v, 4) for k, v in noise.items()},
         "cross_validation_only_band": {k: round(v, 4) for k, v in cv_only.items()},
-        "model_error_scale": {"min": round(min(scales), 3), "median": round(float(np.median(scales)), 3), "max": round(max(scales), 3),
-                              "calibration_rings": calibrated[0].error.calibration_rings,
-                              "kernel_width_deg": sorted({"inf" if not np.isfinite(w) else round(w, 1) for w in widths}, key=str)},
+        "model_error_scale": {
+            "min": round(min(scales), 3),
+            "median": round(float(np.median(scales)), 3),
+            "max": round(max(scales), 3),
+            "calibration_rings": calibrated[0].error.calibration_rings,
+            "kernel_width_deg": sorted({"inf" if not np.isfinite(w) else round(w, 1) for w in widths}, key=str),
+        },
         "in_target": all(TARGET[0] <= v <= TARGET[1] for v in full.values()),
         "budget_um_mean_over_check_rings": budget,
         "touches": int(measured.size),
         "mean_points": int(measured.shape[0] * measured.shape[2]),
         "trials_per_band": [int(min(b.trials for b in bands)), int(max(b.trials for b in bands))],
-        "seconds": {"fit": round(fit_s, 1), "cross_validation": round(cv_s, 1), "bands": round(time.perf_counter() - start - fit_s - cv_s, 1)},
+        "seconds": {
+            "fit": round(fit_s, 1),
+            "cross_validation": round(cv_s, 1),
+            "bands": round(time.perf_counter() - start - fit_s - cv_s, 1),
+        },
         "_sources": calibrated,
     }
 
 
-def task_check(sources_by_model: dict[str, list[Sources]], campaign: Campaign, check: np.ndarray, rng: np.random.Generator) -> dict[str, Any]:
+def task_check(
+    sources_by_model: dict[str, list[Sources]], campaign: Campaign, check: np.ndarray, rng: np.random.Generator
+) -> dict[str, Any]:
     """E_n of RONt and harmonics 2..15 at every check ring of the paper campaign, per model (each
     ring's sources calibrated on the other held-out rings)."""
     measured = measured_task(campaign.deviations[check])
     out: dict[str, Any] = {}
     for name, per_ring in sources_by_model.items():
-        tasks = [task_uncertainty(sources, o, campaign.n_points, rng=rng, ndig=NDIG) for sources, o in zip(per_ring, campaign.orientations[check])]
+        tasks = [
+            task_uncertainty(sources, o, campaign.n_points, rng=rng, ndig=NDIG)
+            for sources, o in zip(per_ring, campaign.orientations[check])
+        ]
         sim = np.array([[t["ront_um"]["value"]] + [h["value"] for h in t["harmonics_um"].values()] for t in tasks])
         u_sim = np.array([[t["ront_um"]["U"]] + [h["U"] for h in t["harmonics_um"].values()] for t in tasks])
         en = normalised_error(sim, u_sim, measured["value"], measured["U"])
@@ -130,9 +143,15 @@ def task_check(sources_by_model: dict[str, list[Sources]], campaign: Campaign, c
         single = measured["single"][:, :, 0]
         out[name] = {
             "rings": [
-                {"A_deg": t["A_deg"], "B_deg": t["B_deg"], "ront_sim_um": t["ront_um"]["value"], "U_sim_um": t["ront_um"]["U"],
-                 "ront_measured_um": round(float(measured["value"][i, 0]), 5), "U_measured_um": round(float(measured["U"][i, 0]), 5),
-                 "E_n": round(float(en[i, 0]), 3)}
+                {
+                    "A_deg": t["A_deg"],
+                    "B_deg": t["B_deg"],
+                    "ront_sim_um": t["ront_um"]["value"],
+                    "U_sim_um": t["ront_um"]["U"],
+                    "ront_measured_um": round(float(measured["value"][i, 0]), 5),
+                    "U_measured_um": round(float(measured["U"][i, 0]), 5),
+                    "E_n": round(float(en[i, 0]), 3),
+                }
                 for i, t in enumerate(tasks)
             ],
             "ront_E_n_at_most_1": int(np.sum(en[:, 0] <= 1.0)),
@@ -163,13 +182,17 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
             own = None if shipped is None or quick else shipped.get(model_name)
             entry[model_name] = one_model(make, campaign, check, own, rng)
             r = entry[model_name]
-            log(f"  {name} {model_name}: full {r['full_band']} cross-validation only {r['cross_validation_only_band']} "
-                f"noise-only {r['noise_only_band']} scale {r['model_error_scale']} ({r['seconds']})")
+            log(
+                f"  {name} {model_name}: full {r['full_band']} cross-validation only {r['cross_validation_only_band']} "
+                f"noise-only {r['noise_only_band']} scale {r['model_error_scale']} ({r['seconds']})"
+            )
         if shipped is not None:
             task = task_check({m: e["_sources"] for m, e in entry.items()}, campaign, check, rng)
             for m, t in task.items():
-                log(f"  task {m}: E_n<=1 RONt {t['ront_E_n_at_most_1']}/{t['of_rings']}, harmonics "
-                    f"{t['harmonics_E_n_at_most_1']}/{t['harmonics_compared']}, single RONt in interval {t['single_ront_inside_95_interval']}")
+                log(
+                    f"  task {m}: E_n<=1 RONt {t['ront_E_n_at_most_1']}/{t['of_rings']}, harmonics "
+                    f"{t['harmonics_E_n_at_most_1']}/{t['harmonics_compared']}, single RONt in interval {t['single_ront_inside_95_interval']}"
+                )
         for e in entry.values():
             e.pop("_sources")
         results[name] = entry

@@ -2,7 +2,7 @@
 
 The server runs in this process on a free port; Debian's chromium (driven by Playwright) is the
 browser, at 1440x900 (the screen the teaching loop is laid out for). 1) the default start (shipped
-paper campaign, model/paper); 2) the teaching loop on the head_3 scenario: Diagnose, tick the
+paper campaign, assets/models/paper); 2) the teaching loop on the head_3 scenario: Diagnose, tick the
 effect found, Refit, go to the ring that failed worst; the Physics tab with the error fall, the
 figures panel with that ring's polar plot and the map of each ring's error over its floor.
 tests/test_browser_loop.py takes the same loop step by step by labels (docs/loop_*.png).

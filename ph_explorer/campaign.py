@@ -112,7 +112,7 @@ class Campaign:
             return orientation_match(self.orientations, self.check_orientations).any(axis=1)
         return self.off_grid_mask()
 
-    def subset(self, mask: ArrayLike) -> "Campaign":
+    def subset(self, mask: ArrayLike) -> Campaign:
         """The campaign restricted to some orientations (boolean mask or indices)."""
         idx = np.arange(self.n_orientations)[np.asarray(mask)]
         return replace(
@@ -146,9 +146,7 @@ def orientation_keys(angles_deg: ArrayLike) -> NDArray[np.float64]:
     return np.round(np.asarray(angles_deg, dtype=float), ORIENTATION_DECIMALS)
 
 
-def orientation_match(
-    orientations: ArrayLike, targets: ArrayLike, atol: float = ORIENTATION_TOLERANCE_DEG
-) -> NDArray[np.bool_]:
+def orientation_match(orientations: ArrayLike, targets: ArrayLike, atol: float = ORIENTATION_TOLERANCE_DEG) -> NDArray[np.bool_]:
     """(n, m) boolean: orientation i equals target j (A equal, B equal modulo 360)."""
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
     t = np.asarray(targets, dtype=float).reshape(-1, 2)

@@ -1,7 +1,7 @@
-"""Where the shipped assets (scenarios, data, the example effects file) and trained models live.
+"""Where the shipped assets (scenarios, data, trained models, the example effects file) live.
 
-In a source checkout they are the repository's assets/ and model/ folders; in an installed
-package they are ph_explorer.assets and ph_explorer.model (mapped by pyproject.toml).
+In a source checkout they are the repository's assets/ folder; in an installed package they are
+ph_explorer.assets (mapped by pyproject.toml).
 """
 
 from __future__ import annotations
@@ -12,16 +12,12 @@ from pathlib import Path
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
-def _located(name: str) -> Path:
-    checkout = _REPO_ROOT / name
+def assets_dir() -> Path:
+    """The shipped assets folder (scenarios/, data/, models/, effects_example.py)."""
+    checkout = _REPO_ROOT / "assets"
     if (checkout / "__init__.py").is_file():
         return checkout
-    return Path(str(resources.files(f"ph_explorer.{name}")))
-
-
-def assets_dir() -> Path:
-    """The shipped assets folder (scenarios/, data/, effects_example.py)."""
-    return _located("assets")
+    return Path(str(resources.files("ph_explorer.assets")))
 
 
 def scenarios_dir() -> Path:
@@ -29,8 +25,8 @@ def scenarios_dir() -> Path:
 
 
 def models_dir() -> Path:
-    """The folder of shipped trained models (model/paper, ...)."""
-    return _located("model")
+    """The folder of shipped trained models (models/paper, ...)."""
+    return assets_dir() / "models"
 
 
 def default_model_dir() -> Path:

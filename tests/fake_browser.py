@@ -20,7 +20,8 @@ from __future__ import annotations
 import threading
 import time
 import uuid
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any
 
 import msgspec
 import viser
@@ -195,7 +196,7 @@ def wait_for(condition: Callable[[], bool], timeout: float = 20.0) -> bool:
     return bool(condition())
 
 
-def open_session(app: "ExplorerApp", timeout: float = 20.0) -> tuple[FakeBrowser, "Session"]:
+def open_session(app: ExplorerApp, timeout: float = 20.0) -> tuple[FakeBrowser, Session]:
     """Connect a fake browser; return it and its Session once the session has rendered."""
     before = set(app.sessions)
     browser = FakeBrowser(app.port)

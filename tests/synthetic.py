@@ -18,7 +18,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models.base import DeviationModel
+from ph_explorer.models.deviation_model import DeviationModel
 
 PAPER_A_DEG = np.arange(0.0, 91.0, 15.0)
 PAPER_B_DEG = np.arange(-160.0, 181.0, 20.0)

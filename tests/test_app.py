@@ -10,10 +10,11 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-from viser.transforms import SO3
 import pytest
-
 from fake_browser import FakeBrowser, open_session, wait_for
+from synthetic import lobing_campaign
+from viser.transforms import SO3
+
 from ph_explorer.app.dataset import Dataset, dataset_for
 from ph_explorer.app.render_queue import RenderState
 from ph_explorer.app.scene import a_joint, b_joint, head_orientation
@@ -22,7 +23,6 @@ from ph_explorer.app.session import Session
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.geometry import A_LIMIT_DEG, head_rotation, stylus_direction
 from ph_explorer.io import write_campaign
-from synthetic import lobing_campaign
 
 
 def rotation_of(wxyz: np.ndarray) -> np.ndarray:
@@ -157,7 +157,7 @@ def test_magnification_scales_the_deviation_about_the_reference_circle(browser) 
 def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_circles(browser) -> None:
     """At every offered magnification, with each repetition shown, nothing drawn reaches the centre;
     each scale circle's label in the scene says the deviation its radius stands for."""
-    from ph_explorer.polar import INNER_CLEARANCE, offered_magnifications
+    from ph_explorer.figures.polar import INNER_CLEARANCE, offered_magnifications
 
     s = browser
     s.go_to(15.0, -20.0)
@@ -168,9 +168,11 @@ def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_ci
         assert scale.magnification == m
         reps = np.asarray(s.ring.repetitions.points)[:, 0, :2]
         assert np.linalg.norm(reps, axis=1).min() >= INNER_CLEARANCE * scale.base_mm - 1e-3
-        for handle, (text, radius) in zip(s.ring.scale_labels, scale.labelled_circles()):
+        for handle, (_text, _radius) in zip(s.ring.scale_labels, scale.labelled_circles()):
             value = float(handle.text.split(" um")[0])
-            assert handle.visible and np.isclose(np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5)
+            assert handle.visible and np.isclose(
+                np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5
+            )
         assert f"x{m:g}" in s.ring.caption.text and f"x{m:g}" in s.polar.plot.content
         # The title and the magnification on opposite sides of the chart: never drawn over each other.
         assert s.ring.title.position[1] * s.ring.caption.position[1] < 0
@@ -189,7 +191,7 @@ def test_unmeasured_orientation_is_labelled_a_prediction(browser) -> None:
 
 
 def test_tables_show_the_core_figures_for_a_check_ring(browser, dataset: Dataset) -> None:
-    from ph_explorer.evaluation import orientation_tables
+    from ph_explorer.paper.tables import orientation_tables
 
     s = browser
     s.go_to(43.0, 90.0)
@@ -255,7 +257,9 @@ def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dat
     assert (a, b) == tuple(dataset.campaign.orientations[j]) and worst.endswith(" um)")
     # Another figure, chosen in the browser: the field and the map follow.
     fake.click("Map of", "measured RONt")
-    assert wait_for(lambda: s.map_panel.plot.content.count("measured RONt") >= 1 and np.allclose(s.field.values, ron_t(dataset.campaign.mean_curves())))
+    assert wait_for(
+        lambda: s.map_panel.plot.content.count("measured RONt") >= 1 and np.allclose(s.field.values, ron_t(dataset.campaign.mean_curves()))
+    )
     # The ring picker, as the browser sends it: the sliders go there, the map marks it.
     option = s.map_panel.ring.options[3]
     a, b = (float(t[1:]) for t in option.split()[:2])
@@ -263,7 +267,9 @@ def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dat
     assert wait_for(lambda: s.orientation == (a, b) and (s.view.a_deg, s.view.b_deg) == (a, b))
     s.wait()
     x = 46.0 + (b + 180.0) / 360.0 * 342.0  # the map's plot box: B across from x = 46, 342 wide
-    assert f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#111"' in s.map_panel.plot.content  # the current orientation's cross hair
+    assert (
+        f'<line x1="{x:.1f}" y1="26.0" x2="{x:.1f}" y2="236.0" stroke="#111"' in s.map_panel.plot.content
+    )  # the current orientation's cross hair
     # Before a diagnosis, the failing rings are not named, and the panel says why.
     assert "Not diagnosed yet" in s.map_panel.failing_text.content and not s.map_panel.failing_buttons
     # The 3D field on request.
@@ -312,7 +318,10 @@ def test_the_band_shows_what_the_model_uncertainty_adds_and_table_1_the_tasks_ro
     s.controls.band_model_error.value = True
     s.controls.band_of.value = s.controls.band_of.options[0]
     assert band_width() == pytest.approx(with_error)
-    row = lambda: next(l for l in s.tables.markdown.content.splitlines() if l.startswith("| RONt, 1 meas."))
+
+    def row():
+        return next(line for line in s.tables.markdown.content.splitlines() if line.startswith("| RONt, 1 meas."))
+
     assert wait_for(lambda: "…" not in row(), timeout=120), row()
     cells = [c.strip() for c in row().strip("|").split("|")[1:]]
     assert len(cells) == 1 + len(s.dataset.model_names)  # measured and every model
@@ -608,7 +617,7 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     assert s.loop.steps == [] and s.loop.diagnosis is None and not p.history.visible and "hybrid" not in s.dataset.models
 
 
-# -- the default start: the shipped paper campaign with model/paper -----------------------------------
+# -- the default start: the shipped paper campaign with assets/models/paper -----------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -625,7 +634,7 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
     fake, s = open_session(app)
     try:
         view = s.view
-        assert view.measured and view.held_out  # A15 B-20: a check ring of model/paper
+        assert view.measured and view.held_out  # A15 B-20: a check ring of assets/models/paper
         for name in ("measured", "network", "trilinear"):
             assert s.ring.curves[name].visible, name
         assert [series["label"] for series in s.charts.deviation.series] == ["point", "measured", "network", "trilinear"]
@@ -718,14 +727,15 @@ def test_serve_refuses_a_bad_effect_file_in_one_line_before_serving(tmp_path) ->
     from ph_explorer.errors import InputError
 
     clash = tmp_path / "clash.py"
-    clash.write_text(
-        "from ph_explorer.effects.stylus import BallForm\n\nclass Again(BallForm):\n    id = 'lobing'\n", encoding="utf-8"
-    )
+    clash.write_text("from ph_explorer.effects.stylus import BallForm\n\nclass Again(BallForm):\n    id = 'lobing'\n", encoding="utf-8")
     with pytest.raises(InputError, match="already a built-in effect"):
         build_server(port=0, effects=clash)
     done = subprocess.run(
         [sys.executable, "-m", "ph_explorer", "serve", "--effects", str(tmp_path / "missing.py"), "--port", "0"],
-        capture_output=True, text=True, env=dict(os.environ, COLUMNS="120"), timeout=120,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, COLUMNS="120"),
+        timeout=120,
     )
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (done.stdout, done.stderr)
     assert "effects file not found" in done.stderr and "serving" not in done.stdout

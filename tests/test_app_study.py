@@ -14,12 +14,12 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from fake_browser import open_session, wait_for
+
 from ph_explorer.app.server import build_server
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.study import check_study, study_record
+from ph_explorer.effects import effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign, write_campaign, write_json_object
 from ph_explorer.twin import scenario_from_dict, simulate
@@ -51,8 +51,12 @@ def cli_study(small_csv: Path) -> dict:
     campaign = read_campaign(small_csv)
     result = diagnose(campaign, nested=False)
     assert [effect_label(e) for e in result.chain] == [B22] and result.verdict == "missing"
-    described = {"file": small_csv.name, "sha256": file_sha256(small_csv), "orientations": campaign.n_orientations,
-                 "repetitions": campaign.n_repetitions}
+    described = {
+        "file": small_csv.name,
+        "sha256": file_sha256(small_csv),
+        "orientations": campaign.n_orientations,
+        "repetitions": campaign.n_repetitions,
+    }
     return study_record(result, result.chain, described, "trilinear")
 
 
@@ -96,7 +100,7 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         assert s.loop.steps[-1].added == ["b_axis_cyclic", ticked.effect] and len(s.loop.steps) == 3
         # A write that fails (disk full) is one line in the panel; the study on disk is untouched.
         before = study_file.read_text()
-        from ph_explorer.app import study as app_study
+        from ph_explorer.app import study_file as app_study
 
         def full(path, document):
             raise OSError(28, "No space left on device")
@@ -170,7 +174,10 @@ def test_a_study_of_another_campaign_or_place_is_refused_before_the_server_start
     env = dict(os.environ, COLUMNS="120")
     done = subprocess.run(
         [sys.executable, "-m", "ph_explorer", "serve", "--data", str(other), "--study", str(study_file), "--port", "0"],
-        capture_output=True, text=True, env=env, timeout=120,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
     )
     assert done.returncode == 2, (done.stdout, done.stderr)
     assert len(done.stderr.strip().splitlines()) == 1 and "the study was made on small.csv" in done.stderr

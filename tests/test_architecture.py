@@ -38,7 +38,7 @@ def imported_names(path: Path) -> list[tuple[str, int]]:
                 anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(anchor + ([node.module] if node.module else []))
             found.append((base, node.lineno))
-            # `from ph_explorer.models import design` imports the module ph_explorer.models.design.
+            # `from ph_explorer.models import design` imports the module ph_explorer.models.least_squares.
             found += [(f"{base}.{alias.name}", node.lineno) for alias in node.names if f"{base}.{alias.name}" in MODULES]
     return found
 
@@ -115,6 +115,92 @@ def test_viser_is_imported_only_in_the_app():
         if imported == "viser" or imported.startswith("viser.")
     ]
     assert not offenders, offenders
+
+
+# The layers, lowest first: a module may import its own layer and those below, never one above.
+# The basic modules (geometry, campaign, kinematics, harmonics, metrics, errors, paths, blas) and
+# the package's own __init__ are the floor. The app and the command line translate: both sit on
+# top, and the app never imports the command line (test below).
+LAYERS = ("io", "effects", "twin", "models", "uncertainty", "paper", "diagnosis", "planning", "figures", "app", "cli")
+BASIC = {"geometry", "campaign", "kinematics", "harmonics", "metrics", "errors", "paths", "blas"}
+
+
+def layer_of(name: str) -> int:
+    """The rank of a module's layer: -1 for the floor, else its index in LAYERS."""
+    parts = name.split(".")
+    if len(parts) == 1 or parts[1] in BASIC:
+        return -1
+    room = "cli" if parts[1] == "__main__" else parts[1]
+    assert room in LAYERS, f"{name} sits in no layer: add its room to LAYERS or move it"
+    return LAYERS.index(room)
+
+
+def layer_offenders(graph: dict[str, set[str]]) -> list[str]:
+    return [
+        f"{name} ({LAYERS[layer_of(name)] if layer_of(name) >= 0 else 'floor'}) imports {target}"
+        for name, targets in sorted(graph.items())
+        for target in sorted(targets)
+        if layer_of(target) > layer_of(name) and not (name.startswith("ph_explorer.cli") and target.startswith("ph_explorer.app"))
+    ]
+
+
+def test_every_import_follows_the_layer_order():
+    graph = internal_graph()
+    assert {layer_of(name) for name in graph} >= set(range(len(LAYERS) - 1)), "a layer has no module"
+    assert not layer_offenders(graph), layer_offenders(graph)
+
+
+def test_the_layer_rule_can_fail():
+    assert layer_offenders({"ph_explorer.models.hybrid": {"ph_explorer.diagnosis.results"}}) == [
+        "ph_explorer.models.hybrid (models) imports ph_explorer.diagnosis.results"
+    ]
+    assert layer_offenders({"ph_explorer.geometry": {"ph_explorer.io.reader"}}) == [
+        "ph_explorer.geometry (floor) imports ph_explorer.io.reader"
+    ]
+    assert not layer_offenders({"ph_explorer.figures.polar": {"ph_explorer.diagnosis.results", "ph_explorer.geometry"}})
+
+
+def test_no_two_modules_share_a_name():
+    """A module's file name says what it is, once: `design.py` in two rooms reads as one thing."""
+    seen: dict[str, list[str]] = {}
+    for name, path in MODULES.items():
+        if path.name not in ("__init__.py", "__main__.py"):
+            seen.setdefault(path.stem, []).append(name)
+    packages = {name.rpartition(".")[2] for name in MODULES if is_package_init(name)}
+    shared = {stem: names for stem, names in seen.items() if len(names) > 1 or stem in packages}
+    assert not shared, shared
+
+
+def test_experiment_code_stays_out_of_the_product():
+    """What only a benchmark uses lives with the benchmarks; nothing in the package imports them."""
+    offenders = [
+        f"{path.relative_to(PACKAGE.parent)}:{line} imports {imported}"
+        for path in MODULES.values()
+        for imported, line in imported_names(path)
+        if imported == "benchmarks" or imported.startswith("benchmarks.")
+    ]
+    assert not offenders, offenders
+
+
+def docstring_lengths(path: Path) -> list[tuple[int, int]]:
+    """(line, number of lines) of every docstring in the file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            doc = ast.get_docstring(node, clean=True)
+            if doc is not None:
+                found.append((getattr(node, "lineno", 1), len(doc.splitlines())))
+    return found
+
+
+DOCSTRING_LINES = 12  # the method belongs on its page in docs/, the docstring links to it
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_docstrings_stay_short(name):
+    long = [f"line {line}: {count} lines" for line, count in docstring_lengths(MODULES[name]) if count > DOCSTRING_LINES]
+    assert not long, f"{name}: {long}"
 
 
 def test_arrows_point_one_way_core_below_app_and_cli():

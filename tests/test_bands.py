@@ -10,18 +10,25 @@ import tomllib
 import numpy as np
 import pytest
 
-from ph_explorer.bands import Sources, band_coverage, model_bands, orientation_band
 from ph_explorer.campaign import Campaign
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
-from ph_explorer.models.model_error import OutOfSampleError, a_groups, harmonic_power, out_of_sample_error, random_phase_curves, white_noise_power
-from ph_explorer.models.parameter_spread import parameter_spread
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.montecarlo import adaptive_monte_carlo, batch_size, is_stable, numerical_tolerance
 from ph_explorer.paths import scenarios_dir
-from ph_explorer.task import measured_task, normalised_error, task_uncertainty
 from ph_explorer.twin import scenario_from_dict, simulate
+from ph_explorer.uncertainty.bands import Sources, band_coverage, model_bands, orientation_band
+from ph_explorer.uncertainty.model_error import (
+    OutOfSampleError,
+    a_groups,
+    harmonic_power,
+    out_of_sample_error,
+    random_phase_curves,
+    white_noise_power,
+)
+from ph_explorer.uncertainty.montecarlo import adaptive_monte_carlo, batch_size, is_stable, numerical_tolerance
+from ph_explorer.uncertainty.parameter_spread import parameter_spread
+from ph_explorer.uncertainty.task import measured_task, normalised_error, task_uncertainty
 
 CHECKS = [[22, -130], [37, 150], [52, 10], [67, -70], [83, 110], [28, 50], [58, -150], [76, -10], [43, 90], [13, 30], [47, -100], [71, 170]]
 
@@ -195,8 +202,8 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
     """calibrate_model_error: the smallest scale of the model error's variance with which `level` of the
     held-out rings' mean-curve points lie in the (Gaussian) mean band; a band calibrated on some
     held-out rings then covers the others; the scale survives the model folder's file."""
-    from ph_explorer.bands import band_variance, calibrate_model_error
-    from ph_explorer.models.model_error import load_errors, save_errors
+    from ph_explorer.uncertainty.bands import band_variance, calibrate_model_error
+    from ph_explorer.uncertainty.model_error import load_errors, save_errors
 
     _, campaign = twin
     model, error = trilinear
@@ -213,10 +220,16 @@ def test_the_model_error_is_calibrated_on_held_out_rings_and_the_band_follows(tw
 
     assert covered(scale) >= 0.95 > covered(0.98 * scale)
     # Rings whose error is twice as large need a larger scale (about four times, in variance).
-    doubled = calibrate_model_error(sources, orientations, model.predict(orientations, n_points=campaign.n_points) + 2 * (means - model.predict(orientations, n_points=campaign.n_points)))
+    doubled = calibrate_model_error(
+        sources,
+        orientations,
+        model.predict(orientations, n_points=campaign.n_points) + 2 * (means - model.predict(orientations, n_points=campaign.n_points)),
+    )
     assert doubled.error.scale > 2.5 * scale
     # A model error the cross-validation saw as nothing cannot be scaled up: the band stays finite.
-    nothing = calibrate_model_error(Sources(model, campaign.n_repetitions, dataclasses.replace(error, power=0 * error.power)), orientations, means)
+    nothing = calibrate_model_error(
+        Sources(model, campaign.n_repetitions, dataclasses.replace(error, power=0 * error.power)), orientations, means
+    )
     assert np.all(np.isfinite(band_variance(nothing, orientations, campaign.n_points)))
     # Too few rings say too little: the cross-validation's size is kept.
     assert calibrate_model_error(sources, orientations[:4], means[:4]) is sources
@@ -241,14 +254,16 @@ def test_the_gaussian_band_is_the_monte_carlo_band_without_its_trials(twin, tril
     """The explorer's instant band (prediction +- z sqrt(variance)) against the adaptive Monte Carlo's,
     for the trilinear model with its error and for a hybrid with its parameters: within a few
     hundredths of a um on every point (the Monte Carlo's own tolerance at ndig 2 is ~0.005 um)."""
-    from ph_explorer.bands import gaussian_band
+    from ph_explorer.uncertainty.bands import gaussian_band
 
     scenario, campaign = twin
     model, error = trilinear
     train = ~campaign.holdout_mask()
     hybrid = HybridModel([e for e in scenario.starting_effects if e.candidate], "trilinear").fit(campaign.subset(train))
-    for sources in (Sources(model, campaign.n_repetitions, dataclasses.replace(error, scale=1.7, calibration_rings=12)),
-                    Sources(hybrid, campaign.n_repetitions, None, parameter_spread(hybrid, campaign.subset(train)))):
+    for sources in (
+        Sources(model, campaign.n_repetitions, dataclasses.replace(error, scale=1.7, calibration_rings=12)),
+        Sources(hybrid, campaign.n_repetitions, None, parameter_spread(hybrid, campaign.subset(train))),
+    ):
         mc = orientation_band(sources, (52.0, 10.0), rng=np.random.default_rng(5), ndig=2)
         for band in ("touch", "mean"):
             low, high = gaussian_band(sources, (52.0, 10.0), band=band)
@@ -286,7 +301,7 @@ def test_the_calibration_is_local_in_a_where_the_check_rings_say_so(tmp_path):
     A = 20 deg make the rings choose a finite kernel width and a larger scale there; rings that all
     need the same choose the campaign's scale (inf: the widest of equal choices); every local scale
     rests on at least MIN_CALIBRATION_RINGS rings' worth of weight; the file keeps it all."""
-    from ph_explorer.models.model_error import (
+    from ph_explorer.uncertainty.model_error import (
         MIN_CALIBRATION_RINGS,
         calibration_width,
         load_errors,

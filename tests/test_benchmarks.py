@@ -59,7 +59,7 @@ def test_designed_subsets_are_training_rings_the_trilinear_keeps_whole() -> None
     scenario = load_scenario("paper")
     campaign = simulate(scenario, scenario.seed)
     check = campaign.holdout_mask()
-    (mask, name), = designed_subsets(campaign, ~check, (12,))
+    ((mask, name),) = designed_subsets(campaign, ~check, (12,))
     assert mask.sum() == 12 and not (mask & check).any() and name.startswith("design 12")
     assert TrilinearModel().fit(campaign, mask).measured.sum() == 12
 
@@ -113,8 +113,17 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert seeds["within_tolerance"] == sum(r["ratio"] <= seeds["tolerance"] for r in seeds["per_seed"])
     assert isinstance(results["target"]["holds"], bool) and results["target"]["detail"]
     speed = results["speed"]
-    for key in ("simulate", "network_training", "physics_refit", "diagnosis", "predict_one_orientation_us",
-                "monte_carlo_touches_per_s", "serve_startup", "slider_update_ms", "cpu_count"):
+    for key in (
+        "simulate",
+        "network_training",
+        "physics_refit",
+        "diagnosis",
+        "predict_one_orientation_us",
+        "monte_carlo_touches_per_s",
+        "serve_startup",
+        "slider_update_ms",
+        "cpu_count",
+    ):
         assert key in speed, key
     assert speed["serve_startup"]["seconds_from_launch"] is not None
     assert set(speed["predict_one_orientation_us"]) == {"network", "trilinear", "hybrid"}
@@ -179,7 +188,11 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert large["touches"]["dense"] > large["touches"]["paper"] > 0
     for size in ("paper", "dense"):
         assert set(large[size]) == {"simulate", "train", "evaluate", "diagnose", "serve"}
-        failed = {command: figures for command, figures in large[size].items() if not (figures["ok"] and figures["seconds"] > 0 and figures["peak_mib"] > 0)}
+        failed = {
+            command: figures
+            for command, figures in large[size].items()
+            if not (figures["ok"] and figures["seconds"] > 0 and figures["peak_mib"] > 0)
+        }
         assert not failed, (size, failed)  # the failing commands only, each with its exit status and last lines
     assert set(large["growth_exponent"]) == set(large["paper"]) and isinstance(large["diagnosis_holds"], bool)
 
@@ -193,7 +206,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     )
     assert again.returncode == 0, again.stderr[-3000:]
     updated = json.loads((tmp_path / "results.json").read_text())
-    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated")} == {k: v for k, v in results.items() if k != "hidden_effects"}
+    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated")} == {
+        k: v for k, v in results.items() if k != "hidden_effects"
+    }
     assert set(updated["updated"]) == {"hidden_effects"} and updated["updated"]["hidden_effects"]["code_sha256"]
     assert updated["hidden_effects"]["cases"].keys() == hidden["cases"].keys()
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):
@@ -204,7 +219,8 @@ def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
     """--only runs some sections and updates them in the last results.json, stamped; others are kept."""
     previous = {"date": "2000-01-01", "mode": "full", "speed": {"kept": True}, "hidden_effects": {"old": True}}
     (tmp_path / "results.json").write_text(json.dumps(previous))
-    bad = subprocess.run([sys.executable, "-m", "benchmarks", "--only", "nonsense", "--out", str(tmp_path)], cwd=REPOSITORY, capture_output=True, text=True)
+    bad = subprocess.run(
+        [sys.executable, "-m", "benchmarks", "--only", "nonsense", "--out", str(tmp_path)], cwd=REPOSITORY, capture_output=True, text=True
+    )
     assert bad.returncode == 2 and "--only: unknown section 'nonsense'" in bad.stderr
     assert json.loads((tmp_path / "results.json").read_text()) == previous
-

@@ -13,10 +13,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from viser.transforms import SO3
 import pytest
-
 from fake_browser import wait_for
+from viser.transforms import SO3
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader", "--disable-background-networking", "--disable-gpu"]
@@ -51,11 +50,11 @@ def coloured_pixels(png: bytes) -> int:
 def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
     assert Path(CHROMIUM).exists(), "CI must have Debian's chromium at /usr/bin/chromium"
     from playwright.sync_api import sync_playwright
+    from synthetic import lobing_campaign
 
     from ph_explorer.app.dataset import dataset_for
     from ph_explorer.app.server import ExplorerApp
     from ph_explorer.geometry import head_rotation
-    from synthetic import lobing_campaign
 
     campaign = lobing_campaign(seed=5, extra_orientations=((43.0, 90.0), (15.0, -20.0)))
     app = ExplorerApp(dataset_for(campaign, "synthetic browser-test campaign", None), port=0)

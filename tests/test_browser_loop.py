@@ -1,7 +1,7 @@
 """Issue 15, first Done-when line: the whole teaching loop in a real headless Chromium at 1440x900,
 driven by labels as a teacher would, nothing scrolled.
 
-On the default data (the shipped paper campaign and model/paper), the teacher loads the hidden-effect
+On the default data (the shipped paper campaign and assets/models/paper), the teacher loads the hidden-effect
 scenario head_3 from the Data tab's Scenario, diagnoses it, reads on the map where it fails (the
 failing rings, worst first, with their error and floor), goes to the worst ring with one click,
 ticks the effect the diagnosis found, refits, reads the error fall and reveals the hidden effect.
@@ -22,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fake_browser import wait_for
 
 CHROMIUM = "/usr/bin/chromium"
@@ -190,7 +189,10 @@ def teach(page, session, shots: Path) -> None:
     for label, value in (("A (deg)", a_target), ("B (deg)", b_target)):
         slider = page.get_by_role("slider", name=label)
         in_view(slider, label)
-        assert wait_for(lambda: slider.get_attribute("aria-valuenow") == f"{value:g}", timeout=30), (label, slider.get_attribute("aria-valuenow"))
+        assert wait_for(lambda: slider.get_attribute("aria-valuenow") == f"{value:g}", timeout=30), (
+            label,
+            slider.get_attribute("aria-valuenow"),
+        )
     time.sleep(1.0)
     figures_drawn(page, f"A{a_target:g} B{b_target:g}")
     step_shot(page, shots, "loop_4_at_the_worst_ring")
@@ -243,7 +245,7 @@ def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
 
     from ph_explorer.app.server import build_server
 
-    app = build_server(port=0)  # the default data: the shipped paper campaign and model/paper
+    app = build_server(port=0)  # the default data: the shipped paper campaign and assets/models/paper
     shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
     shots.mkdir(parents=True, exist_ok=True)
     for stale in shots.glob("loop_*.png"):  # the screenshots of this loop only, never an older layout's

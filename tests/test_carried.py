@@ -6,14 +6,14 @@ otherwise between the rings explains more of the data."""
 from __future__ import annotations
 
 import pytest
+from synthetic import check_ring_mae, training_columns
 
+from benchmarks.carried import Identification, carried_effects
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.models import design
-from ph_explorer.models.carried import Identification, carried_effects
+from ph_explorer.models import least_squares
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.twin import load_scenario, simulate
-from synthetic import check_ring_mae, training_columns
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 
@@ -32,7 +32,7 @@ def three_columns(head: Campaign) -> Identification:
 def test_explained_is_the_joint_least_squares(three_columns: Identification) -> None:
     terms = [B_AXIS(cycles_per_rev=2), B_AXIS(cycles_per_rev=22), DEFAULT_CATALOG["lobing"]()]
     joint = three_columns.design(terms[0]).stacked(three_columns.design(terms[1])).stacked(three_columns.design(terms[2]))
-    expected = design.fit(joint, three_columns.targets)[1][0]
+    expected = least_squares.fit(joint, three_columns.targets)[1][0]
     assert three_columns.explained(terms) == pytest.approx(expected, rel=1e-9)
     assert three_columns.explained([]) == 0.0
 

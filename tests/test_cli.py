@@ -129,12 +129,12 @@ def test_importing_the_cli_imports_neither_torch_nor_viser() -> None:
     probe = (
         "import json, sys\n"
         "import ph_explorer.cli\n"
-        "print(json.dumps({m: m in sys.modules for m in ('torch', 'viser', 'ph_explorer.cli.train', 'ph_explorer.cli.serve')}))\n"
+        "print(json.dumps({m: m in sys.modules for m in ('torch', 'viser', 'ph_explorer.cli.train_command', 'ph_explorer.cli.serve_command')}))\n"
     )
     result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     loaded = json.loads(result.stdout)
-    assert loaded["ph_explorer.cli.train"] and loaded["ph_explorer.cli.serve"]  # the command modules are loaded ...
+    assert loaded["ph_explorer.cli.train_command"] and loaded["ph_explorer.cli.serve_command"]  # the command modules are loaded ...
     assert not loaded["torch"] and not loaded["viser"]  # ... without what they need only when they run
 
 
@@ -154,9 +154,7 @@ def test_a_bad_add_option_is_one_line_naming_the_option(tmp_path: Path, value: s
 def test_other_option_errors_name_the_option(tmp_path: Path) -> None:
     path = _campaign(tmp_path)
     part = run("diagnose", "--data", str(path), "--data-part", "forest")
-    assert part.returncode == 2 and part.stderr.strip() == (
-        "option --data-part: unknown data-driven part 'forest' (trilinear or network)"
-    )
+    assert part.returncode == 2 and part.stderr.strip() == ("option --data-part: unknown data-driven part 'forest' (trilinear or network)")
     missing = run("simulate", "--out", str(tmp_path / "x.csv"))
     assert missing.returncode == 2 and missing.stderr.strip().startswith("option --scenario: ")
     holdout = run("train", "--data", str(path), "--out", str(tmp_path / "m"), "--holdout", "1:2")

@@ -72,7 +72,7 @@ def test_a_bad_data_path_is_one_line_and_exit_2(tmp_path: Path) -> None:
 def test_a_user_file_that_reuses_a_built_in_id_is_one_line_and_exit_2(tmp_path: Path) -> None:
     path = tmp_path / "mine.py"
     path.write_text(
-        "from ph_explorer.effects.base import Effect\n"
+        "from ph_explorer.effects.effect import Effect\n"
         "class Mine(Effect):\n    id = 'ball_form'\n    def basis(self, touches):\n        return None\n"
     )
     line = one_line_error(run("effects", "--effects", str(path)))

@@ -8,18 +8,28 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic import lobing_campaign
 from typer.testing import CliRunner
 
 from ph_explorer.cli import app
-from ph_explorer.cli.train import train_command
+from ph_explorer.cli.train_command import train_command
 from ph_explorer.io import write_campaign
-from ph_explorer.models.model_error import FILE_NAME, load_errors
 from ph_explorer.models.network import NetworkConfig
-from synthetic import lobing_campaign
+from ph_explorer.uncertainty.model_error import FILE_NAME, load_errors
 
 QUICK = NetworkConfig(max_epochs=8, early_stopping_patience=8)
-BAND_KEYS = {"A_deg", "B_deg", "model", "touch_lower_um", "touch_upper_um", "mean_lower_um", "mean_upper_um",
-             "mean_of_repetitions", "budget_um", "ront_um"}
+BAND_KEYS = {
+    "A_deg",
+    "B_deg",
+    "model",
+    "touch_lower_um",
+    "touch_upper_um",
+    "mean_lower_um",
+    "mean_upper_um",
+    "mean_of_repetitions",
+    "budget_um",
+    "ront_um",
+}
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +54,11 @@ def test_json_has_a_band_per_orientation_and_model(folder: Path) -> None:
     assert report["level"] == 0.9
     bands = report["bands"]
     assert [(b["A_deg"], b["B_deg"], b["model"]) for b in bands] == [
-        (15.0, -20.0, "network"), (15.0, -20.0, "trilinear"), (43.0, 90.0, "network"), (43.0, 90.0, "trilinear")]
+        (15.0, -20.0, "network"),
+        (15.0, -20.0, "trilinear"),
+        (43.0, 90.0, "network"),
+        (43.0, 90.0, "trilinear"),
+    ]
     for band in bands:
         assert set(band) == BAND_KEYS
         lo_t, hi_t = np.array(band["touch_lower_um"]), np.array(band["touch_upper_um"])
@@ -60,7 +74,8 @@ def test_json_has_a_band_per_orientation_and_model(folder: Path) -> None:
     wide = json.loads(invoke("--model", str(folder), "--orientations", "15:-20", "--level", "0.99", "--json", "--seed", "1").stdout)
     narrow = bands[1]
     assert np.mean(np.subtract(wide["bands"][1]["touch_upper_um"], wide["bands"][1]["touch_lower_um"])) > np.mean(
-        np.subtract(narrow["touch_upper_um"], narrow["touch_lower_um"]))
+        np.subtract(narrow["touch_upper_um"], narrow["touch_lower_um"])
+    )
 
 
 def test_text_output_names_the_budget(folder: Path) -> None:
@@ -93,7 +108,9 @@ def test_bad_options_are_one_line_and_exit_2(folder: Path, args: list[str], opti
 def test_missing_folder_and_folder_without_errors(folder: Path, tmp_path: Path) -> None:
     missing = invoke("--model", str(tmp_path / "nope"), "--orientations", "15:-20", "--json")
     assert missing.exit_code == 2 and missing.stdout == ""
-    assert len(missing.stderr.strip().splitlines()) == 1 and "model folder not found" in missing.stderr and "option --model" in missing.stderr
+    assert (
+        len(missing.stderr.strip().splitlines()) == 1 and "model folder not found" in missing.stderr and "option --model" in missing.stderr
+    )
     old = tmp_path / "old"
     shutil.copytree(folder, old)
     (old / FILE_NAME).unlink()

@@ -8,16 +8,16 @@ import dataclasses
 
 import numpy as np
 import pytest
+from synthetic import check_ring_mae, designed_rings, lobing_campaign
 
+from benchmarks.stacking import StackedHybrid, carried_hybrid
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.stacking import StackedHybrid, carried_hybrid
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import MeanCurveModel
 from ph_explorer.twin import load_scenario, simulate
-from synthetic import check_ring_mae, designed_rings, lobing_campaign
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 
@@ -42,7 +42,9 @@ def test_its_out_of_sample_weights_are_the_mean_of_the_other_training_rings() ->
     orientations = np.array([[0.0, 0.0], [15.0, 20.0], [30.0, 40.0], [45.0, 60.0], [60.0, 80.0]])
     train = np.array([True, True, True, True, False])
     weights = OutOfSampleSmoother(orientations, train, MeanCurveModel).weights
-    expected = np.array([[0, 1, 1, 1, 0], [1, 0, 1, 1, 0], [1, 1, 0, 1, 0], [1, 1, 1, 0, 0], [1, 1, 1, 1, 0]]) / np.array([3, 3, 3, 3, 4])[:, None]
+    expected = (
+        np.array([[0, 1, 1, 1, 0], [1, 0, 1, 1, 0], [1, 1, 0, 1, 0], [1, 1, 1, 0, 0], [1, 1, 1, 1, 0]]) / np.array([3, 3, 3, 3, 4])[:, None]
+    )
     assert np.allclose(weights, expected)
 
 

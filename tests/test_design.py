@@ -1,4 +1,4 @@
-"""Which rings to measure (ph_explorer/design.py, `ph-explorer design`)."""
+"""Which rings to measure (ph_explorer/planning/ring_design.py, `ph-explorer design`)."""
 
 from __future__ import annotations
 
@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_match
-from ph_explorer.design import candidate_orientations, design_log_det, propose_rings
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.io import write_campaign
 from ph_explorer.kinematics import touch_kinematics
+from ph_explorer.planning.ring_design import candidate_orientations, design_log_det, propose_rings
 
 
 @pytest.fixture(scope="module")

@@ -21,8 +21,8 @@ from ph_explorer.diagnosis import diagnose, verdict_text
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
+from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, scenarios_dir
 from ph_explorer.twin import load_scenario, scenario_from_dict, simulate
@@ -51,9 +51,7 @@ def write_like_another_program(campaign: Campaign, path: Path) -> Path:
         ]
     )
     order = np.random.default_rng(1).permutation(len(rows))  # another program need not sort its rows
-    lines = ["rep,t_s,B_deg,point,dev_um,A_deg"] + [
-        f"{int(a)},{b:.4f},{c:g},{int(d)},{e:.6f},{f:g}" for a, b, c, d, e, f in rows[order]
-    ]
+    lines = ["rep,t_s,B_deg,point,dev_um,A_deg"] + [f"{int(a)},{b:.4f},{c:g},{int(d)},{e:.6f},{f:g}" for a, b, c, d, e, f in rows[order]]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -327,7 +325,11 @@ def test_nothing_hidden_on_another_lattice_and_geometry():
     # beyond noise at a few rings, and the diagnosis names exactly that background effect, at its
     # true period and amplitude, and nothing else.
     result = diagnose(other_campaign(None))
-    background = {e["cycles_per_rev"]: e["amplitude_arcsec"] for e in tomllib.loads((scenarios_dir() / "paper.toml").read_text())["effects"] if e["id"] == "b_axis_cyclic"}
+    background = {
+        e["cycles_per_rev"]: e["amplitude_arcsec"]
+        for e in tomllib.loads((scenarios_dir() / "paper.toml").read_text())["effects"]
+        if e["id"] == "b_axis_cyclic"
+    }
     assert result.verdict in ("none", "missing")
     for found in result.found:
         assert found.effect == "b_axis_cyclic" and found.settings["cycles_per_rev"] in background

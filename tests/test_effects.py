@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, EffectSum, load_user_effects
-from ph_explorer.effects.base import AXES, KINDS, RAD_PER_ARCSEC, Effect
+from ph_explorer.effects.effect import AXES, KINDS, RAD_PER_ARCSEC, Effect
 from ph_explorer.effects.probe import support_fourier
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY
@@ -64,18 +64,17 @@ def test_scanned_values_are_settings_of_the_instance():
     assert len(grid_values) == len(cls.scan["tau_s"]) * len(cls.scan["cycle_period_s"])
     effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=0.5).with_settings(cycles_per_rev=22)
     assert effect.settings() == {"cycles_per_rev": 22.0} and effect.params["amplitude_arcsec"] == 0.5
-    assert DEFAULT_CATALOG["b_axis_cyclic"].parameters_text(
-        {"amplitude_arcsec": 0.953, "phase_deg": 30.8, "cycles_per_rev": 22}
-    ) == "amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev"
+    assert (
+        DEFAULT_CATALOG["b_axis_cyclic"].parameters_text({"amplitude_arcsec": 0.953, "phase_deg": 30.8, "cycles_per_rev": 22})
+        == "amplitude 0.953 arcsec, phase 30.8 deg, 22 cycles/rev"
+    )
 
 
 def test_effects_add_like_lmfit_models(mixed_touches):
     lobing, cyclic = DEFAULT_CATALOG["lobing"](), DEFAULT_CATALOG["b_axis_cyclic"](cycles_per_rev=5)
     both = lobing + cyclic
     assert isinstance(both, EffectSum) and [e.id for e in both + DEFAULT_CATALOG["noise"]()] == ["lobing", "b_axis_cyclic", "noise"]
-    np.testing.assert_allclose(
-        both.forward(mixed_touches, None), lobing.forward(mixed_touches, None) + cyclic.forward(mixed_touches, None)
-    )
+    np.testing.assert_allclose(both.forward(mixed_touches, None), lobing.forward(mixed_touches, None) + cyclic.forward(mixed_touches, None))
 
 
 # -- lobing -----------------------------------------------------------------------------------------
@@ -324,7 +323,7 @@ def test_user_effect_file_makes_a_new_catalog_and_leaves_the_default_alone():
     assert effect.from_coefficients(coef)["amplitude_um"] == pytest.approx(0.1)
 
 
-EFFECT_HEADER = "from ph_explorer.effects.base import Effect\n"
+EFFECT_HEADER = "from ph_explorer.effects.effect import Effect\n"
 BAD_EFFECT_FILES = {
     "cannot import": "import numpy as np\ndef oops(:\n",
     "defines no subclass": "x = 1\n",

@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from ph_explorer.cli.evaluate import format_report
-from ph_explorer.evaluation import evaluation_report, mean_mae, orientation_tables
-from ph_explorer.metrics import noise_floor
-from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.trilinear import TrilinearModel
 from synthetic import lobing_campaign, systematic_curves
+
+from ph_explorer.cli.evaluate_command import format_report
+from ph_explorer.metrics import noise_floor
+from ph_explorer.models.deviation_model import DeviationModel
+from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.paper.tables import evaluation_report, mean_mae, orientation_tables
 
 
 class Oracle(DeviationModel):

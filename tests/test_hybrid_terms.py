@@ -6,17 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from synthetic import check_ring_mae, training_columns
 
+from benchmarks.carried import Identification, carried_effects, cross_validated_mae
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.carried import Identification, carried_effects, cross_validated_mae
 from ph_explorer.models.crossval import cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import load_scenario, simulate
-from synthetic import check_ring_mae, training_columns
 
 B_AXIS = DEFAULT_CATALOG["b_axis_cyclic"]
 

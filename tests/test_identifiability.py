@@ -11,18 +11,33 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.identifiability import describe_effect, effect_bases, identifiability, shared_between
 from ph_explorer.diagnosis.search import shared_variance
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.effects.base import Effect, Parameter, full_shape, radial_unit
+from ph_explorer.effects.effect import Effect, Parameter, full_shape, radial_unit
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.models.design import Design
 from ph_explorer.models.hybrid import fitted_basis
+from ph_explorer.models.least_squares import Design
 from ph_explorer.paths import assets_dir
 
 FIELDS = {
-    "id", "name", "axis", "kind", "symbol", "parameters", "scan", "evaluated_at", "columns", "rank_after_fit",
-    "visible", "visible_rms_um", "magnitude", "absorbed_by_circle_fit", "learnable_by_data_model", "confounded_with",
-    "over_scan", "note",
+    "id",
+    "name",
+    "axis",
+    "kind",
+    "symbol",
+    "parameters",
+    "scan",
+    "evaluated_at",
+    "columns",
+    "rank_after_fit",
+    "visible",
+    "visible_rms_um",
+    "magnitude",
+    "absorbed_by_circle_fit",
+    "learnable_by_data_model",
+    "confounded_with",
+    "over_scan",
+    "note",
 }
 
 
@@ -74,7 +89,11 @@ def test_every_effect_has_every_field(report):
     # Scanned effects say where they were judged, and give the range over the scan.
     cyclic = rows["b_axis_cyclic"]
     assert cyclic["evaluated_at"] == {"cycles_per_rev": 3.0} and cyclic["over_scan"]["settings"] == 40
-    assert cyclic["over_scan"]["absorbed_by_circle_fit"][0] <= cyclic["absorbed_by_circle_fit"] <= cyclic["over_scan"]["absorbed_by_circle_fit"][1]
+    assert (
+        cyclic["over_scan"]["absorbed_by_circle_fit"][0]
+        <= cyclic["absorbed_by_circle_fit"]
+        <= cyclic["over_scan"]["absorbed_by_circle_fit"][1]
+    )
 
 
 def test_a_centre_shift_at_every_orientation_is_absorbed_and_invisible(report):

@@ -29,9 +29,7 @@ def small_campaign(times: bool = True, seed: int = 0) -> Campaign:
 
 
 def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, cwd=cwd, timeout=120
-    )
+    return subprocess.run([sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, cwd=cwd, timeout=120)
 
 
 # -- round trip -----------------------------------------------------------------------------
@@ -159,7 +157,7 @@ def test_raw_points_without_dev_um_are_fitted(tmp_path: Path) -> None:
     theta = np.radians(point_angles_deg(n_pt))
     form = 0.5 * np.cos(3 * theta) - 0.2 * np.sin(5 * theta)  # um, no harmonic 0 or 1
     lines = ["y_mm,x_mm,rep,A_deg,point,B_deg"]
-    for o, (a, b, cx, cy, radius) in enumerate([(0, 0, 0.3, -0.1, 9.0), (30, 40, -1.2, 2.0, 9.001)]):
+    for _o, (a, b, cx, cy, radius) in enumerate([(0, 0, 0.3, -0.1, 9.0), (30, 40, -1.2, 2.0, 9.001)]):
         for r in range(2):
             rr = radius + 1e-3 * form
             x = cx + rr * np.cos(theta)

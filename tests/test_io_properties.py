@@ -6,8 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from hypothesis import HealthCheck, example, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, example, given, settings, strategies as st
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
@@ -23,8 +22,39 @@ VALID = ("\n".join(VALID_LINES) + "\n").encode()
 
 # Text that looks like a campaign: field separators, numbers, signs, the column names, junk.
 TOKENS = st.sampled_from(
-    [",", "\n", "\r\n", '"', " ", "0", "1", "-1", "3", "15", "1e9", "-0.5", "nan", "inf", "-inf", "1e400",
-     "A_deg", "B_deg", "rep", "point", "dev_um", "t_s", "x_mm", "y_mm", "abc", "\x00", "\ufeff", "é", ";", "\t", "200"]
+    [
+        ",",
+        "\n",
+        "\r\n",
+        '"',
+        " ",
+        "0",
+        "1",
+        "-1",
+        "3",
+        "15",
+        "1e9",
+        "-0.5",
+        "nan",
+        "inf",
+        "-inf",
+        "1e400",
+        "A_deg",
+        "B_deg",
+        "rep",
+        "point",
+        "dev_um",
+        "t_s",
+        "x_mm",
+        "y_mm",
+        "abc",
+        "\x00",
+        "\ufeff",
+        "é",
+        ";",
+        "\t",
+        "200",
+    ]
 )
 csvish = st.lists(TOKENS, max_size=80).map(lambda parts: "".join(parts).encode("utf-8"))
 

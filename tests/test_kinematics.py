@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
 from ph_explorer.campaign import Campaign
@@ -37,11 +36,7 @@ def test_b_sweep_falls_monotonically_with_a0() -> None:
     assert np.all(np.diff(sweeps) < 0)
 
 
-@given(
-    orientations=arrays(
-        np.float64, (20, 2), elements=st.floats(-115, 115, allow_nan=False)
-    ).map(lambda o: o * [1.0, 180.0 / 115.0])
-)
+@given(orientations=arrays(np.float64, (20, 2), elements=st.floats(-115, 115, allow_nan=False)).map(lambda o: o * [1.0, 180.0 / 115.0]))
 @settings(max_examples=40, deadline=None)
 def test_joint_angles_reach_the_ball_centres(orientations: np.ndarray) -> None:
     """(A_k, B_k) put the ball back on c_k within 1e-9 mm, over many random orientations."""

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.app.dataset import Dataset, default_dataset
 from ph_explorer.app.background import LatestFirst
-from ph_explorer.models.base import DeviationModel, as_orientations
+from ph_explorer.app.dataset import Dataset, default_dataset
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations
 from ph_explorer.models.lattice import TOLERANCE_UM, BuildStopped, PredictionLattice, build_cpu_s
 
 A_RANGE = (0.0, 40.0)  # a part of the A range keeps the builds short
@@ -24,7 +24,7 @@ A_RANGE = (0.0, 40.0)  # a part of the A range keeps the builds short
 
 @pytest.fixture(scope="module")
 def dataset() -> Dataset:
-    return default_dataset()  # the shipped paper campaign with model/paper: network and trilinear
+    return default_dataset()  # the shipped paper campaign with assets/models/paper: network and trilinear
 
 
 def random_orientations(n: int, a_range: tuple[float, float] = A_RANGE, seed: int = 3) -> NDArray[np.float64]:
@@ -54,7 +54,7 @@ class JumpModel(DeviationModel):
 
     name = "jump"
 
-    def fit(self, campaign: object, train: ArrayLike | None = None) -> "JumpModel":
+    def fit(self, campaign: object, train: ArrayLike | None = None) -> JumpModel:
         return self
 
     def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
@@ -70,7 +70,7 @@ class JumpModel(DeviationModel):
         raise NotImplementedError
 
     @classmethod
-    def load(cls, directory: str | Path) -> "JumpModel":
+    def load(cls, directory: str | Path) -> JumpModel:
         raise NotImplementedError
 
 
@@ -98,7 +98,7 @@ def test_prepared_dataset_draws_a_slider_move_without_calling_a_model(dataset: D
     def refuse(*_: object, **__: object) -> None:
         raise AssertionError("a model was called on a slider move")
 
-    for name, model in ds.models.items():
+    for model in ds.models.values():
         monkeypatch.setattr(model, "predict", refuse)
     for a, b in random_orientations(40, (0.0, 115.0), seed=5):
         view = ds.view(a, b)

@@ -10,10 +10,11 @@ import urllib.request
 from pathlib import Path
 
 from fake_browser import FakeBrowser, wait_for
+from synthetic import lobing_campaign
+
 from ph_explorer.app.loading import LoadingNotice, open_server
 from ph_explorer.app.server import build_server
 from ph_explorer.io import write_campaign
-from synthetic import lobing_campaign
 
 
 def test_an_early_browser_reads_what_is_loading_then_gets_the_explorer(tmp_path: Path) -> None:
@@ -56,8 +57,8 @@ def test_serve_answers_before_it_is_ready_and_says_both(tmp_path: Path) -> None:
             lines.append(line)
             if "serving at" in line:
                 break
-        answering = [l for l in lines if "answering at" in l]
-        serving = [l for l in lines if "serving at" in l]
+        answering = [line for line in lines if "answering at" in line]
+        serving = [line for line in lines if "serving at" in line]
         assert answering and serving and lines.index(answering[0]) < lines.index(serving[0]), lines
         url = answering[0].split("answering at ")[1].split()[0]
         assert url == serving[0].split("serving at ")[1].split()[0]

@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 import pytest
+from synthetic import lobing_campaign, systematic_curves
 
 from ph_explorer.harmonics import fourier_basis
-from synthetic import lobing_campaign, systematic_curves
 from ph_explorer.models.trilinear import TrilinearModel, periodic_weights
 
 
@@ -187,8 +187,8 @@ def test_network_repetition_target_trains_too(campaign):
 @pytest.mark.slow
 def test_network_reaches_the_noise_floor_at_held_out_rings():
     """Fully trained on the synthetic campaign: near the floor at held-out rings, like trilinear or better."""
-    from ph_explorer.evaluation import evaluation_report, mean_mae
     from ph_explorer.models.trilinear import TrilinearModel
+    from ph_explorer.paper.tables import evaluation_report, mean_mae
 
     c = lobing_campaign(seed=1, check_orientations=[(15, -20), (75, 40), (45, -20), (43, 91)])
     hold = c.holdout_mask()

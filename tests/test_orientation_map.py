@@ -7,15 +7,17 @@ import re
 
 import numpy as np
 import pytest
+from synthetic import lobing_campaign
 
 from ph_explorer.app.dataset import LOO_FIGURE, LOO_RATIO_FIGURE, RONT_FIGURE, Dataset, dataset_for
 from ph_explorer.diagnosis.results import RING_VERDICTS, Diagnosis
+from ph_explorer.figures.charts import nice_ticks
+from ph_explorer.figures.diagnosis_report import diagnosis_figures
+from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
 from ph_explorer.harmonics import ron_t
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_mae
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.orientation_map import MapFigure, map_svg, nice_ticks, ranked_rings
-from synthetic import lobing_campaign
 
 CHECK = ((43.0, 90.0), (22.0, -30.0), (52.0, 130.0))  # off the lattice
 
@@ -87,7 +89,10 @@ def test_a_slider_move_redraws_the_marker_only_and_the_kept_map_is_the_fresh_one
     c = twin.campaign
     figure, orientations, check = twin.figure(LOO_FIGURE), c.orientations.copy(), c.holdout_mask()
     here, there = (map_svg(figure, orientations, check, current, LOO_FIGURE) for current in ((15.0, -20.0), (45.0, 60.0)))
-    strip = lambda svg: re.sub(r'<line x1[^>]*stroke-dasharray[^>]*/><line[^>]*/><circle[^>]*r="9"[^>]*/><circle[^>]*r="9"[^>]*/>', "", svg)
+
+    def strip(svg):
+        return re.sub(r'<line x1[^>]*stroke-dasharray[^>]*/><line[^>]*/><circle[^>]*r="9"[^>]*/><circle[^>]*r="9"[^>]*/>', "", svg)
+
     assert here != there and strip(here) == strip(there)
     fresh = MapFigure(figure.values.copy(), figure.unit, figure.note, figure.categories)
     assert map_svg(fresh, orientations.copy(), check.copy(), (45.0, 60.0), LOO_FIGURE) == there
@@ -108,22 +113,35 @@ def diagnosis_of(mae: list[float], floor: list[float], failing: list[bool], held
     n = len(mae)
     orientations = np.column_stack([np.full(n, 30.0), np.arange(n) * 20.0 - 160.0])
     return Diagnosis(
-        noise_floor_um={}, baseline_model="trilinear", baseline_mae_um={}, candidates=[], verdict="unexplained", found=[],
-        signature=[], within_noise={"baseline": object(), "after": None}, steps=[], orientations=orientations,  # type: ignore[dict-item]
-        out_of_sample_mae_um={"mean": np.array(mae)}, out_of_sample_floor_um={"mean": np.array(floor)},
-        failing=np.array(failing), held_out=np.array(held_out),
+        noise_floor_um={},
+        baseline_model="trilinear",
+        baseline_mae_um={},
+        candidates=[],
+        verdict="unexplained",
+        found=[],
+        signature=[],
+        within_noise={"baseline": object(), "after": None},
+        steps=[],
+        orientations=orientations,  # type: ignore[dict-item]
+        out_of_sample_mae_um={"mean": np.array(mae)},
+        out_of_sample_floor_um={"mean": np.array(floor)},
+        failing=np.array(failing),
+        held_out=np.array(held_out),
     )
 
 
 def test_failing_rings_are_worst_first_by_their_error_over_their_floor() -> None:
     # Ring 0 has the largest error but a large floor; ring 3 is far above its floor but within noise by the test.
     result = diagnosis_of(
-        mae=[0.30, 0.12, 0.20, 0.50, 0.05], floor=[0.15, 0.03, 0.05, 0.05, 0.04], failing=[True, True, True, False, True], held_out=[False, True, False, False, False]
+        mae=[0.30, 0.12, 0.20, 0.50, 0.05],
+        floor=[0.15, 0.03, 0.05, 0.05, 0.04],
+        failing=[True, True, True, False, True],
+        held_out=[False, True, False, False, False],
     )
     rings = result.failing_rings()
     assert [(r.b_deg, round(r.ratio, 2)) for r in rings] == [(-140.0, 4.0), (-120.0, 4.0), (-160.0, 2.0), (-80.0, 1.25)]
     assert rings[0].held_out and rings[0].mae_um == 0.12 and rings[0].floor_um == 0.03
-    figures = result.ring_figures()
+    figures = diagnosis_figures(result)
     verdict = figures["diagnosis: ring verdict (within-noise test)"]
     np.testing.assert_array_equal(verdict.values, [1, 1, 1, 0, 1])
     assert verdict.text(1.0) == "exceeds its noise"

@@ -1,5 +1,5 @@
 """Polar charts as roundness instruments draw them: the profile never reaches the centre, and the
-scale circles' labels say the deviations their radii stand for (ph_explorer.polar)."""
+scale circles' labels say the deviations their radii stand for (ph_explorer.figures.polar)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from ph_explorer import paths, twin
+from ph_explorer.figures.polar import INNER_CLEARANCE, PolarSeries, offered_magnifications, polar_scale, polar_svg, scale_label
 from ph_explorer.io import read_campaign
-from ph_explorer.polar import INNER_CLEARANCE, PolarSeries, offered_magnifications, polar_scale, polar_svg, scale_label
 
 
 def shipped_campaigns() -> dict[str, object]:

@@ -164,9 +164,7 @@ def test_a_session_moving_at_every_render_does_not_starve_the_others(queue: Rend
     assert a.drawn() == [0, 2, 3, 4, 5]
 
 
-def test_render_now_returns_once_its_values_are_drawn_even_during_a_queued_render(
-    queue: RenderQueue, log: list
-) -> None:
+def test_render_now_returns_once_its_values_are_drawn_even_during_a_queued_render(queue: RenderQueue, log: list) -> None:
     a = Session("a", log)
     release = a.held_render(queue, 1)
     done, result = threading.Event(), []

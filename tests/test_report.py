@@ -20,21 +20,20 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fake_browser import open_session, wait_for
+from test_app_study import B22, SMALL
+from test_teaching import TEACHING, named
+
 from ph_explorer import twin
 from ph_explorer.app.dataset import dataset_for
 from ph_explorer.app.server import ExplorerApp
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.study import check_study, study_campaign, study_record
-from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.effects import DEFAULT_CATALOG, effect_label
+from ph_explorer.figures.html_report import report_html
 from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, write_campaign, write_json_object
 from ph_explorer.models.folder import campaign_models
-from ph_explorer.report import report_html
 from ph_explorer.twin import scenario_from_dict, simulate
-from test_app_study import B22, SMALL
-from test_teaching import TEACHING, named
 
 CHROMIUM = "/usr/bin/chromium"
 ARGS = ["--no-sandbox", "--enable-unsafe-swiftshader", "--disable-background-networking", "--disable-gpu"]
@@ -171,11 +170,29 @@ def bad_inputs(small_csv: Path, tmp_path: Path) -> list[tuple[list[str], str]]:
     not_json = tmp_path / "notes.json"
     not_json.write_bytes(b"\xff\xfe not text")
     other_study = tmp_path / "other_study.json"
-    write_json_object(other_study, {"format": "ph-explorer study 1", "campaign": {"sha256": file_sha256(other)}, "baseline": "trilinear",
-                                    "data_part": "trilinear", "chain": [], "runs": []})
+    write_json_object(
+        other_study,
+        {
+            "format": "ph-explorer study 1",
+            "campaign": {"sha256": file_sha256(other)},
+            "baseline": "trilinear",
+            "data_part": "trilinear",
+            "chain": [],
+            "runs": [],
+        },
+    )
     unknown = tmp_path / "unknown_effect.json"
-    write_json_object(unknown, {"format": "ph-explorer study 1", "campaign": {"sha256": file_sha256(small_csv)}, "baseline": "trilinear",
-                                "data_part": "trilinear", "chain": [{"effect": "wobble", "settings": {}}], "runs": []})
+    write_json_object(
+        unknown,
+        {
+            "format": "ph-explorer study 1",
+            "campaign": {"sha256": file_sha256(small_csv)},
+            "baseline": "trilinear",
+            "data_part": "trilinear",
+            "chain": [{"effect": "wobble", "settings": {}}],
+            "runs": [],
+        },
+    )
     (tmp_path / "a_folder").mkdir()
     data = ["--data", str(small_csv)]
     return [

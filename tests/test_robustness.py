@@ -12,14 +12,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from viser.transforms import SO3
 import pytest
-from hypothesis import HealthCheck, example, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, example, given, settings, strategies as st
+from test_io_properties import VALID, csvish, mutated  # the reader's own generators, reused
 from typer.testing import CliRunner
+from viser.transforms import SO3
 
 from ph_explorer.cli import app as cli_app
-from test_io_properties import VALID, csvish, mutated  # the reader's own generators, reused
 
 SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 RUNNER = CliRunner()
@@ -62,9 +61,10 @@ from fake_browser import open_session, wait_for  # noqa: E402
 
 @pytest.fixture(scope="module")
 def explorer():
+    from synthetic import lobing_campaign
+
     from ph_explorer.app.dataset import dataset_for
     from ph_explorer.app.server import ExplorerApp
-    from synthetic import lobing_campaign
 
     campaign = lobing_campaign(seed=5, extra_orientations=((43.0, 90.0),))
     app = ExplorerApp(dataset_for(campaign, "synthetic robustness campaign", None), host="127.0.0.1", port=0)

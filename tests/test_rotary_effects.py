@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.effects.base import RAD_PER_ARCSEC, UM_PER_MM, rotation_deviation_um_per_arcsec, screw_deviation
+from ph_explorer.effects.effect import RAD_PER_ARCSEC, UM_PER_MM, rotation_deviation_um_per_arcsec, screw_deviation
 from ph_explorer.geometry import DEFAULT_GEOMETRY, ball_centres, head_rotation, radial_directions, rot_z
 from ph_explorer.harmonics import harmonic_spectrum, remove_size_and_centre
 from ph_explorer.kinematics import touch_kinematics
@@ -22,7 +22,14 @@ L_MM = DEFAULT_GEOMETRY.pivot_to_ball_mm
 AXIAL_MM = DEFAULT_GEOMETRY.axial_distance_mm
 B_SAMPLE = np.arange(-160.0, 181.0, 40.0)
 LOCATION = ("b_axis_position", "b_axis_orientation", "a_axis_position", "a_axis_squareness")
-MOTIONS = ("b_axis_radial_motion", "b_axis_axial_motion", "b_axis_tilt_motion", "a_axis_radial_motion", "a_axis_axial_motion", "a_axis_tilt_motion")
+MOTIONS = (
+    "b_axis_radial_motion",
+    "b_axis_axial_motion",
+    "b_axis_tilt_motion",
+    "a_axis_radial_motion",
+    "a_axis_axial_motion",
+    "a_axis_tilt_motion",
+)
 A_EFFECTS = ("a_axis_position", "a_axis_squareness", "a_axis_radial_motion", "a_axis_axial_motion", "a_axis_tilt_motion")
 
 
@@ -67,10 +74,14 @@ EXAMPLES = {
     "a_axis_squareness": dict(about_y_arcsec=6.0),
     "b_axis_radial_motion": dict(x_amplitude_um=0.4, x_phase_deg=30.0, y_amplitude_um=0.2, y_phase_deg=250.0, cycles_per_rev=7),
     "b_axis_axial_motion": dict(amplitude_um=0.3, phase_deg=100.0, cycles_per_rev=11),
-    "b_axis_tilt_motion": dict(about_x_amplitude_arcsec=1.1, about_x_phase_deg=10.0, about_y_amplitude_arcsec=0.6, about_y_phase_deg=300.0, cycles_per_rev=9),
+    "b_axis_tilt_motion": dict(
+        about_x_amplitude_arcsec=1.1, about_x_phase_deg=10.0, about_y_amplitude_arcsec=0.6, about_y_phase_deg=300.0, cycles_per_rev=9
+    ),
     "a_axis_radial_motion": dict(y_amplitude_um=0.5, y_phase_deg=45.0, z_amplitude_um=0.3, z_phase_deg=135.0, cycles_per_rev=5),
     "a_axis_axial_motion": dict(amplitude_um=0.25, phase_deg=200.0, cycles_per_rev=3),
-    "a_axis_tilt_motion": dict(about_y_amplitude_arcsec=0.9, about_y_phase_deg=80.0, about_z_amplitude_arcsec=1.3, about_z_phase_deg=170.0, cycles_per_rev=24),
+    "a_axis_tilt_motion": dict(
+        about_y_amplitude_arcsec=0.9, about_y_phase_deg=80.0, about_z_amplitude_arcsec=1.3, about_z_phase_deg=170.0, cycles_per_rev=24
+    ),
 }
 
 
@@ -165,7 +176,11 @@ def exact_location_deviation(t, b_offset_um=(0.0, 0.0), b_tilt_arcsec=(0.0, 0.0)
     # B: turns by B_k about z tilted by (about x, about y), through (x, y, 0).
     p0 = np.array([*b_offset_um, 0.0]) / UM_PER_MM
     tilt = np.array([*b_tilt_arcsec, 0.0]) * RAD_PER_ARCSEC
-    n_b = np.array([0.0, 0.0, 1.0]) if not tilt.any() else rotation(tilt / np.linalg.norm(tilt), np.linalg.norm(tilt)) @ np.array([0.0, 0.0, 1.0])
+    n_b = (
+        np.array([0.0, 0.0, 1.0])
+        if not tilt.any()
+        else rotation(tilt / np.linalg.norm(tilt), np.linalg.norm(tilt)) @ np.array([0.0, 0.0, 1.0])
+    )
     real = p0 + np.einsum("...ij,...j->...i", rotation(n_b, np.radians(b_k)), in_b - p0)
     model = np.einsum("...ij,j->...i", head_rotation(a_k, b_k), stylus)
     np.testing.assert_allclose(model, ball_centres(t.orientations)[:, None], atol=1e-9)
@@ -186,7 +201,9 @@ def test_location_errors_are_the_first_order_of_a_misplaced_axis_line(effect_id,
     misses = []
     for scale in (1.0, 0.5):
         linear = DEFAULT_CATALOG[effect_id](**{k: scale * v for k, v in params.items()}).forward(t, None)
-        truth = exact_location_deviation(t, **{k: tuple(scale * np.atleast_1d(v)) if isinstance(v, tuple) else scale * v for k, v in exact.items()})
+        truth = exact_location_deviation(
+            t, **{k: tuple(scale * np.atleast_1d(v)) if isinstance(v, tuple) else scale * v for k, v in exact.items()}
+        )
         misses.append(np.abs(linear - truth).max())
         assert np.abs(truth).max() > 0.3 * scale
     # The first order: what is left is second order in the error ((2 x 8 arcsec)^2 x 80 mm ~ 5e-4 um at most).
@@ -310,7 +327,9 @@ def test_teaching_scenarios_hide_a_rotary_effect_the_design_can_see_without_nami
     # Spoiler-free: the one-line description names neither the effect nor its axis, kind or symbols.
     words = {cls.id, *cls.id.split("_"), cls.kind, *cls.kind.split("_"), *cls.symbol.split(", "), *cls.name.lower().split()}
     text = scenario.description.lower()
-    named = [w for w in words if len(w) > 2 and w.lower() not in {"axis", "the", "from"} and re.search(rf"\b{re.escape(w.lower())}\b", text)]
+    named = [
+        w for w in words if len(w) > 2 and w.lower() not in {"axis", "the", "from"} and re.search(rf"\b{re.escape(w.lower())}\b", text)
+    ]
     assert not named and "axis" not in text, named
     # What the hidden effect leaves out of sample at the held-out rings, well above the floor of the
     # mean of 10 repetitions (0.044 um).

@@ -7,7 +7,7 @@ import numpy as np
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.separation import separating_measurements, shared_over
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.effects.base import Effect
+from ph_explorer.effects.effect import Effect
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
 
 

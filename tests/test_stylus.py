@@ -80,7 +80,7 @@ def test_three_ball_lobes_are_the_seat_lobings_first_harmonic(mixed):
 def test_a_user_file_cannot_redefine_a_built_in_id(tmp_path):
     path = tmp_path / "mine.py"
     path.write_text(
-        "from ph_explorer.effects.base import Effect\n"
+        "from ph_explorer.effects.effect import Effect\n"
         "class Mine(Effect):\n    id = 'ball_form'\n    def basis(self, touches):\n        return None\n"
     )
     with pytest.raises(InputError) as error:

@@ -13,16 +13,16 @@ import json
 import re
 
 import pytest
-
 from fake_browser import open_session, wait_for
+from synthetic import lobing_campaign
+
 from ph_explorer import twin
 from ph_explorer.app.dataset import dataset_for
 from ph_explorer.app.server import ExplorerApp
-from ph_explorer.cli.inspect import inspect_command
-from ph_explorer.cli.simulate import simulate_command
+from ph_explorer.cli.inspect_command import inspect_command
+from ph_explorer.cli.simulate_command import simulate_command
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import read_campaign
-from synthetic import lobing_campaign
 
 TEACHING = [name for name, _ in twin.list_scenarios() if twin.load_scenario(name).hidden_ids]
 

@@ -7,16 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from synthetic import lobing_campaign
 from typer.testing import CliRunner
 
 from ph_explorer.cli import app
-from ph_explorer.cli.evaluate import evaluate_command
-from ph_explorer.cli.train import parse_holdout, train_command
+from ph_explorer.cli.evaluate_command import evaluate_command
+from ph_explorer.cli.train_command import parse_holdout, train_command
 from ph_explorer.errors import InputError
 from ph_explorer.io import read_campaign, sidecar_path, write_campaign
 from ph_explorer.models.folder import load_card, load_models
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
-from synthetic import lobing_campaign
 
 QUICK = NetworkConfig(max_epochs=8, early_stopping_patience=8)
 CHECKS = [(15.0, -20.0), (43.0, 91.0)]
@@ -140,7 +140,7 @@ def check_done_when(report: dict) -> None:
 
 
 def test_shipped_paper_model_card_agrees_with_evaluate(capsys):
-    """model/paper was trained on assets/data/paper.csv: its card is what evaluate computes from it."""
+    """assets/models/paper was trained on assets/data/paper.csv: its card is what evaluate computes from it."""
     from ph_explorer.paths import assets_dir, default_model_dir
 
     model, data = default_model_dir(), assets_dir() / "data" / "paper.csv"

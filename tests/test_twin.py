@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ph_explorer.campaign import orientation_match
-from ph_explorer.cli.simulate import simulate_command
+from ph_explorer.cli.simulate_command import simulate_command
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 from ph_explorer.io import read_campaign

@@ -10,10 +10,10 @@ from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Parameter, loa
 from ph_explorer.geometry import DEFAULT_GEOMETRY
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import touch_kinematics
-from ph_explorer.models import design as least_squares
-from ph_explorer.models.uncertainty import jackknife_parameters, jackknife_standard_error
+from ph_explorer.models import least_squares
 from ph_explorer.paths import assets_dir
 from ph_explorer.twin import load_scenario, shipped_scenario_paths
+from ph_explorer.uncertainty.jackknife import jackknife_parameters, jackknife_standard_error
 
 SIGMA_UM = 0.175  # the TP20's touch noise
 SEEDS = 40

@@ -1,10 +1,8 @@
 """What one explorer session looks at: a campaign, the models fitted to it, and what follows from them.
 
-This module only calls the core (io, twin, models, metrics, evaluation, harmonics); it holds no
-physics. Views and figures are computed on demand and cached per Dataset. Once a dataset is
-prepared (`prepare`, on the one background thread of `prepare_in_background`), a view reads each
-model's curve from its PredictionLattice (ph_explorer.models.lattice: no model call, no torch, on
-a slider move) and the measured rings' views are computed: a render then never predicts.
+Only calls the core; holds no physics. Views and figures are computed on demand and cached. Once
+prepared (`prepare`, on the background thread), a view reads each model's curve from its
+PredictionLattice (models.lattice): a slider move never calls a model. See docs/explorer.md.
 """
 
 from __future__ import annotations
@@ -13,32 +11,33 @@ import atexit
 import tempfile
 import threading
 from collections import OrderedDict
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
 from ph_explorer.app.background import LatestFirst
-from ph_explorer.bands import Sources, calibrated_model_error, gaussian_band
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import tables_at
+from ph_explorer.figures.orientation_map import MapFigure, ranked_rings
+from ph_explorer.figures.polar import deviation_bounds
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import harmonic_spectrum, ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.metrics import noise_floor, ring_mae
-from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
+from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.lattice import BuildStopped, PredictionLattice, build_cpu_s
-from ph_explorer.models.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.orientation_map import MapFigure, ranked_rings
-from ph_explorer.polar import deviation_bounds
-from ph_explorer.task import COVERAGE_FACTOR, measured_task, task_uncertainty
+from ph_explorer.paper.tables import tables_at
+from ph_explorer.uncertainty.bands import Sources, calibrated_model_error, gaussian_band
+from ph_explorer.uncertainty.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
+from ph_explorer.uncertainty.task import COVERAGE_FACTOR, measured_task, task_uncertainty
 
 MODEL_ORDER = ("network", "trilinear", "hybrid")
 # The map's own figures (a model's are named after it); the first is where the map starts.
@@ -119,24 +118,24 @@ class Dataset:
     def model_names(self) -> list[str]:
         return [n for n in MODEL_ORDER if n in self.models] + [n for n in self.models if n not in MODEL_ORDER]
 
-    def with_model(self, name: str, model: DeviationModel) -> "Dataset":
+    def with_model(self, name: str, model: DeviationModel) -> Dataset:
         """A copy holding one more (or a replaced) model; the views are recomputed."""
         return self._with_models({**self.models, name: model})
 
-    def without_model(self, name: str) -> "Dataset":
+    def without_model(self, name: str) -> Dataset:
         """A copy without the named model (the same dataset when it has none)."""
         if name not in self.models:
             return self
         return self._with_models({k: v for k, v in self.models.items() if k != name})
 
-    def with_figures(self, figures: Mapping[str, MapFigure]) -> "Dataset":
+    def with_figures(self, figures: Mapping[str, MapFigure]) -> Dataset:
         """A copy holding more per-ring figures (a diagnosis's): one browser's, never shared with the others."""
         copy = self._with_models(dict(self.models))
         for name, figure in figures.items():
             copy.add_figure(name, figure)
         return copy
 
-    def _with_models(self, models: dict[str, DeviationModel]) -> "Dataset":
+    def _with_models(self, models: dict[str, DeviationModel]) -> Dataset:
         # A replaced model's error was of the old model: kept only for the same object.
         errors = {n: e for n, e in self.errors.items() if n in models and models[n] is self.models.get(n)}
         lattices = {n: g for n, g in self.lattices.items() if n in models and models[n] is self.models.get(n)}
@@ -226,7 +225,7 @@ class Dataset:
         _PREPARER.add(self)
 
     def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
-        """Tables 1-3 of the paper at this orientation (ph_explorer.evaluation)."""
+        """Tables 1-3 of the paper at this orientation (ph_explorer.paper.tables)."""
         return tables_at(self.campaign, {n: self.models[n] for n in self.model_names}, idx, curves)
 
     def model_error(self, model: str) -> OutOfSampleError | None:
@@ -314,7 +313,11 @@ class Dataset:
     def _compute_figure(self, name: str) -> MapFigure:
         c = self.campaign
         if name == RONT_FIGURE:
-            return MapFigure(ron_t(self.mean_curves), "um", "peak to valley of the measured mean curve (ISO 12181): the ring's roundness, not a model's error")
+            return MapFigure(
+                ron_t(self.mean_curves),
+                "um",
+                "peak to valley of the measured mean curve (ISO 12181): the ring's roundness, not a model's error",
+            )
         ratio = "/ noise floor" in name
         if name in (LOO_FIGURE, LOO_RATIO_FIGURE):
             # Out of sample everywhere: each training ring by tables refitted without it, each check
@@ -401,7 +404,7 @@ def default_dataset(
     model: Path | None = None,
     geometry: Mapping[str, float] | None = None,
 ) -> Dataset:
-    """The session's starting data: --data, --scenario, or the shipped paper campaign with model/paper."""
+    """The session's starting data: --data, --scenario, or the shipped paper campaign with assets/models/paper."""
     geometry = dict(geometry or {})
     model_dir = Path(model) if model is not None else None
     if model_dir is not None and not model_dir.is_dir():

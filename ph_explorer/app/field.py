@@ -4,16 +4,17 @@ per-orientation figure, with a marker per measured orientation (click one to go 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 import trimesh
 import viser
 from numpy.typing import NDArray
 
+from ph_explorer.figures.orientation_map import colormap, value_range
 from ph_explorer.geometry import A_LIMIT_DEG, joint_angles, stylus_direction
-from ph_explorer.orientation_map import colormap, value_range
+
 
 @lru_cache(maxsize=2)
 def _hemisphere(radius: float, a_max_deg: float = A_LIMIT_DEG + 3.0) -> tuple[NDArray[np.float64], NDArray[np.int64]]:

@@ -4,12 +4,12 @@ button each), a ring picker that goes there, and the 3D field's switch.
 
 viser's HTML element reports no click inside it, so a ring is reached by the "Go to ring"
 dropdown (every ring, largest value first) or by a failing ring's button. The panel formats what
-the core returns (ph_explorer.orientation_map, Diagnosis.failing_rings); it computes nothing.
+the core returns (ph_explorer.figures.orientation_map, Diagnosis.failing_rings); it computes nothing.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import viser
@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE, orientation_label
 from ph_explorer.diagnosis.results import FailingRing
-from ph_explorer.orientation_map import MapFigure, map_svg, ranked_rings
+from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
 
 MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict shows the rest
 
@@ -34,7 +34,11 @@ class MapPanel:
     def __init__(self, gui: viser.GuiApi, names: Sequence[str], go_to: Callable[[float, float], None], plot: viser.GuiHtmlHandle) -> None:
         self.gui = gui
         self._go_to = go_to
-        self.figure = gui.add_dropdown("Map of", tuple(names), hint="a value per measured ring: roundness, a model's out-of-sample error, its ratio to the floor, the diagnosis's verdict")
+        self.figure = gui.add_dropdown(
+            "Map of",
+            tuple(names),
+            hint="a value per measured ring: roundness, a model's out-of-sample error, its ratio to the floor, the diagnosis's verdict",
+        )
         self.plot = plot  # the map itself, drawn in the figures panel (always in view)
         # Where it fails right under the map's choice (all ten buttons above the fold at 1440x900), then the map's note and picker.
         with gui.add_folder("Where it fails") as self.failing_folder:
@@ -91,10 +95,11 @@ class MapPanel:
         if not rings:
             self.failing_text.content = "**No ring exceeds its noise** (the within-noise test, ring level 1 %)."
             return
-        more = f" The first {MAX_FAILING_BUTTONS} have a button; the map's ring verdict shows all." if len(rings) > MAX_FAILING_BUTTONS else ""
+        more = (
+            f" The first {MAX_FAILING_BUTTONS} have a button; the map's ring verdict shows all." if len(rings) > MAX_FAILING_BUTTONS else ""
+        )
         self.failing_text.content = (
-            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean / its floor); "
-            f"click to go there.{more}"
+            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean / its floor); click to go there.{more}"
         )
         with self.failing_folder:
             for ring in rings[:MAX_FAILING_BUTTONS]:

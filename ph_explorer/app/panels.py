@@ -6,7 +6,7 @@ The Physics tab is in physics_panel.py.
 
 from __future__ import annotations
 
-from typing import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 import viser
@@ -15,9 +15,9 @@ from numpy.typing import NDArray
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
 from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's panels import it from here)
-from ph_explorer.evaluation import tables_markdown as orientation_tables_markdown
-from ph_explorer.orientation_map import MapFigure
-from ph_explorer.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
+from ph_explorer.figures.orientation_map import MapFigure
+from ph_explorer.figures.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
+from ph_explorer.paper.tables import tables_markdown as orientation_tables_markdown
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
     "A15 B-20": (15.0, -20.0),
@@ -206,8 +206,10 @@ def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = F
             tasks["measured"] = dataset.measured_task(view.measured_index)
         ront = {n: task_cell(task) for n, task in tasks.items()}
         measured = "measured, the mean of the repetitions and twice their spread; " if view.measured else ""
-        note = (f"_RONt ± U (k = 2) of one measurement of {dataset.campaign.n_points} touches: {measured}"
-                "a model, its Monte Carlo with every component of its band (… while it computes)._")
+        note = (
+            f"_RONt ± U (k = 2) of one measurement of {dataset.campaign.n_points} touches: {measured}"
+            "a model, its Monte Carlo with every component of its band (… while it computes)._"
+        )
     return orientation_tables_markdown(
         view.tables, view.a_deg, view.b_deg, dataset.model_names, dataset.noise_floor_um, view.measured, view.held_out, ront, note or ""
     )
@@ -226,7 +228,9 @@ def deviation_chart_data(view: OrientationView, shown: Mapping[str, bool]) -> tu
     return data, series
 
 
-def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_upr: int = MAX_UPR) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
+def harmonic_chart_data(
+    view: OrientationView, shown: Mapping[str, bool], max_upr: int = MAX_UPR
+) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
     """uPlot data and series drawing grouped bars: amplitude (um) per UPR 2..max_upr for each curve.
 
     uPlot has no bar renderer without JavaScript callbacks, so each bar is drawn as a filled
@@ -251,7 +255,13 @@ def harmonic_chart_data(view: OrientationView, shown: Mapping[str, bool], max_up
     series = (
         {"label": "UPR"},
         *(
-            {"label": n, "stroke": hex_color(curve_color(n)), "fill": hex_color(curve_color(n)) + "99", "width": 1, "points": {"show": False}}
+            {
+                "label": n,
+                "stroke": hex_color(curve_color(n)),
+                "fill": hex_color(curve_color(n)) + "99",
+                "width": 1,
+                "points": {"show": False},
+            }
             for n in names
         ),
     )

@@ -7,23 +7,22 @@ so it never holds the session itself.
 
 With a study (serve --study), the loop continues it: the history starts with the study's steps,
 Diagnose searches on from the model the study reached (its chain), Refit fits that chain + the
-ticked effects, and Save study writes the next run to the operator's file (app/study.py).
+ticked effects, and Save study writes the next run to the operator's file (app/study_file.py).
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from ph_explorer import diagnosis
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.study import APP_DATA_PART, StudyFile, chain_of
-from ph_explorer.diagnosis.results import effect_label
+from ph_explorer.app.study_file import APP_DATA_PART, StudyFile, chain_of
 from ph_explorer.diagnosis.study import study_record, study_steps
-from ph_explorer.effects import Catalog, Effect
+from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
+from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
-
 
 
 class PhysicsLoop:
@@ -108,7 +107,7 @@ class PhysicsLoop:
             p.evidence_of.value = p.evidence_of.options[0]
             self.show_evidence(p.evidence_of.value)
         # The diagnosis's per-ring figures join this browser's map (its out-of-sample error over the floor, each ring's verdict).
-        self.show(ds.with_figures(result.ring_figures()))
+        self.show(ds.with_figures(diagnosis_figures(result)))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
             self.steps = list(result.steps[: 1 + len(start)])
         p.show_history(self.steps)
@@ -164,7 +163,9 @@ class PhysicsLoop:
             p.study_status.content = "**Cannot save** — no study of the data shown is open."
             return
         if self.diagnosis is None or not self.diagnosed:
-            p.study_status.content = "**Cannot save** — diagnose first: each saved run records one diagnosis (its verdict and uncertainties)."
+            p.study_status.content = (
+                "**Cannot save** — diagnose first: each saved run records one diagnosis (its verdict and uncertainties)."
+            )
             return
         chain = self.refitted if self.refitted is not None else self.chain
         record = study_record(self.diagnosis, chain, study.campaign, APP_DATA_PART, None, self.previous, steps=self.steps)

@@ -7,7 +7,7 @@ like a built-in one.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import viser
@@ -17,7 +17,7 @@ from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
-from ph_explorer.orientation_map import nice_ticks
+from ph_explorer.figures.charts import evidence_svg
 
 # Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
 HISTORY_SERIES = (
@@ -27,8 +27,6 @@ HISTORY_SERIES = (
     {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
     {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
 )
-# The signature chart: the binned out-of-sample residual as dots, the fitted term as a line.
-RESIDUAL_COLOR, FITTED_COLOR = "#444444", "#d62728"
 
 
 def step_label(step: Step) -> str:
@@ -42,65 +40,13 @@ def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
     def per_step(attr: str, reference: str) -> NDArray[np.float64]:
         return np.array([float(getattr(s, attr)[reference]) for s in steps])
 
-    return (x, per_step("mae_um", "mean"), per_step("noise_floor_um", "mean"), per_step("mae_um", "single"), per_step("noise_floor_um", "single"))
-
-
-def evidence_svg(evidence: dict, title: str) -> str:
-    """A signature plot as a flat SVG chart, like the polar plot and the map: the binned out-of-sample
-    residual (dots) and the fitted term (line) against the variable the evidence is read against,
-    round ticks on both axes (orientation_map.nice_ticks), the units in the axis titles."""
-    x = np.asarray(evidence["x"], dtype=float)
-    residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
-    width, height, left, right, top, bottom = 400.0, 176.0, 46.0, 10.0, 22.0, 126.0
-    x_low, x_high = float(x.min()), float(x.max())
-    x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
-    x_low, x_high = x_low - x_pad, x_high + x_pad
-    values = np.concatenate([residual[np.isfinite(residual)], fitted[np.isfinite(fitted)], [0.0]])
-    y_low, y_high = float(values.min()), float(values.max())
-    pad = 0.08 * (y_high - y_low if y_high > y_low else 1.0)  # dots off the frame
-    y_low, y_high = y_low - pad, y_high + pad
-    x_span = x_high - x_low if x_high > x_low else 1.0
-
-    def sx(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        return left + (np.asarray(v, dtype=float) - x_low) / x_span * (width - left - right)
-
-    def sy(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
-        return bottom - (np.asarray(v, dtype=float) - y_low) / (y_high - y_low) * (bottom - top)
-
-    parts = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
-        f'aria-label="signature plot {title}" style="font-family:sans-serif;background:#fff">',
-        f'<text x="2" y="14" font-size="11.5" font-weight="600">{title}</text>',
-        f'<rect x="{left}" y="{top}" width="{width - left - right}" height="{bottom - top}" fill="#fafafa" stroke="#888"/>',
-    ]
-    for t in nice_ticks(x_low, x_high):
-        parts.append(
-            f'<line x1="{sx(t):.1f}" y1="{top}" x2="{sx(t):.1f}" y2="{bottom}" stroke="#e2e2e2"/>'
-            f'<text x="{sx(t):.1f}" y="{bottom + 12}" font-size="10" text-anchor="middle">{t:g}</text>'
-        )
-    for t in nice_ticks(y_low, y_high, 4):
-        parts.append(
-            f'<line x1="{left}" y1="{sy(t):.1f}" x2="{width - right}" y2="{sy(t):.1f}" stroke="{"#999" if t == 0 else "#e2e2e2"}"/>'
-            f'<text x="{left - 4}" y="{sy(t) + 3.5:.1f}" font-size="10" text-anchor="end">{t:g}</text>'
-        )
-    parts.append(f'<text x="{(left + width - right) / 2:.1f}" y="{bottom + 26}" font-size="10.5" text-anchor="middle">{evidence["x_label"]}</text>')
-    parts.append(
-        f'<text x="10" y="{(top + bottom) / 2:.1f}" font-size="10.5" text-anchor="middle" '
-        f'transform="rotate(-90 10 {(top + bottom) / 2:.1f})">{evidence["y_label"]}</text>'
+    return (
+        x,
+        per_step("mae_um", "mean"),
+        per_step("noise_floor_um", "mean"),
+        per_step("mae_um", "single"),
+        per_step("noise_floor_um", "single"),
     )
-    order = np.argsort(x, kind="stable")
-    line = " L".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x[order]), sy(fitted[order])) if np.isfinite(b))
-    parts.append(f'<path d="M{line}" fill="none" stroke="{FITTED_COLOR}" stroke-width="2"/>')
-    parts += [f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.6" fill="{RESIDUAL_COLOR}"/>' for a, b in zip(sx(x), sy(residual)) if np.isfinite(b)]
-    legend_y = height - 5  # under the x axis title, clear of it
-    parts.append(
-        f'<circle cx="{left + 4}" cy="{legend_y - 3.5}" r="2.6" fill="{RESIDUAL_COLOR}"/>'
-        f'<text x="{left + 11}" y="{legend_y}" font-size="10">out-of-sample residual, binned</text>'
-        f'<line x1="{left + 190}" y1="{legend_y - 3.5}" x2="{left + 206}" y2="{legend_y - 3.5}" stroke="{FITTED_COLOR}" stroke-width="2"/>'
-        f'<text x="{left + 210}" y="{legend_y}" font-size="10">the term, fitted</text>'
-    )
-    parts.append("</svg>")
-    return "".join(parts)
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -233,7 +179,9 @@ class PhysicsPanel:
             self.fit = gui.add_html("")
             # The plot before its chooser: in view right after Diagnose at 1440x900 (its title names it).
             self.evidence = gui.add_html("")
-            self.evidence_of = gui.add_dropdown("Signature of", (NO_CHOICE,), hint="what is left unexplained, or a candidate's residual and fitted term")
+            self.evidence_of = gui.add_dropdown(
+                "Signature of", (NO_CHOICE,), hint="what is left unexplained, or a candidate's residual and fitted term"
+            )
             self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
             self.evidence_text = gui.add_markdown("")
         # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
@@ -246,7 +194,9 @@ class PhysicsPanel:
             self.verdict_more = gui.add_markdown("")
             self.history_table = gui.add_markdown("")
         self.save_study = gui.add_button(
-            "Save study", visible=study, hint="write this run (the model refitted last, the history, the verdict) to the server's study file"
+            "Save study",
+            visible=study,
+            hint="write this run (the model refitted last, the history, the verdict) to the server's study file",
         )
         self.study_status = gui.add_markdown("")
 
@@ -268,7 +218,18 @@ class PhysicsPanel:
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
         self.nested = None
-        for handle in (self.status, self.refit_status, self.summary, self.verdict, self.verdict_more, self.fall, self.evidence_text, self.history_table, self.revealed, self.study_status):
+        for handle in (
+            self.status,
+            self.refit_status,
+            self.summary,
+            self.verdict,
+            self.verdict_more,
+            self.fall,
+            self.evidence_text,
+            self.history_table,
+            self.revealed,
+            self.study_status,
+        ):
             handle.content = ""
         self.candidates.content = self.evidence.content = self.fit.content = ""
         self.progress.visible = self.refit_progress.visible = False
@@ -323,7 +284,9 @@ class PhysicsPanel:
                     "(README, 'Your own effect') and diagnose again with it."
                 )
                 self.evidence_items[label] = (f"left: {entry['variable']} {entry['kind']}", caption, entry["evidence"])
-        self.evidence_items |= {c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")}
+        self.evidence_items |= {
+            c.effect: (c.effect, self._candidate_caption(c), c.evidence) for c in result.candidates if c.evidence.get("x")
+        }
         options = tuple(self.evidence_items)
         self.evidence_of.options = options or (NO_CHOICE,)
         self.evidence_of.visible = bool(options)

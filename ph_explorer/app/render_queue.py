@@ -31,8 +31,8 @@ import threading
 import time
 import traceback
 from collections import deque
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable
 
 Clock = Callable[[], float]
 TimedHook = Callable[[float, float], None]

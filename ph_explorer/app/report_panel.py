@@ -2,7 +2,7 @@
 
 "Export report" sends the report of what this browser shows (its campaign and models, the last
 diagnosis or the study it opened, the polar plot at its orientation) as one HTML file, made by
-the core (ph_explorer.report) exactly as `ph-explorer report` makes it, to the browser as a download.
+the core (ph_explorer.figures.html_report) exactly as `ph-explorer report` makes it, to the browser as a download.
 "Open study" takes a study file from the browser (`diagnose --save`, or the explorer's Save study):
 JSON data, checked by the core as `diagnose --resume` checks it (its format, its effects, its
 history, and that it was made on the campaign shown); a bad file is one line here and the session
@@ -16,21 +16,21 @@ from __future__ import annotations
 
 import datetime
 import re
+from collections.abc import Callable
 from concurrent.futures import Future
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import viser
 
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics import PhysicsLoop
-from ph_explorer.app.study import APP_DATA_PART
+from ph_explorer.app.study_file import APP_DATA_PART
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
-from ph_explorer.effects import Catalog
+from ph_explorer.effects import Catalog, effect_label
 from ph_explorer.errors import InputError
+from ph_explorer.figures.html_report import default_orientations, report_html
 from ph_explorer.io import campaign_sha256, json_object_text, parse_json_object
-from ph_explorer.report import default_orientations, report_html
 
 
 class Session(Protocol):
@@ -81,11 +81,18 @@ class ReportPanel:
     def __init__(self, gui: viser.GuiApi, session: Session) -> None:
         self.session = session
         with gui.add_folder("Study and report"):
-            self.export = gui.add_button("Export report", hint="one HTML file: the campaign, the map, polar plot and Tables 1-3, the diagnosis and its history")
-            self.reveal = gui.add_checkbox("Name hidden effects in the report", False, hint="teaching scenarios: the report names what the twin hid")
-            self.open = gui.add_upload_button("Open study", mime_type=".json,application/json", hint="a study of the campaign shown (diagnose --save)")
+            self.export = gui.add_button(
+                "Export report", hint="one HTML file: the campaign, the map, polar plot and Tables 1-3, the diagnosis and its history"
+            )
+            self.reveal = gui.add_checkbox(
+                "Name hidden effects in the report", False, hint="teaching scenarios: the report names what the twin hid"
+            )
+            self.open = gui.add_upload_button(
+                "Open study", mime_type=".json,application/json", hint="a study of the campaign shown (diagnose --save)"
+            )
             self.download = gui.add_button(
-                "Download study", hint="this browser's study as a file: its diagnosis and the model refitted last, on top of a study opened here"
+                "Download study",
+                hint="this browser's study as a file: its diagnosis and the model refitted last, on top of a study opened here",
             )
             self.status = gui.add_markdown("")
         self.export.on_click(lambda _: session.submit(self.export_report))
@@ -104,10 +111,19 @@ class ReportPanel:
             if ds.campaign.index_of(a, b) != ds.campaign.index_of(*chosen[0]):
                 chosen.append((a, b))
         campaign = ds.campaign
-        created = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
         models = {n: ds.models[n] for n in ds.model_names}
         text = report_html(
-            campaign, models, ds.train_mask, s.catalog, chosen[:3], study, loop.diagnosis, reveal=bool(self.reveal.value), created=created, source=name
+            campaign,
+            models,
+            ds.train_mask,
+            s.catalog,
+            chosen[:3],
+            study,
+            loop.diagnosis,
+            reveal=bool(self.reveal.value),
+            created=created,
+            source=name,
         )
         return text, report_file_name(campaign, ds.label), study is not None
 
@@ -132,7 +148,9 @@ class ReportPanel:
         content = json_object_text(study).encode("utf-8")
         s.client.send_file_download(file_name, content, save_immediately=True)
         runs = len(study["runs"])
-        self.status.content = f"Study sent: **{file_name}** ({runs} run{'s' if runs != 1 else ''}); Open study or `diagnose --resume` continues it."
+        self.status.content = (
+            f"Study sent: **{file_name}** ({runs} run{'s' if runs != 1 else ''}); Open study or `diagnose --resume` continues it."
+        )
 
     def open_study(self, name: str, content: bytes) -> None:
         """A study from the browser: checked whole before anything of the session changes."""

@@ -1,6 +1,6 @@
 """The ring gauge in the 3D scene and its polar roundness plot, drawn on the ring as an instrument's chart.
 
-The chart follows ph_explorer.polar: the least-squares reference circle at the chart's base
+The chart follows ph_explorer.figures.polar: the least-squares reference circle at the chart's base
 radius, scale circles labelled in um, the curves at base + magnification x deviation (true scale
 in the scene's mm), point numbers, the direction of theta and the magnification. The object owns
 its viser handles; the session updates them inside one `client.atomic()` batch.
@@ -8,7 +8,7 @@ its viser handles; the session updates them inside one `client.atomic()` batch.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 import trimesh
@@ -16,8 +16,8 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.scene import BAND_COLORS, CURVE_COLORS, curve_color, joint_wxyz, stylus_point
+from ph_explorer.figures.polar import PolarScale, scale_label
 from ph_explorer.geometry import Geometry, point_angles_deg
-from ph_explorer.polar import PolarScale, scale_label
 
 FINE_DEG = np.linspace(0.0, 360.0, 181)[:-1]  # a smooth circle
 SCALE_LABEL_DEG = 45.0  # the scale circles' labels sit along this radius, between point numbers
@@ -64,9 +64,7 @@ class RingScene:
         gauge = _annulus(self.bore_radius + 0.6, self.bore_radius + 7.0, 5.0)
         # The gauge sits below the measuring plane (away from the head) so the curves stay visible.
         gauge.apply_translation((0.0, 0.0, -3.1))
-        self.gauge = scene.add_mesh_simple(
-            "/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.35, side="double"
-        )
+        self.gauge = scene.add_mesh_simple("/ring/gauge", gauge.vertices, gauge.faces, color=(185, 170, 120), opacity=0.35, side="double")
         self.theta = point_angles_deg(geometry.points_per_circle)
         line = {"thickness_units": "screen"}
         # The least-squares reference circle (the chart's base circle) and the scale circles.
@@ -74,7 +72,9 @@ class RingScene:
         self.grid = scene.add_line_segments("/ring/scale_circles", np.zeros((1, 2, 3)), (200, 200, 200), thickness=1.0, **line)
         self.scale_labels: list[viser.LabelHandle] = []
         self.arrow = scene.add_line_segments("/ring/theta_arrow", np.zeros((1, 2, 3)), (60, 60, 60), thickness=1.5, **line)
-        self.arrow_label = scene.add_label("/ring/theta_label", "θ", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.8)
+        self.arrow_label = scene.add_label(
+            "/ring/theta_label", "θ", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.8
+        )
         self.curves: dict[str, viser.LineSegmentsHandle] = {}
         for name in self.CURVES:
             self.curves[name] = scene.add_line_segments(

@@ -18,10 +18,9 @@ import viser
 from numpy.typing import NDArray
 from viser.transforms import SO3
 
+# The curves' colours are the core's (ph_explorer.figures.polar): a report draws them as the explorer does.
+from ph_explorer.figures.polar import BAND_COLORS, CURVE_COLORS, curve_color, hex_color  # noqa: F401 (re-exported)
 from ph_explorer.geometry import Geometry, stylus_direction
-# The curves' colours are the core's (ph_explorer.polar): a report draws them as the explorer does.
-from ph_explorer.polar import BAND_COLORS, CURVE_COLORS, curve_color, hex_color  # noqa: F401 (re-exported)
-
 
 # -- rotations (viser wants wxyz quaternions; viser.transforms composes them) -------------------------
 

@@ -7,7 +7,7 @@ interpreter lock, and thirty renders at once in viser's callback threads each to
 as long. Diagnoses, refits, scenario simulations, uploads and slow figures run on each session's
 worker thread, at most HEAVY_JOBS at once over all sessions, and never hold a lock a render needs.
 
-For benchmarks and scripts (stable names; `ph-explorer serve` is ph_explorer/cli/serve.py)::
+For benchmarks and scripts (stable names; `ph-explorer serve` is ph_explorer/cli/serve_command.py)::
 
     from ph_explorer.app.server import build_server
 
@@ -30,9 +30,8 @@ from __future__ import annotations
 import gc
 import threading
 import time
-from collections import deque
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import viser
 
@@ -42,7 +41,7 @@ from ph_explorer.app.loading import LoadingNotice, open_server
 from ph_explorer.app.render_queue import RenderQueue, RenderStats
 from ph_explorer.app.scene import ring_camera
 from ph_explorer.app.session import INITIAL_ORIENTATION, Session, Shared
-from ph_explorer.app.study import StudyFile, open_study
+from ph_explorer.app.study_file import StudyFile, open_study
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.errors import InputError
 
@@ -160,7 +159,7 @@ def build_server(
 ) -> ExplorerApp:
     """Load the data and models, then start the server (port 0 picks a free port).
 
-    With no data options: the shipped paper campaign with model/paper (measured mean, network,
+    With no data options: the shipped paper campaign with assets/models/paper (measured mean, network,
     trilinear). The returned app's `startup_s` is the time this call took.
     study: the operator's study file, of the served campaign's file (--data, or the shipped
     paper.csv); checked here, before the server starts (InputError), and the only file the app writes.
@@ -172,7 +171,9 @@ def build_server(
     start = time.perf_counter()
     if study is not None and scenario is not None:
         # A scenario is simulated anew in memory: there are no campaign bytes to tie a study to.
-        raise InputError("a study belongs to a campaign file: simulate the scenario to a CSV (simulate --out) and serve it with --data", option="--study")
+        raise InputError(
+            "a study belongs to a campaign file: simulate the scenario to a CSV (simulate --out) and serve it with --data", option="--study"
+        )
     catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     dataset = default_dataset(scenario=scenario, data=data, model=model, geometry=geometry)
     opened = None
@@ -184,7 +185,9 @@ def build_server(
         # Ready before the explorer registers its sessions, which then take over the waiting browsers.
         dataset.view(*INITIAL_ORIENTATION)
         notice.finish()
-    app = ExplorerApp(dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, catalog=catalog, study=opened, server=server)
+    app = ExplorerApp(
+        dataset, host=host, port=port, geometry_overrides=geometry, verbose=verbose, catalog=catalog, study=opened, server=server
+    )
     # What is loaded now (torch, the models, the campaign: ~250 000 objects) lives as long as the
     # app: out of the garbage collector's sight, a full collection (all threads stopped) scans only
     # what the sessions made (60 ms, not 300 ms, with 30 browsers). A room's renders make short-lived

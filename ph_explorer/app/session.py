@@ -11,31 +11,31 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 
 import numpy as np
 import viser
 
 from ph_explorer.app.accessibility import name_inputs
+from ph_explorer.app.background import Throttle
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
 from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, orientation_label
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.background import Throttle
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
-from ph_explorer.app.study import StudyFile
+from ph_explorer.app.study_file import StudyFile
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
+from ph_explorer.figures.polar import polar_scale
 from ph_explorer.geometry import wrap_deg
-from ph_explorer.polar import polar_scale
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
 # The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
@@ -233,14 +233,16 @@ class Session:
         shown = self.controls.shown()
         band_model = self.controls.band.value
         kind = self.controls.band_kind()
-        band = (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value), kind)) if band_model in ds.models else None
+        band = (
+            (band_model, *ds.band(band_model, a, b, bool(self.controls.band_model_error.value), kind)) if band_model in ds.models else None
+        )
         if view.measured:
             title = f"{orientation_label(a, b)} measured ({'held-out check ring' if view.held_out else 'training ring'})"
         else:
             title = f"{orientation_label(a, b)} — prediction (not measured)"
         c = self.controls
         # The chart's base radius keeps every deviation of the campaign (each repetition) and of
-        # the curves drawn here off the centre (ph_explorer.polar).
+        # the curves drawn here off the centre (ph_explorer.figures.polar).
         drawn = [ds.deviation_bounds_um, *view.curves.values(), *(band[1:] if band is not None else ())]
         scale = polar_scale(float(c.magnification.value), drawn, self.ring.bore_radius)
         show_repetitions = bool(c.repetitions.value)

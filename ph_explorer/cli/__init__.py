@@ -1,7 +1,7 @@
 """The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, report, serve.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
-command is in its own module (cli/inspect.py, ...). A command module imports the torch- or
+command is in its own module (cli/inspect_command.py, ...). A command module imports the torch- or
 viser-bound core only when the command runs, so that `ph-explorer inspect` works without torch.
 
 What a user sees when something goes wrong (the wrapper, `_run`): bad input (InputError) is one
@@ -12,14 +12,25 @@ and the error, exit 1; Ctrl-C is exit 130.
 from __future__ import annotations
 
 import functools
-from inspect import Parameter, signature as function_signature
 from collections.abc import Callable
+from inspect import Parameter, signature as function_signature
 from pathlib import Path
 from typing import Annotated, Any, Optional
 
 import typer
 
-from ph_explorer.cli import design, diagnose, effects, evaluate, inspect, report, serve, simulate, train, uncertainty
+from ph_explorer.cli import (
+    design_command as design,
+    diagnose_command as diagnose,
+    effects_command as effects,
+    evaluate_command as evaluate,
+    inspect_command as inspect,
+    report_command as report,
+    serve_command as serve,
+    simulate_command as simulate,
+    train_command as train,
+    uncertainty_command as uncertainty,
+)
 from ph_explorer.errors import InputError
 
 app = typer.Typer(
@@ -51,8 +62,7 @@ def with_geometry(command: Callable[..., None]) -> Callable[..., None]:
     """
     signature = function_signature(command, eval_str=True)
     options = [
-        Parameter(name, Parameter.KEYWORD_ONLY, default=None, annotation=annotation)
-        for name, annotation in GEOMETRY_OPTIONS.items()
+        Parameter(name, Parameter.KEYWORD_ONLY, default=None, annotation=annotation) for name, annotation in GEOMETRY_OPTIONS.items()
     ]
     parameters = [p for p in signature.parameters.values() if p.name != "geometry"] + options
 
@@ -72,16 +82,15 @@ def _run(command: str, work: Callable[..., int | None], **options: Any) -> None:
         code = work(**options)
     except InputError as error:
         typer.echo(error.line(), err=True)
-        raise typer.Exit(2)
+        raise typer.Exit(2) from None
     except ImportError as error:
         message = " ".join(str(error).split())  # one line, whatever the import machinery said
         typer.echo(f"ph-explorer {command}: {type(error).__name__}: {message}", err=True)
-        raise typer.Exit(1)
+        raise typer.Exit(1) from None
     except KeyboardInterrupt:
         typer.echo("ph-explorer: interrupted", err=True)
-        raise typer.Exit(130)
+        raise typer.Exit(130) from None
     raise typer.Exit(int(code or 0))
-
 
 
 @app.command("serve")
@@ -89,12 +98,14 @@ def _run(command: str, work: Callable[..., int | None], **options: Any) -> None:
 def _serve(
     scenario: ScenarioOpt = None,
     data: Annotated[Optional[Path], typer.Option(help="A campaign CSV to explore.")] = None,
-    model: Annotated[Optional[Path], typer.Option(help="A trained model folder (default: model/paper).")] = None,
+    model: Annotated[Optional[Path], typer.Option(help="A trained model folder (default: assets/models/paper).")] = None,
     host: Annotated[str, typer.Option(help="Address to bind; 127.0.0.1 keeps it on this machine.")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="Port to bind (0 picks a free one).")] = 8080,
     study: Annotated[
         Optional[Path],
-        typer.Option(help="A study of the served campaign to open and continue (diagnose --save makes one; created on the first Save study if absent)."),
+        typer.Option(
+            help="A study of the served campaign to open and continue (diagnose --save makes one; created on the first Save study if absent)."
+        ),
     ] = None,
     effects: Annotated[
         Optional[Path],
@@ -102,9 +113,18 @@ def _serve(
     ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
-    """Start the 3D explorer in the browser (default: the shipped paper campaign and model/paper)."""
+    """Start the 3D explorer in the browser (default: the shipped paper campaign and assets/models/paper)."""
     _run(
-        "serve", serve.serve_command, scenario=scenario, data=data, model=model, host=host, port=port, study=study, effects=effects, geometry=geometry
+        "serve",
+        serve.serve_command,
+        scenario=scenario,
+        data=data,
+        model=model,
+        host=host,
+        port=port,
+        study=study,
+        effects=effects,
+        geometry=geometry,
     )
 
 
@@ -155,17 +175,32 @@ def _diagnose(
     effects: Annotated[Optional[Path], typer.Option(help="A Python file defining your own effects.")] = None,
     data_part: Annotated[
         Optional[str],
-        typer.Option(help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained). Default: trilinear, or the study's."),
+        typer.Option(
+            help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained). Default: trilinear, or the study's."
+        ),
     ] = None,
-    save: Annotated[Optional[Path], typer.Option(help="Write the study (every step, its effects and errors, the verdict) to this JSON file.")] = None,
+    save: Annotated[
+        Optional[Path], typer.Option(help="Write the study (every step, its effects and errors, the verdict) to this JSON file.")
+    ] = None,
     resume: Annotated[
-        Optional[Path], typer.Option(help="Continue a study of this campaign from the model it reached; saved back to it unless --save names another file.")
+        Optional[Path],
+        typer.Option(
+            help="Continue a study of this campaign from the model it reached; saved back to it unless --save names another file."
+        ),
     ] = None,
     json_output: JsonOpt = False,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
-    options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output, "save": save, "resume": resume}
+    options = {
+        "model": model,
+        "add": add,
+        "effects": effects,
+        "data_part": data_part,
+        "json_output": json_output,
+        "save": save,
+        "resume": resume,
+    }
     _run("diagnose", diagnose.diagnose_command, data=data, geometry=geometry, **options)
 
 
@@ -187,7 +222,8 @@ def _effects(
 def _design(
     budget: Annotated[int, typer.Option(help="How many rings (orientations) to propose.")],
     data: Annotated[
-        Optional[Path], typer.Option(help="A campaign CSV already measured: propose the next rings, those that most reduce its uncertainty.")
+        Optional[Path],
+        typer.Option(help="A campaign CSV already measured: propose the next rings, those that most reduce its uncertainty."),
     ] = None,
     effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
     json_output: JsonOpt = False,
@@ -208,7 +244,15 @@ def _uncertainty(
 ) -> None:
     """Each model's Monte Carlo band with every component (repeatability, model, parameters), its budget
     and the RONt of one measurement with U (k = 2), at the given orientations."""
-    _run("uncertainty", uncertainty.uncertainty_command, model=model, orientations=orientations, level=level, json_output=json_output, seed=seed)
+    _run(
+        "uncertainty",
+        uncertainty.uncertainty_command,
+        model=model,
+        orientations=orientations,
+        level=level,
+        json_output=json_output,
+        seed=seed,
+    )
 
 
 @app.command("report")
@@ -217,14 +261,19 @@ def _report(
     out: Annotated[Path, typer.Option(help="The HTML file to write (one file, its figures inside; written atomically).")],
     data: Annotated[Optional[Path], typer.Option(help="The campaign CSV to report on.")] = None,
     scenario: ScenarioOpt = None,  # simulated with its own seed, instead of --data
-    model: Annotated[Optional[Path], typer.Option(help="A trained model folder: its models are shown and the diagnosis starts from it.")] = None,
+    model: Annotated[
+        Optional[Path], typer.Option(help="A trained model folder: its models are shown and the diagnosis starts from it.")
+    ] = None,
     study: Annotated[
         Optional[Path], typer.Option(help="A study of this campaign (diagnose --save, the explorer's Save study); default: diagnose now.")
     ] = None,
     orientations: Annotated[
-        Optional[str], typer.Option(help="Where to draw polar plots and Tables 1-3, 'A:B[,A:B...]' (default: the worst failing ring and a check ring).")
+        Optional[str],
+        typer.Option(help="Where to draw polar plots and Tables 1-3, 'A:B[,A:B...]' (default: the worst failing ring and a check ring)."),
     ] = None,
-    reveal: Annotated[bool, typer.Option("--reveal", help="Name a teaching scenario's hidden effects, with their true parameters.")] = False,
+    reveal: Annotated[
+        bool, typer.Option("--reveal", help="Name a teaching scenario's hidden effects, with their true parameters.")
+    ] = False,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """A campaign and its diagnosis as one HTML file: the campaign, the error map, polar plots and
@@ -247,4 +296,3 @@ def _inspect(
 def main() -> None:
     """The console script `ph-explorer`."""
     app(prog_name="ph-explorer")
-

@@ -7,7 +7,6 @@ campaign, and the nested cross-validation (ph_explorer.diagnosis.nested) on each
 from __future__ import annotations
 
 import math
-
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -15,11 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.noise_test import NoiseTest, within_noise
 from ph_explorer.diagnosis.results import Candidate
 from ph_explorer.diagnosis.search import CandidateSearch, FittedBases, rank_candidates
+from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 from ph_explorer.effects import Effect
-from ph_explorer.models import design as least_squares
+from ph_explorer.models import least_squares
 
 
 def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:

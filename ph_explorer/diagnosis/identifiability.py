@@ -38,8 +38,8 @@ from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.models.design import Design
 from ph_explorer.models.hybrid import fitted_basis
+from ph_explorer.models.least_squares import Design
 
 # A share the circle fit leaves below this is the fit's rounding, not a term that survives it.
 SURVIVES = 1e-6
@@ -65,8 +65,7 @@ def describe_effect(cls: type[Effect]) -> dict[str, Any]:
         "kind": cls.kind,
         "symbol": cls.symbol,
         "parameters": [
-            {"name": p.name, "unit": p.unit, "plausible": list(p.plausible) if p.plausible is not None else None}
-            for p in cls.parameters
+            {"name": p.name, "unit": p.unit, "plausible": list(p.plausible) if p.plausible is not None else None} for p in cls.parameters
         ],
         "scan": {name: [float(min(values)), float(max(values)), len(values)] for name, values in cls.scan.items()},
     }
@@ -215,9 +214,7 @@ def design_ranks(defaults: list[Bases], touches: Touches, smoother: OutOfSampleS
 
 
 @one_blas_thread
-def identifiability(
-    campaign: Campaign, effects: Iterable[type[Effect]], train: NDArray[np.bool_] | None = None
-) -> dict[str, Any]:
+def identifiability(campaign: Campaign, effects: Iterable[type[Effect]], train: NDArray[np.bool_] | None = None) -> dict[str, Any]:
     """{"effects": [...], "design": {...}} for the campaign's design (see the module docstring).
 
     train: the rings the data model learns from (default: all but campaign.holdout_mask()).
@@ -240,8 +237,15 @@ def identifiability(
         own = None if unmet else effect_bases(effect, touches, smoother)
         if own is None or not own.before.shape[0]:
             row.update(
-                columns=0, rank_after_fit=None, absorbed_by_circle_fit=None, learnable_by_data_model=None,
-                visible=None, visible_rms_um=None, magnitude=None, confounded_with=[], over_scan=None,
+                columns=0,
+                rank_after_fit=None,
+                absorbed_by_circle_fit=None,
+                learnable_by_data_model=None,
+                visible=None,
+                visible_rms_um=None,
+                magnitude=None,
+                confounded_with=[],
+                over_scan=None,
                 note="; ".join(unmet) if unmet else "no basis columns: nothing a model can fit",
             )
             rows.append(row)

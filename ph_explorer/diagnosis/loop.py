@@ -9,7 +9,7 @@
 3. Add it: a HybridModel with the chosen effects + the data-driven part.
 4. Watch the error fall: the check-ring MAE of each step against both references and the floors.
 
-The verdict (VERDICTS) comes from the within-noise test (ph_explorer.diagnosis.noise_test) of
+The verdict (VERDICTS) comes from the within-noise test (ph_explorer.diagnosis.within_noise) of
 the baseline's out-of-sample residual and of what the effects found leave of it.
 """
 
@@ -25,15 +25,15 @@ from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.noise_test import NoiseTest
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
+from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models.base import DeviationModel
 from ph_explorer.models.crossval import held_out_mae, held_out_ring_mae
+from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.hybrid import DataModel, HybridModel
 
 

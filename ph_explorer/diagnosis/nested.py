@@ -15,14 +15,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
-from ph_explorer.diagnosis.results import NestedAfter, effect_label
+from ph_explorer.diagnosis.results import NestedAfter
 from ph_explorer.diagnosis.search import FittedBases
-from ph_explorer.effects import Effect
+from ph_explorer.effects import Effect, effect_label
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
 
@@ -56,7 +57,9 @@ def nested_after(
         keep[fold] = False
         sub = campaign.subset(keep)
         sub_train = ~sub.holdout_mask()
-        choice = choose_effects(sub, sub_train, effects, max_steps, seed, start=start, detail=False, bases=bases.subset(np.flatnonzero(keep)))
+        choice = choose_effects(
+            sub, sub_train, effects, max_steps, seed, start=start, detail=False, bases=bases.subset(np.flatnonzero(keep))
+        )
         touches = campaign_touches(campaign.subset(fold))
         before, after = (
             HybridModel(list(chain), NESTED_DATA_PART).fit(sub, sub_train).predict_touches(touches) for chain in (start, choice.chain)

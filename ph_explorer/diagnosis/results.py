@@ -12,10 +12,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.diagnosis.noise_test import NoiseTest
-from ph_explorer.effects import Catalog, Effect
+from ph_explorer.diagnosis.within_noise import NoiseTest
+from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.models.hybrid import HybridModel
-from ph_explorer.orientation_map import MapFigure
 
 DIGITS = 5
 NULL_MARGIN = 2.0  # a candidate is beyond noise when it explains more than this multiple of the noise null
@@ -49,7 +48,7 @@ class Candidate:
     confounded_with: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
-    def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> "Candidate":
+    def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
         """An effect that explains nothing here (or could not be tested: note says why)."""
         return cls(effect_id, name, 0.0, 0.0, 0.0, False, {}, {}, {}, teaching, note=note)
 
@@ -153,7 +152,13 @@ class Diagnosis:
     def steps_dict(steps: list[Step]) -> list[dict[str, Any]]:
         """Steps as the JSON gives them."""
         return [
-            {"added": s.added, "model": s.model, "mae_um": rounded(s.mae_um), "noise_floor_um": rounded(s.noise_floor_um), "params": s.params}
+            {
+                "added": s.added,
+                "model": s.model,
+                "mae_um": rounded(s.mae_um),
+                "noise_floor_um": rounded(s.noise_floor_um),
+                "params": s.params,
+            }
             for s in steps
         ]
 
@@ -162,25 +167,12 @@ class Diagnosis:
         out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
         mae, floor = self.out_of_sample_mae_um["mean"], self.out_of_sample_floor_um["mean"]
         rings = [
-            FailingRing(float(self.orientations[i, 0]), float(self.orientations[i, 1]), float(mae[i]), float(floor[i]), bool(self.held_out[i]))
+            FailingRing(
+                float(self.orientations[i, 0]), float(self.orientations[i, 1]), float(mae[i]), float(floor[i]), bool(self.held_out[i])
+            )
             for i in np.flatnonzero(self.failing)
         ]
         return sorted(rings, key=lambda ring: -ring.ratio)
-
-    def ring_figures(self) -> dict[str, MapFigure]:
-        """The diagnosis's per-ring figures for the error map: out-of-sample MAE over its floor, and
-        each ring's verdict (no verdict where the test could not run: one repetition)."""
-        ratio = self.out_of_sample_mae_um["mean"] / self.out_of_sample_floor_um["mean"]
-        tested = self.within_noise["baseline"] is not None
-        verdict = self.failing.astype(float) if tested else np.full(len(self.failing), np.nan)
-        return {
-            "diagnosis: out-of-sample MAE / its floor": MapFigure(
-                ratio, "x floor", "each ring's out-of-sample MAE over its own floor; training rings leave-one-out, check rings by the baseline"
-            ),
-            "diagnosis: ring verdict (within-noise test)": MapFigure(
-                verdict, "", "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual", RING_VERDICTS
-            ),
-        }
 
     def as_dict(self) -> dict[str, Any]:
         """The diagnose --json object."""
@@ -206,13 +198,6 @@ class Diagnosis:
                 if self.failing[i]
             ],
         }
-
-
-def effect_label(effect: Effect) -> str:
-    """'b_axis_cyclic 22 cycles/rev': an effect with its scanned settings, as a step names it."""
-    settings = effect.settings()
-    units = {p.name: p.unit for p in effect.parameters}
-    return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
 
 
 def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
@@ -243,7 +228,11 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     if result.verdict in ("partial", "unexplained"):
         lines.append(
             "What is left, in the head's own variables (share of the residual explained; noise alone): "
-            + ("; ".join(signature_text(entry) for entry in significant[:5]) if significant else "nothing beyond noise in any single variable")
+            + (
+                "; ".join(signature_text(entry) for entry in significant[:5])
+                if significant
+                else "nothing beyond noise in any single variable"
+            )
             + "."
         )
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
@@ -285,8 +274,7 @@ def signature_text(entry: dict[str, Any]) -> str:
     }
     where = ", ".join(text.format(entry[key]) for key, text in setting.items() if key in entry)
     return (
-        f"{entry['variable']} {entry['kind']}, {where}, {100 * entry['explained_fraction']:.1f} % "
-        f"({100 * entry['noise_fraction']:.2f} %)"
+        f"{entry['variable']} {entry['kind']}, {where}, {100 * entry['explained_fraction']:.1f} % ({100 * entry['noise_fraction']:.2f} %)"
     )
 
 

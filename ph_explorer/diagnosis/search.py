@@ -25,12 +25,12 @@ from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.separation import canonical_share, separating_measurements
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches
-from ph_explorer.models import design as least_squares
-from ph_explorer.models.base import draw_repetitions
+from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.models.design import Design
+from ph_explorer.models.deviation_model import draw_repetitions
 from ph_explorer.models.hybrid import fitted_basis
-from ph_explorer.models.uncertainty import jackknife_parameters
+from ph_explorer.models.least_squares import Design
+from ph_explorer.uncertainty.jackknife import jackknife_parameters
 
 # Monte Carlo draws of pure noise for the significance of a candidate's scan.
 NULL_DRAWS = 39
@@ -76,7 +76,7 @@ class FittedBases:
         self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
         self._rings: NDArray[np.intp] | None = None
 
-    def subset(self, rings: NDArray[np.intp]) -> "FittedBases":
+    def subset(self, rings: NDArray[np.intp]) -> FittedBases:
         """The same columns at some rings only (indices into the campaign's orientations)."""
         out = object.__new__(FittedBases)
         out.touches, out.keep, out._columns, out._rings = self.touches, self.keep, self._columns, np.asarray(rings)

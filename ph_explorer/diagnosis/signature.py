@@ -67,12 +67,12 @@ from numpy.typing import NDArray
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import DIGITS, Candidate
 from ph_explorer.diagnosis.search import NULL_MARGIN, CandidateSearch
-from ph_explorer.effects.base import Effect, Evidence, Parameter
+from ph_explorer.effects.effect import Effect, Evidence, Parameter
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
 from ph_explorer.kinematics import Touches
-from ph_explorer.models import design as least_squares
-from ph_explorer.models.design import Design
+from ph_explorer.models import least_squares
+from ph_explorer.models.least_squares import Design
 
 CYCLES = tuple(float(m) for m in range(1, 41))
 WIDTHS_DEG = (5.0, 10.0, 20.0)
@@ -180,7 +180,7 @@ class _Probe(Effect):
         names = list(self.scan)
         return [dict(zip(names, values)) for values in itertools.product(*(self.scan[n] for n in names))]
 
-    def with_settings(self, **settings: float) -> "_Probe":
+    def with_settings(self, **settings: float) -> _Probe:
         return type(self)(self.variable, self.scan, **{**self.params, **settings})
 
     def function(self, touches: Touches) -> NDArray[np.float64]:
@@ -296,7 +296,7 @@ class Sign(_Probe):
         super().__init__(APPROACH_SIGNS[joint], {}, **params)
         self.id = f"signature_sign_{joint.lower()}_approach"  # type: ignore[misc]
 
-    def with_settings(self, **settings: float) -> "Sign":
+    def with_settings(self, **settings: float) -> Sign:
         return Sign(self.joint, **{**self.params, **settings})
 
     def function(self, touches: Touches) -> NDArray[np.float64]:

@@ -24,9 +24,8 @@ import datetime
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import effect_label
 from ph_explorer.diagnosis.results import Diagnosis, Step
-from ph_explorer.effects import Catalog, Effect
+from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
 
 STUDY_FORMAT = "ph-explorer study 1"
@@ -61,6 +60,7 @@ def study_record(
     # Parameters: the joint fit of the whole chain (the last step); their uncertainty from the
     # search that found each effect (this run's, or the study's it resumed).
     joint = steps[-1].params if steps and steps[-1].added else []
+
     def key(effect_id: str, settings: dict[str, Any]) -> tuple:
         return effect_id, tuple(sorted((k, float(v)) for k, v in settings.items()))
 

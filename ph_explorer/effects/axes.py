@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape, rotation_deviation_um_per_arcsec
 from ph_explorer.effects.motions import ABOUT_X, ABOUT_Z, ANGULAR_MOTION_PLAUSIBLE_ARCSEC, CYCLES_PER_REV, _ErrorMotion
 from ph_explorer.kinematics import Touches
 
@@ -88,11 +88,17 @@ class Direction(Effect):
     )
     parameters = (
         Parameter(
-            "a_lost_motion_arcsec", "arcsec", 0.5, "A joint: difference between its two approach directions",
+            "a_lost_motion_arcsec",
+            "arcsec",
+            0.5,
+            "A joint: difference between its two approach directions",
             plausible=LOST_MOTION_PLAUSIBLE_ARCSEC,
         ),
         Parameter(
-            "b_lost_motion_arcsec", "arcsec", 0.5, "B joint: difference between its two approach directions",
+            "b_lost_motion_arcsec",
+            "arcsec",
+            0.5,
+            "B joint: difference between its two approach directions",
             plausible=LOST_MOTION_PLAUSIBLE_ARCSEC,
         ),
     )

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.effects.axes import AAxisCyclic, BAxisCyclic, Direction
-from ph_explorer.effects.base import Effect
+from ph_explorer.effects.effect import Effect
 from ph_explorer.effects.environment import Drift, RingForm
 from ph_explorer.effects.location import AAxisPosition, AAxisSquareness, BAxisOrientation, BAxisPosition
 from ph_explorer.effects.motions import (
@@ -31,10 +31,27 @@ from ph_explorer.effects.stylus import BallForm, StylusBending
 from ph_explorer.errors import InputError
 
 BUILTIN_EFFECTS: tuple[type[Effect], ...] = (
-    Noise, Lobing, Gravity, BallForm, StylusBending, AAxisCyclic, BAxisCyclic, Direction, Drift, RingForm,
+    Noise,
+    Lobing,
+    Gravity,
+    BallForm,
+    StylusBending,
+    AAxisCyclic,
+    BAxisCyclic,
+    Direction,
+    Drift,
+    RingForm,
     # The rotary axes in the ISO 230-1 vocabulary: location errors, then error motions.
-    BAxisPosition, BAxisOrientation, AAxisPosition, AAxisSquareness,
-    BAxisRadialMotion, BAxisAxialMotion, BAxisTiltMotion, AAxisRadialMotion, AAxisAxialMotion, AAxisTiltMotion,
+    BAxisPosition,
+    BAxisOrientation,
+    AAxisPosition,
+    AAxisSquareness,
+    BAxisRadialMotion,
+    BAxisAxialMotion,
+    BAxisTiltMotion,
+    AAxisRadialMotion,
+    AAxisAxialMotion,
+    AAxisTiltMotion,
 )
 # Keys of a scenario's effect table that are not parameters of the effect.
 SPEC_KEYS = ("id", "hidden", "note")
@@ -74,7 +91,7 @@ class Catalog(Mapping[str, type[Effect]]):
         except InputError as error:
             raise InputError(error.message, file=source, column=error.column) from None
 
-    def with_file(self, path: str | Path) -> "Catalog":
+    def with_file(self, path: str | Path) -> Catalog:
         """This catalog plus the Effect subclasses defined in a user's Python file."""
         found = load_user_effects(path)
         clash = [cls.id for cls in found if cls.id in self._classes and self._classes[cls.id] is not cls]
@@ -113,7 +130,7 @@ def load_user_effects(path: str | Path) -> list[type[Effect]]:
         if issubclass(cls, Effect) and cls.__module__ == module_name and not cls.__name__.startswith("_")
     ]
     if not found:
-        raise InputError("defines no subclass of ph_explorer.effects.base.Effect", file=str(path))
+        raise InputError("defines no subclass of ph_explorer.effects.effect.Effect", file=str(path))
     for cls in found:
         if not isinstance(cls.id, str) or not cls.id:
             raise InputError(f"effect class {cls.__name__} has no id", file=str(path))

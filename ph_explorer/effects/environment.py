@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, ball_centre_mm, full_shape, radial_unit
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, ball_centre_mm, full_shape, radial_unit
 from ph_explorer.errors import InputError
 from ph_explorer.kinematics import Touches
 
@@ -42,23 +42,35 @@ class Drift(Effect):
     )
     parameters = (
         Parameter(
-            "stylus_rate_um_per_h", "um/h", 0.0, "steady growth of the stylus along its axis",
+            "stylus_rate_um_per_h",
+            "um/h",
+            0.0,
+            "steady growth of the stylus along its axis",
             plausible=DRIFT_RATE_PLAUSIBLE_UM_PER_H,
         ),
         Parameter("stylus_step_um", "um", 0.0, "total warm-up growth of the stylus along its axis", plausible=DRIFT_STEP_PLAUSIBLE_UM),
         Parameter(
-            "stylus_cycle_um", "um", 0.0, "amplitude of the stylus growth that follows the room's temperature cycle",
+            "stylus_cycle_um",
+            "um",
+            0.0,
+            "amplitude of the stylus growth that follows the room's temperature cycle",
             plausible=DRIFT_CYCLE_PLAUSIBLE_UM,
         ),
         Parameter(
-            "head_rate_um_per_h", "um/h", 0.0, "steady growth of the head body, moving the pivot down",
+            "head_rate_um_per_h",
+            "um/h",
+            0.0,
+            "steady growth of the head body, moving the pivot down",
             plausible=DRIFT_RATE_PLAUSIBLE_UM_PER_H,
         ),
         Parameter(
             "head_step_um", "um", 0.0, "total warm-up growth of the head body, moving the pivot down", plausible=DRIFT_STEP_PLAUSIBLE_UM
         ),
         Parameter(
-            "head_cycle_um", "um", 0.0, "amplitude of the head body growth that follows the room's temperature cycle",
+            "head_cycle_um",
+            "um",
+            0.0,
+            "amplitude of the head body growth that follows the room's temperature cycle",
             plausible=DRIFT_CYCLE_PLAUSIBLE_UM,
         ),
         Parameter("cycle_phase_deg", "deg", 0.0, "phase of the temperature cycle at t = 0", period=360.0),

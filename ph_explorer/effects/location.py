@@ -21,7 +21,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, joint_angle_deg, screw_deviation
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape, joint_angle_deg, screw_deviation
 from ph_explorer.effects.motions import ABOUT_X, ABOUT_Y, X, Y, Z
 from ph_explorer.geometry import rot_x, rot_z
 from ph_explorer.kinematics import Touches

@@ -20,7 +20,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, joint_angle_deg, screw_deviation
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape, joint_angle_deg, screw_deviation
 from ph_explorer.kinematics import Touches
 
 CYCLES_PER_REV = tuple(range(1, 41))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape
 from ph_explorer.kinematics import Touches
 
 # Harmonics of the three-seat support function that the basis keeps (docs/physics.md).
@@ -27,6 +27,7 @@ def support_fourier(n: int) -> float:
         return 3.0 * np.sqrt(3.0) / (2.0 * np.pi)
     if n % 3:
         return 0.0
+
     # (3/pi) * integral_{-pi/3}^{pi/3} cos x cos(n x) dx
     def part(k: float) -> float:
         return np.sin(k * np.pi / 3.0) / k if k else np.pi / 3.0
@@ -136,7 +137,10 @@ class Lobing(Effect):
     )
     parameters = (
         Parameter(
-            "amplitude_um", "um", 0.25, "3-UPR amplitude of the pre-travel variation in psi at full lateral share",
+            "amplitude_um",
+            "um",
+            0.25,
+            "3-UPR amplitude of the pre-travel variation in psi at full lateral share",
             plausible=LOBING_PLAUSIBLE_UM,
         ),
         Parameter("seat_phase_deg", "deg", 0.0, "azimuth of the first seat in the probe frame", period=SEAT_PERIOD_DEG),
@@ -179,7 +183,10 @@ class Gravity(Effect):
     )
     parameters = (
         Parameter(
-            "directional_um", "um", 0.1, "pre-travel change with the lateral force along lateral gravity, at A = 90",
+            "directional_um",
+            "um",
+            0.1,
+            "pre-travel change with the lateral force along lateral gravity, at A = 90",
             plausible=LOBING_PLAUSIBLE_UM,
         ),
         Parameter("lobing_um", "um", 0.1, "extra 3-UPR lobing amplitude at A = 90 (scales with sin A)", plausible=LOBING_PLAUSIBLE_UM),

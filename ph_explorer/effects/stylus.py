@@ -15,7 +15,7 @@ from collections.abc import Mapping
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.effects.base import Effect, Evidence, Parameter, full_shape, parameter_text
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape, parameter_text
 from ph_explorer.effects.probe import lateral_gravity, lateral_share
 from ph_explorer.kinematics import Touches
 

@@ -7,8 +7,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ph_explorer.errors import InputError
 from ph_explorer.campaign import Campaign
+from ph_explorer.errors import InputError
 from ph_explorer.io.writer import atomic_write, csv_text
 
 

@@ -99,9 +99,7 @@ def _decode(raw: bytes, name: str) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError as error:
         line = raw[: error.start].count(b"\n") + 1
-        raise InputError(
-            f"not a UTF-8 CSV text file (undecodable byte 0x{raw[error.start]:02x})", file=name, row=line
-        ) from None
+        raise InputError(f"not a UTF-8 CSV text file (undecodable byte 0x{raw[error.start]:02x})", file=name, row=line) from None
 
 
 def _is_blank(record: list[str]) -> bool:
@@ -187,9 +185,7 @@ def _shown(column: str) -> str:
 
 
 # -- rows -> numeric columns ------------------------------------------------------------------------
-def _numeric_columns(
-    header: list[str], rows: list[list[str]], lines: NDArray[np.int64], name: str
-) -> dict[str, NDArray[np.float64]]:
+def _numeric_columns(header: list[str], rows: list[list[str]], lines: NDArray[np.int64], name: str) -> dict[str, NDArray[np.float64]]:
     """Every column as floats, after checking that each row has as many fields as the header."""
     width = len(header)
     lengths = np.fromiter((len(r) for r in rows), dtype=np.int64, count=len(rows))
@@ -345,9 +341,7 @@ class _Repetitions:
             )
 
 
-def _check_duplicates(
-    table: _Table, group: NDArray[np.int64], point: NDArray[np.int64], rep: NDArray[np.int64], base: int
-) -> None:
+def _check_duplicates(table: _Table, group: NDArray[np.int64], point: NDArray[np.int64], rep: NDArray[np.int64], base: int) -> None:
     """No touch twice: the same (A, B, rep, point) in two rows."""
     touch_key = group.astype(np.int64) * (int(point.max()) + 1) + point
     order = np.argsort(touch_key, kind="stable")

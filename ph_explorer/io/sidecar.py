@@ -75,9 +75,7 @@ def _check_orientation_pairs(checks: Any, name: str) -> None:
         raise InputError("check_orientations must be a list of [A, B] pairs", file=name, column="check_orientations")
 
 
-def sidecar_geometry(
-    sidecar: dict[str, Any], overrides: dict[str, Any] | None, n_points: int, toml_name: str
-) -> Geometry:
+def sidecar_geometry(sidecar: dict[str, Any], overrides: dict[str, Any] | None, n_points: int, toml_name: str) -> Geometry:
     """The campaign's geometry: the defaults, then the sidecar's [geometry], then the overrides (options)."""
     values: dict[str, Any] = {}
     given = dict(sidecar.get("geometry", {}))

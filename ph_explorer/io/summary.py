@@ -1,4 +1,4 @@
-"""What a campaign holds, as JSON-ready values: the `inspect --json` object (cli/inspect.py prints it)."""
+"""What a campaign holds, as JSON-ready values: the `inspect --json` object (cli/inspect_command.py prints it)."""
 
 from __future__ import annotations
 

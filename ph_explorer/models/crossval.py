@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.models.base import DeviationModel, as_orientations
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations
 from ph_explorer.models.trilinear import TrilinearModel
 
 ModelFactory = Callable[[], DeviationModel]
@@ -60,7 +60,9 @@ def _out_of_sample(
         parts.append((outside, predict(fitted(train), o[outside])))
     rings = np.flatnonzero(train)
     if groups is None:
-        groups = [rings[i : i + 1] for i in range(rings.size)] if folds is None else [rings[f::folds] for f in range(min(folds, rings.size))]
+        groups = (
+            [rings[i : i + 1] for i in range(rings.size)] if folds is None else [rings[f::folds] for f in range(min(folds, rings.size))]
+        )
     for group in groups:  # one fit per group: a loop over rings, never over touches
         others = train.copy()
         others[group] = False

@@ -1,17 +1,14 @@
-"""A model folder: the trained models' files and their card, written atomically, read back by name.
+"""A model folder read back by name: the trained models' files and their card.
 
-A folder written by `ph-explorer train` holds network.safetensors, trilinear.npz, card.json
-(the data's sha256, the holdout, hyperparameters, epochs, training times, geometry and the
-evaluation at the holdout) and uncertainty.npz (each model's out-of-sample error, models.model_error). Writing goes to a temporary folder beside DIR, which then replaces
-DIR: an interrupted training leaves an existing DIR as it was.
+A folder written by `ph-explorer train` (paper.training.save_models, atomically) holds
+network.safetensors, trilinear.npz, card.json (the data's sha256, the holdout, hyperparameters,
+epochs, training times, geometry and the evaluation at the holdout) and uncertainty.npz (each
+model's out-of-sample error, uncertainty.model_error). Format: docs/formats.md.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,12 +16,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.errors import InputError
-from ph_explorer.evaluation import holdout_from_card
 from ph_explorer.models import network, trilinear
-from ph_explorer.models.base import DeviationModel
-from ph_explorer.models.model_error import OutOfSampleError, save_errors
+from ph_explorer.models.deviation_model import DeviationModel
 
 CARD_NAME = "card.json"
 CARD_FORMAT = 1
@@ -37,39 +32,14 @@ MODEL_TYPES: dict[str, tuple[type[DeviationModel], str]] = {
 }
 
 
-def save_models(
-    models: Mapping[str, DeviationModel],
-    out: Path,
-    card: dict[str, Any],
-    errors: Mapping[str, OutOfSampleError] | None = None,
-) -> Path:
-    """Write the models, the card and (if given) the models' out-of-sample errors into out, atomically
-    (temp folder beside out, then a rename)."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    try:
-        for model in models.values():
-            model.save(tmp)
-        if errors:
-            save_errors(errors, tmp, int(card["data"]["n_repetitions"]))
-        (tmp / CARD_NAME).write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
-        os.chmod(tmp, 0o755)  # mkdtemp's 0700 and safetensors' 0600 would hide a shipped model
-        for path in tmp.iterdir():
-            os.chmod(path, 0o644)
-        if out.exists():
-            # Directories cannot be replaced in one rename: move the old one aside first, so a
-            # crash between the two renames leaves it recoverable beside DIR.
-            old = out.parent / f".{out.name}.old-{os.getpid()}"
-            os.replace(out, old)
-            os.replace(tmp, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    return out
+def holdout_from_card(campaign: Campaign, card: Mapping[str, Any]) -> NDArray[np.bool_]:
+    """The card's held-out orientations present in the campaign; if none is, the campaign's own default."""
+    held = np.asarray(card.get("holdout", []), dtype=float).reshape(-1, 2)
+    if held.size:
+        mask = orientation_match(campaign.orientations, held).any(axis=1)
+        if mask.any():
+            return mask
+    return campaign.holdout_mask()
 
 
 def load_card(directory: Path) -> dict[str, Any]:
@@ -106,9 +76,7 @@ def load_models(directory: Path) -> dict[str, DeviationModel]:
     return models
 
 
-def campaign_models(
-    campaign: Campaign, model_dir: Path | None
-) -> tuple[dict[str, DeviationModel], NDArray[np.bool_], list[str]]:
+def campaign_models(campaign: Campaign, model_dir: Path | None) -> tuple[dict[str, DeviationModel], NDArray[np.bool_], list[str]]:
     """The models to show a campaign with, its training rings, and notes saying where they came from.
 
     The models of model_dir when given, with the card's held-out rings (what the models never saw),

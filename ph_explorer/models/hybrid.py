@@ -5,7 +5,7 @@ columns computed from the kinematics of every touch; the data-driven part (the t
 the network) learns what remains over the nominal orientations.
 
 The physical coefficients are fitted jointly with the data-driven part (Frisch-Waugh-Lovell, see
-ph_explorer.models.design): what the out-of-sample smoother cannot predict of the deviations is
+ph_explorer.models.least_squares): what the out-of-sample smoother cannot predict of the deviations is
 fitted on what it cannot predict of the basis columns, over every ring (the held-out rings'
 residuals included: they say most about what interpolation misses; predict_held_out keeps their
 evaluation honest by leaving each one out of the physical fit). The data-driven part then learns
@@ -29,13 +29,12 @@ from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
-from ph_explorer.models import design
-from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
+from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.models.design import Design
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
 from ph_explorer.models.folder import MODEL_TYPES
+from ph_explorer.models.least_squares import Design
 from ph_explorer.models.trilinear import TrilinearModel
-
 
 # A basis column whose part left by the circle fit is below this fraction of its size is absorbed.
 ABSORBED_RTOL = 1e-9
@@ -87,7 +86,7 @@ class HybridModel(DeviationModel):
         self.smoother_: OutOfSampleSmoother | None = None
         self.fit_design_: Design | None = None
         self.fit_targets_: Design | None = None
-        self.ridge_ = 0.0  # penalty chosen by leave-one-ring-out (design.choose_ridge)
+        self.ridge_ = 0.0  # penalty chosen by leave-one-ring-out (least_squares.choose_ridge)
         self.widths_: list[int | None] = [None] * len(self.effects)  # basis columns per effect, set by fit
         self.n_points = 64
 
@@ -112,6 +111,7 @@ class HybridModel(DeviationModel):
         if not blocks:
             return np.zeros(touches.shape + (0,))
         return np.concatenate(blocks, axis=-1)
+
     def physical_part(self, touches: Touches) -> NDArray[np.float64]:
         """The physical terms' deviations at every touch, (n_o, n_rep, n_pt) um."""
         if not self.effects:
@@ -138,17 +138,15 @@ class HybridModel(DeviationModel):
         if self.effects:
             self._report("physical terms", 0.0)
             self.fit_design_ = Design(self.physical_basis(touches), self.smoother_)
-            self.ridge_ = design.choose_ridge(self.fit_design_, self.fit_targets_)
-            self.coefficients_ = design.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
+            self.ridge_ = least_squares.choose_ridge(self.fit_design_, self.fit_targets_)
+            self.coefficients_ = least_squares.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
             remainder = campaign.deviations - self.physical_part(touches)
         else:
             self.fit_design_ = None
             self.coefficients_ = np.zeros(0)
             remainder = campaign.deviations
         self._report("data-driven part", 0.3)
-        residual_campaign = Campaign(
-            campaign.orientations, remainder, campaign.times_s, campaign.geometry, campaign.check_orientations
-        )
+        residual_campaign = Campaign(campaign.orientations, remainder, campaign.times_s, campaign.geometry, campaign.check_orientations)
         self.data_model.fit(residual_campaign, mask)
         self._report("done", 1.0)
         return self
@@ -166,7 +164,7 @@ class HybridModel(DeviationModel):
             raise ValueError("predict_held_out needs the hybrid fitted on this campaign (fit, not load)")
         if not self.effects:
             return np.broadcast_to(data, touches.shape).copy()
-        coef = design.jackknife(self.fit_design_, self.fit_targets_, rings, self.ridge_)  # (m, c)
+        coef = least_squares.jackknife(self.fit_design_, self.fit_targets_, rings, self.ridge_)  # (m, c)
         basis = self.physical_basis(touches)  # (m, n_rep, n_pt, c)
         own = np.einsum("orpc,oc->orp", basis, coef)
         full = self.physical_basis(campaign_touches(campaign)).mean(axis=1)
@@ -186,9 +184,7 @@ class HybridModel(DeviationModel):
         """The systematic curve in the default scan order (points 0..N-1, no drift in time)."""
         o = as_orientations(orientations)
         n = self.n_points if n_points is None else int(n_points)
-        geometry = Geometry(
-            self.geometry.pivot_to_ball_mm, self.geometry.ball_diameter_mm, self.geometry.bore_diameter_mm, n
-        )
+        geometry = Geometry(self.geometry.pivot_to_ball_mm, self.geometry.ball_diameter_mm, self.geometry.bore_diameter_mm, n)
         return self.predict_touches(touch_kinematics(o, geometry))[:, 0, :]
 
     def repetition_sigma(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
@@ -205,8 +201,7 @@ class HybridModel(DeviationModel):
             "data_model": self.data_model.name,
             "geometry": self.geometry.as_dict(),
             "effects": [
-                {"id": e.id, "settings": e.settings(), "params": p["params"]}
-                for e, p in zip(self.effects, self.effect_parameters())
+                {"id": e.id, "settings": e.settings(), "params": p["params"]} for e, p in zip(self.effects, self.effect_parameters())
             ],
             "coefficients": self.coefficients_.tolist(),
             "widths": self.widths_,

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.models.base import DeviationModel, as_orientations
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations
 
 STEP_DEG = 0.5
 # A lattice's curves stay under this many bytes: a campaign of 256 points per ring (or A from -115)
@@ -64,7 +64,7 @@ class PredictionLattice:
         a_range: tuple[float, float],
         step_deg: float | None = None,
         stop: Callable[[], bool] = _never,
-    ) -> "PredictionLattice":
+    ) -> PredictionLattice:
         """Predict the model at every node of the lattice over a_range (deg) and all of B (the step:
         `step_for` unless given). `stop` is asked before each batch; when it says True the build
         raises BuildStopped (a process that exits must not leave a model's prediction running)."""
@@ -149,9 +149,7 @@ class PredictionLattice:
         return int(self.curves.nbytes)
 
 
-def _predict(
-    model: DeviationModel, orientations: NDArray[np.float64], n_points: int, stop: Callable[[], bool]
-) -> NDArray[np.float32]:
+def _predict(model: DeviationModel, orientations: NDArray[np.float64], n_points: int, stop: Callable[[], bool]) -> NDArray[np.float32]:
     """model.predict in batches of BATCH orientations, as float32 (m, n_points); BuildStopped when stop() says so."""
     curves = np.empty((orientations.shape[0], int(n_points)), dtype=np.float32)
     for start in range(0, orientations.shape[0], BATCH):

@@ -45,7 +45,7 @@ from torch import nn
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import fourier_basis, remove_size_and_centre
-from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
 
 FILE_NAME = "network.safetensors"
 # Threads for training (the budget is 2 cores). The matrices are tiny (16 x 256): a second thread
@@ -84,7 +84,7 @@ class NetworkConfig:
         return d
 
     @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "NetworkConfig":
+    def from_dict(cls, d: dict[str, Any]) -> NetworkConfig:
         known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
         if "hidden" in known:
             known["hidden"] = tuple(int(h) for h in known["hidden"])

@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_keys
 from ph_explorer.geometry import point_angles_deg, wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.base import DeviationModel, as_orientations, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
 
 FILE_NAME = "trilinear.npz"
 

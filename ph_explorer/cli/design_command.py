@@ -1,0 +1,57 @@
+"""`ph-explorer design --budget N [--data FILE.csv] [--effects FILE.py] [--json]`: which rings to
+measure, in what order (ph_explorer/planning/ring_design.py): without data, N orientations that make the
+catalog's effects identifiable and cover the data part; with a campaign, the next N rings that most
+reduce the uncertainty of what it has measured."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.errors import InputError
+from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
+
+
+def design_command(
+    budget: int,
+    json_output: bool = False,
+    data: Path | None = None,
+    effects: Path | None = None,
+    geometry: dict[str, float] | None = None,
+) -> int:
+    """Print the proposed rings in measuring order, as text or one JSON object."""
+    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+    # Imported when the command runs: the design reads the hybrid's bases, whose module loads torch.
+    from ph_explorer.io import read_campaign
+    from ph_explorer.planning.ring_design import propose_rings
+
+    campaign = read_campaign(Path(data), geometry or {}) if data is not None else None
+    try:
+        shape = Geometry(**{**DEFAULT_GEOMETRY.as_dict(), **(geometry or {})})
+    except ValueError as error:
+        raise InputError(str(error), option="--pivot-to-ball-mm") from error
+    report: dict[str, Any] = propose_rings(budget, geometry=shape, catalog=catalog.values(), measured=campaign).as_dict()
+    report = {"budget": budget, "data": None if data is None else Path(data).name, **report}
+    if json_output:
+        print(json.dumps(report, allow_nan=False))
+    else:
+        print(design_text(report), end="")
+    return 0
+
+
+def design_text(report: dict[str, Any]) -> str:
+    """One ring a line, in measuring order, then what the criterion says."""
+    if report["data"] is None:
+        head = f"{report['budget']} rings to measure, in this order ({report['candidates']} reachable candidates):"
+    else:
+        head = f"the next {report['budget']} rings after the {report['measured']} of {report['data']} ({report['candidates']} candidates left):"
+    lines = [head, f"{'order':>5}  {'A0 deg':>7}  {'B0 deg':>7}  {'information gain':>16}  {'nearest ring deg':>16}"]
+    for order, (a, b), gain, near in zip(report["order"], report["orientations"], report["gain"], report["nearest_deg"]):
+        lines.append(f"{order:>5}  {a:>7g}  {b:>7g}  {gain:>16.2f}  {near:>16.1f}")
+    lines.append(f"criterion: {report['criterion']}; log det {report['log_det']:.2f} over {report['columns']} directions")
+    lines.append(f"effects designed for: {len(report['effects'])} instances")
+    if report["not_designed_for"]:
+        lines.append("not designed for: " + "; ".join(report["not_designed_for"]))
+    return "\n".join(lines) + "\n"

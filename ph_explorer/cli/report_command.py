@@ -1,0 +1,89 @@
+"""`ph-explorer report`: a campaign and its diagnosis as one self-contained HTML file (ph_explorer/figures/html_report.py).
+
+The diagnosis is a study's (`--study`, made by `diagnose --save` or the explorer), else it is run
+here as `ph-explorer diagnose` runs it. Every input is checked before the diagnosis; the file is
+written atomically, so a failure leaves no half-written report.
+"""
+
+from __future__ import annotations
+
+import datetime
+from pathlib import Path
+
+from rich.progress import Progress
+
+from ph_explorer.cli.uncertainty_command import checked_orientations
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.errors import InputError
+from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, read_json_object
+from ph_explorer.io.writer import atomic_write
+
+
+def report_command(
+    out: Path,
+    data: Path | None = None,
+    scenario: str | None = None,
+    model: Path | None = None,
+    study: Path | None = None,
+    orientations: str | None = None,
+    reveal: bool = False,
+    geometry: dict[str, float] | None = None,
+) -> int:
+    """Write the report of --data or --scenario to --out; diagnose first when no --study is given."""
+    # torch-bound (the diagnosis, the models): imported when the command runs, as diagnose does.
+    from ph_explorer import twin
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
+    from ph_explorer.figures.html_report import report_html
+    from ph_explorer.models.folder import baseline_of, campaign_models
+
+    if (data is None) == (scenario is None):
+        raise InputError("give one campaign: --data FILE.csv or --scenario NAME", option="--data")
+    if scenario is not None and geometry:
+        # A scenario carries its own geometry: an option that changed nothing would mislead.
+        raise InputError(
+            "applies to a campaign file (--data); a scenario has its own geometry", option="--" + sorted(geometry)[0].replace("_", "-")
+        )
+    out = Path(out)
+    if out.is_dir():
+        raise InputError("is a folder: give the report's file name (e.g. report.html)", file=str(out), option="--out")
+    if not out.parent.is_dir():
+        raise InputError("no such folder for the report", file=str(out.parent), option="--out")
+    chosen = checked_orientations(orientations) if orientations is not None else None
+    if data is not None:
+        campaign = read_campaign(Path(data), geometry or {})
+        name, sha256 = Path(data).name, file_sha256(Path(data))
+    else:
+        loaded = twin.load_scenario(str(scenario))
+        campaign = twin.simulate(loaded, loaded.seed)
+        # The bytes simulate --out writes: a study of that file is a study of this campaign.
+        name, sha256 = f"scenario {loaded.name}", campaign_sha256(campaign)
+    campaign.source = name
+    previous = None
+    if study is not None:
+        source = str(study)
+        previous = check_study(read_json_object(Path(study), "study"), source)
+        check_campaign(previous, sha256, source, name)
+        study_chain(previous, DEFAULT_CATALOG, source)  # every effect it names is one the report can describe
+        study_steps(previous, source)  # and its history reads back
+    models, train, _ = campaign_models(campaign, model)
+    result = None
+    if previous is None:
+        # As `ph-explorer diagnose` runs it: the loaded model is the baseline, the trilinear data part.
+        with Progress(transient=True) as bar:
+            task = bar.add_task("diagnosing: scanning candidate effects", total=None)
+            result = diagnose(
+                campaign,
+                baseline=baseline_of(models) if model is not None else None,
+                catalog=DEFAULT_CATALOG,
+                progress=lambda effect_id: bar.update(task, description=f"diagnosing: scanning {effect_id}"),
+            )
+        previous = study_record(result, result.chain, study_campaign(name, sha256, campaign), "trilinear")
+    created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, result, reveal=reveal, created=created)
+    try:
+        atomic_write([(out, text)])
+    except OSError as error:
+        raise InputError(f"cannot write the report: {error.strerror or error}", file=str(out), option="--out") from None
+    print(f"Report written to {out} ({len(text) // 1024} KiB, one file).")
+    return 0

@@ -1,0 +1,180 @@
+"""Flat SVG charts with round ticks: the shared axes (`nice_ticks`, `x_axis_svg`, `y_axis_svg`), the
+signature plot of a candidate or of what is left (`evidence_svg`), and the error history of a
+diagnosis (`history_svg`). The explorer and the report draw the same strings.
+
+Figures: docs/explorer.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # the charts stay light: the map imports nice_ticks from here
+    from ph_explorer.diagnosis.results import Step
+
+# The signature chart: the binned out-of-sample residual as dots, the fitted term as a line.
+RESIDUAL_COLOR, FITTED_COLOR = "#444444", "#d62728"
+# The history chart: one colour per reference (solid the step's MAE, dashed its noise floor).
+HISTORY_COLORS = {"mean": "#1f77b4", "single": "#d95f02"}
+GRID = "#e2e2e2"
+
+
+def nice_ticks(low: float, high: float, count: int = 5) -> list[float]:
+    """Round tick values (steps of 1, 2, 2.5 or 5 x 10^k) inside [low, high], about `count` of them."""
+    if not (np.isfinite(low) and np.isfinite(high)) or high <= low:
+        return [float(low)] if np.isfinite(low) else []
+    raw = (high - low) / max(count - 1, 1)
+    power = 10.0 ** math.floor(math.log10(raw))
+    steps = [m * power for m in (0.5, 1.0, 2.0, 2.5, 5.0, 10.0)]
+    step = next(s for s in steps if s >= raw)
+    ticks: list[float] = []
+    for step in [s for s in steps if s <= step][::-1]:  # finer steps until at least 3 ticks fall inside
+        first = math.ceil(low / step - 1e-9) * step
+        ticks = [round(first + k * step, 12) for k in range(int((high - first) / step + 1e-9) + 1)]
+        if len(ticks) >= 3:
+            break
+    return ticks
+
+
+def x_axis_svg(
+    ticks: Iterable[float],
+    x_of: Callable[[float], float],
+    top: float,
+    bottom: float,
+    font_size: float,
+    grid: bool = True,
+    label_gap: float = 12,
+) -> list[str]:
+    """Tick labels under the plot at x_of(tick), with a vertical grid line each unless grid is False."""
+    parts = []
+    for t in ticks:
+        x = float(x_of(t))
+        line = f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="{GRID}"/>' if grid else ""
+        parts.append(line + f'<text x="{x:.1f}" y="{bottom + label_gap}" font-size="{font_size:g}" text-anchor="middle">{t:g}</text>')
+    return parts
+
+
+def y_axis_svg(
+    ticks: Iterable[float],
+    y_of: Callable[[float], float],
+    left: float,
+    right: float,
+    font_size: float,
+    zero_stroke: str = GRID,
+) -> list[str]:
+    """A horizontal grid line per tick across the plot and its label left of it; zero_stroke marks 0."""
+    parts = []
+    for t in ticks:
+        y = float(y_of(t))
+        stroke = zero_stroke if t == 0 else GRID
+        parts.append(
+            f'<line x1="{left}" y1="{y:.1f}" x2="{right}" y2="{y:.1f}" stroke="{stroke}"/>'
+            f'<text x="{left - 4}" y="{y + 3.5:.1f}" font-size="{font_size:g}" text-anchor="end">{t:g}</text>'
+        )
+    return parts
+
+
+def evidence_svg(evidence: dict, title: str) -> str:
+    """A signature plot as a flat SVG chart, like the polar plot and the map: the binned out-of-sample
+    residual (dots) and the fitted term (line) against the variable the evidence is read against,
+    round ticks on both axes (nice_ticks), the units in the axis titles."""
+    x = np.asarray(evidence["x"], dtype=float)
+    residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
+    width, height, left, right, top, bottom = 400.0, 176.0, 46.0, 10.0, 22.0, 126.0
+    x_low, x_high = float(x.min()), float(x.max())
+    x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
+    x_low, x_high = x_low - x_pad, x_high + x_pad
+    values = np.concatenate([residual[np.isfinite(residual)], fitted[np.isfinite(fitted)], [0.0]])
+    y_low, y_high = float(values.min()), float(values.max())
+    pad = 0.08 * (y_high - y_low if y_high > y_low else 1.0)  # dots off the frame
+    y_low, y_high = y_low - pad, y_high + pad
+    x_span = x_high - x_low if x_high > x_low else 1.0
+
+    def sx(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        return left + (np.asarray(v, dtype=float) - x_low) / x_span * (width - left - right)
+
+    def sy(v: NDArray[np.float64] | float) -> NDArray[np.float64]:
+        return bottom - (np.asarray(v, dtype=float) - y_low) / (y_high - y_low) * (bottom - top)
+
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
+        f'aria-label="signature plot {title}" style="font-family:sans-serif;background:#fff">',
+        f'<text x="2" y="14" font-size="11.5" font-weight="600">{title}</text>',
+        f'<rect x="{left}" y="{top}" width="{width - left - right}" height="{bottom - top}" fill="#fafafa" stroke="#888"/>',
+    ]
+    parts += x_axis_svg(nice_ticks(x_low, x_high), sx, top, bottom, font_size=10)
+    parts += y_axis_svg(nice_ticks(y_low, y_high, 4), sy, left, width - right, font_size=10, zero_stroke="#999")
+    parts.append(
+        f'<text x="{(left + width - right) / 2:.1f}" y="{bottom + 26}" font-size="10.5" text-anchor="middle">{evidence["x_label"]}</text>'
+    )
+    parts.append(
+        f'<text x="10" y="{(top + bottom) / 2:.1f}" font-size="10.5" text-anchor="middle" '
+        f'transform="rotate(-90 10 {(top + bottom) / 2:.1f})">{evidence["y_label"]}</text>'
+    )
+    order = np.argsort(x, kind="stable")
+    line = " L".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x[order]), sy(fitted[order])) if np.isfinite(b))
+    parts.append(f'<path d="M{line}" fill="none" stroke="{FITTED_COLOR}" stroke-width="2"/>')
+    parts += [f'<circle cx="{a:.1f}" cy="{b:.1f}" r="2.6" fill="{RESIDUAL_COLOR}"/>' for a, b in zip(sx(x), sy(residual)) if np.isfinite(b)]
+    legend_y = height - 5  # under the x axis title, clear of it
+    parts.append(
+        f'<circle cx="{left + 4}" cy="{legend_y - 3.5}" r="2.6" fill="{RESIDUAL_COLOR}"/>'
+        f'<text x="{left + 11}" y="{legend_y}" font-size="10">out-of-sample residual, binned</text>'
+        f'<line x1="{left + 190}" y1="{legend_y - 3.5}" x2="{left + 206}" y2="{legend_y - 3.5}" stroke="{FITTED_COLOR}" stroke-width="2"/>'
+        f'<text x="{left + 210}" y="{legend_y}" font-size="10">the term, fitted</text>'
+    )
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def history_svg(steps: Sequence[Step]) -> str:
+    """The error history as a chart: MAE against the repetition mean and single repetitions per step,
+    each with its noise floor dashed, steps across, um up (round ticks)."""
+    width, left, right, top, plot_h = 420.0, 48.0, 110.0, 14.0, 200.0
+    plot_w = width - left - right
+    mae = {ref: np.array([s.mae_um[ref] for s in steps], dtype=float) for ref in HISTORY_COLORS}
+    floor = {ref: np.array([s.noise_floor_um[ref] for s in steps], dtype=float) for ref in HISTORY_COLORS}
+    values = np.concatenate([*mae.values(), *floor.values()])
+    values = values[np.isfinite(values)]
+    high = float(values.max()) * 1.1 if values.size else 1.0
+    ticks = nice_ticks(0.0, high)
+    high = max(high, ticks[-1] if ticks else high)
+    n = len(steps)
+    xs = left + (np.arange(n) + 0.5) / n * plot_w
+    bottom = top + plot_h
+
+    def y_of(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return bottom - np.asarray(v, dtype=float) / high * plot_h
+
+    parts = [
+        f'<svg viewBox="0 0 {width:g} {bottom + 36:g}" width="100%" role="img" aria-label="history of the check-ring error" '
+        'style="font-family:sans-serif;background:#fff">',
+        f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fafafa" stroke="#888"/>',
+    ]
+    parts += y_axis_svg(ticks, y_of, left, left + plot_w, font_size=11)
+    parts += x_axis_svg(range(n), lambda k: xs[k], top, bottom, font_size=11, grid=False, label_gap=14)
+    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 30}" font-size="12" text-anchor="middle">step</text>')
+    half = 0.4 * plot_w / n  # a floor is a level across its step's width: one step shows it too
+    for k, (ref, color) in enumerate(HISTORY_COLORS.items()):
+        finite = np.isfinite(floor[ref])
+        levels = " ".join(f"{x - half:.1f},{y:.1f} {x + half:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(floor[ref][finite])))
+        parts.append(f'<polyline points="{levels}" fill="none" stroke="{color}" stroke-width="2.5" stroke-dasharray="5 4"/>')
+        finite = np.isfinite(mae[ref])
+        points = " ".join(f"{x:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(mae[ref][finite])))
+        parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="2.5"/>')
+        for x, y in zip(xs, y_of(mae[ref])):
+            if math.isfinite(y):
+                parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{color}"/>')
+        legend_y = top + 14 + 34 * k
+        parts.append(
+            f'<line x1="{left + plot_w + 8}" y1="{legend_y}" x2="{left + plot_w + 26}" y2="{legend_y}" stroke="{color}" stroke-width="2.5"/>'
+            f'<text x="{left + plot_w + 30}" y="{legend_y + 4}" font-size="11">vs {ref}</text>'
+            f'<line x1="{left + plot_w + 8}" y1="{legend_y + 14}" x2="{left + plot_w + 26}" y2="{legend_y + 14}" stroke="{color}" '
+            f'stroke-width="2.5" stroke-dasharray="5 4"/><text x="{left + plot_w + 30}" y="{legend_y + 18}" font-size="11">its floor</text>'
+        )
+    parts.append(f'<text x="4" y="{top + 10}" font-size="11">um</text></svg>')
+    return "".join(parts)

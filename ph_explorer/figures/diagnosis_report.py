@@ -1,0 +1,254 @@
+"""The diagnosis in a report (ph_explorer/figures/html_report.py): the verdict, the within-noise tests, the
+effects in the model with their parameters +- U, the history of the check-ring error as a chart
+and a table, the honest nested figures, where it fails, the study's runs, and what a teaching
+scenario hid (only when revealed).
+
+Effects are named through `EffectNames`: by id, or, in a teaching scenario's report that does not
+reveal, by a letter (see figures/html_report.py).
+"""
+
+from __future__ import annotations
+
+import html
+import re
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, Step
+from ph_explorer.diagnosis.study import study_steps
+from ph_explorer.effects import Catalog
+from ph_explorer.figures.charts import history_svg
+from ph_explorer.figures.orientation_map import MapFigure
+
+MAX_FAILING_LISTED = 15  # the worst failing rings named; the map's colours show every ring
+
+
+def _e(text: Any) -> str:
+    return html.escape(str(text))
+
+
+class EffectNames:
+    """How the report names an effect: by its id, or, in a teaching scenario's report that does not
+    reveal, by a letter in the order the report meets them ("effect A"), every effect alike: a name,
+    an id or even which of them is the hidden one would give the answer away."""
+
+    def __init__(self, campaign: Campaign, catalog: Catalog, reveal: bool) -> None:
+        self.teaching = bool((campaign.scenario or {}).get("hidden")) and not reveal
+        self.aliases: dict[str, str] = {}
+        words = {effect_id: effect_id for effect_id in catalog} | {cls.name: effect_id for effect_id, cls in catalog.items()}
+        self._ids = words
+        # Whole words only (an id's letters inside a longer id are another effect), longest first.
+        self._pattern = re.compile("|".join(rf"(?<![A-Za-z_]){re.escape(w)}(?![A-Za-z_])" for w in sorted(words, key=len, reverse=True)))
+
+    def label(self, effect_id: str) -> str:
+        if not self.teaching:
+            return effect_id
+        if effect_id not in self.aliases:
+            self.aliases[effect_id] = f"effect {chr(ord('A') + len(self.aliases))}"
+        return self.aliases[effect_id]
+
+    def text(self, text: str) -> str:
+        """Text with every effect's id or name written as `label` writes it."""
+        if not self.teaching:
+            return text
+        return self._pattern.sub(lambda m: self.label(self._ids[m.group(0)]), text)
+
+
+# -- the diagnosis -----------------------------------------------------------------------------------
+
+
+def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | None, catalog: Catalog, names: EffectNames) -> list[str]:
+    parts = ['<section id="diagnosis"><h2>4. The diagnosis</h2>']
+    if study is None:
+        return parts + [
+            "<p>This campaign has not been diagnosed: <code>ph-explorer diagnose</code> or the explorer's Diagnose makes a "
+            "study, and <code>ph-explorer report --study</code> puts it here.</p></section>"
+        ]
+    verdict = str(study.get("verdict", ""))
+    parts.append(f'<p class="verdict">Verdict: {_e(verdict)} - {_e(VERDICTS.get(verdict, "not a verdict of this version"))}.</p>')
+    parts += _noise_tests(study)
+    parts += _chain_table(study, catalog, names)
+    if diagnosis is not None and diagnosis.found and not names.teaching:  # a teaching text says what the effect is
+        parts.append(f'<p class="note">{_e(diagnosis.found[0].teaching)}</p>')
+    steps = study_steps(dict(study), "study")
+    parts += _history(steps, names)
+    parts += _nested(study.get("nested_after"), names)
+    parts += _where_it_fails(study, diagnosis)
+    parts += _runs(study, names)
+    parts.append("</section>")
+    return parts
+
+
+def _noise_tests(study: Mapping[str, Any]) -> list[str]:
+    rows = []
+    for key, model in (("baseline", f"the baseline ({study.get('baseline', '')})"), ("after", "with the effects found")):
+        test = (study.get("within_noise") or {}).get(key)
+        if test is None:
+            continue
+        rows.append(
+            f"<tr><td>{_e(model)}</td><td>{test['failing_rings']}</td><td>{test['statistic']:.1f}</td><td>{test['critical']:.1f}</td>"
+            f"<td>{test['p_value']:.3g}</td><td class='t'>{'fails' if test['fails'] else 'within noise'}</td></tr>"
+        )
+    if not rows:
+        return ["<p>One repetition: no repetition spread, so 'within noise' could not be tested.</p>"]
+    return [
+        "<h3>Within-noise test</h3><table><tr><th>model</th><th>rings beyond their noise</th><th>statistic</th>"
+        "<th>critical value</th><th>p</th><th>campaign</th></tr>" + "".join(rows) + "</table>",
+        '<p class="note">The statistic sums how far the rings exceed their noise (all but the worst); the campaign fails above '
+        "the critical value (false-alarm rate 2 %).</p>",
+    ]
+
+
+def _chain_table(study: Mapping[str, Any], catalog: Catalog, names: EffectNames) -> list[str]:
+    chain = study.get("chain", [])
+    if not chain:
+        return [f"<h3>Effects in the model</h3><p>None: the model is the baseline ({_e(study.get('baseline', ''))}) alone.</p>"]
+    rows = []
+    for entry in chain:
+        effect_id = str(entry["effect"])
+        cls = catalog.get(effect_id)
+        fitted = cls.parameters_text(entry.get("params") or {}, entry.get("params_u") or None) if cls is not None else ""
+        settings = ", ".join(f"{k} {v:g}" for k, v in entry.get("settings", {}).items())
+        label = names.label(effect_id) if names.teaching or cls is None else f"{cls.name} ({effect_id})"
+        rows.append(f'<tr><td>{_e(label)}</td><td class="t">{_e(settings)}</td><td class="t">{_e(fitted) or "not fitted"}</td></tr>')
+    return [
+        "<h3>Effects in the model, fitted parameters +- U (k = 2)</h3>",
+        "<table><tr><th>effect</th><th>scanned settings</th><th>fitted parameters +- expanded uncertainty</th></tr>"
+        + "".join(rows)
+        + "</table>",
+    ]
+
+
+def step_label(step: Step, names: EffectNames) -> str:
+    """'baseline (trilinear)' or '+ effect A 22 cycles/rev (hybrid, ...)': one step of the history."""
+    if not step.added:
+        return f"baseline ({step.model})" if step.model else "baseline"
+    return names.text("+ " + " + ".join(step.added) + (f" ({step.model})" if step.model else ""))
+
+
+def _history(steps: Sequence[Step], names: EffectNames) -> list[str]:
+    if not steps:
+        return ["<h3>History</h3><p>The study records no step.</p>"]
+    rows = "".join(
+        f'<tr><td>{k}</td><td class="t">{_e(step_label(s, names))}</td>'
+        f"<td>{s.mae_um['mean']:.3f}</td><td>{s.noise_floor_um['mean']:.3f}</td>"
+        f"<td>{s.mae_um['single']:.3f}</td><td>{s.noise_floor_um['single']:.3f}</td></tr>"
+        for k, s in enumerate(steps)
+    )
+    return [
+        '<h3>History: the check-ring error as effects were added</h3><div class="pair" id="history">',
+        f'<figure id="history-chart">{history_svg(steps)}<figcaption>MAE on the check rings per step (um); dashed: '
+        "each reference's noise floor.</figcaption></figure>",
+        "<div><table><tr><th>step</th><th>model</th><th>MAE vs mean, um</th><th>floor</th><th>MAE vs single, um</th><th>floor</th></tr>"
+        f"{rows}</table></div></div>",
+    ]
+
+
+def _nested(nested: Mapping[str, Any] | None, names: EffectNames) -> list[str]:
+    if not nested:
+        return []
+    counts: dict[str, int] = {}
+    for fold in nested.get("chosen", []):
+        for label in fold:
+            counts[label] = counts.get(label, 0) + 1
+    chosen = ", ".join(f"{names.text(label)} ({n} of {nested['folds']})" for label, n in counts.items()) or "nothing"
+    before, after, floor = nested["before_um"], nested["after_um"], nested["noise_floor_um"]
+
+    def cell(value: float | None) -> str:
+        return "—" if value is None else f"{value:.3f}"
+
+    return [
+        "<h3>The honest after: nested cross-validation</h3>",
+        f"<p>The check rings took part in choosing the effects; here each of {nested['folds']} folds of the {nested['rings']} "
+        "training rings is predicted by what the search chose without it.</p>",
+        "<table><tr><th></th><th>MAE vs mean, um</th><th>MAE vs single, um</th></tr>"
+        f"<tr><td>before</td><td>{cell(before.get('mean'))}</td><td>{cell(before.get('single'))}</td></tr>"
+        f"<tr><td>after</td><td>{cell(after.get('mean'))}</td><td>{cell(after.get('single'))}</td></tr>"
+        f"<tr><td>noise floor</td><td>{cell(floor.get('mean'))}</td><td>{cell(floor.get('single'))}</td></tr></table>",
+        f"<p>Chosen in the folds: {_e(chosen)}.</p>",
+    ]
+
+
+def _where_it_fails(study: Mapping[str, Any], diagnosis: Diagnosis | None) -> list[str]:
+    parts = ['<h3 id="where-it-fails">Where it fails</h3>']
+    if diagnosis is None:
+        test = (study.get("within_noise") or {}).get("baseline")
+        if test is None:
+            return parts + ["<p>One repetition: no ring can be tested against its noise.</p>"]
+        return parts + [
+            f"<p>{test['failing_rings']} rings exceeded their noise under the baseline in the study's last run "
+            "(a study keeps their count; the report of a fresh diagnosis names them).</p>"
+        ]
+    if diagnosis.within_noise["baseline"] is None:
+        return parts + ["<p>One repetition: no ring can be tested against its noise.</p>"]
+    rings = diagnosis.failing_rings()
+    if not rings:
+        return parts + ["<p>No ring exceeds its noise (the within-noise test, ring level 1 %).</p>"]
+    rows = "".join(
+        f'<tr><td>{_e(orientation_label(r.a_deg, r.b_deg))}</td><td class="t">{"check ring" if r.held_out else "leave-one-out"}</td>'
+        f"<td>{r.mae_um:.3f}</td><td>{r.floor_um:.3f}</td><td>{r.ratio:.1f}</td></tr>"
+        for r in rings[:MAX_FAILING_LISTED]
+    )
+    more = f" The worst {MAX_FAILING_LISTED} are listed; the map shows every ring." if len(rings) > MAX_FAILING_LISTED else ""
+    return parts + [
+        f"<p>{len(rings)} of {len(diagnosis.failing)} rings exceed their noise under the baseline, worst first (out-of-sample MAE "
+        f"against the repetition mean over its own floor).{more}</p>",
+        f"<table><tr><th>ring</th><th>predicted</th><th>MAE, um</th><th>floor, um</th><th>x floor</th></tr>{rows}</table>",
+    ]
+
+
+def _runs(study: Mapping[str, Any], names: EffectNames) -> list[str]:
+    runs = study.get("runs", [])
+    if not runs:
+        return []
+    rows = "".join(
+        f'<tr><td>{k}</td><td class="t">{_e(run.get("date", ""))}</td><td class="t">{_e(names.text(", ".join(run.get("added", []))) or "nothing")}</td>'
+        f'<td class="t">{_e(run.get("verdict", ""))}</td></tr>'
+        for k, run in enumerate(runs, 1)
+    )
+    return ["<h3>Runs of the study</h3>", f"<table><tr><th>run</th><th>date</th><th>added</th><th>verdict</th></tr>{rows}</table>"]
+
+
+def reveal_section(campaign: Campaign, catalog: Catalog, study: Mapping[str, Any] | None) -> list[str]:
+    scenario = campaign.scenario or {}
+    hidden = [e for e in scenario.get("effects", []) if e.get("hidden")] or [{"id": i} for i in scenario.get("hidden", [])]
+    parts = ['<section id="reveal"><h2>5. Revealed: what the scenario hid</h2>']
+    if not hidden:
+        return parts + ["<p>This campaign records no hidden effect (it is not a teaching scenario).</p></section>"]
+    fitted = {str(e["effect"]): e for e in (study or {}).get("chain", [])}
+    rows = []
+    for entry in hidden:
+        effect_id = str(entry["id"])
+        cls = catalog.get(effect_id)
+        truth = {k: float(v) for k, v in entry.items() if k not in ("id", "hidden")}
+        found = fitted.get(effect_id)
+        truth_text = cls.parameters_text(truth) if cls is not None and truth else ", ".join(f"{k} {v:g}" for k, v in truth.items())
+        found_text = (
+            cls.parameters_text(found.get("params") or {}, found.get("params_u") or None)
+            if cls is not None and found
+            else "not in the study's model"
+        )
+        name = f"{cls.name} ({effect_id})" if cls is not None else effect_id
+        rows.append(f"<tr><td>{_e(name)}</td><td>{_e(truth_text)}</td><td>{_e(found_text)}</td></tr>")
+    return parts + [
+        "<table><tr><th>hidden effect</th><th>truth</th><th>fitted (+- U, k = 2)</th></tr>" + "".join(rows) + "</table></section>"
+    ]
+
+
+def diagnosis_figures(result: Diagnosis) -> dict[str, MapFigure]:
+    """The diagnosis's per-ring figures for the error map: out-of-sample MAE over its floor, and
+    each ring's verdict (no verdict where the test could not run: one repetition)."""
+    ratio = result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"]
+    tested = result.within_noise["baseline"] is not None
+    verdict = result.failing.astype(float) if tested else np.full(len(result.failing), np.nan)
+    return {
+        "diagnosis: out-of-sample MAE / its floor": MapFigure(
+            ratio, "x floor", "each ring's out-of-sample MAE over its own floor; training rings leave-one-out, check rings by the baseline"
+        ),
+        "diagnosis: ring verdict (within-noise test)": MapFigure(
+            verdict, "", "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual", RING_VERDICTS
+        ),
+    }

@@ -1,0 +1,166 @@
+"""The least squares of physical terms on out-of-sample residuals.
+
+A physical effect's basis columns go through the out-of-sample smoother W of the data-driven part
+(ph_explorer.models.crossval), so that a term is only credited with what that part does not
+already capture; its coefficients are then the least squares of the residual on the residualised
+columns (Frisch-Waugh-Lovell: the joint fit of the physical terms with the data-driven part).
+Sums over single touches split into the repetition mean and the part that changes between
+repetitions (sum over reps |x|^2 = n_rep |mean|^2 + |within|^2), so every product is taken on the
+small mean part, and on the within part only for effects that change between repetitions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.models.crossval import OutOfSampleSmoother
+
+
+class Design:
+    """Columns (n_o, n_rep, n_pt, c) put through the smoother, split into mean and within parts."""
+
+    def __init__(self, columns: NDArray[np.float64], smoother: OutOfSampleSmoother | None) -> None:
+        columns = np.asarray(columns, dtype=float)
+        self.n_rep = columns.shape[1]
+        # Columns broadcast over the repetitions (fitted_basis) are the same in every one: no within part.
+        broadcast = self.n_rep == 1 or columns.strides[1] == 0
+        mean = columns[:, 0] if broadcast else columns.mean(axis=1)
+        self.mean = mean - smoother.predict(mean) if smoother is not None else mean  # (n_o, n_pt, c)
+        self.scale = float(np.abs(mean if broadcast else columns).max()) if columns.size else 0.0
+        within = None if broadcast else columns - mean[:, None]  # a new array: columns may be the caller's
+        changes = within is not None and np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
+        self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
+        self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
+
+    @property
+    def n_columns(self) -> int:
+        return self.mean.shape[-1]
+
+    def ring_gram(self) -> NDArray[np.float64]:
+        """(n_o, c, c): each ring's share of X^T X over single touches."""
+        g = self.n_rep * np.einsum("opc,opd->ocd", self.mean, self.mean)
+        if self.within is not None:
+            g = g + np.einsum("orpc,orpd->ocd", self.within, self.within)
+        return g
+
+    def ring_dot(self, targets: Design) -> NDArray[np.float64]:
+        """(n_o, c, k): each ring's share of X^T y for the k target columns."""
+        b = self.n_rep * np.einsum("opc,opk->ock", self.mean, targets.mean)
+        if self.within is not None and targets.within is not None:
+            b = b + np.einsum("orpc,orpk->ock", self.within, targets.within)
+        return b
+
+    def flat(self) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The mean and within parts as contiguous (rows, c) matrices, made once."""
+        if getattr(self, "_flat", None) is None:
+            c = self.n_columns
+            within = None if self.within is None else np.ascontiguousarray(self.within.reshape(-1, c))
+            self._flat = (np.ascontiguousarray(self.mean.reshape(-1, c)), within)
+        return self._flat
+
+    def gram(self) -> NDArray[np.float64]:
+        mean, within = self.flat()
+        g = self.n_rep * mean.T @ mean
+        return g if within is None else g + within.T @ within
+
+    def dot(self, targets: Design) -> NDArray[np.float64]:
+        mean, within = self.flat()
+        t_mean, t_within = targets.flat()
+        b = self.n_rep * mean.T @ t_mean
+        return b if within is None or t_within is None else b + within.T @ t_within
+
+    def total(self) -> NDArray[np.float64]:
+        """(c,): each column's sum of squares over single touches."""
+        t = self.n_rep * (self.mean**2).sum(axis=(0, 1))
+        return t if self.within is None else t + (self.within**2).sum(axis=(0, 1, 2))
+
+    def apply(self, coef: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The fitted terms X coef: (mean part (n_o, n_pt, ...), within part or None)."""
+        within = None if self.within is None else self.within @ coef
+        return self.mean @ coef, within
+
+    def first_column(self) -> Design:
+        """A view of column 0 only (the data, where the other columns are noise draws)."""
+        out = object.__new__(Design)
+        out._flat = None
+        out.n_rep, out.scale = self.n_rep, self.scale
+        out.mean = self.mean[..., :1]
+        out.within = None if self.within is None else self.within[..., :1]
+        return out
+
+    def stacked(self, other: Design) -> Design:
+        """The columns of self then other."""
+        out = object.__new__(Design)
+        out._flat = None
+        out.n_rep, out.scale = self.n_rep, max(self.scale, other.scale)
+        out.mean = np.concatenate([self.mean, other.mean], axis=-1)
+        if self.within is None and other.within is None:
+            out.within = None
+        else:
+            parts = [
+                d.within if d.within is not None else np.zeros(d.mean.shape[:1] + (self.n_rep,) + d.mean.shape[1:]) for d in (self, other)
+            ]
+            out.within = np.concatenate(parts, axis=-1)
+        return out
+
+
+def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int, ridge: float = 0.0) -> tuple[NDArray, NDArray]:
+    """Least squares from the normal equations: (coefficients (c, k), explained sum of squares (k,)).
+
+    Directions the smoother already predicts (eigenvalues below 1e-12 of the columns' scale
+    squared times the rows) carry nothing out of sample and are dropped. `ridge` adds a penalty
+    ridge * |coef|^2 (see choose_ridge).
+    """
+    values, vectors = np.linalg.eigh(gram)
+    keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+    if not keep.any():
+        return np.zeros(dot.shape), np.zeros(dot.shape[1])
+    projected = vectors[:, keep].T @ dot
+    shrunk = projected / (values[keep, None] + ridge)
+    coef = vectors[:, keep] @ shrunk
+    return coef, (projected * shrunk).sum(axis=0) if ridge else (projected**2 / values[keep, None]).sum(axis=0)
+
+
+def _rows(design: Design) -> int:
+    return design.mean.shape[0] * design.mean.shape[1]
+
+
+def fit(design: Design, targets: Design, ridge: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Coefficients (c, k) and explained sums of squares (k,) of every target column on the design."""
+    return solve(design.gram(), design.dot(targets), design.scale, _rows(design), ridge)
+
+
+def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
+    """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
+    target = targets.first_column()
+    gram, dot = design.gram(), design.dot(target)
+    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)
+    return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, _rows(design), ridge)[0][:, 0] for j in rings])
+
+
+def choose_ridge(design: Design, targets: Design) -> float:
+    """The ridge penalty with the least leave-one-ring-out error, from none to strong.
+
+    With few rings, physical terms can alias (two cyclic orders seen at two B values only) and
+    plain least squares trades huge opposite coefficients; the rings left out tell how much
+    shrinkage predicts best. Each ring's error comes from ring-level sums, never the raw arrays:
+    |y_j - X_j b|^2 = y_j'y_j - 2 b'X_j'y_j + b'X_j'X_j b.
+    """
+    target = targets.first_column()
+    gram, dot = design.gram(), design.dot(target)[:, 0]
+    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)[:, :, 0]
+    ring_total = target.n_rep * (target.mean[..., 0] ** 2).sum(axis=1)
+    if target.within is not None:
+        ring_total = ring_total + (target.within[..., 0] ** 2).sum(axis=(1, 2))
+    used = np.flatnonzero(np.abs(ring_gram).sum(axis=(1, 2)) > 0)
+    typical = float(np.trace(gram)) / max(gram.shape[0], 1)
+    best, best_error = 0.0, np.inf
+    for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
+        error = 0.0
+        for j in used:
+            coef = solve(gram - ring_gram[j], (dot - ring_dot[j])[:, None], design.scale, _rows(design), ridge)[0][:, 0]
+            error += ring_total[j] - 2.0 * coef @ ring_dot[j] + coef @ ring_gram[j] @ coef
+        if error < best_error * (1.0 - 1e-9):
+            best, best_error = ridge, error
+    return best

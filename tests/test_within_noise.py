@@ -1,0 +1,81 @@
+"""The within-noise test: its false-alarm rate on pure noise, and what makes a campaign fail.
+
+Small campaigns (a 5 x 8 lattice, 5 repetitions, 32 points) so that many noise seeds run in seconds.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ph_explorer.diagnosis.within_noise import FALSE_ALARM, within_noise
+from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.models.crossval import OutOfSampleSmoother
+
+A = np.arange(0.0, 61.0, 15.0)
+B = np.arange(-180.0, 180.0, 45.0)
+ORIENTATIONS = np.array([[a, b] for a in A for b in B])
+N_REP, N_PT, SIGMA = 5, 32, 0.175
+THETA = np.linspace(0.0, 2.0 * np.pi, N_PT, endpoint=False)
+
+
+@pytest.fixture(scope="module")
+def smoother() -> OutOfSampleSmoother:
+    return OutOfSampleSmoother(ORIENTATIONS, np.ones(len(ORIENTATIONS), dtype=bool))
+
+
+def noise(seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return remove_size_and_centre(rng.normal(0.0, SIGMA, (len(ORIENTATIONS), N_REP, N_PT)))
+
+
+def judge(deviations: np.ndarray, smoother: OutOfSampleSmoother, seed: int = 0):
+    return within_noise(smoother.residual(deviations), smoother.weights, deviations, seed)
+
+
+def test_pure_noise_fails_at_most_at_the_stated_rate(smoother):
+    fails = [judge(noise(seed), smoother, seed).fails for seed in range(60)]
+    # The test is built for at most FALSE_ALARM = 2 %; 60 seeds at 2 % exceed 5 with probability 0.15 %.
+    assert FALSE_ALARM == 0.02 and sum(fails) <= 5
+
+
+def test_one_bad_ring_never_decides(smoother):
+    deviations = noise(1)
+    deviations[7] += 1.5 * np.cos(3 * THETA)  # a huge error at one ring only
+    result = judge(deviations, smoother)
+    # It exceeds, and so do the neighbours it is interpolated into; the campaign does not fail.
+    assert result.ring_exceeds[7] and result.failing_rings >= 2
+    assert not result.fails and result.statistic <= result.critical
+
+
+def test_an_error_shared_by_several_rings_fails_the_campaign(smoother):
+    deviations = noise(2)
+    # A 3-lobe error that changes sign from one B column to the next: no interpolation follows it.
+    sign = np.where(np.arange(len(ORIENTATIONS)) % 2 == 0, 1.0, -1.0)
+    deviations += 0.15 * sign[:, None, None] * np.cos(3 * THETA)
+    result = judge(deviations, smoother)
+    assert result.fails and result.statistic > result.critical and result.p_value <= FALSE_ALARM
+
+
+def test_an_error_smaller_than_the_noise_is_within_noise(smoother):
+    # The same shared error, but far smaller than a ring's noise: the model's own error does not
+    # exceed the noise it is compared with, so it is within noise (the test's tolerance).
+    deviations = noise(3)
+    sign = np.where(np.arange(len(ORIENTATIONS)) % 2 == 0, 1.0, -1.0)
+    deviations += 0.01 * sign[:, None, None] * np.cos(3 * THETA)
+    assert not judge(deviations, smoother).fails
+
+
+def test_repetitions_that_differ_systematically_fail_even_when_their_mean_is_right(smoother):
+    deviations = noise(4)
+    alternate = np.where(np.arange(N_REP) % 2 == 0, 1.0, -1.0)
+    alternate -= alternate.mean()  # the mean over repetitions is untouched
+    deviations += 0.15 * alternate[None, :, None] * np.cos(2 * THETA)[None, None, :]
+    result = judge(deviations, smoother)
+    assert np.abs(smoother.residual(deviations).mean(axis=1) - smoother.residual(noise(4)).mean(axis=1)).max() < 1e-12
+    assert result.fails and result.statistic > result.critical
+
+
+def test_one_repetition_cannot_be_tested(smoother):
+    single = noise(5)[:, :1]
+    assert within_noise(smoother.residual(single), smoother.weights, single) is None
