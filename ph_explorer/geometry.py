@@ -1,19 +1,13 @@
 """Conventions and head-touch geometry of a PH20 five-axis head measuring a ring gauge.
 
-Machine frame right-handed, z up, gravity along -z. Lengths in mm, angles in degrees at the
-interfaces (radians inside the maths), deviations in um.
+Machine frame right-handed, z up; mm, degrees at the interfaces, um for deviations. B turns about
++z, A about the head's x after B; the stylus direction is s(A, B) = Rz(B) Rx(A) (0, 0, -1), both
+axes meeting at the pivot (the origin). The ring at (A0, B0) has its axis along s(A0, B0), point k
+at theta_k = 360 k / N from e1 towards e2. A touch puts the ball centre at
+c_k = sqrt(L^2 - rho^2) s(A0, B0) + rho u_k; its joint angles solve Rz(B_k) Rx(A_k) (0,0,-1) = c_k/L.
+Everything here is vectorised: angles may be arrays of any shape.
 
-Head: B turns about +z; A turns about the head's x axis after B. The stylus direction (head to
-ball) is s(A, B) = Rz(B) Rx(A) (0, 0, -1), so A = 0 points down. Both axes meet at the origin
-(the pivot).
-
-The ring measured at nominal (A0, B0) has its axis along s(A0, B0) through the pivot. Ring frame
-e1 = Rz(B0) Rx(A0) x, e2 = Rz(B0) Rx(A0) y. Point k lies at theta_k = 360 k / N degrees from e1
-towards e2, with outward radial direction u_k = cos(theta_k) e1 + sin(theta_k) e2.
-
-A head touch puts the ball centre at c_k = sqrt(L^2 - rho^2) s(A0, B0) + rho u_k with
-rho = bore radius - ball radius; its joint angles (A_k, B_k) solve Rz(B_k) Rx(A_k) (0,0,-1) = c_k/L
-with A_k in [0, 180). Everything here is vectorised: angles may be arrays of any shape.
+Method: docs/methods/head_geometry.md.
 """
 
 from __future__ import annotations

@@ -4,36 +4,9 @@ A scenario names the orientations (a grid plus off-grid rings), the repetitions,
 (order, direction, cadence), the check orientations held out of training, and the physical effects
 with their parameters; an effect marked `hidden = true` is in the data but not in the model a user
 starts with. `simulate` computes every touch's kinematics in scan order, adds the effects' forward
-models (radial deviations before the circle fit, um) and applies the least-squares circle fit of
-each repetition (harmonics 0 and 1 removed), all vectorised over the touches.
+models and applies each repetition's least-squares circle fit, all vectorised over the touches.
 
-Scenario TOML::
-
-    name = "paper"
-    description = "one line"
-    seed = 20160
-    repetitions = 10
-    check_orientations = [[15, -20], [43, 90]]       # held out of training (must be measured)
-    [geometry]                                       # optional, defaults of ph_explorer.geometry
-    points_per_circle = 64
-    [orientations]
-    a_deg = [0, 90, 15]                              # grid: start, stop (inclusive), step
-    b_deg = [-160, 180, 20]
-    off_grid = [[43, 90]]                            # extra rings off the grid
-    [scan]
-    order = "orientation"      # "orientation": all repetitions of a ring, then the next ring;
-                               # "repetition": every ring once, then the next repetition
-    direction = "forward"      # "forward": points 0..N-1 each time; "alternating": reversed every other repetition
-    touch_s = 2.0              # time per touch
-    move_s = 8.0               # extra time between circles
-    [[effects]]
-    id = "noise"
-    sigma_um = 0.175
-    [[effects]]
-    id = "b_axis_cyclic"
-    hidden = true
-    amplitude_arcsec = 1.0
-    cycles_per_rev = 22
+Method, and the scenario TOML: docs/methods/digital_twin.md.
 """
 
 from __future__ import annotations
@@ -61,7 +34,7 @@ TOP_KEYS = {"name", "description", "seed", "repetitions", "check_orientations", 
 
 @dataclass
 class Scenario:
-    """A simulated campaign's recipe (see the module docstring for the TOML)."""
+    """A simulated campaign's recipe (the TOML: docs/methods/digital_twin.md)."""
 
     name: str
     description: str
@@ -143,7 +116,7 @@ def scenario_from_dict(
     default_name: str = "scenario",
     catalog: Catalog = DEFAULT_CATALOG,
 ) -> Scenario:
-    """A Scenario from the parsed TOML (see the module docstring); its effects come from catalog."""
+    """A Scenario from the parsed TOML (docs/methods/digital_twin.md); its effects come from catalog."""
     unknown = sorted(set(data) - TOP_KEYS)
     if unknown:
         raise InputError(f"unknown key {unknown[0]!r} in the scenario", file=source, column=unknown[0])

@@ -1,28 +1,12 @@
 """The render scheduler of `ph-explorer serve`, as plain threading code (no viser, no numpy).
 
-Why it exists: a browser's slider event must return at once; renders are Python under the
-interpreter lock, so ONE render thread per app beats one render per callback thread; and of the
-moves that arrive before a session's turn only the latest is worth drawing. Hence:
+A browser's slider event returns at once; ONE render thread per app (`RenderQueue`) draws the
+sessions' dirty states (`RenderState`) in the order they became dirty, each with its latest values,
+and a state that moved again while drawn goes to the back. `RenderStats` gathers the render figures
+for benchmarks; `WhenResting` runs a slow figure's job once a slider rests, never one per move.
+Values set by scripts and tests are drawn in the caller's thread (`RenderState.render_now`).
 
-* `RenderState`, one per session: whether its values changed since a render last took them
-  (dirty, and since when), whether a thread is drawing it, and how long renders took;
-* `RenderQueue`, one per app: the single render thread, which draws the dirty states in the
-  order they became dirty, each with its latest values; a state that moved again while it was
-  being drawn goes to the back, so one busy session cannot starve the others;
-* `RenderStats`, one per app: the render figures of all its states (for benchmarks);
-* `WhenResting`, one per slow figure of a session: a job for the latest values once they have
-  stopped changing for a while (a slider at rest), never one per move.
-
-The threads beside the renders (a throttled camera, datasets prepared in the background) are in
-background.py.
-
-Values set by the server itself (scripts, tests) are drawn in the caller's thread (`render_now`)::
-
-    queue = RenderQueue()
-    state = RenderState(draw, on_timed=lambda render_s, latency_s: ...)
-    queue.request(state, since=event_time)  # a browser's event: returns at once
-    state.render_now()                      # a script's change: returns once it is drawn
-    state.wait_rendered(10.0); state.close(); queue.stop()
+Method: docs/methods/render_queue.md.
 """
 
 from __future__ import annotations

@@ -1,28 +1,12 @@
 """The explorer's viser server: one Session per browser, one render thread, a bound on heavy jobs.
 
-Each browser (viser client) gets its own Session (session.py): its own sliders, scene objects and
-panels, and its own data once it uploads a file or picks a scenario. Slider moves from every
-browser are drawn by ONE render thread (render_queue.py): renders are Python under the
-interpreter lock, and thirty renders at once in viser's callback threads each took thirty times
-as long. Diagnoses, refits, scenario simulations, uploads and slow figures run on each session's
-worker thread, at most HEAVY_JOBS at once over all sessions, and never hold a lock a render needs.
+Each browser gets its own Session (session.py); slider moves from every browser are drawn by ONE
+render thread (render_queue.py); diagnoses, refits, simulations, uploads and slow figures run on
+each session's worker thread, at most HEAVY_JOBS at once, never holding a lock a render needs.
+`build_server(port=0)` starts one in-process for benchmarks and scripts (`ph-explorer serve` is
+ph_explorer/cli/serve_command.py; tests/fake_browser.py connects simulated browsers).
 
-For benchmarks and scripts (stable names; `ph-explorer serve` is ph_explorer/cli/serve_command.py)::
-
-    from ph_explorer.app.server import build_server
-
-    app = build_server(port=0)          # the default data, in-process, a free port
-    app.startup_s                       # seconds from the call to a ready server
-    session = app.session()             # the first connected browser's Session (waits for one)
-    session.go_to(43.0, 90.0)           # move that browser's sliders (renders once)
-    session.controls.a.value = 50.0     # or one slider, as a user would
-    app.stats.render_times              # server seconds per render, every session (a deque)
-    app.stats.latency_times             # seconds from a slider event to the end of its render
-    session.render_state.render_times   # the same for one session (also .latency_times)
-    session.wait_rendered()             # until that browser's latest values are drawn
-    app.stop()
-
-tests/fake_browser.py connects simulated browsers (websocket clients speaking viser's protocol).
+Method: docs/methods/explorer_server.md.
 """
 
 from __future__ import annotations

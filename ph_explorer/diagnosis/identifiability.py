@@ -1,26 +1,12 @@
 """What a campaign's design lets head touches see of each catalog effect, from the bases alone.
 
-For every effect of a catalog (at its default settings, and over the scan of its non-linear
-parameters) and the campaign's touches:
+For every effect of a catalog (at its defaults and over its scan) and the campaign's touches: the
+share the circle fit absorbs (absorbed_by_circle_fit), whether what it leaves can stand above the
+noise at its largest plausible size (visible), the share the lattice interpolator already learns
+out of sample (learnable_by_data_model), the effects it is confounded with (confounded_with), and
+the rank of the stacked bases. Nothing is printed here.
 
-- absorbed_by_circle_fit: the share of its term (sum of squares over every touch) that each
-  repetition's least-squares circle removes (harmonics 0 and 1, harmonics.remove_size_and_centre),
-  for the combination of its columns that the fit removes least (judged_combination): 1 when no
-  combination survives the fit;
-- visible: whether what the fit leaves, at the largest size its declared plausible ranges admit,
-  stands above the noise of the campaign's mean curves at some ring (VISIBLE_RULE);
-- learnable_by_data_model: the share of what the fit leaves that the trilinear lattice
-  interpolator reproduces out of sample (models.crossval.OutOfSampleSmoother: leave-one-out at
-  training rings, the training fit at held-out rings), i.e. what the diagnosis's data part already
-  captures and no physical term is credited with;
-- confounded_with: the other effects whose columns, through the same smoother, share more than
-  search.CONFOUNDED with its own (largest squared canonical correlation, search.shared_variance),
-  at the pair of settings of their scans where they share most;
-- the rank of the stacked bases, after the fit and after the smoother.
-
-visible and learnable_by_data_model are figures of that same combination, sized like the
-effect's default term (basis @ coefficients()) and scaled to its largest plausible size. Nothing
-is printed here.
+Method: docs/methods/identifiability.md.
 """
 
 from __future__ import annotations
@@ -215,7 +201,7 @@ def design_ranks(defaults: list[Bases], touches: Touches, smoother: OutOfSampleS
 
 @one_blas_thread
 def identifiability(campaign: Campaign, effects: Iterable[type[Effect]], train: NDArray[np.bool_] | None = None) -> dict[str, Any]:
-    """{"effects": [...], "design": {...}} for the campaign's design (see the module docstring).
+    """{"effects": [...], "design": {...}} for the campaign's design (docs/methods/identifiability.md).
 
     train: the rings the data model learns from (default: all but campaign.holdout_mask()).
     """

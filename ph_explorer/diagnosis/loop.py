@@ -1,16 +1,12 @@
 """The loop: see where a model fails, find the missing physical effect, add it, watch the error fall.
 
-1. Where it fails: the out-of-sample error at every orientation. Training orientations are
-   predicted by leave-one-orientation-out (group-wise cross-validation) of the lattice interpolator,
-   held-out (check) orientations by the model fitted on all training orientations. Each error is
-   read against its own noise floor: a leave-one-out prediction carries the noise of the
-   neighbours it is made of, so its floor is E|e| of that combined noise.
+1. Where it fails: the out-of-sample error at every orientation, each against its own noise floor.
 2. Which effect is missing: ph_explorer.diagnosis.search.
 3. Add it: a HybridModel with the chosen effects + the data-driven part.
 4. Watch the error fall: the check-ring MAE of each step against both references and the floors.
 
-The verdict (VERDICTS) comes from the within-noise test (ph_explorer.diagnosis.within_noise) of
-the baseline's out-of-sample residual and of what the effects found leave of it.
+The verdict (VERDICTS) comes from the within-noise test (ph_explorer.diagnosis.within_noise).
+Method: docs/methods/diagnosis_loop.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
 """What measurement would separate two candidates this campaign cannot tell apart.
 
-Two effects whose columns over the campaign's touches are nearly the same (search.confounding)
-split the signal between them, and no fit can say which it is. Another measurement can: more
-touches at orientations, in an order or with a set-up where their signatures differ. Each
-MEASUREMENTS entry adds such touches to the campaign's own, and the two effects' shared variance
-(the largest squared canonical correlation of their columns after the circle fit) is computed over
-the union; the measurement that lowers it most is named, with the share it would leave.
+Two confounded effects (search.confounding) split the signal between them. Each MEASUREMENTS entry
+adds touches to the campaign's own, and the two effects' shared variance after the circle fit (no
+smoother) is computed over the union; the measurement that lowers it most is named, with the share
+it would leave. Nothing is simulated: the columns are the effects' bases at the touches.
 
-The share here is that of the columns after the circle fit, without the out-of-sample smoother:
-what head touches can tell apart in principle once the effect is in the model; the diagnosis's own
-`shared` is through the smoother, on this campaign. Nothing is simulated: the columns are the
-effects' bases at the touches' kinematics.
+Method: docs/methods/separation.md.
 """
 
 from __future__ import annotations

@@ -1,57 +1,13 @@
 """The signature of what is left: the out-of-sample residual described in the head's own variables.
 
 When the model fails beyond noise and no catalog effect explains it (verdict `partial` or
-`unexplained`), the user has to learn what the missing effect is and write it. `signature` tells
-them how the residual depends on each variable a touch has, in two shapes per variable:
-
-- **periodic** (`Periodic`): sin(m x), cos(m x), a term that repeats m times per revolution of an
-  angle x (m = 1..40), or m times over the span of a variable that is no angle (`time_s`: m cycles
-  over the campaign's time span, first touch to last; `order_in_repetition`: m cycles over the N
-  touches of one circle). A gear or motor-pole cycle of a joint leaves this.
-- **localised** (`Localised`): a Gaussian bump exp(-((x - c) / w)^2 / 2) confined to a narrow
-  range of x (angular distance wrapped around the circle for angles): a damaged gear tooth, a cable
-  snag at one B angle, a collision zone. Centres c: 36 around the circle (every 10 deg) for an
-  angle the campaign covers over more than 300 deg, else 24 spread over the range it covers
-  (A joint, A0), 36 over the span for time and order; widths w = 5, 10 and 20 deg, for time and
-  order the same share of the span (5/360, 10/360 and 20/360 of it).
-
-The probes know no mechanism and no lever arm. Each function f(x) of a touch variable enters
-as f(x) * {1, cos theta, sin theta} (theta: the point's angle on the ring, in the ring frame): a
-radial change at the touch (the column 1: pre-travel, a snag on the stylus) and a displacement of
-the ball in the ring's plane (cos, sin: what any joint error does, seen through the ring). A
-purely radial f(x) would miss a joint error almost entirely: a B-axis error moves the ball along
-the ring frame's e1, which reads cos(theta) around the ring. Their params say which it is:
-radial_um and displacement_um (and, for a bump, the displacement's direction in the ring frame).
-
-The variables (JSON names):
-
-    a_joint_deg          the A joint's actual angle at the touch (Touches.a_deg)
-    b_joint_deg          the B joint's actual angle at the touch (Touches.b_deg)
-    a0_deg, b0_deg       the ring's nominal orientation (A0, B0)
-    probe_azimuth_deg    the azimuth of the touch force in the probe frame (Touches.psi_deg)
-    ring_angle_deg       the point's angle on the ring (Touches.theta_deg)
-    time_s               the touch time (needs a t_s column; left out without one)
-    order_in_repetition  the touch's position 0..N-1 in its circle's scan order (from Touches.order)
-    approach_direction   the sign of each joint's approach (Touches.a_approach, b_approach): one
-                         probe per joint, nothing scanned (kind "sign", key "joint": "A" or "B")
-
-A term in A0 or B0 alone is constant over a ring and the circle fit removes it (harmonics 0 and 1
-of the ring go with it); what a user needs is how the ring's *shape* changes with the orientation.
-So the a0_deg / b0_deg probes multiply their function of A0 (B0) by the ring harmonics cos(k
-theta), sin(k theta), k = 2..4 (RING_HARMONICS); their params give each harmonic's amplitude
-(k2_um, k3_um, k4_um). A term in ring_angle_deg alone, and in order_in_repetition when every
-circle is scanned forward (the order is then the point angle), is the same at every ring: the
-interpolator predicts it exactly, so it explains nothing out of sample by construction (the data
-model already holds the ring's form); it is scanned all the same, so the report can say so.
-
-Significance is the search's own null (CandidateSearch.score: the same circle fit, smoother and
-pure-noise draws): an entry is significant when it explains more than NULL_MARGIN times the most
-the same scan explains on noise. The check rings' materiality does not apply to a signature. The
-setting reported is the search's choice among the scan values beyond noise. The evidence bins the
-residual, weighted by the fitted term's own ring pattern, against the variable (periodic: against
-the phase m x mod 360), so its value is the residual along that pattern in um.
-
+`unexplained`), `signature` says how the residual depends on each variable a touch has (VARIABLES
+and approach_direction): per variable a periodic probe (`Periodic`, m cycles per revolution or per
+span) and a localised one (`Localised`, a Gaussian bump), each as f(x) * {1, cos theta, sin theta}
+(radial and in the ring's plane). Significance is the search's own noise null (NULL_MARGIN).
 Probes are Effect subclasses with candidate = False, registered in no catalog.
+
+Method: docs/methods/signature.md.
 """
 
 from __future__ import annotations
@@ -307,7 +263,7 @@ class Sign(_Probe):
 
 
 def localised_grid(variable: Variable, touches: Touches) -> dict[str, tuple[float, ...]]:
-    """The centres and widths a Localised probe scans on these touches (module docstring)."""
+    """The centres and widths a Localised probe scans on these touches (docs/methods/signature.md)."""
     x = variable.values(touches)
     if variable.angle:
         if np.ptp(x) > FULL_TURN_DEG:
@@ -391,16 +347,10 @@ def signature(search: CandidateSearch, fixed: Design | None = None, variables: S
     entries, A and B, for approach_direction), best first: significant ones first, then by the
     share of the residual explained.
 
-    Each entry: {"variable", "kind": "periodic" | "localised" | "sign", its setting (periodic:
-    "cycles_per_rev" for angles, "cycles_per_span" for time_s and order_in_repetition; localised:
-    "centre_deg" and "width_deg" for angles, "centre_s" and "width_s" for time_s, "centre_touch"
-    and "width_touches" for order_in_repetition; sign: "joint"), "explained_fraction",
-    "noise_fraction" (the most the same scan explains on pure noise), "significant" (explained >
-    NULL_MARGIN x noise, and more than MIN_FRACTION), "params" (radial_um, displacement_um and,
-    for a bump or a sign, displacement_direction_deg; for A0/B0 amplitude_um, k2_um, k3_um,
-    k4_um), "params_u" (their k = 2 jackknife uncertainty), "evidence" (the out-of-sample residual
-    and fitted term along the term's ring pattern, binned, for plots)}. Probes that cannot run on
-    the campaign (time_s without touch times) are left out.
+    Each entry is a dict: "variable", "kind" ("periodic" | "localised" | "sign"), its setting,
+    "explained_fraction", "noise_fraction", "significant", "params", "params_u" and "evidence"
+    (every key: docs/methods/signature.md). Probes that cannot run on the campaign (time_s without
+    touch times) are left out.
     """
     out = [entry(probe, search.score(probe, fixed), search, fixed) for probe in probes(variables, search.touches)]
     out.sort(key=lambda e: (e["significant"], e["explained_fraction"]), reverse=True)

@@ -1,21 +1,11 @@
 """A study: the history of a diagnosis that lasts beyond one run, to be continued later.
 
-A study is one JSON object (`diagnose --save STUDY`, `--resume STUDY`, and the app's study
-buttons):
+A study is one JSON object ("format": "ph-explorer study 1"), written by `diagnose --save STUDY`
+and read by `--resume STUDY` and the app's study buttons: its campaign (the sha256 must match to
+resume), the `chain` of effects the study has reached (resuming starts from it), the last run's
+`steps`, `verdict`, `within_noise` and `nested_after`, and every run in `runs`.
 
-    {"format": "ph-explorer study 1",
-     "campaign": {"file": "ring.csv", "sha256": "...", "orientations": 135, "repetitions": 10},
-     "baseline": "trilinear", "data_part": "trilinear", "effects_file": null,
-     "chain": [{"effect": "b_axis_cyclic", "settings": {"cycles_per_rev": 22},
-                "params": {...}, "params_u": {...}}],
-     "verdict": "missing", "steps": [...], "within_noise": {...}, "nested_after": {...},
-     "runs": [{"date": "2026-11-23T17:40:00", "started_from": 0, "added": ["b_axis_cyclic 22 cycles/rev"],
-               "verdict": "missing"}]}
-
-`chain` is the model the study has reached: the effects in the order they were added, each at
-its scanned settings; resuming starts the search from that model. `steps`, `verdict`,
-`within_noise` and `nested_after` are those of the last run (the `diagnose --json` keys);
-`runs` lists every run. A study belongs to one campaign: its sha256 must match to resume.
+Method: docs/methods/study_file.md.
 """
 
 from __future__ import annotations

@@ -1,40 +1,13 @@
 """Is a model within noise? One stated, Monte Carlo-calibrated test on every ring's out-of-sample residual.
 
-The hypothesis tested is "what the model cannot predict of each ring out of sample is touch
-noise": independent Gaussian errors per touch, with each ring's own repetition spread, put through
-the same circle fit and the same out-of-sample prediction as the data. Each ring gives two
-statistics:
+Null: what the model cannot predict of each ring out of sample is touch noise. Each ring gives two
+statistics: the mean square of its repetition-mean residual (against MEAN_TOLERANCE times noise,
+the null put through the same smoother W) and the share of its within-ring scatter in harmonics
+2-8 (an exact Beta p-value). A ring exceeds when its smaller p-value, doubled, is below RING_LEVEL;
+the campaign fails when its summed excess, worst ring left out, is above what pure noise gives
+with probability FALSE_ALARM.
 
-- mean: the mean square of its repetition-mean residual, against MEAN_TOLERANCE times what noise
-  alone gives: the ring exceeds when the model's own error is significantly larger than the
-  noise it is compared with (systematic mean square > noise mean square). A prediction made of
-  neighbours carries their noise too, so the null draws put every ring's own noise through the
-  same smoother W. Why a tolerance: leave-one-out doubles the lattice spacing, so even the usual
-  smooth background of a head (seat lobing, low-order axis errors) leaves an interpolation error
-  at many lattice rings (mean square up to ~2x noise on the twin's paper campaign); a test of
-  "exactly noise" would call every real lattice model failing and say nothing about an effect.
-- within: the share of its within-ring scatter (each repetition minus the ring's mean) in
-  harmonics 2-8. Pure touch noise spreads evenly over the harmonics; repetitions that differ
-  systematically (a scan direction that alternates, drift in time) put their difference into
-  the low harmonics. The share does not depend on sigma; for iid noise it is a Beta variable, so
-  its p-value is exact (within_p_value).
-  No tolerance here: no model indexed by orientation predicts differences between repetitions,
-  so interpolation leaves nothing in this statistic.
-
-A ring "exceeds" when the smaller of its two p-values, doubled (Bonferroni over the two
-statistics), is below RING_LEVEL. The campaign's statistic is how far the rings exceed, summed:
-sum of log(RING_LEVEL / p) over the exceeding rings, with the worst ring left out and its share
-in its neighbours' predictions undone, so that no single ring decides (a wrong ring also spoils
-the rings it is interpolated into, which is not a failure several rings share). The campaign
-fails when the statistic is above what pure noise gives with probability FALSE_ALARM: the
-look-elsewhere correction over all rings, from the same null draws (a continuous statistic, so
-the level is FALSE_ALARM, not the lower level a count of rings would give).
-
-Why FALSE_ALARM is 2 % and not 5 %: the null is exact for touch noise, so a 5 % test raises a
-false alarm on 5 % of noise-only campaigns by construction (measured: 5.0 % of 300), and a real
-head's usual background adds to that (drift within a ring). The tool promises at most 5 % for
-every verdict together; at 2 % the measured rate (benchmarks, diagnosis_calibration) keeps that
-promise with its confidence interval, not only on average.
+Method: docs/methods/within_noise.md.
 """
 
 from __future__ import annotations
@@ -137,7 +110,7 @@ def within_noise(
     spread: NDArray[np.float64],
     seed: int = 0,
 ) -> NoiseTest | None:
-    """The test (see the module docstring) of an out-of-sample residual (n_o, n_rep, n_pt).
+    """The test (docs/methods/within_noise.md) of an out-of-sample residual (n_o, n_rep, n_pt).
 
     weights: the smoother W (n_o x n_o) that made the residual; spread: deviations whose
     repetition scatter is each ring's noise (what the model's terms that change between

@@ -1,67 +1,13 @@
 """The interface of a physical effect, and the lever arms every effect shares.
 
 An effect is one physical mechanism of the head, the probe or the ring that moves the recorded
-points. It gives, for every touch of a campaign (a `ph_explorer.kinematics.Touches`):
+points: `forward(touches, rng)` is its radial deviation per touch before the circle fit (um),
+`basis(touches)` the same as columns, `coefficients()` / `from_coefficients` the map between those
+columns' coefficients and its `parameters` (each may declare a plausible range and a period);
+`scan`, `needs`, `candidate` and `evidence` describe it. Deviations are positive outward: a touch
+reads R + p - d . u_k. A user's own effect is an `Effect` subclass in any Python file.
 
-- `forward(touches, rng)`: the radial deviation of each touch in um, *before* the least-squares
-  circle fit (the twin applies the fit afterwards), shaped (n_orientations, n_repetitions, n_points);
-- `basis(touches)`: the same contribution written as columns whose coefficients are the effect's
-  parameters (or a linearisation of them), shaped (n_o, n_rep, n_pt, n_cols) in um per unit
-  coefficient, with the column names, at the instance's values of its scanned parameters;
-- `from_coefficients(coef)`: the physical parameters (units of `parameters`) that a fit of the
-  basis columns found;
-- `coefficients()`: the coefficients of its own parameters, so that for a linear effect
-  `forward == basis @ coefficients` (the tests check this).
-
-It also describes itself: `scan` (the grid of non-linear parameters a diagnosis tries, e.g.
-cycles per revolution 1-40), `needs` (what a campaign must hold, e.g. touch times), `candidate`
-(whether a model can add it) and `evidence(touches)` (the variable its signature is read against).
-Effects add: `a + b` is an EffectSum whose forward is the sum of theirs.
-
-Sign convention: a touch reads the wall at R + p - d . u_k, where p is the pre-travel of the probe
-(the head keeps moving outward after contact) and d the displacement of the real ball centre from
-where the head's kinematic model puts it (u_k: outward radial direction of point k). Deviations
-are positive outward.
-
-Writing your own effect
------------------------
-Put a subclass of `Effect` in any Python file and pass the file to the tools (for example
-`ph-explorer diagnose --effects my_effects.py`, or `ph_explorer.effects.load_user_effects(path)`);
-every Effect subclass defined in that file joins the catalog under its `id`
-(`ph_explorer.effects.DEFAULT_CATALOG.with_file(path)` returns that catalog). Minimal example
-(see assets/effects_example.py for a complete one)::
-
-    import numpy as np
-    from ph_explorer.effects.effect import Effect, Parameter
-
-    class StylusBending(Effect):
-        id = "stylus_bending"
-        name = "Stylus bending under the probing force"
-        teaching = "The stylus bends by the trigger force; it adds pre-travel along the force ..."
-        parameters = (
-            Parameter("amplitude_um", "um", 0.1, "extra pre-travel at full lateral share", plausible=(0.0, 0.3)),
-        )
-
-        def basis(self, touches):
-            lateral = np.sin(np.radians(touches.beta_deg))            # (n_o, 1, n_pt)
-            column = np.broadcast_to(lateral, touches.shape)[..., None]  # (n_o, n_rep, n_pt, 1)
-            return column, ["amplitude_um"]
-
-Rules: every array is shaped like the touches (broadcast the repetition axis of length 1 when the
-effect does not change between repetitions); units are um for deviations; `forward` defaults to
-`basis @ coefficients` for a linear effect whose parameters are its coefficients (as above), so a
-linear effect only needs `basis`; a non-linear or random one overrides `forward`. Free non-linear
-parameters a diagnosis should scan are parameters too, listed in `scan` as {name: tuple of values};
-`basis` reads them from `self.params`.
-
-Plausible ranges: a `Parameter` may declare `plausible=(low, high)`, the range of its *magnitude*
-that a real PH20/TP20-class head can have (take the magnitudes of your teaching text, generous by
-about 1.5x at the top, and 0 at the bottom: a small value is never implausible, only not
-significant). A fit whose |value| falls outside is never accepted as the explanation, and the
-report says so (`Effect.implausible(params)`: "amplitude 15 arcsec, plausible 0-3 arcsec").
-Leave it None (the default) for what has no physical bound: phases, seeds, scanned settings.
-A phase or any other angle that repeats declares `period=` (360.0 for a phase in degrees, 120.0
-for the azimuth of three seats), so that its uncertainty and comparisons wrap around.
+Method: docs/methods/effects.md.
 """
 
 from __future__ import annotations
@@ -145,7 +91,7 @@ class Parameter:
 
 
 class Effect:
-    """One physical mechanism: forward model, linear basis and parameters (see module docstring).
+    """One physical mechanism: forward model, linear basis and parameters (docs/methods/effects.md).
 
     An effect describes itself, so that the twin, the diagnosis and the app never name one:
     `scan` is the grid of its non-linear parameters a diagnosis tries (their chosen values are

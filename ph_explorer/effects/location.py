@@ -1,17 +1,11 @@
 """Location errors of the head's two rotary axes (ISO 230-1): where each axis line really lies.
 
-The head's kinematic model turns B about the machine z through the pivot and A about the x axis
-of the frame carried by B, through the same pivot. A location error is a constant small screw E
-(a translation delta0 and a rotation eps0, in the frame the axis sits in) that moves the real axis
-line away from the model's: the real joint is E R(angle) E^-1 instead of R(angle). To first order
-the body the axis carries is then displaced, at joint angle theta, by the screw
+A location error is a constant small screw E (delta0, eps0, in the frame the axis sits in) that
+moves the real axis line: the real joint is E R(angle) E^-1. To first order the body the axis
+carries is displaced by delta = (I - R(theta)) delta0, eps = (I - R(theta)) eps0, which
+`effect.screw_deviation` turns into radial deviations. Symbols: <direction>O<axis>, e.g. XOB.
 
-    delta = (I - R(theta)) delta0,   eps = (I - R(theta)) eps0
-
-(zero at joint angle 0, where the model was set up), which `base.screw_deviation` turns into the
-radial deviation of each touch. A translation along the axis line and a rotation about it change
-nothing ((I - R) kills them): those location errors are not defined. Symbols: <direction>O<axis>
-with the letter O for the ISO zero, e.g. XOB for the B line's offset along x.
+Method: docs/methods/rotary_axis_errors.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,12 @@
 """Error motions of the head's two rotary axes (ISO 230-1, ISO 230-7): radial, axial and tilt.
 
-An error motion is the small-displacement screw of the body an axis carries, as a function of
-that axis's angle, given in the frame the axis sits in (`base.axis_frame`: the machine frame for
-B, the frame carried by B for A) at the pivot. Each component is written as a sin(m angle + phi)
-at every touch's actual joint angle, with m scanned from 1 to 40 cycles per revolution like the
-cyclic angular errors (the angular positioning members of the family, `effects/axes.py`), and
-turned into a radial deviation by `base.screw_deviation`.
+An error motion is the small-displacement screw of the body an axis carries, as a function of that
+axis's angle, in the frame the axis sits in (`effect.axis_frame`). Each component is a
+sin(m angle + phi) of the touch's joint angle, m scanned from 1 to 40 cycles per revolution, turned
+into a radial deviation by `effect.screw_deviation`. Symbols (E + direction + axis): EXB, EYB, EZB,
+EAB, EBB for B; EYA, EZA, EXA, EBA, ECA for A.
 
-Symbols (ISO 230-1, E + direction + axis): B turns about the machine z, so its radial motions are
-EXB and EYB, its axial motion EZB, its tilt motions EAB and EBB (about x and y) and its angular
-positioning ECB. A turns about the x axis of the frame carried by B: radial EYA and EZA, axial EXA,
-tilt EBA and ECA, angular positioning EAA.
+Method: docs/methods/rotary_axis_errors.md.
 """
 
 from __future__ import annotations

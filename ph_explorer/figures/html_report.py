@@ -1,17 +1,12 @@
 """A report of a campaign and its diagnosis that stands alone: one HTML file, every figure inside.
 
-For sharing with a colleague or a student (issue 15, item 7): the campaign (where it came from,
-its orientations, repetitions, points, geometry and noise floor), the error map over orientations
-(ph_explorer.figures.orientation_map), the polar plot and the paper's Tables 1-3 at chosen orientations
-(ph_explorer.figures.polar, ph_explorer.paper.tables: what the explorer shows), and the diagnosis of a study
-(ph_explorer.diagnosis.study): its verdict, the fitted effects with their expanded uncertainty,
-the history of the error as effects were added, the honest nested figures, where it fails, and
-every run (ph_explorer/figures/diagnosis_report.py). Figures are inline SVG; the page needs no script and
-fetches nothing.
+The campaign, the error map over orientations, the polar plot and the paper's Tables 1-3 at chosen
+orientations, and the diagnosis of a study (verdict, fitted effects with their uncertainty, the
+error's history, where it fails, every run; figures/diagnosis_report.py). Figures are inline SVG;
+the page needs no script and fetches nothing. A teaching scenario's hidden effects are not named
+unless the caller asks to reveal them.
 
-A teaching scenario's hidden effects are not named unless the caller asks to reveal them: every effect
-is then written "effect A", "effect B", ... (which one is hidden would be the answer too), no
-teaching text is shown, and the fitted parameters are kept (what was measured, not what it is called).
+Method: docs/methods/html_report.md.
 """
 
 from __future__ import annotations
@@ -90,7 +85,7 @@ def report_html(
     created: str = "",
     source: str | None = None,
 ) -> str:
-    """The report as one self-contained HTML document (see the module docstring).
+    """The report as one self-contained HTML document (docs/methods/html_report.md).
 
     models: the models shown beside the measurement ("network", "trilinear", "hybrid", ...);
     train_mask: their training rings (the others are check rings);

@@ -1,19 +1,12 @@
 """Reading a campaign CSV (long format, one row per touch) into a Campaign, with one-line errors.
 
-CSV columns (header on the first non-blank line, any order):
-    A_deg, B_deg   nominal head orientation of the ring (deg), A in [-115, 115], B in [-180, 180]
-    rep            repetition label, an integer; repetitions are ranked per orientation, so they
-                   may start at 0 or 1 (or anywhere) as long as every orientation has as many
-    point          point number k, an integer, 0..N-1 or 1..N (the smallest point number in the file
-                   decides), theta_k = 360 k / N (0-based k)
-    dev_um         deviation (um) from the LS circle of its own repetition, positive outward
-    t_s            optional: time of the touch (s since the campaign start); it fixes the touch order
-    x_mm, y_mm     optional: the raw point in the ring frame (mm); without dev_um the deviations
-                   come from the geometric LS circle of each repetition
+Columns (header on the first non-blank line, any order): A_deg, B_deg, rep, point, dev_um, and
+optionally t_s (touch time) and x_mm, y_mm (raw points, when dev_um is missing). Every problem is
+an InputError naming the file, the 1-based line number (the header is line 1) and the column.
+The steps run one after the other, each vectorised over all rows: text -> rows -> numeric
+columns -> orientation / repetition / point indices (checked) -> the cube.
 
-Every problem is an InputError naming the file, the 1-based line number (the header is line 1)
-and the column. The steps below run one after the other, each vectorised over all rows: text ->
-rows -> numeric columns -> orientation / repetition / point indices (checked) -> the cube.
+Method: docs/methods/campaign_csv.md.
 """
 
 from __future__ import annotations

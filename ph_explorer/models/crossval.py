@@ -1,18 +1,12 @@
 """Out-of-sample predictions for any DeviationModel: the one cross-validation of the project.
 
-In the spirit of scikit-learn's cross_val_predict with the orientation as the group: every
-training ring is predicted by the model fitted on the other training rings
-(leave-one-orientation-out, or with `folds` the training rings split into that many groups, every
-folds-th ring in measuring order, left out together: fewer fits for a model that trains for seconds),
-every held-out ring by the model fitted on all training rings (its measurements never enter a fit).
-With `strict`, a model is given only the rings it may learn from (`campaign.subset`): a hybrid
-otherwise fits its physical terms on every ring of the campaign it is given. What a model cannot predict of a ring out of sample is where a
-missing physical effect shows (docs/physics.md).
+Every training ring is predicted by the model fitted on the other training rings
+(leave-one-orientation-out, or `folds` groups), every held-out ring by the model fitted on all
+training rings; with `strict` a model sees only the rings it may learn from. A model linear in its
+data also gives its out-of-sample weights W (n_o x n_o), through which the diagnosis and the
+hybrid put an effect's basis columns (Frisch-Waugh-Lovell).
 
-A model that is linear in its data (the trilinear tables) also gives its out-of-sample weights W
-(n_o x n_o): row i predicts ring i from the others. The diagnosis and the hybrid put an effect's
-basis columns through the same W, so that an effect is only credited with what the model cannot
-already predict (Frisch-Waugh-Lovell).
+Method: docs/methods/crossval.md.
 """
 
 from __future__ import annotations
@@ -40,7 +34,7 @@ def _out_of_sample(
     groups: Sequence[NDArray[np.int64]] | None = None,
     held_out: bool = True,
 ) -> NDArray[np.float64]:
-    """predict(model, orientations) at every ring, the model fitted without it (see the module docstring).
+    """predict(model, orientations) at every ring, the model fitted without it (docs/methods/crossval.md).
 
     `groups` (ring indices left out together) replaces the folds; only the rings in a group are then
     predicted. Without `held_out` the rings outside `train` are not predicted (one fit fewer).
@@ -84,7 +78,7 @@ def cross_val_predict(
     groups: Sequence[NDArray[np.int64]] | None = None,
     held_out: bool = True,
 ) -> NDArray[np.float64]:
-    """Each ring's out-of-sample systematic curve (n_o, n_points) in um (see the module docstring and
+    """Each ring's out-of-sample systematic curve (n_o, n_points) in um (docs/methods/crossval.md; see
     `_out_of_sample` for `groups` and `held_out`)."""
     return _out_of_sample(
         make_model, campaign, train, lambda model, o: model.predict(o, n_points=campaign.n_points), folds, strict, groups, held_out

@@ -1,16 +1,13 @@
 """A hybrid model: chosen physical effects (fitted on their bases) + a data-driven part.
 
-Like an lmfit composite model: the physical part is a sum of catalog effects, each a set of basis
-columns computed from the kinematics of every touch; the data-driven part (the trilinear model or
-the network) learns what remains over the nominal orientations.
-
 The physical coefficients are fitted jointly with the data-driven part (Frisch-Waugh-Lovell, see
-ph_explorer.models.least_squares): what the out-of-sample smoother cannot predict of the deviations is
-fitted on what it cannot predict of the basis columns, over every ring (the held-out rings'
-residuals included: they say most about what interpolation misses; predict_held_out keeps their
-evaluation honest by leaving each one out of the physical fit). The data-driven part then learns
-the deviations minus the physical terms from the training rings only. The physical fit is linear
-least squares: a change of effects refits in about a second on a paper-size campaign.
+ph_explorer.models.least_squares): what the out-of-sample smoother cannot predict of the deviations
+is fitted on what it cannot predict of the basis columns, over every ring. The data-driven part
+(the trilinear model or the network) then learns the deviations minus the physical terms from the
+training rings only. The physical fit is linear least squares: a change of effects refits in about
+a second on a paper-size campaign.
+
+Method: docs/methods/hybrid.md.
 """
 
 from __future__ import annotations

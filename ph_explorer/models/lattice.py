@@ -1,21 +1,12 @@
 """A model's curves predicted once on a dense (A, B) lattice, then read by bilinear interpolation.
 
-Why: the explorer draws a curve per model on every slider move of every browser; a network's
-prediction of one orientation costs a call into torch (~0.3 ms) and a hybrid's more, while
-reading four lattice rows costs microseconds. The lattice is predicted in a few batches when a
-model loads (`PredictionLattice.build`), then `predict` answers any orientation.
+The explorer draws a curve per model on every slider move; reading four lattice rows costs
+microseconds where a model's prediction costs far more. `PredictionLattice.build` predicts the
+lattice in batches when a model loads, then `predict` answers any orientation. A band of A is
+trusted only where its checked cell centres are within TOLERANCE_UM of the model; `covers` says
+False elsewhere and the caller predicts exactly there. Curves are float32, under MAX_BYTES.
 
-Accuracy: bilinear interpolation between nodes STEP_DEG apart. A trilinear model whose grid lines
-fall on lattice nodes (multiples of STEP_DEG, as every shipped campaign's do) is itself bilinear
-between them, so it is reproduced to float32 rounding; a smooth model (the network) is within
-step^2/8 times its curvature in (A, B), ~1e-4 um. A model need not be smooth everywhere (a
-hybrid's physics jumps where the ring's touches cross A = 0, at A0 = the stylus cone's
-half-angle): each band of A between two lattice rows is checked at its cell centres (A and B
-half a step off the nodes, every CHECK_EVERY-th column) and trusted only when all are within
-TOLERANCE_UM of the model; `covers` says False elsewhere and the caller predicts exactly there.
-tests/test_lattice.py checks the trusted bands against model.predict at random orientations.
-Curves are kept as float32: 0.5 deg over A in [0, 115] and all of B is 231 x 720 orientations
-x 64 points x 4 B = 43 MB per model; a lattice is kept under MAX_BYTES by a coarser step.
+Method: docs/methods/lattice.md.
 """
 
 from __future__ import annotations

@@ -1,29 +1,12 @@
 """The paper's network: orientation in, 1 + 2K Fourier coefficients of the deviation curve out.
 
-Architecture and training as section 2 of Gaska et al. (the paper) describes them:
-- input the orientation with B encoded periodically: (A0 / 90, sin B0, cos B0);
-- dense 256 -> 256 -> 128, each followed by LayerNorm and GELU; dropout 0.10 after the first two
-  (none after the third, to keep small values); a linear output of 1 + 2K coefficients (K = 8);
-- inside every training step the coefficients times the Fourier basis matrix of the N measured
-  points give the curve d'(n), compared with the measured d(n) by a weighted Huber loss;
-- L2 (1e-4) on the dense layers, AdamW (lr 1e-3, weight decay 1e-4), ReduceLROnPlateau on the
-  validation curve MAE down to lr 1e-6, patient early stopping restoring the best weights;
-- training, validation (and, outside, test) orientations are disjoint (A, B) groups.
+As section 2 of Gaska et al. describes it: input (A0 / 90, sin B0, cos B0), dense 256 -> 256 ->
+128 with LayerNorm, GELU and dropout, a linear output of 1 + 2K coefficients (K = 8) whose curve
+is compared with the measured one by a weighted Huber loss; AdamW, ReduceLROnPlateau and early
+stopping, on disjoint (A, B) groups. The target is the mean curve by default (`target="mean"`).
+Monte Carlo adds Gaussian touch noise with the pooled repetition sigma of the training rings.
 
-Target d(n). By default the mean curve of each orientation's repetitions (`target="mean"`); with
-`target="repetitions"` every repetition is a sample, as in the paper (its ~76 000 points are
-~120 orientations x 10 repetitions x 64 points). For the quadratic part of the loss both have the
-same minimiser, the mean curve; the mean is 10 times cheaper per epoch and its noise is
-sigma / sqrt(n_rep), so the validation MAE that drives the schedule is less noisy. The Huber
-threshold is two noise sigmas of the target, so the loss is quadratic for ordinary touch noise
-and linear only for outliers. Orientations are weighted by the inverse variance of their
-target (their own repetition spread, shrunk towards the pooled one), normalised to mean 1.
-
-Curves are learnt in units of `scale` (the RMS of the training curves) so that the loss is of
-order one; the L2 term is lambda * sum(w^2) over the dense layers' weights.
-
-Monte Carlo: the network predicts the systematic curve; a simulated measurement adds Gaussian
-touch noise with the pooled repetition sigma of the training orientations.
+Method: docs/methods/network.md.
 """
 
 from __future__ import annotations

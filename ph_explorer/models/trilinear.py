@@ -1,16 +1,12 @@
 """Trilinear interpolation + Monte Carlo, after Gaska, Gaska and Gruza 2016 (Appl. Sci. 6, 144).
 
-The paper's baseline (its reference [12]): two tables over the measured lattice of orientations
-and the points of the ring, (A, B, theta) -> the mean deviation of the repetitions and their
-standard deviation. A prediction at any orientation and any number of points is the trilinear
-interpolation of the mean table (B and theta periodic, A linear and clamped at the ends of the
-measured range); a simulated measurement adds a Gaussian draw with the interpolated spread.
+The paper's baseline: two tables over the measured lattice, (A, B, theta) -> the repetitions'
+mean deviation and their standard deviation. A prediction is the trilinear interpolation of the
+mean table (B and theta periodic, A linear and clamped); a simulated measurement adds a Gaussian
+draw with the interpolated spread. Nodes without data are filled first along B, then along A;
+orientations off the lattice do not enter the tables.
 
-Lattice nodes without data (held out, or never measured) are filled before interpolating:
-first along B within their A row (periodic linear interpolation between the nearest measured
-B nodes of that row), then rows with no measured node at all along A (linear between the
-nearest measured rows, nearest row beyond the ends). Training orientations off the lattice do
-not enter the tables: the method is a lattice method.
+Method: docs/methods/trilinear.md.
 """
 
 from __future__ import annotations

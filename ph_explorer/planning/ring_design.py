@@ -1,31 +1,12 @@
 """Which rings to measure: an optimal design of a campaign's orientations.
 
-A campaign costs one to two days of CMM time, so the rings measured matter more than any fit. The
-design chooses N orientations (A0, B0) from candidate lattice nodes the head can reach, greedily,
-for two purposes at once:
+The design chooses N orientations (A0, B0) from reachable lattice nodes, greedily, for two purposes
+at once: the catalog's effects identifiable (D-optimality on their orthonormalised basis columns
+after each ring's circle fit, with a weak RIDGE_PRIOR) and the data part covered (space filling
+in stylus direction). A measured campaign's rings are the prior; without one the design keeps to
+rings a lattice interpolator can use. The rings come in measuring order, most informative first.
 
-- the catalog's effects identifiable: D-optimality (the largest log-determinant of the information
-  matrix sum_r X_r' X_r) on the effects' basis columns at the head touches of each candidate ring,
-  after the ring's circle fit (what a deviation can show of them). Cyclic axis errors enter at
-  their first DESIGN_SCAN_VALUES orders each, so that the design also separates the orders, which
-  a lattice of few B columns aliases (2 and 4 cycles/rev are one term on three columns 120 deg
-  apart);
-- the data part covered: space filling, the log of the angle between the ring's stylus direction
-  and the nearest one already in the design (the stylus direction, not (A, B): at A0 = 0 every B
-  points the same way).
-
-The columns are first orthonormalised over all candidates (the information of measuring every
-candidate is the identity), so the criterion does not depend on the units of the parameters; a
-weak prior RIDGE_PRIOR I keeps it finite while fewer rings than columns are chosen. With a
-measured campaign, its rings are the prior: the rings added are those that most shrink the
-effects' parameter uncertainty (the determinant of their covariance) and lie farthest from the
-data.
-
-Without a campaign the design keeps to rings a lattice interpolator can use (the trilinear data
-part: `campaign.lattice_axes` keeps an A or B value only when it is shared by at least half as many
-rings as the most common one): every B value at most once, every A row two to four times (more for
-large budgets). The rings are listed in the order the greedy choice took them, the most informative
-first: the order to measure them, so that a campaign cut short still holds the best rings.
+Method: docs/methods/ring_design.md.
 """
 
 from __future__ import annotations
@@ -182,7 +163,7 @@ def _angle_deg(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.flo
 
 
 def _counts_allowed(keys: NDArray[np.float64], chosen: list[int], budget: int, at_most_once: bool) -> NDArray[np.bool_]:
-    """Which candidates keep a lattice value's count feasible for `lattice_axes` (module docstring).
+    """Which candidates keep a lattice value's count feasible for `lattice_axes` (docs/methods/ring_design.md).
 
     at_most_once: every value at most once (all counts 1: all kept). Otherwise every value used
     lowest..2 lowest times: the lowest count is at least half the most common one.
@@ -213,7 +194,7 @@ def propose_rings(
     measured: Campaign | None = None,
     lattice: bool | None = None,
 ) -> RingDesign:
-    """The next `budget` rings to measure, in measuring order (module docstring).
+    """The next `budget` rings to measure, in measuring order (docs/methods/ring_design.md).
 
     candidates: orientations to choose from (default: candidate_orientations, and with a campaign
     the nodes of its lattice too, minus the rings it holds). measured: a campaign whose rings are

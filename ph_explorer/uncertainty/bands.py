@@ -1,24 +1,13 @@
 """Monte Carlo bands with every component, their budget, and how often they hold measurements.
 
-A model's band at an orientation (JCGM 101 propagation of distributions, adaptive Monte Carlo of
-`ph_explorer.uncertainty.montecarlo`): one trial is the model's systematic curve plus three independent
-components, each a deviation curve after the circle fit, in um:
+A model's band at an orientation (JCGM 101, adaptive Monte Carlo of
+`ph_explorer.uncertainty.montecarlo`): one trial is the model's systematic curve plus three
+independent components after the circle fit, in um: repeatability, the model's own error
+(`ph_explorer.uncertainty.model_error`, calibrated by `calibrate_model_error`) and, for a hybrid,
+its parameters. The "touch" band bounds one touch's deviation, the "mean" band the mean curve of
+R repetitions; the budget lists each component's standard uncertainty.
 
-- repeatability: touch noise with the model's repetition sigma (`DeviationModel.repetition_sigma`,
-  drawn by `models.base.draw_repetitions`, the draw of `simulate`); for the mean of R repetitions
-  the same with sigma / sqrt(R) (the circle fit is linear, so the mean of R fitted repetitions is
-  the fit of their mean);
-- model: the model's own error, estimated out of sample (`models.model_error`), its size
-  calibrated on held-out rings where the campaign has them (`calibrate_model_error`);
-- parameters: for a hybrid, the spread of its fitted physical parameters
-  (`models.parameter_spread`); the cross-validated error of a hybrid already holds the spread of
-  its refitted parameters, so the model component is what it leaves beyond them (per harmonic,
-  in variance).
-
-The "touch" band bounds one touch's deviation (prediction + repeatability + model + parameters),
-the "mean" band the mean curve of R repetitions (R of the training campaign). The budget lists each
-component's standard uncertainty (um, the rms over the points of its standard deviation): the
-components are independent, so the squares add up to the combined one's.
+Method: docs/methods/bands.md.
 """
 
 from __future__ import annotations
@@ -279,17 +268,13 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     """The sources with the model error's size calibrated on held-out rings (split-conformal).
 
     orientations (m, 2), mean_curves (m, N): rings the model was not fitted on, measured off its
-    lattice. Each of their mean-curve points scores the smallest scale s >= 0 of the model error's
-    variance with which it lies inside the mean band (Gaussian bounds +-z sqrt(variance), z the
-    two-sided quantile of `level`, which the Monte Carlo band reproduces for these Gaussian
-    components; MAX_SCALE when no scale up to it does: a model error the cross-validation saw as
-    nothing stays nothing, never inf x 0). The error's scale at an orientation is
-    then the `level` quantile of the scores, over all rings (`scale`) or weighted by the kernel in A
-    (`OutOfSampleError.scale_at`, see models.model_error); the shape over the harmonics stays the
-    cross-validation's. Rings used here must not be the rings a coverage is then measured on. With
-    fewer than MIN_CALIBRATION_RINGS rings a share of points says too little (one ring's 64 points
-    move together): the sources are returned as they are, the cross-validation's size,
-    `calibration_rings` 0.
+    lattice. Each mean-curve point scores the smallest scale of the model error's variance with which
+    it lies inside the mean band (MAX_SCALE when none up to it does); the `level` quantile of the
+    scores is the scale (`scale`, and weighted by the kernel in A, `OutOfSampleError.scale_at`). Rings
+    used here must not be those a coverage is then measured on. With fewer than MIN_CALIBRATION_RINGS
+    rings the sources are returned as they are (`calibration_rings` 0).
+
+    Method: docs/methods/bands.md.
     """
     o = as_orientations(orientations)
     if sources.error is None or len(o) < MIN_CALIBRATION_RINGS:

@@ -1,22 +1,12 @@
 """Expanded uncertainties of an effect's fitted physical parameters, by the jackknife.
 
-A fit of an effect's basis columns gives coefficients; `effect.from_coefficients` turns them into
-physical parameters (an amplitude and a phase from a sine and a cosine coefficient, ...). The
-jackknife refits without each group in turn (each orientation's ring: the touches of one ring
-share its errors, so the ring, not the touch, is the independent unit), and the spread of the
-parameters over those delete-one fits gives their standard error
+The fit is repeated without each orientation's ring in turn (the ring is the independent unit);
+the spread of the physical parameters (`effect.from_coefficients`) over those delete-one fits
+gives se^2 = (n - 1) / n * sum_j (theta_j - mean_j theta)^2, and U = k se with k = 2. Parameters
+with a `period` are compared modulo it; parameters the fit does not change get U = 0.
+`ph_explorer.models.least_squares.jackknife` gives the coefficients `jackknife_parameters` takes.
 
-    se^2 = (n - 1) / n * sum_j (theta_j - mean_j theta_j)^2
-
-(Efron and Tibshirani, An Introduction to the Bootstrap, ch. 11), taken on the physical parameters
-themselves, so that a non-linear map such as the amplitude hypot(c_sin, c_cos) needs no
-linearisation. The expanded uncertainty is U = k se, k = 2 (about 95 % coverage, GUM). A parameter
-that declares a `period` (a phase) is compared modulo its period, centred on the full fit's value:
-a phase near 0/360 deg then has the spread of its fits, not half a turn. Parameters the fit does
-not change (scanned settings such as cycles_per_rev, seeds) get U = 0.
-
-`ph_explorer.models.least_squares.jackknife(design, targets, rings)` gives the delete-one-ring
-coefficients (len(rings), c) that `jackknife_parameters` takes.
+Method: docs/methods/jackknife.md.
 """
 
 from __future__ import annotations

@@ -1,51 +1,12 @@
 """A model's own error, estimated out of sample: what its Monte Carlo band holds beside the noise.
 
-Method. The one cross-validation (`crossval.cross_val_predict`) predicts training rings from the
-model fitted without them, twice: (1) the rings split into FOLDS groups left out in turn (every
-FOLDS-th ring in measuring order: a left-out ring keeps its neighbours in A and most in B), and (2)
-along A: every training ring of one interior A value left out together (with more than FOLDS
-interior values, every FOLDS-th value together), so that a row is predicted from the rows beside
-it. (1) sees what the model cannot interpolate between neighbouring rings, (2) what it cannot
-interpolate between A values: an effect that changes quickly with A (near the vertical, say) is
-invisible to (1), since every ring of a row shares it. The residual r_i = measured mean curve of
-ring i - its out-of-sample prediction holds the model's error at that ring plus the noise of the
-ring's own mean, independent of the prediction (white, variance v_i = s_i^2 N / (N - 3) / R per
-point before the circle fit, s_i the ring's post-fit repetition sigma). Per harmonic k (2..N/2:
-the circle fit removes 0 and 1) the model's error power at ring i is
+The cross-validation predicts training rings without them, in FOLDS groups and along A; per
+harmonic, each ring's residual power minus what its own noise puts there is the model's error
+power. At an orientation the error variance is its Gaussian-kernel mean in A (pooled over B),
+scaled on held-out check rings where the campaign has them (`bands.calibrate_model_error`,
+localized conformal). A draw of the error is a random-phase Gaussian curve with that variance.
 
-    P_ik = p_k(r_i) - e_k(v_i)
-
-with p_k harmonic k's share of the mean square over the points (Parseval: sum_k p_k = mean r^2) and
-e_k = 2 v / N (v / N at the Nyquist harmonic) what white noise puts there. The two errors are
-independent directions of interpolation, so their powers add; a ring of an edge A value (never
-left out along A: it would be extrapolated) takes the kernel mean (below) of the other rings'
-power along A. At an orientation (A, B) the model's error variance per harmonic is the
-Gaussian-kernel weighted mean of P_ik over the training rings, in A only, width one A step of the
-training lattice, pooled over B; a negative mean (a model error too small to see under the noise)
-is zero. Why in A and not in B: every head effect acts through levers that are functions of A (sin
-A for a B-axis error, the A sweep for an A-axis error, gravity sin A), so a model's error changes
-with A; along B it repeats with periods the model cannot resolve, so pooling over B estimates the
-variance of what it misses.
-
-Off the lattice. A ring left out of the cross-validation is predicted from neighbours twice as far
-as an orientation between the lattice's nodes is, and an error the lattice aliases (a period of
-one lattice step) is the same at every node, invisible to any fold. Where the campaign has
-held-out check rings, measured off the lattice, the size of this estimate is calibrated on them
-(`bands.calibrate_model_error`, split-conformal): each of their mean-curve points gets a score,
-the smallest scale of the variance whose mean band holds it; `scale` (the campaign's) is the
-stated quantile of all scores. How much the cross-validation misses is not the same everywhere
-(between the vertical and the first lattice row the curves change fastest, and no fold leaves
-that gap), so at an orientation the variance is multiplied by the local scale: the same quantile
-with every check ring weighted by the model error's kernel in A (localized conformal), the
-kernel widened until the weights count at least MIN_CALIBRATION_RINGS rings (n_eff = (sum w)^2 / sum
-w^2), so that no single ring decides. The shape over the harmonics stays the cross-validation's.
-Without check rings `scale` is 1 and `calibration_rings` 0: the band is then not checked off the
-lattice.
-
-A draw of the error is a random-phase Gaussian curve with that variance per harmonic: at an
-orientation it has not measured, the model does not know the phase of its own error. Phase-locked
-draws would keep the pointwise shape but not the random sign; with the phase free, RONt and the
-harmonics of a task see the right spread.
+Method: docs/methods/out_of_sample_error.md.
 """
 
 from __future__ import annotations
@@ -67,7 +28,7 @@ FILE_NAME = "uncertainty.npz"
 # (on a lattice measured row by row, each left-out ring has its B neighbours in the fit).
 FOLDS = 5
 # Held-out rings needed to calibrate the model error's size, and the rings' worth of weight (n_eff,
-# see the docstring) behind a local scale: a local scale rests on as much as the campaign's.
+# see docs/methods/out_of_sample_error.md) behind a local scale: a local scale rests on as much as the campaign's.
 MIN_CALIBRATION_RINGS = 5
 
 
@@ -113,7 +74,7 @@ class OutOfSampleError:
     orientations: NDArray[np.float64]  # (n_rings, 2) training orientations, deg
     power: NDArray[np.float64]  # (n_rings, N//2 + 1) um^2, noise removed (may be < 0 at one ring)
     width_deg: float  # the kernel's width in A (inf: pooled over every ring)
-    scale: float = 1.0  # the variance's calibration on held-out rings off the lattice, the campaign's (see the docstring)
+    scale: float = 1.0  # the variance's calibration on held-out rings off the lattice, the campaign's (docs/methods/out_of_sample_error.md)
     calibration_rings: int = 0  # the held-out rings that calibrated `scale` (0: not calibrated)
     calibration_a_deg: NDArray[np.float64] | None = None  # (m,) their A, for the local scale
     calibration_scores: NDArray[np.float64] | None = None  # (m, N) each mean-curve point's scale to be inside
@@ -277,7 +238,7 @@ def a_step(orientations: NDArray[np.float64]) -> float:
 
 
 def ring_noise_variance(campaign: Campaign) -> NDArray[np.float64]:
-    """(n_o,) per-point variance of each ring's mean curve before the circle fit (see the module docstring)."""
+    """(n_o,) per-point variance of each ring's mean curve before the circle fit (docs/methods/out_of_sample_error.md)."""
     n, r = campaign.n_points, campaign.n_repetitions
     post_fit = np.mean(campaign.repetition_sigma() ** 2, axis=1)
     return post_fit * n / (n - 3.0) / r
@@ -286,8 +247,8 @@ def ring_noise_variance(campaign: Campaign) -> NDArray[np.float64]:
 def out_of_sample_error(
     make_model: Callable[[], DeviationModel], campaign: Campaign, train: ArrayLike, folds: int | None = FOLDS, strict: bool = True
 ) -> OutOfSampleError:
-    """The model's error at its training rings by the cross-validation in folds and along A (see the
-    module docstring)."""
+    """The model's error at its training rings by the cross-validation in folds and along A (method:
+    docs/methods/out_of_sample_error.md)."""
     mask = np.asarray(train, dtype=bool)
     means, noise = campaign.mean_curves(), ring_noise_variance(campaign)
     in_folds = means - cross_val_predict(make_model, campaign, mask, folds=folds, strict=strict, held_out=False)

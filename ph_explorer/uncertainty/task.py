@@ -1,17 +1,12 @@
 """A measurement task's uncertainty (ISO/TS 15530-4 spirit): a circle measured by head touches.
 
-The task: the ring at orientation (A, B) measured once with N equally spaced touches. One Monte
-Carlo trial is the model's systematic curve plus one draw of every component of its band
-(`bands.Sources`: repeatability of one measurement, the model's own error, the hybrid's
-parameters), put through the circle fit; its RONt (`harmonics.ron_t`) and the amplitudes of its
-harmonics 2..K (`harmonics.harmonic_spectrum`) are the outputs. Adaptive Monte Carlo
-(`montecarlo`) gives each output's estimate y (mean of the trials), standard uncertainty u and
-probabilistically symmetric coverage interval; the expanded uncertainty is U = k u, k = 2.
+The ring at orientation (A, B) measured once with N touches: each Monte Carlo trial is the model's
+systematic curve plus one draw of every component of its band (`bands.Sources`), put through the
+circle fit; its RONt and harmonics 2..K are the outputs, each with estimate y, standard
+uncertainty u, coverage interval and U = k u, k = 2. Validated on measured rings by the normalised
+error E_n = |y_sim - y_meas| / sqrt(U_sim^2 + U_meas^2) (E_n <= 1: agreement).
 
-Validation on measured rings by the normalised error E_n = |y_sim - y_meas| / sqrt(U_sim^2 + U_meas^2):
-y_meas is the mean over the ring's R repetitions of each repetition's RONt (each repetition is
-one measurement of the task), U_meas = k s / sqrt(R) with s their standard deviation. E_n <= 1
-means the simulation and the measurement agree within their uncertainties.
+Method: docs/methods/task_uncertainty.md.
 """
 
 from __future__ import annotations
