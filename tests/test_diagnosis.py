@@ -37,7 +37,7 @@ TEACHING = {
 
 
 def write_like_another_program(campaign: Campaign, path: Path) -> Path:
-    """The README's CSV format written by hand: shuffled columns, 1-based rep and point, no sidecar."""
+    """The documented CSV format (docs/formats.md) written by hand: shuffled columns, 1-based rep and point, no sidecar."""
     n_o, n_rep, n_pt = campaign.deviations.shape
     o, r, p = np.meshgrid(np.arange(n_o), np.arange(n_rep), np.arange(n_pt), indexing="ij")
     rows = np.column_stack(

@@ -4,7 +4,7 @@ none of its hidden effects; the sidecar's hidden list keeps the answer; Reveal s
 what the session found.
 
 A scenario's name is the handle a student types, and is left out of the check: three older names
-(head_3, head_4, head_5) still hint at their answer (README, "Shipped scenarios").
+(head_3, head_4, head_5) still hint at their answer (docs/twin.md, "Shipped scenarios").
 """
 
 from __future__ import annotations

@@ -112,7 +112,7 @@ def test_retraining_replaces_the_folder(data, trained, tmp_path):
 
 
 def test_a_campaign_without_sidecar_holds_out_the_off_grid_rings(tmp_path):
-    """A CSV written by another program (README format, no sidecar): holdout = the off-grid orientations."""
+    """A CSV written by another program (the documented format, no sidecar): holdout = the off-grid orientations."""
     campaign = lobing_campaign(seed=5, n_repetitions=3, extra_orientations=[(43, 91), (20, 50)])
     path = write_campaign(campaign, tmp_path / "other.csv")
     sidecar_path(path).unlink()

@@ -281,7 +281,7 @@ class PhysicsPanel:
                 caption = (
                     f"**What is left**, {signature_text(entry)}: the residual the catalog does not explain, binned "
                     f"against {entry['evidence']['x_label']}, and this term fitted to it. Write an effect with this signature "
-                    "(README, 'Your own effect') and diagnose again with it."
+                    "(docs/twin.md, 'Your own effect') and diagnose again with it."
                 )
                 self.evidence_items[label] = (f"left: {entry['variable']} {entry['kind']}", caption, entry["evidence"])
         self.evidence_items |= {

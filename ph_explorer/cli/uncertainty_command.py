@@ -13,7 +13,7 @@ import numpy as np
 from ph_explorer.cli.train_command import parse_orientations
 from ph_explorer.errors import InputError
 
-A_RANGE, B_RANGE = (-115.0, 115.0), (-180.0, 180.0)  # the campaign files' ranges (README)
+A_RANGE, B_RANGE = (-115.0, 115.0), (-180.0, 180.0)  # the campaign files' ranges (docs/formats.md)
 
 
 def checked_orientations(text: str) -> list[tuple[float, float]]:

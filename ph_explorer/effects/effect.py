@@ -115,7 +115,7 @@ class Effect:
     candidate: ClassVar[bool] = True
     # Where the mechanism sits (one of AXES, None for one spanning both joints) and what kind of
     # error it is (one of KINDS), in the vocabulary of ISO 230-1 for the axes; symbol: its ISO 230-1
-    # style symbol adapted to the head's axes (README, "Effects"), "" when ISO 230 names none.
+    # style symbol adapted to the head's axes (docs/twin.md, "Symbols"), "" when ISO 230 names none.
     axis: ClassVar[str | None] = None
     kind: ClassVar[str] = "probe"
     symbol: ClassVar[str] = ""
