@@ -31,6 +31,8 @@ from ph_explorer.paths import scenarios_dir
 REPOSITORY = Path(__file__).resolve().parent.parent
 DIAGNOSIS_TARGET = {"seconds": 120.0, "peak_mib": 4096.0}
 
+QUICK_EPOCHS = 30  # the network's epochs in quick mode (run.py's quick NetworkConfig)
+
 
 def large_scenario() -> dict[str, Any]:
     """The paper scenario, four times denser in rings and points (the check and off-grid rings kept)."""
@@ -93,13 +95,15 @@ def run_command(args: list[str], stop_when: Callable[[str], bool] | None = None,
     }
 
 
-def commands(folder: Path, name: str) -> list[tuple[str, list[str], Callable[[str], bool] | None]]:
+def commands(folder: Path, name: str, quick: bool = False) -> list[tuple[str, list[str], Callable[[str], bool] | None]]:
     csv, model = folder / f"{name}.csv", folder / f"{name}_model"
+    # quick: a short network (as the other sections' quick mode), the commands' paths all the same
+    short = ["--max-epochs", str(QUICK_EPOCHS)] if quick else []
     scenario = folder / f"{name}_scenario.toml"
     serving = re.compile(r"serving at \S+")
     return [
         ("simulate", ["simulate", "--scenario", str(scenario), "--out", str(csv)], None),
-        ("train", ["train", "--data", str(csv), "--out", str(model)], None),
+        ("train", ["train", "--data", str(csv), "--out", str(model), *short], None),
         ("evaluate", ["evaluate", "--model", str(model), "--data", str(csv), "--json"], None),
         ("diagnose", ["diagnose", "--data", str(csv), "--json"], None),
         ("serve", ["serve", "--data", str(csv), "--model", str(model), "--port", "0"], lambda line: bool(serving.search(line))),
@@ -119,7 +123,7 @@ def run(folder: Path, quick: bool = False, log: Callable[[str], None] = print) -
     for name, data in (("paper", paper), ("dense", dense)):
         (folder / f"{name}_scenario.toml").write_text(tomli_w.dumps(data), encoding="utf-8")
         figures: dict[str, Any] = {}
-        for command, args, stop_when in commands(folder, name):
+        for command, args, stop_when in commands(folder, name, quick):
             figures[command] = run_command(args, stop_when)
             log(f"  {name} {command}: {figures[command]}")
         sizes[name] = figures

@@ -96,7 +96,7 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
     log(f"  diagnosis {s['diagnosis']}")
     s["predict_one_orientation_us"] = speed.prediction_speed(models, 30 if quick else 200)
     s["monte_carlo_touches_per_s"] = speed.monte_carlo_speed(models, campaign.orientations, 10, 1 if quick else 3)
-    s["serve_startup"] = speed.serve_startup()
+    s["serve_startup"] = speed.serve_startup(2 if quick else 5)
     log(f"  serve start-up {s['serve_startup']}")
 
     # Server time per slider update, one browser; then 3. scale, N browsers.
@@ -186,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     quick: bool = args.quick
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    network_config = NetworkConfig(max_epochs=30, early_stopping_patience=10) if quick else NetworkConfig()
+    network_config = NetworkConfig(max_epochs=large_campaign.QUICK_EPOCHS, early_stopping_patience=10) if quick else NetworkConfig()
     stamp = {"date": datetime.date.today().isoformat(), "mode": "quick" if quick else "full"}
     if only:
         # A partial run updates its sections in the results of the last run, each stamped.

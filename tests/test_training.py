@@ -195,3 +195,12 @@ def test_train_cli_rejects_bad_options_with_one_line(data, tmp_path):
     clash = runner.invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "file")])
     assert clash.exit_code == 2 and (tmp_path / "file").read_text() == "x"
     assert not (tmp_path / "m").exists()
+
+
+def test_max_epochs_caps_the_networks_training(data, tmp_path):
+    out = tmp_path / "short"
+    result = CliRunner().invoke(app, ["train", "--data", str(data), "--out", str(out), "--max-epochs", "3"])
+    assert result.exit_code == 0, result.output
+    assert load_card(out)["network"]["epochs"] == 3
+    bad = CliRunner().invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "none"), "--max-epochs", "0"])
+    assert bad.exit_code == 2 and "--max-epochs" in bad.output and not (tmp_path / "none").exists()

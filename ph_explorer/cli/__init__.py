@@ -148,10 +148,14 @@ def _train(
         Optional[str], typer.Option(help="Held-out orientations 'A:B,A:B' (default: the sidecar's check rings, else the off-grid ones).")
     ] = None,
     seed: Annotated[int, typer.Option(help="Random seed of the network's training.")] = 0,
+    max_epochs: Annotated[
+        Optional[int],
+        typer.Option(min=1, help="Stop the network's training after this many epochs (default: the paper's early stopping, at most 2000)."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Train the paper's network and the trilinear + Monte Carlo model on a campaign."""
-    _run("train", train.train_command, data=data, out=out, holdout=holdout, seed=seed, geometry=geometry)
+    _run("train", train.train_command, data=data, out=out, holdout=holdout, seed=seed, geometry=geometry, max_epochs=max_epochs)
 
 
 @app.command("evaluate")

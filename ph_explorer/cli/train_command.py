@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -30,6 +31,7 @@ def train_command(
     geometry: dict[str, float] | None = None,
     network_config: NetworkConfig | None = None,
     quiet: bool = False,
+    max_epochs: int | None = None,
 ) -> int:
     """Train on every orientation but the holdout, write the folder (models + card), print the tables."""
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
@@ -46,6 +48,8 @@ def train_command(
         print("ph-explorer train: no check and no off-grid orientation: nothing held out", file=sys.stderr)
     source = holdout_source(campaign, holdout)
     config = network_config or NetworkConfig()
+    if max_epochs is not None:
+        config = replace(config, max_epochs=max_epochs)
 
     with progress_bar(config.max_epochs, quiet) as progress:
         models, seconds = train_models(campaign, ~mask, seed, progress, config)
