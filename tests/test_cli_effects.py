@@ -1,14 +1,13 @@
-"""`ph-explorer effects` as a user meets it: run in a subprocess (as tests/test_cli.py does)."""
+"""`ph-explorer effects` as a user meets it, through the command line's own path (tests/command_line.py)."""
 
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from command_line import run_cli
 
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.paths import assets_dir
@@ -18,8 +17,7 @@ JUDGED = {"visible", "absorbed_by_circle_fit", "learnable_by_data_model", "confo
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, COLUMNS="120")
-    return subprocess.run([sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, env=env, timeout=300)
+    return run_cli(*args)
 
 
 def one_line_error(result: subprocess.CompletedProcess[str]) -> str:

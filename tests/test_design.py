@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from command_line import run_cli
 
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_match
 from ph_explorer.errors import InputError
@@ -117,8 +116,7 @@ def test_a_budget_larger_than_the_candidates_is_bad_input() -> None:
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, COLUMNS="120")
-    return subprocess.run([sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, env=env, timeout=120)
+    return run_cli(*args)
 
 
 def test_cli_design_json_is_one_object() -> None:

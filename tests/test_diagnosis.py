@@ -8,13 +8,12 @@ numbering, no sidecar, so the held-out rings are the off-grid ones).
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from command_line import run_cli
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose, verdict_text
@@ -175,10 +174,6 @@ def test_hybrid_refits_recovers_a_known_effect_and_predicts_unseen_orientations(
     # The physical part is the effect's own deviations after the circle fit.
     touches = campaign_touches(campaign.subset([0, 50]))
     assert hybrid.physical_part(touches).shape == touches.shape
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, timeout=600)
 
 
 @pytest.fixture(scope="module")

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from command_line import run_cli
 from fake_browser import open_session, wait_for
 from test_app_study import B22, SMALL
 from test_teaching import TEACHING, named
@@ -134,8 +133,7 @@ def test_no_shipped_teaching_scenario_is_spoiled_by_its_report(name: str) -> Non
 
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
-    env = dict(os.environ, COLUMNS="120")
-    return subprocess.run([sys.executable, "-m", "ph_explorer", "report", *args], capture_output=True, text=True, env=env, timeout=600)
+    return run_cli("report", *args)
 
 
 def test_the_command_diagnoses_and_writes_one_file(small_csv: Path, tmp_path: Path) -> None:
