@@ -60,7 +60,13 @@ EFFECT_SEEDS = tuple(range(3001, 3041))
 POWER_SEEDS = tuple(range(4001, 4011))
 POWER_AMPLITUDES = (0.1, 0.3, 0.4, 0.5, 0.7, 0.9, 1.1, 1.3)  # arcsec
 POWER_CYCLES = 22
-QUICK = {"false_alarm": 3, "designs": 1, "effect": 2, "power_seeds": 1, "power_amplitudes": (1.1,)}  # the smoke run: every key, few diagnoses
+QUICK = {
+    "false_alarm": 3,
+    "designs": 1,
+    "effect": 2,
+    "power_seeds": 1,
+    "power_amplitudes": (1.1,),
+}  # the smoke run: every key, few diagnoses
 
 DESIGNS = {
     "repetitions_5": "5 repetitions instead of 10",
