@@ -104,7 +104,8 @@ def test_hidden_effect_is_found_added_and_the_error_falls(diagnoses, name, sidec
 def test_the_near_vertical_lesson_names_the_b_line_or_its_twin_and_says_they_are_one():
     # Near the vertical a tilt eps of the B axis moves the ball as an offset of eps L: the hidden
     # offset of the B line is found as one of the pair, the other named beside it as confounded,
-    # and the error falls to the floor. No other explanation is credited first.
+    # and the error falls most of the way to the floor. No other explanation is credited: what
+    # the five near-vertical rings alone would give lobing or ball form is only suggested.
     scenario = load_scenario("near_vertical")
     (hidden,) = [e for e, h in zip(scenario.effects, scenario.hidden) if h]
     result = diagnose(simulate(scenario), nested=False)
@@ -114,8 +115,11 @@ def test_the_near_vertical_lesson_names_the_b_line_or_its_twin_and_says_they_are
     assert hidden.id == "b_axis_position" and first.effect in pair
     twin = [o for o in first.confounded_with if o["effect"] in pair - {first.effect}]
     assert twin and twin[0]["shared"] >= 0.99
-    final = result.steps[-1]
-    assert final.mae_um["mean"] <= 1.3 * final.noise_floor_um["mean"] < result.steps[0].mae_um["mean"]
+    assert [c.effect for c in result.found] == [first.effect]
+    final, start = result.steps[-1], result.steps[0]
+    floor = final.noise_floor_um["mean"]
+    assert final.mae_um["mean"] <= 1.5 * floor < start.mae_um["mean"]
+    assert final.mae_um["mean"] - floor <= 0.35 * (start.mae_um["mean"] - floor)
 
 
 @pytest.mark.slow

@@ -134,9 +134,30 @@ def _simulate(
     out: Annotated[Optional[Path], typer.Option(help="The campaign CSV to write (a sidecar TOML is written beside it).")] = None,
     seed: Annotated[Optional[int], typer.Option(help="Random seed (default: the scenario's).")] = None,
     list_scenarios: Annotated[bool, typer.Option("--list", help="List the shipped scenarios and exit.")] = False,
+    random_head: Annotated[
+        Optional[str], typer.Option(help="Instead of a scenario: a random healthy head drawn from this integer seed.")
+    ] = None,
+    design: Annotated[
+        Optional[str], typer.Option(help="The random head's design: paper, coarse, no_times or other_geometry (default: drawn).")
+    ] = None,
+    hidden_effect: Annotated[Optional[str], typer.Option(help="Add one hidden catalog effect (an id) to the random head.")] = None,
+    strength: Annotated[
+        Optional[str], typer.Option(help="The hidden effect's size in multiples of its detection limit (default: drawn from 1-3).")
+    ] = None,
 ) -> None:
-    """Simulate a campaign with the digital twin of the head."""
-    _run("simulate", simulate.simulate_command, scenario=scenario, out=out, seed=seed, list_scenarios=list_scenarios)
+    """Simulate a campaign with the digital twin of the head, or a random head of the population."""
+    _run(
+        "simulate",
+        simulate.simulate_command,
+        scenario=scenario,
+        out=out,
+        seed=seed,
+        list_scenarios=list_scenarios,
+        random_head=random_head,
+        design=design,
+        hidden_effect=hidden_effect,
+        strength=strength,
+    )
 
 
 @app.command("train")

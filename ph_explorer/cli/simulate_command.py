@@ -1,12 +1,14 @@
-"""`ph-explorer simulate`: write a scenario's campaign CSV and sidecar, or list the shipped scenarios."""
+"""`ph-explorer simulate`: write a scenario's (or a random head's) campaign CSV and sidecar, or list the shipped scenarios."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from ph_explorer import twin
+from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
 from ph_explorer.io import write_campaign
+from ph_explorer.twin.random_heads import design_of, random_campaign
 
 
 def simulate_command(
@@ -14,28 +16,66 @@ def simulate_command(
     out: Path | None = None,
     seed: int | None = None,
     list_scenarios: bool = False,
+    random_head: str | None = None,
+    design: str | None = None,
+    hidden_effect: str | None = None,
+    strength: str | None = None,
 ) -> int:
-    """Simulate the scenario (seed: default the scenario's) into out, or list the scenarios, one per line."""
+    """Simulate the scenario (seed: default the scenario's), or a random head, into out; or list the scenarios."""
     if list_scenarios:
         for line in scenario_lines():
             print(line)
         return 0
-    if scenario is None:
-        raise InputError("give --scenario NAME|PATH (see --list)", option="--scenario")
+    if random_head is None:
+        for value, option in ((design, "--design"), (hidden_effect, "--hidden-effect"), (strength, "--strength")):
+            if value is not None:
+                raise InputError("is for a random head: give --random-head SEED", option=option)
+    elif scenario is not None:
+        raise InputError("give either --scenario or --random-head, not both", option="--random-head")
+    if scenario is None and random_head is None:
+        raise InputError("give --scenario NAME|PATH (see --list) or --random-head SEED", option="--scenario")
     if out is None:
         raise InputError("give --out FILE.csv", option="--out")
-    loaded = twin.load_scenario(scenario)
-    campaign = twin.simulate(loaded, seed)
+    if random_head is not None:
+        campaign = random_campaign_of(random_head, design, hidden_effect, strength)
+        hidden = len(campaign.scenario["hidden"])
+        name, checks = campaign.scenario["name"], len(campaign.check_orientations)
+    else:
+        loaded = twin.load_scenario(scenario)
+        campaign = twin.simulate(loaded, seed)
+        hidden, name, checks = len(loaded.hidden_ids), loaded.name, len(loaded.check_orientations)
     path = write_campaign(campaign, out)
     # Spoiler-free: a student may run this; the sidecar's [scenario] hidden list holds the answer.
-    n_hidden = len(loaded.hidden_ids)
-    hidden = f"{n_hidden} (listed under [scenario] hidden in {path.with_suffix('.toml').name})" if n_hidden else "none"
+    hidden_text = f"{hidden} (listed under [scenario] hidden in {path.with_suffix('.toml').name})" if hidden else "none"
     print(
-        f"{path}: scenario {loaded.name}, seed {campaign.scenario['seed']}, {campaign.n_orientations} orientations x "
-        f"{campaign.n_repetitions} repetitions x {campaign.n_points} points, {len(loaded.check_orientations)} check "
-        f"orientations, hidden effects: {hidden}"
+        f"{path}: scenario {name}, seed {campaign.scenario['seed']}, {campaign.n_orientations} orientations x "
+        f"{campaign.n_repetitions} repetitions x {campaign.n_points} points, {checks} check "
+        f"orientations, hidden effects: {hidden_text}"
     )
     return 0
+
+
+def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> Campaign:
+    """The random head's campaign from the options as given (each checked, one line naming it)."""
+    try:
+        number = int(seed)
+    except ValueError:
+        raise InputError(f"must be an integer seed, got {seed!r}", option="--random-head") from None
+    design = design_of(number, design)
+    if hidden_effect is None:
+        if strength is not None:
+            raise InputError("sets the size of a hidden effect: give --hidden-effect ID", option="--strength")
+        return random_campaign(number, design)
+    # The diagnosis's machinery only when a hidden effect is asked for: the command stays light.
+    from ph_explorer.diagnosis.detection import head_with_effect
+
+    size = None
+    if strength is not None:
+        try:
+            size = float(strength)
+        except ValueError:
+            raise InputError(f"must be a number, got {strength!r}", option="--strength") from None
+    return head_with_effect(number, hidden_effect, size, design)[0]
 
 
 def scenario_lines() -> list[str]:

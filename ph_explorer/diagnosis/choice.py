@@ -14,9 +14,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
 from ph_explorer.diagnosis.results import Candidate
 from ph_explorer.diagnosis.search import CandidateSearch, FittedBases, rank_candidates
-from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
+from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
 
@@ -39,6 +40,24 @@ RINGS_BROUGHT_WITHIN = 2
 SHARE_BROUGHT_WITHIN = 0.25
 
 
+def replicated(search: CandidateSearch, candidate: Candidate, chain: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0) -> bool:
+    """Whether the candidate's gain is replicated over rings (diagnosis.replication); when it is
+    not, the candidate is marked suggested, with why and the rings that carry it."""
+    effect = by_id[candidate.effect].with_settings(**candidate.settings)
+    before = search.design(chain) if chain else None
+    after = search.design([*chain, effect])
+    gain = ring_gains(search.residual, before, after, search.targets, ring_sigma(search.campaign.deviations) ** 2)
+    test = replication(gain, ~search.train, determined_size(candidate.params, candidate.params_u, effect.amplitudes()), seed)
+    candidate.replication = test.as_dict()
+    if test.replicated:
+        return True
+    o = search.campaign.orientations
+    carried = ", ".join(f"A{o[i, 0]:g} B{o[i, 1]:g}" for i in test.carried_by)
+    candidate.suggested = True
+    candidate.note = f"not replicated over rings: {'; '.join(test.reasons())}" + (f"; carried by {carried}" if carried else "")
+    return False
+
+
 def next_found(
     ranked: Sequence[Candidate],
     current: NoiseTest | None,
@@ -55,20 +74,23 @@ def next_found(
     materially) is taken. So is one that is beyond noise and plausible when the model fails
     beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN, and SHARE_BROUGHT_WITHIN, of
     the exceeding rings within noise: a failure on the lattice rings the check rings do not see.
+    Either must also be replicated over rings (`replicated`); one that is not is suggested, and
+    the next is tried.
     """
     for candidate in ranked:
         if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
             continue
         test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
-        if candidate.significant:
-            return candidate, test
-        brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
-        if test is not None and test.failing_rings <= current.failing_rings - brought:
+        if not candidate.significant:
+            brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
+            if test is None or test.failing_rings > current.failing_rings - brought:
+                continue
             candidate.significant = True
             candidate.note = (
                 f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
                 "their noise within it (the check rings alone do not show it)"
             )
+        if replicated(search, candidate, chain, by_id, seed):
             return candidate, test
     return None
 
@@ -84,6 +106,11 @@ class Choice:
     chain: list[Effect]  # start + the effects taken, at their chosen settings
     after: NoiseTest | None  # the test with the chain in the model (None: nothing in it)
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
+
+    @property
+    def suggested(self) -> list[Candidate]:
+        """Candidates the search would have taken but whose gain is not replicated over rings."""
+        return [c for ranking in self.rankings for c in ranking if c.suggested]
 
     @property
     def remaining(self) -> list[Candidate]:

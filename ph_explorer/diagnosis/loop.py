@@ -75,14 +75,17 @@ def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate],
             candidate.note = candidate.note or f"beyond noise only with {', '.join(found)} left out of the model"
 
 
-def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool) -> str:
+def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, suggested: bool = False) -> str:
     """The verdict (see VERDICTS) from the within-noise tests before and after the effects found.
 
-    A campaign of one repetition has no noise to test against: found effects are "missing",
-    none found is "none", and the report says that "within noise" could not be tested.
+    Found effects are replicated over rings (diagnosis.replication); a baseline that fails with
+    only unreplicated candidates is "suggested". A campaign of one repetition has no noise to
+    test against: found effects are "missing", none found is "none", and the report says that
+    "within noise" could not be tested.
     """
     if not found:
-        return "unexplained" if before is not None and before.fails else "none"
+        fails = before is not None and before.fails
+        return ("suggested" if suggested else "unexplained") if fails else "none"
     return "partial" if after is not None and after.fails else "missing"
 
 
@@ -162,12 +165,12 @@ def diagnose(
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
-    verdict = decide(before, choice.after, bool(chain))
+    verdict = decide(before, choice.after, bool(chain), bool(choice.suggested))
     if chain:
         settle_presence(candidates, choice.remaining, [c.effect for c in found])
     confounding(search, candidates, by_id)
     # What is left, in the head's own variables, when the catalog does not explain it all.
-    left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained") else []
+    left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
 
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
     honest = nested_after(campaign, effects, start, max_steps, seed) if nested and found else None

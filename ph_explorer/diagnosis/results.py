@@ -21,7 +21,8 @@ NULL_MARGIN = 2.0  # a candidate is beyond noise when it explains more than this
 # What the diagnosis can say of a campaign, and what each means.
 VERDICTS = {
     "none": "the model predicts every ring within what its noise explains",
-    "missing": "catalog effects found, and with them the model is within noise",
+    "missing": "catalog effects found, replicated over rings, and with them the model is within noise",
+    "suggested": "the model fails beyond noise; a catalog effect may explain it, but its gain is not replicated over rings",
     "partial": "catalog effects found, but the model still fails beyond noise with them",
     "unexplained": "the model fails beyond noise and no plausible catalog effect explains it",
 }
@@ -46,6 +47,9 @@ class Candidate:
     beyond_noise: bool = False  # explains more than noise would, with a plausible fit (material or not)
     # Other candidates this campaign cannot tell it from: [{"effect": id, "shared": squared canonical correlation}]
     confounded_with: list[dict[str, Any]] = field(default_factory=list)
+    # Significant, but its gain is not replicated over rings (diagnosis.replication): not a claim.
+    suggested: bool = False
+    replication: dict[str, Any] = field(default_factory=dict)  # Replication.as_dict(), for a candidate the search would take
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
@@ -54,8 +58,10 @@ class Candidate:
 
     @property
     def status(self) -> str:
-        """In words: found (significant), present but already captured by the data model (beyond
+        """In words: suggested (significant but not replicated over rings), found (significant and replicated), present but already captured by the data model (beyond
         noise and plausible, not material), implausible, not significant, or not tested."""
+        if self.suggested:
+            return "suggested"
         if self.significant:
             return "found"
         if self.beyond_noise:
@@ -162,6 +168,16 @@ class Diagnosis:
             for s in steps
         ]
 
+    @property
+    def suggested(self) -> list[Candidate]:
+        """Candidates the search would have taken whose gain is not replicated over rings (each effect once, first seen)."""
+        seen: dict[str, Candidate] = {}
+        for ranking in self.rankings or [self.candidates]:
+            for c in ranking:
+                if c.suggested:
+                    seen.setdefault(c.effect, c)
+        return list(seen.values())
+
     def failing_rings(self) -> list[FailingRing]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
         out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
@@ -181,7 +197,10 @@ class Diagnosis:
             "baseline": {"model": self.baseline_model, "mae_um": rounded(self.baseline_mae_um)},
             "candidates": [c.as_dict() for c in self.candidates],
             "verdict": self.verdict,
-            "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings")} for c in self.found],
+            "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "replication")} for c in self.found],
+            "suggested": [
+                {k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "replication", "note")} for c in self.suggested
+            ],
             "signature": self.signature,
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "nested_after": None if self.nested is None else self.nested.as_dict(),
@@ -220,6 +239,11 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
             f"Within-noise test ({model}): {test.failing_rings} of {len(test.ring_p_value)} rings exceed their noise; "
             f"by how much, summed over all rings but the worst: {test.statistic:.1f}, and the campaign fails above "
             f"{test.critical:.1f} (p = {test.p_value:.3g}; false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)."
+        )
+    for candidate in result.suggested:
+        lines.append(
+            f"Suggested, not claimed: {candidate.effect} ({catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}); "
+            f"{candidate.note}. More rings where it predicts the largest difference would confirm or refute it."
         )
     if result.verdict == "unexplained":
         implausible = [f"{c.effect}: {c.note}" for c in result.candidates if c.note.startswith("best catalog fit implausible")]

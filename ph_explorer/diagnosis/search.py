@@ -267,6 +267,17 @@ class CandidateSearch:
         return binned_evidence(effect.evidence(self.touches), self.residual + whole - out_of_sample, whole)
 
 
+def family_levels(scans: Sequence[Scan | Candidate]) -> dict[int, float]:
+    """Each tested scan's null level (by id()): the most pure noise explains over the whole family,
+    on the scan's own scale (rank_candidates)."""
+    # An effect that explains (next to) nothing of pure noise has no free direction left beyond
+    # `fixed` and the smoother: it cannot be told from noise at all, and takes no part in the scale.
+    tested = [s for s in scans if isinstance(s, Scan) and s.null_best.mean() > 1e-9 * max(s.total, 1e-300)]
+    scales = [float(s.null_best.mean()) for s in tested]
+    family = max((float((s.null_best / scale).max()) for s, scale in zip(tested, scales)), default=0.0)
+    return {id(s): family * scale for s, scale in zip(tested, scales)}
+
+
 def rank_candidates(
     search: CandidateSearch,
     effects: Sequence[Effect],
@@ -288,14 +299,8 @@ def rank_candidates(
         if progress is not None:
             progress(effect.id)
         scans.append(search.scan(effect, fixed))
-    # An effect that explains (next to) nothing of pure noise has no free direction left beyond
-    # `fixed` and the smoother: it cannot be told from noise at all, and takes no part in the scale.
-    tested = [s for s in scans if isinstance(s, Scan) and s.null_best.mean() > 1e-9 * max(s.total, 1e-300)]
-    scales = [float(s.null_best.mean()) for s in tested]
-    family = max((float((s.null_best / scale).max()) for s, scale in zip(tested, scales)), default=0.0)
-    levels = {id(s): family * scale for s, scale in zip(tested, scales)}
-    untestable = float("inf")
-    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), untestable)) for s in scans]
+    levels = family_levels(scans)
+    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf"))) for s in scans]
     out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
     return out
 

@@ -203,6 +203,11 @@ class Effect:
         return ", ".join(parameter_text(k, float(v), units.get(k, ""), u.get(k)) for k, v in params.items())
 
     @classmethod
+    def amplitudes(cls) -> list[str]:
+        """The parameters that state the effect's size: those with a plausible range, not scanned."""
+        return [p.name for p in cls.parameters if p.plausible is not None and p.name not in cls.scan]
+
+    @classmethod
     def implausible(cls, params: Mapping[str, float]) -> list[str]:
         """One line per parameter whose magnitude lies outside its plausible range, e.g.
         ['amplitude 15 arcsec, plausible 0-3 arcsec']; [] when every value is plausible.

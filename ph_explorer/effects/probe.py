@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape
+from ph_explorer.errors import InputError
 from ph_explorer.kinematics import Touches
 
 # Harmonics of the three-seat support function that the basis keeps (docs/physics.md).
@@ -103,11 +104,24 @@ class Noise(Effect):
         "0.044 um against the mean of 10."
     )
     # "0.35 um (2 sigma) in the spec": a sigma of more than 1.5x that 2-sigma figure is no working TP20's.
-    parameters = (Parameter("sigma_um", "um", 0.175, "standard deviation of one touch", plausible=(0.0, 0.5)),)
+    parameters = (
+        Parameter("sigma_um", "um", 0.175, "standard deviation of one touch", plausible=(0.0, 0.5)),
+        # Heavy tails (a dusty ball, a vibration): Student-t, scaled to the same standard deviation.
+        Parameter("dof", "", 0.0, "degrees of freedom of a Student-t noise (0: Gaussian; else above 2)"),
+    )
     candidate = False  # pure noise: nothing a model can add
 
+    def __init__(self, **params: float) -> None:
+        super().__init__(**params)
+        dof = self.params["dof"]
+        if dof != 0.0 and not dof > 2.0:
+            raise InputError(f"effect {self.id!r}: dof must be 0 (Gaussian) or above 2 (a finite variance), got {dof:g}", column="dof")
+
     def forward(self, touches: Touches, rng: np.random.Generator) -> NDArray[np.float64]:
-        return rng.normal(0.0, self.params["sigma_um"], size=touches.shape)
+        sigma, dof = self.params["sigma_um"], self.params["dof"]
+        if dof == 0.0:
+            return rng.normal(0.0, sigma, size=touches.shape)
+        return sigma * np.sqrt((dof - 2.0) / dof) * rng.standard_t(dof, size=touches.shape)
 
     def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         return np.zeros(touches.shape + (0,)), []

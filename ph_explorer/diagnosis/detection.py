@@ -1,0 +1,94 @@
+"""How large an effect must be for the diagnosis to see it, and heads that hold one at a known strength.
+
+An effect's detection limit on a campaign is the factor on its amplitudes at which it just meets
+the search's two tests: what it leaves out of sample (its touches through the circle fit and the
+interpolator's smoother, as the search sees it) explains NULL_MARGIN times the most pure noise
+explains over the catalog's whole scan (beyond noise), and its check rings' error falls by
+MATERIAL_REDUCTION when it is fitted exactly (material). Method: docs/methods/random_heads.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.results import NULL_MARGIN
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Scan, family_levels
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.errors import InputError
+from ph_explorer.harmonics import remove_size_and_centre
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models.least_squares import Design
+from ph_explorer.twin.random_heads import design_of, random_campaign
+
+SETTING_DRAWS = 50  # settings tried before an effect is found too weak to reach a strength plausibly
+
+
+def detection_limit(effect: Effect, campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, seed: int = 0) -> float:
+    """The factor on the effect's amplitudes at which the search's two tests are just met (module docstring)."""
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), seed, detail=False)
+    scans = [search.scan(cls()) for cls in catalog.candidates().values()]
+    levels = family_levels(scans)
+    own = next((s for s in scans if isinstance(s, Scan) and s.effect.id == effect.id), None)
+    if own is None or id(own) not in levels:
+        return math.inf  # it cannot be tested on this campaign (e.g. it needs touch times)
+    signal = remove_size_and_centre(effect.forward(campaign_touches(campaign), np.random.default_rng(seed)))
+    design = Design(signal[..., None], search.smoother)
+    seen = float(design.total()[0])
+    # Beyond noise: what it leaves out of sample explains NULL_MARGIN times the family's noise level.
+    beyond = math.sqrt(NULL_MARGIN * levels[id(own)] / seen) if seen > 0 else math.inf
+    # Material: at the check rings its mean curve, out of sample, lowers the rms by MATERIAL_REDUCTION
+    # when fitted exactly: its rms there is sqrt(1 / (1 - r)^2 - 1) times what is left without it.
+    held = search.held_out
+    left = float(np.sqrt(np.mean(search.residual[held].mean(axis=1) ** 2)))
+    at_checks = float(np.sqrt(np.mean(design.mean[held, :, 0] ** 2)))
+    material = left * math.sqrt(1.0 / (1.0 - MATERIAL_REDUCTION) ** 2 - 1.0) / at_checks if at_checks > 0 else math.inf
+    return max(beyond, material)
+
+
+def _drawn(cls: type[Effect], rng: np.random.Generator) -> Effect:
+    """The effect with its amplitudes at half their plausible maximum, random signs and phases, and
+    its scanned settings drawn from its scan grid."""
+    params: dict[str, float] = {}
+    for p in cls.parameters:
+        if p.name in cls.scan:
+            params[p.name] = float(rng.choice(cls.scan[p.name]))
+        elif p.period is not None:
+            params[p.name] = float(rng.uniform(0.0, p.period))
+        elif p.plausible is not None:
+            params[p.name] = 0.5 * p.plausible[1] * float(rng.choice([-1.0, 1.0]))
+    return cls(**params)
+
+
+def head_with_effect(
+    seed: int, effect_id: str, strength: float | None = None, design: str | None = None, catalog: Catalog = DEFAULT_CATALOG
+) -> tuple[Campaign, float]:
+    """(campaign, strength): the random head of `seed` with one hidden catalog effect at `strength`
+    times its detection limit (None: drawn from 1-3). Settings are redrawn until its amplitudes
+    stay within their plausible ranges."""
+    if effect_id not in catalog:
+        error = catalog.unknown(effect_id, column=None)
+        error.option = "--hidden-effect"
+        raise error
+    cls = catalog[effect_id]
+    if not cls.candidate or not cls.amplitudes():
+        raise InputError(f"effect {effect_id!r} has no amplitude to set at a strength", option="--hidden-effect")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
+    strength = float(rng.uniform(1.0, 3.0)) if strength is None else float(strength)
+    if not (np.isfinite(strength) and strength > 0):
+        raise InputError(f"must be a positive number, got {strength:g}", option="--strength")
+    design = design_of(seed, design)
+    healthy = random_campaign(seed, design)
+    for _ in range(SETTING_DRAWS):
+        effect = _drawn(cls, rng)
+        factor = strength * detection_limit(effect, healthy, catalog, seed)
+        scaled = {**effect.params, **{name: effect.params[name] * factor for name in cls.amplitudes()}}
+        hidden = cls(**scaled)
+        if np.isfinite(factor) and not cls.implausible(hidden.params):
+            return random_campaign(seed, design, [hidden]), strength
+    raise InputError(
+        f"effect {effect_id!r} cannot reach {strength:g}x its detection limit on this design within its plausible range",
+        option="--strength",
+    )

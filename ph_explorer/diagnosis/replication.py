@@ -1,0 +1,141 @@
+"""Is a candidate's gain replicated over rings? The test a claim ("found", "missing") must pass.
+
+Each ring is a unit: its out-of-sample residual before (the chain so far) and after (the chain
+with the candidate), the physical coefficients fitted without that ring, summed in squares over
+single touches and divided by the ring's own noise variance, give its gain. The check rings and
+the lattice rings each weigh half (no crowd of lattice rings outvotes check rings that lose
+together); a sign-flip permutation of the gains is the null. A claim is replicated when that test
+is significant, still is without its most influential ring, and the effect's size is determined
+(an amplitude beyond its expanded uncertainty). Method: docs/methods/replication.md.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.models import least_squares
+from ph_explorer.models.least_squares import Design
+
+REPLICATION_LEVEL = 0.05  # one-sided level of the sign-flip test over rings
+SIGN_FLIPS = 4000  # random sign patterns of the null (with their mirror images: 2 x SIGN_FLIPS)
+CARRYING_RINGS = 3  # the rings that gain most, named as those that carry a claim
+
+
+@dataclass
+class Replication:
+    """The evidence over rings for one candidate (see the module docstring)."""
+
+    p_value: float  # the sign-flip test of the weighted gain over rings
+    p_without_top: float  # the same without the most influential ring
+    rings_gaining: int  # rings whose gain is positive
+    rings: int  # rings tested
+    check_gain: float  # mean gain of the check rings (noise variances per touch); NaN with none
+    lattice_gain: float  # mean gain of the lattice rings (left out one at a time)
+    carried_by: list[int] = field(default_factory=list)  # the rings that gain most (indices)
+    determined: bool = True  # an amplitude beyond its expanded uncertainty (k = 2)
+
+    @property
+    def replicated(self) -> bool:
+        return self.p_value < REPLICATION_LEVEL and self.p_without_top < REPLICATION_LEVEL and self.determined
+
+    def reasons(self) -> list[str]:
+        """Why the claim is not replicated, in words ([] when it is)."""
+        out = []
+        if self.p_value >= REPLICATION_LEVEL:
+            out.append(f"its gain over rings is not significant (sign-flip p = {self.p_value:.3g})")
+        elif self.p_without_top >= REPLICATION_LEVEL:
+            out.append(f"it rests on one ring: without it p = {self.p_without_top:.3g}")
+        if not self.determined:
+            out.append("no amplitude exceeds its expanded uncertainty")
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "replicated": self.replicated,
+            "p_value": round(self.p_value, 5),
+            "p_without_top": round(self.p_without_top, 5),
+            "rings_gaining": self.rings_gaining,
+            "rings": self.rings,
+            "check_gain": None if not np.isfinite(self.check_gain) else round(self.check_gain, 4),
+            "lattice_gain": round(self.lattice_gain, 4),
+            "carried_by": self.carried_by,
+            "determined": self.determined,
+            "level": REPLICATION_LEVEL,
+        }
+
+
+def ring_residual_squares(residual: NDArray[np.float64], design: Design | None, targets: Design) -> NDArray[np.float64]:
+    """(n_o,): each ring's sum of squares over single touches of what the design leaves of the
+    residual (n_o, n_rep, n_pt), its coefficients fitted without that ring."""
+    if design is not None and design.n_columns:
+        coef = least_squares.jackknife(design, targets, np.arange(residual.shape[0]))  # (n_o, c)
+        residual = residual - np.einsum("opc,oc->op", design.mean, coef)[:, None, :]
+        if design.within is not None:
+            residual = residual - np.einsum("orpc,oc->orp", design.within, coef)
+    return (residual**2).sum(axis=(1, 2))
+
+
+def weighted_mean_gain(gain: NDArray[np.float64], check: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The statistic: half the check rings' mean gain plus half the lattice rings' (the whole
+    mean when one group is empty); gain (..., n_o) may hold many sign patterns at once."""
+    groups = [g for g in (check, ~check) if g.any()]
+    return sum(gain[..., g].mean(axis=-1) for g in groups) / len(groups)
+
+
+def sign_flip_p(gain: NDArray[np.float64], check: NDArray[np.bool_], rng: np.random.Generator) -> float:
+    """One-sided p-value of the weighted mean gain against random sign flips of every ring's gain."""
+    observed = weighted_mean_gain(gain, check)
+    signs = rng.choice(np.array([-1.0, 1.0]), size=(SIGN_FLIPS, gain.size))
+    null = weighted_mean_gain(np.concatenate([signs, -signs]) * gain, check)
+    return float((1.0 + (null >= observed - 1e-12 * np.abs(observed)).sum()) / (null.size + 1.0))
+
+
+def ring_gains(
+    residual: NDArray[np.float64], before: Design | None, after: Design, targets: Design, noise_variance: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(n_o,): each ring's fall in its out-of-sample sum of squares from `before` (the chain's
+    design, None: nothing) to `after` (the chain with the candidate), in its own noise variances."""
+    fall = ring_residual_squares(residual, before, targets) - ring_residual_squares(residual, after, targets)
+    return fall / np.maximum(noise_variance, 1e-300)
+
+
+def replication(gain: NDArray[np.float64], check: NDArray[np.bool_], determined: bool = True, seed: int = 0) -> Replication:
+    """The replication test of a candidate from its rings' gains (ring_gains); check: the check
+    rings; determined: from its parameters (determined_size)."""
+    gain, check = np.asarray(gain, dtype=float), np.asarray(check, dtype=bool)
+    rng = np.random.default_rng(seed)
+    p_value = sign_flip_p(gain, check, rng)
+    # The most influential ring: the one whose gain adds most to the statistic (its group's weight).
+    groups = sum(1 for g in (check, ~check) if g.any())
+    weight = np.where(check, 1.0 / max(check.sum(), 1), 1.0 / max((~check).sum(), 1)) / groups
+    top = int(np.argmax(weight * gain))
+    keep = np.arange(gain.size) != top
+    p_without = sign_flip_p(gain[keep], check[keep], rng) if keep.sum() >= 2 else 1.0
+    order = np.argsort(-gain)
+    return Replication(
+        p_value=p_value,
+        p_without_top=p_without,
+        rings_gaining=int((gain > 0).sum()),
+        rings=int(gain.size),
+        check_gain=float(gain[check].mean()) if check.any() else float("nan"),
+        lattice_gain=float(gain[~check].mean()) if (~check).any() else float("nan"),
+        carried_by=[int(i) for i in order[:CARRYING_RINGS] if gain[i] > 0],
+        determined=determined,
+    )
+
+
+def determined_size(params: dict[str, float], params_u: dict[str, float], amplitudes: list[str]) -> bool:
+    """Whether the effect's size is determined: some amplitude exceeds its expanded uncertainty.
+
+    (Components of a vector, e.g. an axis offset along x and y, may each be near zero; the claim
+    is of the effect, not of each component.) No uncertainty known (a search that only chooses):
+    not judged.
+    """
+    judged = [name for name in amplitudes if name in params and name in params_u and np.isfinite(params_u[name])]
+    if not judged:
+        return True
+    return any(abs(params[name]) > params_u[name] for name in judged)

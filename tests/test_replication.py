@@ -1,0 +1,73 @@
+"""A claim rests on replicated evidence: rings as units, no single ring and no crowd of lattice
+rings decides (ph_explorer.diagnosis.replication)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, determined_size, replication, ring_gains
+from ph_explorer.models.least_squares import Design
+
+N_RINGS = 60
+CHECK = np.arange(N_RINGS) >= 50  # ten check rings, fifty lattice rings
+
+
+def noise_gains(seed: int) -> np.ndarray:
+    """What adding a term of no use does to each ring: a small loss or gain, symmetric."""
+    return np.random.default_rng(seed).normal(0.0, 1.0, N_RINGS)
+
+
+def test_a_gain_most_rings_share_is_replicated():
+    gain = noise_gains(1) + 2.0
+    test = replication(gain, CHECK)
+    assert test.replicated and test.p_value < REPLICATION_LEVEL and test.p_without_top < REPLICATION_LEVEL
+    assert test.rings_gaining > 50
+
+
+def test_one_ring_of_many_carries_no_claim():
+    gain = noise_gains(2)
+    gain[55] = 400.0  # one check ring at many times its noise, the others within it
+    test = replication(gain, CHECK)
+    assert not test.replicated
+    assert test.carried_by[0] == 55
+    assert "not significant" in test.reasons()[0] or "rests on one ring" in test.reasons()[0]
+
+
+def test_four_rings_that_gain_together_are_not_enough_without_their_leader():
+    gain = noise_gains(3) * 0.1
+    gain[[50, 51, 52, 53]] = [900.0, 40.0, 40.0, 40.0]  # a leader and three followers: four rings of sixty
+    test = replication(gain, CHECK)
+    assert test.p_without_top > test.p_value
+    assert not test.replicated
+
+
+def test_a_crowd_of_lattice_rings_does_not_outvote_check_rings_that_lose_together():
+    gain = np.where(CHECK, -1.0, 0.5) + 0.05 * noise_gains(4)
+    pooled = replication(gain, np.zeros(N_RINGS, dtype=bool))  # every ring alike: the crowd wins
+    assert pooled.replicated
+    test = replication(gain, CHECK)
+    assert not test.replicated and test.check_gain < 0 < test.lattice_gain
+
+
+def test_an_undetermined_size_is_no_claim():
+    test = replication(noise_gains(5) + 2.0, CHECK, determined=False)
+    assert not test.replicated and "uncertainty" in test.reasons()[-1]
+    assert determined_size({"a": 1.0, "b": 0.01}, {"a": 0.4, "b": 0.5}, ["a", "b"])  # one amplitude suffices
+    assert not determined_size({"a": 1.0}, {"a": 1.2}, ["a"])
+    assert determined_size({"a": 1.0}, {}, ["a"])  # no uncertainty known: not judged
+
+
+def test_the_gains_are_out_of_sample_per_ring():
+    """A column that fits the residual everywhere gains at every ring; one fitted to noise loses."""
+    rng = np.random.default_rng(6)
+    n_o, n_rep, n_pt = 30, 4, 16
+    theta = np.linspace(0, 2 * np.pi, n_pt, endpoint=False)
+    column = np.broadcast_to(np.cos(3 * theta)[None, None, :, None], (n_o, n_rep, n_pt, 1))
+    noise = rng.normal(0.0, 1.0, (n_o, n_rep, n_pt))
+    variance = np.ones(n_o)
+    for amplitude, gains_everywhere in ((2.0, True), (0.0, False)):
+        residual = amplitude * column[..., 0] + noise
+        targets = Design(residual[..., None], None)
+        gain = ring_gains(residual, None, Design(column, None), targets, variance)
+        assert (gain > 0).all() == gains_everywhere
+        assert replication(gain, np.zeros(n_o, dtype=bool)).replicated == gains_everywhere
