@@ -22,7 +22,7 @@ from typing import Any
 
 import torch
 
-from benchmarks import calibration, data_efficiency, hidden_effects, large_campaign, plots, scale, speed, uncertainty_coverage
+from benchmarks import calibration, data_efficiency, hidden_effects, large_campaign, plots, population, scale, speed, uncertainty_coverage
 from ph_explorer.app.server import build_server
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
@@ -37,7 +37,16 @@ def log(text: str) -> None:
     print(text, flush=True)
 
 
-SECTIONS = ("data_efficiency", "speed", "scale", "diagnosis_calibration", "hidden_effects", "uncertainty_coverage", "large_campaign")
+SECTIONS = (
+    "data_efficiency",
+    "speed",
+    "scale",
+    "diagnosis_calibration",
+    "population",
+    "hidden_effects",
+    "uncertainty_coverage",
+    "large_campaign",
+)
 
 
 def paper_campaign() -> Campaign:
@@ -214,6 +223,10 @@ def main(argv: list[str] | None = None) -> int:
         # false alarms, stability, coverage, power (issue 13)
         log("diagnosis calibration")
         results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+    if "population" in sections:
+        # the verdicts over a population of random heads (issue 28)
+        log("population")
+        results["population"] = population.run(quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         log("hidden effects")

@@ -222,6 +222,37 @@ def target_rows(results: Mapping[str, Any]) -> Iterable[list[Any]]:
             f"median {num(get(cal, 'seconds_per_diagnosis', 'median'), 's')}, max {num(get(cal, 'seconds_per_diagnosis', 'max'), 's')}: "
             f"{holds(h.get('seconds_per_diagnosis'))}",
         ]
+    pop = results.get("population", {})
+    if pop:
+        t = pop.get("targets", {})
+        fa = get(pop, "healthy", "false_alarm") or {}
+        yield [
+            "population: false alarms (healthy random heads)",
+            f"at most {pct(t.get('false_alarm_max'))}, upper 95 % bound at most {pct(t.get('false_alarm_upper_max'))}",
+            f"{pct(fa.get('share'))} ({pct_interval(fa.get('ci95'))}): "
+            f"{holds(fa.get('share') is not None and fa['share'] <= t.get('false_alarm_max', 0) and fa['ci95'][1] <= t.get('false_alarm_upper_max', 0))}",
+        ]
+        for label, key, figure, bound, above in (
+            ("population: stability", "stability", None, "stability_min", True),
+            ("population: one catalog effect found", "catalog_effect", "found", "found_min", True),
+            ("population: truth within U", "catalog_effect", "truth_within_u", "covered_min", True),
+            ("population: out-of-catalog effect called missing", "outside_catalog", "missing", "outside_missing_max", False),
+            (
+                "population: signature names the right variable first",
+                "outside_catalog",
+                "signature_right_first",
+                "signature_right_min",
+                True,
+            ),
+        ):
+            x = (get(pop, key, figure) if figure else pop.get(key)) or {}
+            target = t.get(bound)
+            ok = None if x.get("share") is None or target is None else (x["share"] >= target if above else x["share"] <= target)
+            yield [
+                label,
+                f"{'at least' if above else 'at most'} {pct(target)}",
+                f"{pct(x.get('share'))} ({pct_interval(x.get('ci95'))}): {holds(ok)}",
+            ]
     hidden = results.get("hidden_effects", {})
     if hidden:
         yield [
@@ -1021,11 +1052,69 @@ def other_section(name: str, data: Any) -> str:
     return f"## {name}\n\n" + table(["key", "value"], list(flattened(data))) + "\n"
 
 
+POPULATION_INTRO = """\
+## Population
+
+`population`: the verdicts over a population of random heads (`ph-explorer simulate
+--random-head`; distributions and designs in [Random heads](methods/random_heads.md)), each
+diagnosed as a user would with the default catalog, without the nested cross-validation (it gives
+no verdict). Healthy heads: any verdict but `none` is a false alarm. Stability: the same heads with
+another draw of their noise. One catalog effect at 1-3x its detection limit: `missing` or
+`partial` with it (at its settings) or with a candidate confounded with it, and its true
+parameters within the fit +- U. One effect of a shape no catalog holds (a local defect of an axis,
+seven lobes of the probe) at 2-4x its detection limit: how often it is called `missing` (an
+overclaim), and, where the diagnosis sees it, whether the signature names the right variable
+first. Intervals are 95 % Clopper-Pearson.
+"""
+
+
+def population(results: Mapping[str, Any]) -> str:
+    pop = results.get("population", {})
+
+    def share_of(x: Any) -> str:
+        x = x or {}
+        return f"{num(x.get('count'))} of {num(x.get('of'))}: {pct(x.get('share'))} ({pct_interval(x.get('ci95'))})"
+
+    healthy = pop.get("healthy") or {}
+    rows = [
+        [
+            "healthy heads: false alarms",
+            share_of(healthy.get("false_alarm")),
+            joined([f"{k} {v}" for k, v in (healthy.get("verdicts") or {}).items()]),
+        ],
+        *[[f"healthy heads, {d} design", share_of(x), ""] for d, x in (healthy.get("by_design") or {}).items()],
+        ["healthy heads, heavy-tailed noise", share_of(healthy.get("heavy_tailed_noise")), ""],
+        ["the same heads, another noise draw: same verdict", share_of(pop.get("stability")), ""],
+        [
+            "one catalog effect: found",
+            share_of(get(pop, "catalog_effect", "found")),
+            joined([f"{k} {v}" for k, v in (get(pop, "catalog_effect", "verdicts") or {}).items()]),
+        ],
+        ["one catalog effect: truth within U", share_of(get(pop, "catalog_effect", "truth_within_u")), ""],
+        [
+            "outside the catalog: called missing",
+            share_of(get(pop, "outside_catalog", "missing")),
+            joined([f"{k} {v}" for k, v in (get(pop, "outside_catalog", "verdicts") or {}).items()]),
+        ],
+        ["outside the catalog: signature's first variable right", share_of(get(pop, "outside_catalog", "signature_right_first")), ""],
+    ]
+    seconds = pop.get("seconds_per_diagnosis") or {}
+    tail = (
+        f"\nSeconds per diagnosis ({seconds.get('what', '')}): median {num(seconds.get('median'), 's')}, max "
+        f"{num(seconds.get('max'), 's')}. Claims on healthy heads: {joined([f'{k} {v}' for k, v in (healthy.get('claims') or {}).items()]) or 'none'}. "
+        f"Measured on code {pop.get('code_sha256')} ({pop.get('mode')} run, {num(pop.get('run_seconds'), 's')}).\n"
+    )
+    by_effect = get(pop, "catalog_effect", "by_effect") or {}
+    effects = table(["hidden catalog effect", "found"], [[k, share_of(v)] for k, v in by_effect.items()])
+    return POPULATION_INTRO + "\n" + table(["heads", "figure (95 % interval)", "verdicts"], rows) + tail + "\n" + effects + "\n"
+
+
 SECTIONS: dict[str, Callable[[Mapping[str, Any], Plots], str]] = {
     "data_efficiency": data_efficiency,
     "speed": speed,
     "scale": lambda r, p: scale(r),
     "diagnosis_calibration": calibration,
+    "population": lambda r, p: population(r),
     "hidden_effects": lambda r, p: hidden_effects(r),
     "uncertainty_coverage": lambda r, p: coverage(r),
     "large_campaign": lambda r, p: large_campaign(r),

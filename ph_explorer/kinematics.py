@@ -10,7 +10,8 @@ have a repetition axis of length 1 and broadcast.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,6 +50,16 @@ class Touches:
     a_approach: NDArray[np.float64]  # (n_o, n_rep, n_pt) sign (+1/-1) of the A joint's approach
     b_approach: NDArray[np.float64]  # (n_o, n_rep, n_pt) sign (+1/-1) of the B joint's approach
     reachable: NDArray[np.bool_]  # (n_o, 1, n_pt) joint angles inside the head's range
+    # Quantities derived from these touches that every effect's basis asks for again (memo()).
+    _memo: dict[str, NDArray[np.float64]] = field(default_factory=dict, compare=False, repr=False)
+
+    def memo(self, key: str, make: Callable[[], NDArray[np.float64]]) -> NDArray[np.float64]:
+        """make(), computed once per Touches (read-only): a search asks for the same levers at every scanned setting."""
+        if key not in self._memo:
+            value = make()
+            value.flags.writeable = False
+            self._memo[key] = value
+        return self._memo[key]
 
     @property
     def shape(self) -> tuple[int, int, int]:

@@ -516,7 +516,7 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         verdict = s1.loop.diagnosis.verdict if s1.loop.diagnosis is not None else None
         assert verdict in ("unexplained", "partial")
         assert f"Verdict: {verdict}" in s1.physics.verdict.content
-        # The four verdicts the diagnosis could give, this one marked (under "More", the verdict kept short).
+        # The verdicts the diagnosis could give, this one marked (under "More", the verdict kept short).
         from ph_explorer.diagnosis import VERDICTS
 
         assert all(f"{key}: {meaning}" in s1.physics.verdict_more.content for key, meaning in VERDICTS.items() if key != verdict)

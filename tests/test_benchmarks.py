@@ -169,6 +169,22 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert seconds["head_3"]["max"] > 0
     assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
     assert calibration["errors"] == []
+    population = results["population"]
+    assert population["mode"] == "quick" and population["counts"] == {
+        "healthy": 2,
+        "stability": 1,
+        "catalog_effect": 1,
+        "outside_catalog": 1,
+    }
+    for figure in (
+        population["healthy"]["false_alarm"],
+        population["stability"],
+        population["catalog_effect"]["found"],
+        population["outside_catalog"]["missing"],
+    ):
+        assert figure["of"] >= 1 and 0 <= figure["ci95"][0] <= figure["share"] <= figure["ci95"][1] <= 1
+    assert sum(population["healthy"]["verdicts"].values()) == 2 and population["errors"] == []
+    assert population["seconds_per_diagnosis"]["median"] > 0
     hidden = results["hidden_effects"]
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -200,3 +202,14 @@ def test_network_reaches_the_noise_floor_at_held_out_rings():
     assert average["network"]["mean"] <= average["trilinear"]["mean"] + 0.01
     for row in report["orientations"]:
         assert 0.08 < row["mae_um"]["network"]["single"] < 0.22
+
+
+def test_the_folder_names_the_network_file_without_importing_torch() -> None:
+    from ph_explorer.models import network
+    from ph_explorer.models.folder import MODEL_TYPES, model_class
+
+    assert MODEL_TYPES["network"][2] == network.FILE_NAME
+    assert model_class("network") is FourierNetwork
+    probe = "import sys, ph_explorer.diagnosis, ph_explorer.models.hybrid; print('torch' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip() == "False", result.stderr

@@ -89,11 +89,15 @@ def test_the_command_writes_a_random_head_without_naming_its_hidden_effect(tmp_p
     assert campaign.times_s is None and campaign.scenario["hidden"] == ["b_axis_cyclic"]
 
 
-def test_a_catalog_effect_most_rings_see_is_claimed_with_replicated_evidence():
+def test_a_catalog_effect_most_rings_see_is_claimed_and_what_it_leaves_is_judged_as_the_healthy_head_was():
+    """One yardstick: the head without the effect is called none; with it, the effect is found and
+    what it leaves (the same background and noise) is within noise again: missing, not partial."""
+    healthy = diagnose(random_campaign(7, "paper"), nested=False)
+    assert healthy.verdict == "none"
     campaign, _ = head_with_effect(7, "b_axis_cyclic", 2.0, "paper")
     truth = next(e for e in campaign.scenario["effects"] if e["hidden"])
     result = diagnose(campaign, nested=False)
-    assert result.verdict == "missing"
+    assert result.verdict == "missing" and not result.within_noise["after"].fails
     found = result.found[0]
     assert (found.effect, found.settings["cycles_per_rev"]) == ("b_axis_cyclic", truth["cycles_per_rev"])
     assert found.replication["replicated"] and found.replication["rings_gaining"] > found.replication["rings"] / 2

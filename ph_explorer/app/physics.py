@@ -91,11 +91,13 @@ class PhysicsLoop:
         # A study continues from the model it reached, as `diagnose --resume` does.
         start = list(self.chain) if self.study_open else []
         try:
-            # The loaded model is the baseline, as in the command line. The nested cross-validation
-            # (the honest "after") runs as in the command line too: a saved run records it, and the
-            # worker thread keeps the sliders live meanwhile.
+            # The loaded model is the baseline, as in the command line. The verdict is shown first; the
+            # nested cross-validation (the honest "after") follows (honest_after), as the command line
+            # gives it too: a saved run records it, and the worker thread keeps the sliders live meanwhile.
             baseline = baseline_of({k: v for k, v in ds.models.items() if k in MODEL_TYPES})
-            result = diagnosis.diagnose(ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start)
+            result = diagnosis.diagnose(
+                ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start, nested=False
+            )
         except InputError as error:
             p.done(f"**Cannot diagnose** — {error.line()}")
             return
@@ -113,6 +115,13 @@ class PhysicsLoop:
         p.show_history(self.steps)
         self.diagnosed = self.study_open
         continued = f", continuing the study from {' + '.join(effect_label(e) for e in start)}" if start else ""
+        if result.found:
+            p.show_progress("the verdict is in; now the honest 'after': the search again without each fold of rings…", None)
+            result.nested = diagnosis.honest_after(ds.campaign, result, self.catalog)
+            if ds.campaign is not self.current().campaign:
+                return
+            p.nested = result.nested
+            p.show_history(self.steps)
         p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned{continued}.")
 
     def show_evidence(self, label: str) -> None:

@@ -86,9 +86,9 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
 
 
 def verdicts_markdown(verdict: str) -> str:
-    """The four verdicts a diagnosis can give, this campaign's marked: what the verdict could have been."""
+    """The verdicts a diagnosis can give, this campaign's marked: what the verdict could have been."""
     rows = [f"- {'**' + key + '** ✔' if key == verdict else key}: {meaning}" for key, meaning in VERDICTS.items()]
-    return "_The four verdicts:_\n\n" + "\n".join(rows)
+    return f"_The {len(VERDICTS)} verdicts:_\n\n" + "\n".join(rows)
 
 
 def nested_markdown(nested: NestedAfter) -> str:
@@ -266,7 +266,7 @@ class PhysicsPanel:
         self.candidates.content = candidates_html(result.candidates, self.catalog)
         headline, lines = verdict_text(result, self.catalog)
         # The verdict in short (what was found, what to do); the tests' figures, the teaching text
-        # (shown once, here) and the four verdicts under "More".
+        # (shown once, here) and the verdicts under "More".
         # The found effects' parameters +- U are in the results' table just below: not repeated here.
         short = [line for line in lines if line.startswith("Resumed with")]
         self.nested = result.nested  # the honest "after", shown with the error history

@@ -26,26 +26,39 @@ from ph_explorer.twin.random_heads import design_of, random_campaign
 SETTING_DRAWS = 50  # settings tried before an effect is found too weak to reach a strength plausibly
 
 
+class DetectionLimits:
+    """The detection limits of effects on one campaign: the catalog's scans made once (module docstring)."""
+
+    def __init__(self, campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, seed: int = 0) -> None:
+        self.seed = seed
+        self.search = CandidateSearch(campaign, ~campaign.holdout_mask(), seed, detail=False)
+        scans = [self.search.scan(cls()) for cls in catalog.candidates().values()]
+        levels = family_levels(scans)
+        # Each effect's null level: the family's noise maximum on its own scale.
+        self.levels = {s.effect.id: levels[id(s)] for s in scans if isinstance(s, Scan) and id(s) in levels}
+        held = self.search.held_out
+        self.left = float(np.sqrt(np.mean(self.search.residual[held].mean(axis=1) ** 2)))
+
+    def limit(self, effect: Effect) -> float:
+        """The factor on the effect's amplitudes at which the search's two tests are just met."""
+        if effect.id not in self.levels:
+            return math.inf  # it cannot be tested on this campaign (e.g. it needs touch times)
+        touches = campaign_touches(self.search.campaign)
+        signal = remove_size_and_centre(effect.forward(touches, np.random.default_rng(self.seed)))
+        design = Design(signal[..., None], self.search.smoother)
+        seen = float(design.total()[0])
+        # Beyond noise: what it leaves out of sample explains NULL_MARGIN times the family's noise level.
+        beyond = math.sqrt(NULL_MARGIN * self.levels[effect.id] / seen) if seen > 0 else math.inf
+        # Material: at the check rings its mean curve, out of sample, lowers the rms by MATERIAL_REDUCTION
+        # when fitted exactly: its rms there is sqrt(1 / (1 - r)^2 - 1) times what is left without it.
+        at_checks = float(np.sqrt(np.mean(design.mean[self.search.held_out, :, 0] ** 2)))
+        material = self.left * math.sqrt(1.0 / (1.0 - MATERIAL_REDUCTION) ** 2 - 1.0) / at_checks if at_checks > 0 else math.inf
+        return max(beyond, material)
+
+
 def detection_limit(effect: Effect, campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, seed: int = 0) -> float:
-    """The factor on the effect's amplitudes at which the search's two tests are just met (module docstring)."""
-    search = CandidateSearch(campaign, ~campaign.holdout_mask(), seed, detail=False)
-    scans = [search.scan(cls()) for cls in catalog.candidates().values()]
-    levels = family_levels(scans)
-    own = next((s for s in scans if isinstance(s, Scan) and s.effect.id == effect.id), None)
-    if own is None or id(own) not in levels:
-        return math.inf  # it cannot be tested on this campaign (e.g. it needs touch times)
-    signal = remove_size_and_centre(effect.forward(campaign_touches(campaign), np.random.default_rng(seed)))
-    design = Design(signal[..., None], search.smoother)
-    seen = float(design.total()[0])
-    # Beyond noise: what it leaves out of sample explains NULL_MARGIN times the family's noise level.
-    beyond = math.sqrt(NULL_MARGIN * levels[id(own)] / seen) if seen > 0 else math.inf
-    # Material: at the check rings its mean curve, out of sample, lowers the rms by MATERIAL_REDUCTION
-    # when fitted exactly: its rms there is sqrt(1 / (1 - r)^2 - 1) times what is left without it.
-    held = search.held_out
-    left = float(np.sqrt(np.mean(search.residual[held].mean(axis=1) ** 2)))
-    at_checks = float(np.sqrt(np.mean(design.mean[held, :, 0] ** 2)))
-    material = left * math.sqrt(1.0 / (1.0 - MATERIAL_REDUCTION) ** 2 - 1.0) / at_checks if at_checks > 0 else math.inf
-    return max(beyond, material)
+    """The factor on the effect's amplitudes at which the search sees it on the campaign (DetectionLimits)."""
+    return DetectionLimits(campaign, catalog, seed).limit(effect)
 
 
 def _drawn(cls: type[Effect], rng: np.random.Generator) -> Effect:
@@ -80,10 +93,10 @@ def head_with_effect(
     if not (np.isfinite(strength) and strength > 0):
         raise InputError(f"must be a positive number, got {strength:g}", option="--strength")
     design = design_of(seed, design)
-    healthy = random_campaign(seed, design)
+    limits = DetectionLimits(random_campaign(seed, design), catalog, seed)
     for _ in range(SETTING_DRAWS):
         effect = _drawn(cls, rng)
-        factor = strength * detection_limit(effect, healthy, catalog, seed)
+        factor = strength * limits.limit(effect)
         scaled = {**effect.params, **{name: effect.params[name] * factor for name in cls.amplitudes()}}
         hidden = cls(**scaled)
         if np.isfinite(factor) and not cls.implausible(hidden.params):

@@ -21,7 +21,7 @@ from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.results import Candidate, Diagnosis, Step
+from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.within_noise import NoiseTest
@@ -173,7 +173,6 @@ def diagnose(
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
 
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
-    honest = nested_after(campaign, effects, start, max_steps, seed) if nested and found else None
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
@@ -189,7 +188,7 @@ def diagnose(
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_model)
         steps.append(step)
 
-    return Diagnosis(
+    result = Diagnosis(
         # The touch noise once the modelled effects that change between repetitions are taken out.
         noise_floor_um=steps[-1].noise_floor_um,
         baseline_model=baseline_name,
@@ -200,7 +199,6 @@ def diagnose(
         signature=left,
         within_noise={"baseline": before, "after": choice.after},
         rankings=choice.rankings,
-        nested=honest,
         chain=chosen_steps,
         started_from=len(start),
         steps=steps,
@@ -211,3 +209,24 @@ def diagnose(
         held_out=held_out,
         hybrid=hybrid,
     )
+    if nested:
+        result.nested = honest_after(campaign, result, catalog, max_steps, seed, found=found, start=start)
+    return result
+
+
+def honest_after(
+    campaign: Campaign,
+    result: Diagnosis,
+    catalog: Catalog = DEFAULT_CATALOG,
+    max_steps: int = 3,
+    seed: int = 0,
+    found: Sequence[Candidate] | None = None,
+    start: Sequence[Effect] | None = None,
+) -> NestedAfter | None:
+    """The nested cross-validation of a diagnosis's search (ph_explorer.diagnosis.nested), None when it
+    found nothing: what the explorer shows after the verdict (diagnose(nested=False) first)."""
+    found = result.found if found is None else found
+    start = result.chain[: result.started_from] if start is None else start
+    if not found:
+        return None
+    return nested_after(campaign, [cls() for cls in catalog.candidates().values()], start, max_steps, seed)

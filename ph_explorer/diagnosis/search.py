@@ -41,6 +41,7 @@ NULL_DRAWS = 39
 MATERIAL_REDUCTION = 0.15
 # Significant scan values of one effect tried for materiality, most explained first.
 MAX_MATERIAL_TRIALS = 8
+SCAN_CHUNK_WITHIN = 6  # scan values fitted at once when their columns change between repetitions
 
 
 @dataclass
@@ -134,6 +135,7 @@ class CandidateSearch:
         columns[..., 1:] = np.moveaxis(noise, 2, -1)  # (n_o, n_rep, n_pt, draws)
         del noise
         self.targets = Design(columns, None)
+        self.targets_total = self.targets.total()  # every scan's starting sums of squares
 
     def design(self, effects: Sequence[Effect]) -> Design:
         """The effects' fitted basis columns, side by side, through the smoother."""
@@ -166,21 +168,27 @@ class CandidateSearch:
         unmet = effect.unmet_needs(self.touches)
         if unmet:
             return Candidate.untested(effect.id, effect.name, effect.teaching, note=f"the {effect.id} effect {'; '.join(unmet)}")
-        total_all = self.targets.total()
+        total_all = self.targets_total
         base = least_squares.fit(fixed, self.targets)[1] if fixed is not None else np.zeros_like(total_all)
-        scanned: list[tuple[float, dict[str, Any]]] = []
-        null_best = np.zeros(NULL_DRAWS)
+        grid, designs = [], []
         for settings in effect.scan_grid():
             design = self.design([effect.with_settings(**settings)])
-            if not design.n_columns:
-                continue
-            joint = design if fixed is None else fixed.stacked(design)
-            explained = least_squares.fit(joint, self.targets)[1] - base
-            null_best = np.maximum(null_best, explained[1:])
-            scanned.append((float(explained[0]), settings))
-        if not scanned:
+            if design.n_columns:
+                grid.append(settings)
+                designs.append(design)
+        if not designs:
             return Candidate.untested(effect.id, effect.name, effect.teaching)
-        scanned.sort(key=lambda item: item[0], reverse=True)
+        # Every scanned value at once (least_squares.explained_beyond), a few at a time where the
+        # columns change between repetitions (n_rep times larger), grouped by their column count.
+        explained = np.zeros((len(designs), 1 + NULL_DRAWS))
+        chunk = SCAN_CHUNK_WITHIN if any(d.within is not None for d in designs) else len(designs)
+        for count in {d.n_columns for d in designs}:
+            same = [i for i, d in enumerate(designs) if d.n_columns == count]
+            for start in range(0, len(same), chunk):
+                part = same[start : start + chunk]
+                explained[part] = least_squares.explained_beyond(fixed, [designs[i] for i in part], self.targets)
+        null_best = np.maximum(0.0, explained[:, 1:].max(axis=0))
+        scanned = sorted(((float(e), settings) for e, settings in zip(explained[:, 0], grid)), key=lambda item: item[0], reverse=True)
         return Scan(effect, fixed, float(total_all[0] - base[0]), scanned, null_best)
 
     def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import stats
+from scipy import special
 
 from ph_explorer.models.deviation_model import draw_repetitions
 
@@ -96,7 +96,7 @@ def within_p_value(share: NDArray[np.float64], n_repetitions: int, n_points: int
     low, high, top = _harmonics(n_points)
     a = 2 * (high - low + 1) * (n_repetitions - 1)
     b = 2 * (top - high) * (n_repetitions - 1)
-    return stats.beta.sf(share, a / 2.0, b / 2.0)
+    return special.betaincc(a / 2.0, b / 2.0, share)  # the Beta survival function (scipy.stats is slow to import)
 
 
 def _upper_p(values: NDArray[np.float64], null: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -286,12 +286,12 @@ NEEDS: dict[str, tuple[str, Callable[[Touches], bool]]] = {
 # -- shared kinematics of the tip ------------------------------------------------------------------
 def radial_unit(touches: Touches) -> NDArray[np.float64]:
     """u_k, outward radial direction of every point, (n_o, 1, n_pt, 3)."""
-    return radial_directions(touches.orientations, touches.geometry.points_per_circle)[:, None]
+    return touches.memo("radial_unit", lambda: radial_directions(touches.orientations, touches.geometry.points_per_circle)[:, None])
 
 
 def ball_centre_mm(touches: Touches) -> NDArray[np.float64]:
     """c_k, ball centre of every touch relative to the pivot, mm, (n_o, 1, n_pt, 3)."""
-    return ball_centres(touches.orientations, touches.geometry)[:, None]
+    return touches.memo("ball_centre", lambda: ball_centres(touches.orientations, touches.geometry)[:, None])
 
 
 def axis_frame(touches: Touches, axis: str) -> NDArray[np.float64]:
@@ -317,13 +317,17 @@ def screw_deviation(touches: Touches, axis: str) -> NDArray[np.float64]:
     rotation about them (1 arcsec at 1 mm = 4.85e-3 um). Only the part of eps across the ring axis
     has a lever, the axial distance sqrt(L^2 - rho^2): c_k x u_k = sqrt(L^2 - rho^2) s0 x u_k.
     """
-    frame = axis_frame(touches, axis)
-    u = radial_unit(touches)
-    lever = np.cross(ball_centre_mm(touches), u)
-    # Components in the axis frame are frame^T v.
-    per_um = -np.einsum("...ji,...j->...i", frame, u)
-    per_arcsec = -np.einsum("...ji,...j->...i", frame, lever) * RAD_PER_ARCSEC * UM_PER_MM
-    return np.concatenate([per_um, per_arcsec], axis=-1)
+
+    def make() -> NDArray[np.float64]:
+        frame = axis_frame(touches, axis)
+        u = radial_unit(touches)
+        lever = np.cross(ball_centre_mm(touches), u)
+        # Components in the axis frame are frame^T v.
+        per_um = -np.einsum("...ji,...j->...i", frame, u)
+        per_arcsec = -np.einsum("...ji,...j->...i", frame, lever) * RAD_PER_ARCSEC * UM_PER_MM
+        return np.concatenate([per_um, per_arcsec], axis=-1)
+
+    return touches.memo(f"screw_{axis}", make)
 
 
 def rotation_deviation_um_per_arcsec(touches: Touches, axis: str) -> NDArray[np.float64]:
@@ -346,9 +350,10 @@ def joint_angle_deg(touches: Touches, axis: str) -> NDArray[np.float64]:
 
 
 def full_shape(array: NDArray[np.float64], touches: Touches) -> NDArray[np.float64]:
-    """Broadcast an (n_o, 1, n_pt[, k]) array over the repetitions, as a new contiguous array."""
+    """Broadcast an (n_o, 1, n_pt[, k]) array over the repetitions: a read-only view when it is the
+    same in every repetition (no copy n_rep times the size), else the array itself."""
     target = touches.shape + array.shape[3:]
-    return np.ascontiguousarray(np.broadcast_to(array, target))
+    return np.broadcast_to(array, target)
 
 
 def effect_label(effect: Effect) -> str:

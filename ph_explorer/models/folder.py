@@ -8,6 +8,7 @@ model's out-of-sample error, uncertainty.model_error). Format: docs/formats.md.
 
 from __future__ import annotations
 
+import importlib
 import json
 from collections.abc import Mapping
 from pathlib import Path
@@ -18,18 +19,25 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.errors import InputError
-from ph_explorer.models import network, trilinear
+from ph_explorer.models import trilinear
 from ph_explorer.models.deviation_model import DeviationModel
 
 CARD_NAME = "card.json"
 CARD_FORMAT = 1
 
-# name -> (class, file); a folder holds the models whose files are present.
-MODEL_TYPES: dict[str, tuple[type[DeviationModel], str]] = {
-    "network": (network.FourierNetwork, network.FILE_NAME),
-    "trilinear": (trilinear.TrilinearModel, trilinear.FILE_NAME),
-    "mean_curve": (trilinear.MeanCurveModel, trilinear.MeanCurveModel.file_name),  # a hybrid's data part
+# name -> (module, class, file); a folder holds the models whose files are present. A module is
+# imported only when its model is used: the network's torch takes seconds to import.
+MODEL_TYPES: dict[str, tuple[str, str, str]] = {
+    "network": ("ph_explorer.models.network", "FourierNetwork", "network.safetensors"),
+    "trilinear": ("ph_explorer.models.trilinear", "TrilinearModel", trilinear.FILE_NAME),
+    "mean_curve": ("ph_explorer.models.trilinear", "MeanCurveModel", trilinear.MeanCurveModel.file_name),  # a hybrid's data part
 }
+
+
+def model_class(name: str) -> type[DeviationModel]:
+    """The class of a model type of MODEL_TYPES, its module imported now."""
+    module, cls, _ = MODEL_TYPES[name]
+    return getattr(importlib.import_module(module), cls)
 
 
 def holdout_from_card(campaign: Campaign, card: Mapping[str, Any]) -> NDArray[np.bool_]:
@@ -65,10 +73,10 @@ def load_models(directory: Path) -> dict[str, DeviationModel]:
     if not directory.is_dir():
         raise InputError("model folder not found", file=str(directory))
     models = {}
-    for name, (cls, file_name) in MODEL_TYPES.items():
+    for name, (_, _, file_name) in MODEL_TYPES.items():
         if (directory / file_name).is_file():
             try:
-                models[name] = cls.load(directory)
+                models[name] = model_class(name).load(directory)
             except Exception as error:  # a damaged or foreign file: one line, not a traceback
                 raise InputError(f"cannot load the {name} model: {error}", file=str(directory / file_name)) from None
     if not models:

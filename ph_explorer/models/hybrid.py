@@ -29,7 +29,7 @@ from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
-from ph_explorer.models.folder import MODEL_TYPES
+from ph_explorer.models.folder import MODEL_TYPES, model_class
 from ph_explorer.models.least_squares import Design
 from ph_explorer.models.trilinear import TrilinearModel
 
@@ -46,7 +46,8 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     """
     columns, names = effect.basis(touches)
     columns = np.asarray(columns, dtype=float)
-    if columns.shape[1] != 1 and np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape)):
+    # A view broadcast over the repetitions (full_shape) is the same in every one by construction.
+    if columns.shape[1] != 1 and (columns.strides[1] == 0 or np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape))):
         columns = columns[:, :1]
     # The circle fit acts along the points: move the column axis out of the way and back.
     fitted = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
@@ -241,4 +242,4 @@ def make_data_model(data_model: DataModel) -> DeviationModel:
         return data_model()
     if data_model not in MODEL_TYPES:
         raise ValueError(f"unknown data-driven model {data_model!r} ({' or '.join(MODEL_TYPES)})")
-    return MODEL_TYPES[data_model][0]()
+    return model_class(data_model)()

@@ -131,6 +131,68 @@ def fit(design: Design, targets: Design, ridge: float = 0.0) -> tuple[NDArray[np
     return solve(design.gram(), design.dot(targets), design.scale, _rows(design), ridge)
 
 
+def _pseudo_inverse(gram: NDArray[np.float64], scale: float, n_rows: int) -> NDArray[np.float64]:
+    """gram's pseudo-inverse over the directions solve() keeps, for a stack (..., c, c)."""
+    values, vectors = np.linalg.eigh(gram)
+    keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+    inverse = np.where(keep, 1.0 / np.where(keep, values, 1.0), 0.0)
+    return np.einsum("...ij,...j,...kj->...ik", vectors, inverse, vectors)
+
+
+def _column_products(stacked: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(S, c, c): each design's X'X from its columns stacked (rows, S, c), a few columns each."""
+    c = stacked.shape[-1]
+    out = np.empty((stacked.shape[1], c, c))
+    for i in range(c):
+        for j in range(i, c):
+            out[:, i, j] = out[:, j, i] = np.einsum("rs,rs->s", stacked[..., i], stacked[..., j])
+    return out
+
+
+def explained_beyond(fixed: Design | None, designs: list[Design], targets: Design) -> NDArray[np.float64]:
+    """(len(designs), k): what each design explains of every target column beyond `fixed`, all at once.
+
+    The same figure as fit(fixed.stacked(d), targets)[1] - fit(fixed, targets)[1] for each design d,
+    by Frisch-Waugh-Lovell: each design's columns are residualised on fixed's through their
+    ring-level products, so fixed's own products are made once. The designs share a column count.
+    """
+    c = designs[0].n_columns
+    n_rep = targets.n_rep
+    # (rows, S * c): every design's mean columns side by side, one product with the targets.
+    stacked = np.stack([d.mean for d in designs], axis=-2).reshape(-1, len(designs), c)  # (rows, S, c)
+    means = stacked.reshape(stacked.shape[0], -1)
+    t_mean, t_within = targets.flat()
+    u = n_rep * (means.T @ t_mean)
+    gram = n_rep * _column_products(stacked)
+    withins = [d.within for d in designs]
+    if any(w is not None for w in withins):
+        shape = targets.mean.shape[:1] + (n_rep,) + targets.mean.shape[1:2] + (c,)
+        w_stacked = np.stack([w if w is not None else np.zeros(shape) for w in withins], axis=-2).reshape(-1, len(designs), c)
+        w_all = w_stacked.reshape(w_stacked.shape[0], -1)
+        if t_within is not None:
+            u = u + w_all.T @ t_within
+        gram = gram + _column_products(w_stacked)
+    u = u.reshape(len(designs), c, -1)
+    scale = max(d.scale for d in designs)
+    rows = _rows(designs[0])
+    if fixed is not None and fixed.n_columns:
+        f_mean, f_within = fixed.flat()
+        cross = n_rep * (means.T @ f_mean)
+        if f_within is not None and any(w is not None for w in withins):
+            cross = cross + w_all.T @ f_within
+        cross = cross.reshape(len(designs), c, -1)  # (S, c, f): X_s' F
+        a_inverse = _pseudo_inverse(fixed.gram(), fixed.scale, rows)
+        v = fixed.dot(targets)  # (f, k)
+        u = u - cross @ (a_inverse @ v)
+        gram = gram - cross @ a_inverse @ np.swapaxes(cross, 1, 2)
+        scale = max(scale, fixed.scale)
+    values, vectors = np.linalg.eigh(gram)  # (S, c), (S, c, c)
+    keep = values > 1e-12 * max(scale**2 * rows, 1e-300)
+    projected = np.swapaxes(vectors, 1, 2) @ u  # (S, c, k)
+    inverse = np.where(keep, 1.0 / np.where(keep, values, 1.0), 0.0)
+    return np.einsum("sck,sc->sk", projected**2, inverse)
+
+
 def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
     """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
     target = targets.first_column()

@@ -118,8 +118,8 @@ DESIGNS: dict[str, dict[str, Any]] = {
     "other_geometry": {
         "repetitions": 8,
         "geometry": {"pivot_to_ball_mm": 100.0, "ball_diameter_mm": 3.0, "bore_diameter_mm": 30.0, "points_per_circle": 48},
-        "orientations": {"a_deg": [0, 90, 18], "b_deg": [-150, 180, 30], "off_grid": [[9, 45], [27, -75], [45, 105], [63, -15], [81, 165]]},
-        "check_orientations": [[9, 45], [27, -75], [45, 105], [63, -15], [81, 165]],
+        "orientations": {"a_deg": [0, 90, 15], "b_deg": [-160, 180, 20], "off_grid": [[9, 45], [27, -75], [49, 105], [63, -15], [81, 165]]},
+        "check_orientations": [[9, 45], [27, -75], [49, 105], [63, -15], [81, 165]],
         "scan": {"touch_s": 1.5, "move_s": 6.0},
         "times": True,
     },
@@ -155,9 +155,10 @@ def random_head(seed: int, design: str | None = None, hidden: Sequence[Effect] =
     return scenario
 
 
-def random_campaign(seed: int, design: str | None = None, hidden: Sequence[Effect] = ()) -> Campaign:
-    """The campaign of random_head(seed, design, hidden); without touch times when its design has none."""
-    campaign = simulate(random_head(seed, design, hidden))
+def random_campaign(seed: int, design: str | None = None, hidden: Sequence[Effect] = (), noise_seed: int | None = None) -> Campaign:
+    """The campaign of random_head(seed, design, hidden); without touch times when its design has
+    none. noise_seed: another draw of the same head's noise (default: the head's own)."""
+    campaign = simulate(random_head(seed, design, hidden), noise_seed)
     if not DESIGNS[design_of(seed, design)]["times"]:
         campaign.times_s = None
     return campaign

@@ -1,0 +1,238 @@
+"""The verdicts over a population of heads (issue 28): false alarms, stability, power, honesty.
+
+Every campaign is a random head (ph_explorer.twin.random_heads; its design drawn from its seed),
+diagnosed as a user would with the default catalog (`diagnose`, Monte Carlo seed 0; without the
+nested cross-validation, which gives no verdict and which the explorer streams after it):
+
+1. healthy: heads with their background only. An alarm is any verdict but "none".
+2. stability: the first healthy heads again, with another draw of their touch noise: the share
+   that keeps its verdict.
+3. catalog_effect: heads with one hidden catalog effect (drawn from the catalog; one that cannot
+   reach the strength plausibly on the design is replaced by the next) at 1-3x its detection
+   limit: "missing" or "partial" with the right effect at its settings, or with a found effect
+   confounded with it; and for the right effect found, every true parameter within fit +- U.
+4. outside_catalog: heads with one effect of a shape no catalog holds (benchmarks.outside_catalog)
+   at 2-4x its detection limit (as a candidate would be seen): the share called "missing" (a
+   claim the catalog cannot make honestly), and among those the diagnosis sees (any verdict but
+   "none") the share whose signature names the right variable first.
+
+Each share has its 95 % Clopper-Pearson interval. The diagnoses run in WORKERS processes.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import statistics
+import time
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import numpy as np  # noqa: E402
+
+from benchmarks.calibration import clopper_pearson, code_version, share  # noqa: E402
+from benchmarks.outside_catalog import OUTSIDE_EFFECTS  # noqa: E402
+from ph_explorer.diagnosis import diagnose  # noqa: E402
+from ph_explorer.diagnosis.detection import head_with_effect  # noqa: E402
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog  # noqa: E402
+from ph_explorer.errors import InputError  # noqa: E402
+from ph_explorer.twin.random_heads import design_of, random_campaign  # noqa: E402
+
+WORKERS = max(1, min(2, os.cpu_count() or 1))
+COUNTS = {"healthy": 300, "stability": 100, "catalog_effect": 200, "outside_catalog": 100}
+QUICK_COUNTS = {"healthy": 2, "stability": 1, "catalog_effect": 1, "outside_catalog": 1}
+FIRST_SEED = {"healthy": 100_000, "catalog_effect": 200_000, "outside_catalog": 300_000}
+TARGETS = {
+    "false_alarm_max": 0.05,
+    "false_alarm_upper_max": 0.07,
+    "stability_min": 0.95,
+    "found_min": 0.9,
+    "covered_min": 0.9,
+    "outside_missing_max": 0.05,
+    "signature_right_min": 0.7,
+}
+OUTSIDE_CATALOG = Catalog([*DEFAULT_CATALOG.values(), *OUTSIDE_EFFECTS])
+CATALOG_EFFECTS = [effect_id for effect_id, cls in DEFAULT_CATALOG.candidates().items() if cls.amplitudes()]
+
+
+def campaign_of(job: dict[str, Any]) -> tuple[Any, dict[str, Any] | None]:
+    """The job's campaign and its hidden effect's description (None for a healthy head)."""
+    seed, group = job["seed"], job["group"]
+    if group in ("healthy", "stability"):
+        return random_campaign(seed, noise_seed=job.get("noise_seed")), None
+    rng = np.random.default_rng(seed)
+    if group == "catalog_effect":
+        choices, catalog, strength = list(rng.permutation(CATALOG_EFFECTS)), DEFAULT_CATALOG, None
+    else:
+        choices, catalog = list(rng.permutation([cls.id for cls in OUTSIDE_EFFECTS])), OUTSIDE_CATALOG
+        strength = float(rng.uniform(2.0, 4.0))
+    for effect_id in choices:
+        try:
+            campaign, drawn = head_with_effect(seed, str(effect_id), strength, catalog=catalog)
+        except InputError:
+            continue  # it cannot reach the strength plausibly on this design: the next effect
+        truth = next(e for e in campaign.scenario["effects"] if e["hidden"])
+        return campaign, {**truth, "strength": round(drawn, 3)}
+    raise RuntimeError(f"no effect reaches its strength on seed {seed}")
+
+
+def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
+    """One head diagnosed; a compact record of what the diagnosis said."""
+    record: dict[str, Any] = {"group": job["group"], "seed": job["seed"], "design": design_of(job["seed"])}
+    try:
+        campaign, truth = campaign_of(job)
+        started = time.perf_counter()
+        result = diagnose(campaign, nested=False)
+        record["seconds"] = round(time.perf_counter() - started, 2)
+    except Exception as error:  # recorded, never lost
+        record.update(verdict="error", error=f"{type(error).__name__}: {error}")
+        return record
+    record["truth"] = truth
+    record["noise_dof"] = campaign.scenario["effects"][0].get("dof", 0)
+    record["verdict"] = result.verdict
+    record["found"] = [
+        {
+            "effect": c.effect,
+            "settings": {k: float(v) for k, v in c.settings.items()},
+            "params": {k: float(v) for k, v in c.params.items()},
+            "params_u": {k: float(v) for k, v in c.params_u.items()},
+            "confounded_with": [o["effect"] for o in c.confounded_with],
+        }
+        for c in result.found
+    ]
+    record["suggested"] = [c.effect for c in result.suggested]
+    first = next((entry for entry in result.signature if entry["significant"]), None)
+    record["signature_first"] = None if first is None else first["variable"]
+    return record
+
+
+def right_effect(record: dict[str, Any]) -> dict[str, Any] | None:
+    """The found effect that is the hidden one at its settings, or one confounded with it."""
+    truth = record["truth"]
+    cls = DEFAULT_CATALOG[truth["id"]]
+    settings = {name: float(truth[name]) for name in cls.scan}
+    for found in record["found"]:
+        if found["effect"] == truth["id"] and found["settings"] == settings:
+            return found
+    return next((f for f in record["found"] if truth["id"] in f["confounded_with"]), None)
+
+
+def covered(record: dict[str, Any], found: dict[str, Any]) -> bool:
+    """Every true parameter within the fit +- U, the truth put in the fit's own convention (amplitudes >= 0)."""
+    truth = record["truth"]
+    cls = DEFAULT_CATALOG[truth["id"]]
+    effect = cls(**{k: v for k, v in truth.items() if k in {p.name for p in cls.parameters}})
+    canonical = effect.from_coefficients(effect.coefficients())
+    periods = {p.name: p.period for p in cls.parameters}
+    for name, value in canonical.items():
+        if name in cls.scan or name not in found["params_u"]:
+            continue
+        diff = found["params"][name] - value
+        if periods.get(name):
+            diff = (diff + periods[name] / 2) % periods[name] - periods[name] / 2
+        if abs(diff) > found["params_u"][name]:
+            return False
+    return True
+
+
+def rate(k: int, n: int) -> dict[str, Any]:
+    return {"count": k, "of": n, "share": share(k, n), "ci95": clopper_pearson(k, n)}
+
+
+def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
+    by_group: dict[str, list[dict[str, Any]]] = {}
+    for record in records:
+        by_group.setdefault(record["group"], []).append(record)
+    healthy = by_group.get("healthy", [])
+    out: dict[str, Any] = {}
+    out["healthy"] = {
+        "false_alarm": rate(sum(r["verdict"] != "none" for r in healthy), len(healthy)),
+        "verdicts": dict(Counter(r["verdict"] for r in healthy)),
+        "by_design": {
+            d: rate(sum(r["verdict"] != "none" for r in healthy if r["design"] == d), sum(r["design"] == d for r in healthy))
+            for d in sorted({r["design"] for r in healthy})
+        },
+        "heavy_tailed_noise": rate(
+            sum(r["verdict"] != "none" for r in healthy if r.get("noise_dof")), sum(bool(r.get("noise_dof")) for r in healthy)
+        ),
+        "claims": dict(Counter(f["effect"] for r in healthy for f in r.get("found", []))),
+    }
+    first = {r["seed"]: r["verdict"] for r in healthy}
+    again = by_group.get("stability", [])
+    out["stability"] = rate(sum(first.get(r["seed"]) == r["verdict"] for r in again), len(again))
+    effect = [r for r in by_group.get("catalog_effect", []) if r["verdict"] != "error"]
+    right = [(r, right_effect(r)) for r in effect]
+    exact = [(r, f) for r, f in right if f is not None and f["effect"] == r["truth"]["id"]]
+    out["catalog_effect"] = {
+        "found": rate(sum(f is not None and r["verdict"] in ("missing", "partial") for r, f in right), len(effect)),
+        "truth_within_u": rate(sum(covered(r, f) for r, f in exact), len(exact)),
+        "verdicts": dict(Counter(r["verdict"] for r in effect)),
+        "by_effect": {
+            e: rate(sum(f is not None for r, f in right if r["truth"]["id"] == e), sum(r["truth"]["id"] == e for r in effect))
+            for e in sorted({r["truth"]["id"] for r in effect})
+        },
+    }
+    outside = [r for r in by_group.get("outside_catalog", []) if r["verdict"] != "error"]
+    variable = {cls.id: cls.truth_variable for cls in OUTSIDE_EFFECTS}
+    out["outside_catalog"] = {
+        "missing": rate(sum(r["verdict"] == "missing" for r in outside), len(outside)),
+        "signature_right_first": rate(
+            sum(r["signature_first"] == variable[r["truth"]["id"]] for r in outside if r["verdict"] != "none"),
+            sum(r["verdict"] != "none" for r in outside),
+        ),
+        "verdicts": dict(Counter(r["verdict"] for r in outside)),
+        "claims": dict(Counter(f["effect"] for r in outside for f in r.get("found", []))),
+    }
+    seconds = [r["seconds"] for r in records if "seconds" in r]
+    out["seconds_per_diagnosis"] = {
+        "median": round(statistics.median(seconds), 2) if seconds else None,
+        "max": round(max(seconds), 2) if seconds else None,
+        "what": "diagnose(campaign, nested=False): the verdict and the effects found, one at a time per process",
+    }
+    out["errors"] = [{"group": r["group"], "seed": r["seed"], "error": r["error"]} for r in records if r.get("verdict") == "error"]
+    return out
+
+
+def jobs(quick: bool) -> list[dict[str, Any]]:
+    counts = QUICK_COUNTS if quick else COUNTS
+    out = [{"group": "healthy", "seed": FIRST_SEED["healthy"] + i} for i in range(counts["healthy"])]
+    out += [{"group": "stability", "seed": FIRST_SEED["healthy"] + i, "noise_seed": 7_000_000 + i} for i in range(counts["stability"])]
+    for group in ("catalog_effect", "outside_catalog"):
+        out += [{"group": group, "seed": FIRST_SEED[group] + i} for i in range(counts[group])]
+    return out
+
+
+def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = WORKERS) -> dict[str, Any]:
+    """Every part; the results["population"] object."""
+    started = time.perf_counter()
+    code = code_version()
+    todo = jobs(quick)
+    log(f"  {len(todo)} diagnoses of random heads in {workers} processes")
+    records = []
+    if workers > 1:
+        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+            for record in pool.imap_unordered(diagnose_one, todo, chunksize=1):
+                records.append(record)
+                if len(records) % 50 == 0:
+                    log(f"  {len(records)}/{len(todo)} ({time.perf_counter() - started:.0f} s)")
+    else:
+        records = [diagnose_one(job) for job in todo]
+    records.sort(key=lambda r: (r["group"], r["seed"]))
+    out = {
+        "mode": "quick" if quick else "full",
+        "code_sha256": code,
+        "targets": TARGETS,
+        "counts": {g: sum(r["group"] == g for r in records) for g in COUNTS},
+    }
+    out.update(figures(records))
+    out["run_seconds"] = round(time.perf_counter() - started, 1)
+    log(
+        f"  healthy false alarms {out['healthy']['false_alarm']['count']}/{out['healthy']['false_alarm']['of']}, "
+        f"catalog effect found {out['catalog_effect']['found']['count']}/{out['catalog_effect']['found']['of']}, "
+        f"outside missing {out['outside_catalog']['missing']['count']}/{out['outside_catalog']['missing']['of']}"
+    )
+    return out

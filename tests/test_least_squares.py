@@ -1,0 +1,33 @@
+"""The least squares of basis columns through the smoother (ph_explorer.models.least_squares)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ph_explorer.models import least_squares
+from ph_explorer.models.least_squares import Design
+
+
+@pytest.mark.parametrize("within", [False, True])
+def test_every_scanned_design_explains_at_once_what_each_explains_beyond_the_fixed_columns(within):
+    """least_squares.explained_beyond is fit(fixed + design) - fit(fixed), for many designs at once."""
+    rng = np.random.default_rng(3)
+    n_o, n_rep, n_pt = 12, 4, 16
+
+    def columns(c: int, changing: bool) -> np.ndarray:
+        base = rng.normal(size=(n_o, 1, n_pt, c))
+        return base + rng.normal(size=(n_o, n_rep, n_pt, c)) if changing else np.broadcast_to(base, (n_o, n_rep, n_pt, c))
+
+    targets = Design(rng.normal(size=(n_o, n_rep, n_pt, 5)), None)
+    fixed_columns = columns(3, within)
+    fixed = Design(fixed_columns, None)
+    designs = [Design(columns(2, within and k % 2 == 0), None) for k in range(6)]
+    designs.append(Design(fixed_columns[..., :2], None))  # inside fixed's span: explains nothing more
+    together = least_squares.explained_beyond(fixed, designs, targets)
+    base = least_squares.fit(fixed, targets)[1]
+    one_by_one = np.array([least_squares.fit(fixed.stacked(d), targets)[1] - base for d in designs])
+    assert np.allclose(together, one_by_one, rtol=1e-8, atol=1e-8 * base.max())
+    assert np.allclose(together[-1], 0.0, atol=1e-8 * base.max())
+    alone = least_squares.explained_beyond(None, designs[:3], targets)
+    assert np.allclose(alone, [least_squares.fit(d, targets)[1] for d in designs[:3]])
