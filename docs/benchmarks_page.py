@@ -1104,6 +1104,16 @@ def population(results: Mapping[str, Any]) -> str:
         f"{num(seconds.get('max'), 's')}. Claims on healthy heads: {joined([f'{k} {v}' for k, v in (healthy.get('claims') or {}).items()]) or 'none'}. "
         f"Measured on code {pop.get('code_sha256')} ({pop.get('mode')} run, {num(pop.get('run_seconds'), 's')}).\n"
     )
+    speed = pop.get("verdict_speed") or {}
+    if speed:
+        tail += (
+            f"\nOne diagnosis of {speed.get('campaign')}, nothing else running: the command `diagnose --json` "
+            f"{num(speed.get('command_s'), 's')} end to end (imports and the nested cross-validation included); in one process "
+            f"the verdict {num(get(speed, 'verdict_s', 'median'), 's')} (median; max {num(get(speed, 'verdict_s', 'max'), 's')}), "
+            f"then the nested cross-validation {num(speed.get('nested_after_s'), 's')}. Targets: verdict median "
+            f"{num(get(speed, 'targets', 'verdict_median_s'), 's')}, nested {num(get(speed, 'targets', 'nested_s'), 's')}: "
+            f"{holds(speed.get('holds'))}.\n"
+        )
     by_effect = get(pop, "catalog_effect", "by_effect") or {}
     effects = table(["hidden catalog effect", "found"], [[k, share_of(v)] for k, v in by_effect.items()])
     return POPULATION_INTRO + "\n" + table(["heads", "figure (95 % interval)", "verdicts"], rows) + tail + "\n" + effects + "\n"

@@ -183,6 +183,8 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         population["outside_catalog"]["missing"],
     ):
         assert figure["of"] >= 1 and 0 <= figure["ci95"][0] <= figure["share"] <= figure["ci95"][1] <= 1
+    speed = population["verdict_speed"]
+    assert speed["command_s"] > speed["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
     assert sum(population["healthy"]["verdicts"].values()) == 2 and population["errors"] == []
     assert population["seconds_per_diagnosis"]["median"] > 0
     hidden = results["hidden_effects"]
