@@ -214,6 +214,7 @@ def diagnose(
     return result
 
 
+@one_blas_thread
 def honest_after(
     campaign: Campaign,
     result: Diagnosis,
