@@ -268,3 +268,13 @@ def test_modules_stay_readable(name):
     allowed = {}
     lines = len(MODULES[name].read_text(encoding="utf-8").splitlines())
     assert lines <= allowed.get(name, 420), f"{name} has {lines} lines"
+
+
+def test_every_subpackage_is_installed() -> None:
+    """pyproject lists the packages a wheel holds: a subpackage missing there imports in the
+    editable checkout and fails in an installed one."""
+    import tomllib
+
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]["packages"])
+    present = {module_name(p) for p in PACKAGE.rglob("__init__.py")}
+    assert present - listed == set()
