@@ -108,11 +108,6 @@ class Choice:
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
 
     @property
-    def suggested(self) -> list[Candidate]:
-        """Candidates the search would have taken but whose gain is not replicated over rings."""
-        return [c for ranking in self.rankings for c in ranking if c.suggested]
-
-    @property
     def remaining(self) -> list[Candidate]:
         return self.rankings[-1]
 

@@ -19,7 +19,6 @@ from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Sc
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.least_squares import Design
 from ph_explorer.twin.random_heads import design_of, random_campaign
 
@@ -43,8 +42,7 @@ class DetectionLimits:
         """The factor on the effect's amplitudes at which the search's two tests are just met."""
         if effect.id not in self.levels:
             return math.inf  # it cannot be tested on this campaign (e.g. it needs touch times)
-        touches = campaign_touches(self.search.campaign)
-        signal = remove_size_and_centre(effect.forward(touches, np.random.default_rng(self.seed)))
+        signal = remove_size_and_centre(effect.forward(self.search.touches, np.random.default_rng(self.seed)))
         design = Design(signal[..., None], self.search.smoother)
         seen = float(design.total()[0])
         # Beyond noise: what it leaves out of sample explains NULL_MARGIN times the family's noise level.

@@ -21,7 +21,7 @@ from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step
+from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step, suggested_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.within_noise import NoiseTest
@@ -165,7 +165,7 @@ def diagnose(
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
-    verdict = decide(before, choice.after, bool(chain), bool(choice.suggested))
+    verdict = decide(before, choice.after, bool(chain), bool(suggested_in(choice.rankings)))
     if chain:
         settle_presence(candidates, choice.remaining, [c.effect for c in found])
     confounding(search, candidates, by_id)
@@ -210,7 +210,7 @@ def diagnose(
         hybrid=hybrid,
     )
     if nested:
-        result.nested = honest_after(campaign, result, catalog, max_steps, seed, found=found, start=start)
+        result.nested = honest_after(campaign, result, catalog, max_steps, seed)
     return result
 
 
@@ -221,13 +221,10 @@ def honest_after(
     catalog: Catalog = DEFAULT_CATALOG,
     max_steps: int = 3,
     seed: int = 0,
-    found: Sequence[Candidate] | None = None,
-    start: Sequence[Effect] | None = None,
 ) -> NestedAfter | None:
     """The nested cross-validation of a diagnosis's search (ph_explorer.diagnosis.nested), None when it
     found nothing: what the explorer shows after the verdict (diagnose(nested=False) first)."""
-    found = result.found if found is None else found
-    start = result.chain[: result.started_from] if start is None else start
-    if not found:
+    if not result.found:
         return None
+    start = result.chain[: result.started_from]  # the effects the search started from
     return nested_after(campaign, [cls() for cls in catalog.candidates().values()], start, max_steps, seed)

@@ -170,13 +170,8 @@ class Diagnosis:
 
     @property
     def suggested(self) -> list[Candidate]:
-        """Candidates the search would have taken whose gain is not replicated over rings (each effect once, first seen)."""
-        seen: dict[str, Candidate] = {}
-        for ranking in self.rankings or [self.candidates]:
-            for c in ranking:
-                if c.suggested:
-                    seen.setdefault(c.effect, c)
-        return list(seen.values())
+        """Candidates the search would have taken whose gain is not replicated over rings (suggested_in)."""
+        return suggested_in(self.rankings or [self.candidates])
 
     def failing_rings(self) -> list[FailingRing]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
@@ -217,6 +212,16 @@ class Diagnosis:
                 if self.failing[i]
             ],
         }
+
+
+def suggested_in(rankings: list[list[Candidate]]) -> list[Candidate]:
+    """The suggested candidates of these rankings, each effect once (as first seen)."""
+    seen: dict[str, Candidate] = {}
+    for ranking in rankings:
+        for c in ranking:
+            if c.suggested:
+                seen.setdefault(c.effect, c)
+    return list(seen.values())
 
 
 def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
