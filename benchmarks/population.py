@@ -18,6 +18,10 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    "none") the share whose signature names the right variable first.
 
 Each share has its 95 % Clopper-Pearson interval. The diagnoses run in WORKERS processes.
+0. tolerance: how MEAN_TOLERANCE was chosen. On CALIBRATION_HEADS other healthy heads (seeds of
+   their own, never the parts above), the share whose baseline fails the within-noise test at
+   each of TOLERANCES: the smooth interpolation error a lattice model leaves of a healthy
+   background is a property of the head, so the tolerance is set over heads, not noise draws.
 5. verdict_speed: the teaching scenario head_3 (135 rings), one diagnosis at a time, nothing else
    running: the command `ph-explorer diagnose --data head_3.csv --json` end to end (imports
    included), and in one process the verdict (diagnose(nested=False)) and the nested
@@ -26,6 +30,7 @@ Each share has its 95 % Clopper-Pearson interval. The diagnoses run in WORKERS p
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import statistics
@@ -48,6 +53,8 @@ from benchmarks.outside_catalog import OUTSIDE_EFFECTS  # noqa: E402
 from ph_explorer.diagnosis import diagnose  # noqa: E402
 from ph_explorer.diagnosis.detection import head_with_effect  # noqa: E402
 from ph_explorer.diagnosis.loop import honest_after  # noqa: E402
+from ph_explorer.diagnosis.search import CandidateSearch  # noqa: E402
+from ph_explorer.diagnosis.within_noise import MEAN_TOLERANCE, within_noise  # noqa: E402
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog  # noqa: E402
 from ph_explorer.errors import InputError  # noqa: E402
 from ph_explorer.io import write_campaign  # noqa: E402
@@ -55,6 +62,8 @@ from ph_explorer.twin import load_scenario, simulate  # noqa: E402
 from ph_explorer.twin.random_heads import design_of, random_campaign  # noqa: E402
 
 SPEED_REPEATS = 3
+# Every diagnosis's record of a full run, beside results.json: what each head was and what was said.
+RECORDS = Path(__file__).with_name("population_records.json")
 REPLACEMENTS, REPLACEMENT_STRIDE = 8, 1_000_000  # heads tried per seed, and how far apart their seeds are
 SPEED_TARGETS = {"verdict_median_s": 3.0, "verdict_max_s": 10.0, "nested_s": 10.0}
 
@@ -72,6 +81,8 @@ TARGETS = {
     "signature_right_min": 0.7,
 }
 OUTSIDE_CATALOG = Catalog([*DEFAULT_CATALOG.values(), *OUTSIDE_EFFECTS])
+TOLERANCES = (1.25, 1.5, 2.0, 2.5)
+CALIBRATION_SEED, CALIBRATION_HEADS, QUICK_CALIBRATION_HEADS = 900_000, 300, 2
 CATALOG_EFFECTS = [effect_id for effect_id, cls in DEFAULT_CATALOG.candidates().items() if cls.amplitudes()]
 
 
@@ -126,6 +137,9 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
         for c in result.found
     ]
     record["suggested"] = [c.effect for c in result.suggested]
+    record["not_needed"] = [c.effect for c in result.rankings[-1] if c.not_needed]
+    before = result.within_noise["baseline"]
+    record["baseline_test"] = None if before is None else {k: before.as_dict()[k] for k in ("fails", "statistic", "critical")}
     first = next((entry for entry in result.signature if entry["significant"]), None)
     record["signature_first"] = None if first is None else first["variable"]
     return record
@@ -158,6 +172,29 @@ def covered(record: dict[str, Any], found: dict[str, Any]) -> bool:
         if abs(diff) > found["params_u"][name]:
             return False
     return True
+
+
+def baseline_fails(seed: int) -> dict[str, Any]:
+    """Whether the healthy head's baseline fails the within-noise test at each of TOLERANCES."""
+    campaign = random_campaign(seed)
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), 0, detail=False)
+    tests = {t: within_noise(search.residual, search.smoother.weights, campaign.deviations, 0, tolerance=t) for t in TOLERANCES}
+    return {"seed": seed, "fails": {str(t): bool(test is not None and test.fails) for t, test in tests.items()}}
+
+
+def tolerance_curve(quick: bool, workers: int) -> dict[str, Any]:
+    """Part 0 (module docstring): the baseline's failing share over calibration heads at each tolerance."""
+    seeds = range(CALIBRATION_SEED, CALIBRATION_SEED + (QUICK_CALIBRATION_HEADS if quick else CALIBRATION_HEADS))
+    if workers > 1:
+        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+            heads = pool.map(baseline_fails, seeds, chunksize=4)
+    else:
+        heads = [baseline_fails(seed) for seed in seeds]
+    return {
+        "seeds": [seeds[0], seeds[-1]],
+        "used": MEAN_TOLERANCE,
+        "baseline_fails": {str(t): rate(sum(h["fails"][str(t)] for h in heads), len(heads)) for t in TOLERANCES},
+    }
 
 
 def rate(k: int, n: int) -> dict[str, Any]:
@@ -272,6 +309,8 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
     else:
         records = [diagnose_one(job) for job in todo]
     records.sort(key=lambda r: (r["group"], r["seed"]))
+    if not quick:
+        RECORDS.write_text(json.dumps({"code_sha256": code, "records": records}, separators=(",", ":")) + "\n")
     out = {
         "mode": "quick" if quick else "full",
         "code_sha256": code,
@@ -279,6 +318,8 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         "counts": {g: sum(r["group"] == g for r in records) for g in COUNTS},
     }
     out.update(figures(records))
+    log("  the within-noise tolerance over calibration heads")
+    out["tolerance"] = tolerance_curve(quick, workers)
     log("  verdict speed on head_3, one diagnosis at a time")
     out["verdict_speed"] = verdict_speed(1 if quick else SPEED_REPEATS, quick)
     out["run_seconds"] = round(time.perf_counter() - started, 1)

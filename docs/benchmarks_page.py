@@ -1114,6 +1114,15 @@ def population(results: Mapping[str, Any]) -> str:
             f"{num(get(speed, 'targets', 'verdict_median_s'), 's')}, nested {num(get(speed, 'targets', 'nested_s'), 's')}: "
             f"{holds(speed.get('holds'))}.\n"
         )
+    tolerance = pop.get("tolerance") or {}
+    if tolerance:
+        tail += (
+            f"\nThe within-noise test's tolerance (a ring's mean may hold this many times its noise variance of systematic "
+            f"error), chosen over {num(get(tolerance, 'baseline_fails', str(tolerance.get('used')), 'of'))} other healthy heads "
+            f"(seeds {joined([str(x) for x in tolerance.get('seeds') or []])}): the baseline fails on "
+            + joined([f"{share_of(x)} at {k}" for k, x in (tolerance.get("baseline_fails") or {}).items()])
+            + f"; used: {num(tolerance.get('used'))}.\n"
+        )
     by_effect = get(pop, "catalog_effect", "by_effect") or {}
     effects = table(["hidden catalog effect", "found"], [[k, share_of(v)] for k, v in by_effect.items()])
     return POPULATION_INTRO + "\n" + table(["heads", "figure (95 % interval)", "verdicts"], rows) + tail + "\n" + effects + "\n"

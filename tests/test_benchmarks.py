@@ -187,6 +187,8 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert speed["command_s"] > speed["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
     assert sum(population["healthy"]["verdicts"].values()) == 2 and population["errors"] == []
     assert population["seconds_per_diagnosis"]["median"] > 0
+    tolerance = population["tolerance"]
+    assert tolerance["used"] == 2.0 and {x["of"] for x in tolerance["baseline_fails"].values()} == {2}
     hidden = results["hidden_effects"]
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]

@@ -5,7 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ph_explorer.diagnosis.choice import next_found
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, determined_size, replication, ring_gains
+from ph_explorer.diagnosis.results import Candidate
+from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.models.least_squares import Design
 
 N_RINGS = 60
@@ -71,3 +74,16 @@ def test_the_gains_are_out_of_sample_per_ring():
         gain = ring_gains(residual, None, Design(column, None), targets, variance)
         assert (gain > 0).all() == gains_everywhere
         assert replication(gain, np.zeros(n_o, dtype=bool)).replicated == gains_everywhere
+
+
+def test_a_model_within_noise_takes_no_effect_however_much_a_candidate_lowers_the_check_rings():
+    """One yardstick: a significant candidate on a model the within-noise test passes is "not needed", never found."""
+    candidate = Candidate.untested("b_axis_cyclic", "B-axis cyclic error", "")
+    candidate.significant, candidate.beyond_noise = True, True
+    passing = NoiseTest(np.ones(5), 0, 0.0, 1.0, 1.0, False)
+    assert next_found([candidate], passing, None, None, [], {}) is None
+    assert candidate.status == "not needed" and "within noise without it" in candidate.note
+    # On a failing model an untested candidate is passed over (nothing to take), and not marked.
+    untested = Candidate.untested("lobing", "Lobing", "")
+    failing = NoiseTest(np.full(5, 1e-4), 5, 3.0, 1.0, 1e-4, True)
+    assert next_found([untested], failing, None, None, [], {}) is None and untested.status != "not needed"

@@ -68,15 +68,20 @@ def next_found(
     seed: int = 0,
 ) -> tuple[Candidate, NoiseTest | None] | None:
     """The next effect the search takes, best ranked first, with the within-noise test of the
-    chain with it; None when no candidate is taken.
+    chain with it; None when none is (docs/diagnosis.md, step 2).
 
-    A significant candidate (beyond noise, plausible, and lowering the check rings' error
-    materially) is taken. So is one that is beyond noise and plausible when the model fails
-    beyond noise and adding it brings at least RINGS_BROUGHT_WITHIN, and SHARE_BROUGHT_WITHIN, of
-    the exceeding rings within noise: a failure on the lattice rings the check rings do not see.
-    Either must also be replicated over rings (`replicated`); one that is not is suggested, and
-    the next is tried.
+    Only while the model fails the within-noise test (one yardstick; a campaign of one repetition
+    has no test). Taken: a significant candidate, or one beyond noise and plausible that brings
+    at least RINGS_BROUGHT_WITHIN, and SHARE_BROUGHT_WITHIN, of the exceeding rings within noise
+    (a failure the check rings do not see); either replicated over rings (`replicated`), else
+    suggested and the next tried.
     """
+    if current is not None and not current.fails:
+        for candidate in ranked:
+            if candidate.significant:
+                candidate.not_needed = True
+                candidate.note = candidate.note or "lowers the check rings' error, but the model is within noise without it"
+        return None
     for candidate in ranked:
         if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
             continue

@@ -1,10 +1,11 @@
 """How large an effect must be for the diagnosis to see it, and heads that hold one at a known strength.
 
 An effect's detection limit on a campaign is the factor on its amplitudes at which it just meets
-the search's two tests: what it leaves out of sample (its touches through the circle fit and the
-interpolator's smoother, as the search sees it) explains NULL_MARGIN times the most pure noise
-explains over the catalog's whole scan (beyond noise), and its check rings' error falls by
-MATERIAL_REDUCTION when it is fitted exactly (material). Method: docs/methods/random_heads.md.
+the diagnosis's three tests: what it leaves out of sample (its touches through the circle fit and
+the interpolator's smoother, as the search sees it) makes the baseline fail the within-noise test
+(the gate: nothing is searched for in a model within noise), explains NULL_MARGIN times the most
+pure noise explains over the catalog's whole scan (beyond noise), and lowers its check rings'
+error by MATERIAL_REDUCTION when it is fitted exactly (material). Method: docs/methods/random_heads.md.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import NULL_MARGIN
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Scan, family_levels
+from ph_explorer.diagnosis.within_noise import noise_null, ring_sigma, within_noise
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.harmonics import remove_size_and_centre
@@ -23,6 +25,7 @@ from ph_explorer.models.least_squares import Design
 from ph_explorer.twin.random_heads import design_of, random_campaign
 
 SETTING_DRAWS = 50  # settings tried before an effect is found too weak to reach a strength plausibly
+GATE_STEP, GATE_STEPS, GATE_BISECTIONS = 2.0, 40, 12  # the gate's scan of factors up from 2^-20, and its refinement
 
 
 class DetectionLimits:
@@ -37,6 +40,37 @@ class DetectionLimits:
         self.levels = {s.effect.id: levels[id(s)] for s in scans if isinstance(s, Scan) and id(s) in levels}
         held = self.search.held_out
         self.left = float(np.sqrt(np.mean(self.search.residual[held].mean(axis=1) ** 2)))
+        n_o, n_rep, n_pt = campaign.deviations.shape
+        weights, sigma = self.search.smoother.weights, ring_sigma(campaign.deviations) if n_rep > 1 else None
+        # The within-noise test's null is the same for every effect and factor: drawn once.
+        self.null = noise_null(weights, sigma, n_rep, n_pt, seed) if sigma is not None else None
+
+    def _fails(self, factor: float, mean: np.ndarray, within: np.ndarray | None) -> bool:
+        """Whether the baseline fails the within-noise test with the effect at this factor added."""
+        changing = 0.0 if within is None else factor * within
+        residual = self.search.residual + factor * mean[:, None, :] + changing
+        test = within_noise(residual, self.search.smoother.weights, self.search.campaign.deviations + changing, self.seed, self.null)
+        return test is not None and test.fails
+
+    def gate(self, design: Design) -> float:
+        """The smallest factor at which the baseline fails the within-noise test (0 when it fails
+        without the effect; inf when it never does, or the campaign has no repetitions to test)."""
+        if self.null is None:
+            return math.inf
+        mean, within = design.apply(np.ones(1))
+        if self._fails(0.0, mean, within):
+            return 0.0
+        low, high = 0.0, 2.0**-20
+        for _ in range(GATE_STEPS):
+            if self._fails(high, mean, within):
+                break
+            low, high = high, high * GATE_STEP
+        else:
+            return math.inf
+        for _ in range(GATE_BISECTIONS):
+            middle = 0.5 * (low + high)
+            low, high = (low, middle) if self._fails(middle, mean, within) else (middle, high)
+        return high
 
     def limit(self, effect: Effect) -> float:
         """The factor on the effect's amplitudes at which the search's two tests are just met."""
@@ -51,12 +85,16 @@ class DetectionLimits:
         # when fitted exactly: its rms there is sqrt(1 / (1 - r)^2 - 1) times what is left without it.
         at_checks = float(np.sqrt(np.mean(design.mean[self.search.held_out, :, 0] ** 2)))
         material = self.left * math.sqrt(1.0 / (1.0 - MATERIAL_REDUCTION) ** 2 - 1.0) / at_checks if at_checks > 0 else math.inf
-        return max(beyond, material)
+        return max(beyond, material, self.gate(design))
 
 
 def detection_limit(effect: Effect, campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, seed: int = 0) -> float:
     """The factor on the effect's amplitudes at which the search sees it on the campaign (DetectionLimits)."""
     return DetectionLimits(campaign, catalog, seed).limit(effect)
+
+
+def _limit_noise_seed(seed: int) -> int:
+    return int(np.random.SeedSequence([int(seed), 3]).generate_state(1)[0])
 
 
 def _drawn(cls: type[Effect], rng: np.random.Generator) -> Effect:
@@ -91,7 +129,9 @@ def head_with_effect(
     if not (np.isfinite(strength) and strength > 0):
         raise InputError(f"must be a positive number, got {strength:g}", option="--strength")
     design = design_of(seed, design)
-    limits = DetectionLimits(random_campaign(seed, design), catalog, seed)
+    # The limit is read on another draw of the head's touch noise: the hidden effect's campaign
+    # keeps the head's own, and a limit read on it would know its noise.
+    limits = DetectionLimits(random_campaign(seed, design, noise_seed=_limit_noise_seed(seed)), catalog, seed)
     for _ in range(SETTING_DRAWS):
         effect = _drawn(cls, rng)
         factor = strength * limits.limit(effect)

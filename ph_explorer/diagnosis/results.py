@@ -50,6 +50,8 @@ class Candidate:
     # Significant, but its gain is not replicated over rings (diagnosis.replication): not a claim.
     suggested: bool = False
     replication: dict[str, Any] = field(default_factory=dict)  # Replication.as_dict(), for a candidate the search would take
+    # Significant, but the model is within noise without it: nothing is missing that the campaign shows.
+    not_needed: bool = False
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
@@ -58,10 +60,14 @@ class Candidate:
 
     @property
     def status(self) -> str:
-        """In words: suggested (significant but not replicated over rings), found (significant and replicated), present but already captured by the data model (beyond
-        noise and plausible, not material), implausible, not significant, or not tested."""
+        """In words: suggested (significant but not replicated over rings), not needed (significant,
+        but the model is within noise without it), found (significant and replicated), present but
+        already captured by the data model (beyond noise and plausible, not material), implausible,
+        not significant, or not tested."""
         if self.suggested:
             return "suggested"
+        if self.not_needed:
+            return "not needed"
         if self.significant:
             return "found"
         if self.beyond_noise:

@@ -43,6 +43,7 @@ class NoiseTest:
     critical: float  # the statistic pure noise exceeds with probability FALSE_ALARM
     p_value: float  # chance that pure noise gives at least this statistic
     fails: bool
+    tolerance: float = MEAN_TOLERANCE  # the systematic error a ring's mean may hold, times its noise
 
     @property
     def ring_exceeds(self) -> NDArray[np.bool_]:
@@ -56,7 +57,7 @@ class NoiseTest:
             "critical": round(self.critical, 4),
             "p_value": round(self.p_value, 5),
             "ring_level": RING_LEVEL,
-            "mean_tolerance": MEAN_TOLERANCE,
+            "mean_tolerance": self.tolerance,
             "false_alarm_rate": FALSE_ALARM,
         }
 
@@ -104,25 +105,26 @@ def _upper_p(values: NDArray[np.float64], null: NDArray[np.float64]) -> NDArray[
     return (1.0 + (null >= values[..., None]).sum(axis=-1)) / (null.shape[-1] + 1.0)
 
 
-def within_noise(
-    residual: NDArray[np.float64],
-    weights: NDArray[np.float64],
-    spread: NDArray[np.float64],
-    seed: int = 0,
-) -> NoiseTest | None:
-    """The test (docs/methods/within_noise.md) of an out-of-sample residual (n_o, n_rep, n_pt).
+@dataclass
+class NoiseNull:
+    """What pure noise gives on one campaign and smoother: the test's null, drawn once (within_noise).
 
-    weights: the smoother W (n_o x n_o) that made the residual; spread: deviations whose
-    repetition scatter is each ring's noise (what the model's terms that change between
-    repetitions leave). None for a campaign of one repetition: without a repetition spread there
-    is no noise to compare with.
+    It depends on the rings' noise, the smoother and the seed, not on the residual tested, so one
+    null serves every residual of the campaign (e.g. a detection limit's scan of strengths).
     """
-    n_o, n_rep, n_pt = residual.shape
-    if n_rep < 2:
-        return None
-    rng = np.random.default_rng(seed)
-    sigma = ring_sigma(spread)
 
+    null_stat: NDArray[np.float64]  # (n_o, MEAN_DRAWS) each ring's mean statistic in pure-noise draws
+    null_statistic: NDArray[np.float64]  # (STATISTIC_DRAWS,) the campaign statistic in pure-noise draws
+    critical: float  # the statistic pure noise exceeds with probability FALSE_ALARM
+    tolerance: float = MEAN_TOLERANCE  # the systematic error a ring's mean may hold, times its noise
+
+
+def noise_null(
+    weights: NDArray[np.float64], sigma: NDArray[np.float64], n_rep: int, n_pt: int, seed: int = 0, tolerance: float = MEAN_TOLERANCE
+) -> NoiseNull:
+    """The null of within_noise for rings of noise sigma (n_o,) per touch, n_rep x n_pt touches each."""
+    n_o = len(sigma)
+    rng = np.random.default_rng(seed)
     # mean: each ring's repetition-mean noise through the circle fit and the smoother.
     draws = draw_repetitions(np.zeros((n_o, n_pt)), (sigma / math.sqrt(n_rep))[:, None], MEAN_DRAWS, rng)
     null_stat = np.empty((n_o, MEAN_DRAWS))  # (n_o, draws)
@@ -130,8 +132,45 @@ def within_noise(
         part = draws[:, start : start + NULL_CHUNK]
         null_stat[:, start : start + NULL_CHUNK] = ((part - np.tensordot(weights, part, axes=(1, 0))) ** 2).mean(axis=-1)
     del draws
+    # The campaign-level null, from the same draws: each mean draw judged against the others (the
+    # count includes the draw itself, which stands in for the +1 of a p-value); each ring's within
+    # p-value is uniform under the null (exact), and rings' scatters are independent.
+    # The within p-values cost nothing to draw, so the null statistic takes STATISTIC_DRAWS draws,
+    # each pairing a mean draw (a whole column: rings share neighbours' noise) with fresh uniforms:
+    # its 95th percentile is then known to well under a percent.
+    p_mean_null = (tolerance * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1) / MEAN_DRAWS
+    columns = np.arange(STATISTIC_DRAWS) % MEAN_DRAWS
+    excess_null = _excess(_combined(p_mean_null[:, columns], rng.uniform(size=(n_o, STATISTIC_DRAWS))))
+    null_statistic = excess_null.sum(axis=0) - excess_null.max(axis=0)  # the worst ring left out
+    critical = float(np.quantile(null_statistic, 1.0 - FALSE_ALARM, method="higher"))
+    return NoiseNull(null_stat, null_statistic, critical, tolerance)
+
+
+def within_noise(
+    residual: NDArray[np.float64],
+    weights: NDArray[np.float64],
+    spread: NDArray[np.float64],
+    seed: int = 0,
+    null: NoiseNull | None = None,
+    tolerance: float = MEAN_TOLERANCE,
+) -> NoiseTest | None:
+    """The test (docs/methods/within_noise.md) of an out-of-sample residual (n_o, n_rep, n_pt).
+
+    weights: the smoother W (n_o x n_o) that made the residual; spread: deviations whose
+    repetition scatter is each ring's noise (what the model's terms that change between
+    repetitions leave). None for a campaign of one repetition: without a repetition spread there
+    is no noise to compare with. null: noise_null of the same rings and smoother, when it is
+    already drawn (its tolerance is then the test's); tolerance: MEAN_TOLERANCE unless a
+    calibration tries another.
+    """
+    n_o, n_rep, n_pt = residual.shape
+    if n_rep < 2:
+        return None
+    if null is None:
+        null = noise_null(weights, ring_sigma(spread), n_rep, n_pt, seed, tolerance)
+    null_stat, tolerance = null.null_stat, null.tolerance
     mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)
-    p_mean = _upper_p(mean_stat, MEAN_TOLERANCE * null_stat)
+    p_mean = _upper_p(mean_stat, tolerance * null_stat)
 
     # within: the low-harmonic share of each ring's scatter, against its exact null.
     share = low_harmonic_share(residual - residual.mean(axis=1, keepdims=True))
@@ -145,22 +184,10 @@ def within_noise(
     worst = int(np.lexsort((-mean_stat / null_stat.mean(axis=1), ring_p))[0])
     mean_residual = residual.mean(axis=1)
     undone = mean_residual + weights[:, worst, None] * mean_residual[worst]
-    p_undone = _upper_p((undone**2).mean(axis=-1), MEAN_TOLERANCE * null_stat)
+    p_undone = _upper_p((undone**2).mean(axis=-1), tolerance * null_stat)
     statistic = float(np.delete(_excess(_combined(p_undone, p_within)), worst).sum())
-
-    # The campaign-level null, from the same draws: each mean draw judged against the others (the
-    # count includes the draw itself, which stands in for the +1 of a p-value); each ring's within
-    # p-value is uniform under the null (exact), and rings' scatters are independent.
-    # The within p-values cost nothing to draw, so the null statistic takes STATISTIC_DRAWS draws,
-    # each pairing a mean draw (a whole column: rings share neighbours' noise) with fresh uniforms:
-    # its 95th percentile is then known to well under a percent.
-    p_mean_null = (MEAN_TOLERANCE * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1) / MEAN_DRAWS
-    columns = np.arange(STATISTIC_DRAWS) % MEAN_DRAWS
-    excess_null = _excess(_combined(p_mean_null[:, columns], rng.uniform(size=(n_o, STATISTIC_DRAWS))))
-    null_statistic = excess_null.sum(axis=0) - excess_null.max(axis=0)  # the worst ring left out
-    critical = float(np.quantile(null_statistic, 1.0 - FALSE_ALARM, method="higher"))
-    p_value = float((1.0 + (null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
-    return NoiseTest(ring_p, failing, statistic, critical, p_value, statistic > critical)
+    p_value = float((1.0 + (null.null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
+    return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance)
 
 
 def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:
