@@ -7,7 +7,7 @@ import numpy as np
 
 from ph_explorer.diagnosis.choice import next_found
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, determined_size, replication, ring_gains
-from ph_explorer.diagnosis.results import Candidate
+from ph_explorer.diagnosis.results import Candidate, flagged_in
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.models.least_squares import Design
 
@@ -83,6 +83,7 @@ def test_a_model_within_noise_takes_no_effect_however_much_a_candidate_lowers_th
     passing = NoiseTest(np.ones(5), 0, 0.0, 1.0, 1.0, False)
     assert next_found([candidate], passing, None, None, [], {}) is None
     assert candidate.status == "not needed" and "within noise without it" in candidate.note
+    assert flagged_in([[candidate]], "not_needed") == [candidate] and flagged_in([[candidate]], "suggested") == []
     # On a failing model an untested candidate is passed over (nothing to take), and not marked.
     untested = Candidate.untested("lobing", "Lobing", "")
     failing = NoiseTest(np.full(5, 1e-4), 5, 3.0, 1.0, 1e-4, True)

@@ -21,7 +21,7 @@ from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step, suggested_in
+from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.within_noise import NoiseTest
@@ -165,7 +165,7 @@ def diagnose(
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
-    verdict = decide(before, choice.after, bool(chain), bool(suggested_in(choice.rankings)))
+    verdict = decide(before, choice.after, bool(chain), bool(flagged_in(choice.rankings, "suggested")))
     if chain:
         settle_presence(candidates, choice.remaining, [c.effect for c in found])
     confounding(search, candidates, by_id)

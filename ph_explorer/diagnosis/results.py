@@ -176,8 +176,13 @@ class Diagnosis:
 
     @property
     def suggested(self) -> list[Candidate]:
-        """Candidates the search would have taken whose gain is not replicated over rings (suggested_in)."""
-        return suggested_in(self.rankings or [self.candidates])
+        """Candidates the search would have taken whose gain is not replicated over rings."""
+        return flagged_in(self.rankings or [self.candidates], "suggested")
+
+    @property
+    def not_needed(self) -> list[Candidate]:
+        """Significant candidates the search did not take because the model was within noise without them."""
+        return flagged_in(self.rankings or [self.candidates], "not_needed")
 
     def failing_rings(self) -> list[FailingRing]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
@@ -202,6 +207,9 @@ class Diagnosis:
             "suggested": [
                 {k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "replication", "note")} for c in self.suggested
             ],
+            "not_needed": [
+                {k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "error_reduction")} for c in self.not_needed
+            ],
             "signature": self.signature,
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "nested_after": None if self.nested is None else self.nested.as_dict(),
@@ -220,12 +228,12 @@ class Diagnosis:
         }
 
 
-def suggested_in(rankings: list[list[Candidate]]) -> list[Candidate]:
-    """The suggested candidates of these rankings, each effect once (as first seen)."""
+def flagged_in(rankings: list[list[Candidate]], flag: str) -> list[Candidate]:
+    """The candidates of these rankings with this flag set (suggested, not_needed), each effect once (as first seen)."""
     seen: dict[str, Candidate] = {}
     for ranking in rankings:
         for c in ranking:
-            if c.suggested:
+            if getattr(c, flag):
                 seen.setdefault(c.effect, c)
     return list(seen.values())
 
@@ -255,6 +263,12 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         lines.append(
             f"Suggested, not claimed: {candidate.effect} ({catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}); "
             f"{candidate.note}. More rings where it predicts the largest difference would confirm or refute it."
+        )
+    for candidate in result.not_needed:
+        lines.append(
+            f"Not needed: {candidate.effect} ({catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)}) "
+            f"would lower the check rings' error by {100 * candidate.error_reduction:.0f} %, but the model is within noise "
+            "without it: nothing the campaign shows is missing, so it is not claimed."
         )
     if result.verdict == "unexplained":
         implausible = [f"{c.effect}: {c.note}" for c in result.candidates if c.note.startswith("best catalog fit implausible")]
