@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.search import CONFOUNDED
+from ph_explorer.diagnosis.separation import span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -163,12 +164,7 @@ def figures(bases: Bases, noise_floor_um: float | None) -> dict[str, Any]:
 def shared_between(a: Bases, b: Bases) -> float:
     """search.shared_variance of two effects' designs through the smoother, from their orthonormal
     bases (the same number; computed once per basis so that every pair of two scans is affordable)."""
-    if not a.q_mean.shape[1] or not b.q_mean.shape[1]:
-        return 0.0
-    product = a.q_mean.T @ b.q_mean
-    if a.q_within is not None and b.q_within is not None:
-        product = product + a.q_within.T @ b.q_within
-    return float(np.linalg.svd(product, compute_uv=False).max() ** 2)
+    return span_share((a.q_mean, a.q_within), (b.q_mean, b.q_within))
 
 
 def stacked_rank(gram: NDArray[np.float64], size: NDArray[np.float64]) -> int:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
-from ph_explorer.diagnosis.separation import canonical_share, separating_measurements
+from ph_explorer.diagnosis.separation import orthonormal_span, separating_measurements, span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models import least_squares
@@ -319,15 +319,17 @@ CONFOUNDED = 0.8
 SEPARATIONS = 3  # the closest partners of each candidate told what would separate them
 
 
+def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """An orthonormal basis of the design's columns over every touch: (mean rows, within rows or None)."""
+    mean, within = design.flat()
+    rows = np.sqrt(design.n_rep) * mean if within is None else np.concatenate([np.sqrt(design.n_rep) * mean, within])
+    q = orthonormal_span(rows)
+    return q[: mean.shape[0]], (q[mean.shape[0] :] if within is not None else None)
+
+
 def shared_variance(a: Design, b: Design) -> float:
     """The largest squared canonical correlation between two designs' columns over all touches."""
-
-    def rows(design: Design, within_rows: int) -> NDArray[np.float64]:
-        mean, within = design.flat()
-        return np.concatenate([np.sqrt(design.n_rep) * mean, within if within is not None else np.zeros((within_rows, mean.shape[1]))])
-
-    within_rows = a.mean.shape[0] * a.n_rep * a.mean.shape[1]
-    return canonical_share(rows(a, within_rows), rows(b, within_rows))
+    return span_share(touch_span(a), touch_span(b))
 
 
 def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> None:
@@ -336,11 +338,18 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
     # Each effect once in the ranking: its columns at the settings it was scored at.
     at = {c.effect: by_id[c.effect].with_settings(**c.settings) for c in candidates if c.evidence.get("x")}
     designs = {effect_id: search.design([effect]) for effect_id, effect in at.items()}
+    spans: dict[str, tuple[NDArray[np.float64], NDArray[np.float64] | None]] = {}  # each design's, made once
+
+    def span(effect_id: str) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        if effect_id not in spans:
+            spans[effect_id] = touch_span(designs[effect_id])
+        return spans[effect_id]
+
     for candidate in candidates:
         if not (candidate.beyond_noise or candidate.significant) or candidate.effect not in designs:
             continue
-        for other, design in designs.items():
-            shared = shared_variance(designs[candidate.effect], design) if other != candidate.effect else 0.0
+        for other in designs:
+            shared = span_share(span(candidate.effect), span(other)) if other != candidate.effect else 0.0
             if shared > CONFOUNDED:
                 candidate.confounded_with.append({"effect": other, "shared": round(shared, 3)})
         candidate.confounded_with.sort(key=lambda o: -o["shared"])  # the closest first

@@ -35,18 +35,25 @@ def _columns(effect: Effect, touch_sets: Sequence[Touches]) -> NDArray[np.float6
     return np.concatenate(parts)
 
 
+def orthonormal_span(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """An orthonormal basis of the columns of m (rows, columns), numerically null directions left out."""
+    u, singular, _ = np.linalg.svd(m, full_matrices=False)
+    return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
+
+
+def span_share(qx: Sequence[NDArray[np.float64] | None], qy: Sequence[NDArray[np.float64] | None]) -> float:
+    """The largest squared canonical correlation of two orthonormal bases, each given in blocks of
+    rows (e.g. (mean rows, within rows)); a None block is rows of zeros."""
+    if not qx[0].shape[1] or not qy[0].shape[1]:
+        return 0.0
+    product = sum(a.T @ b for a, b in zip(qx, qy) if a is not None and b is not None)
+    return float(np.linalg.svd(product, compute_uv=False).max() ** 2)
+
+
 def canonical_share(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
     """The largest squared canonical correlation between the columns of x and y (rows, columns):
     1 when some combination of one is a combination of the other, 0 when they are orthogonal."""
-
-    def orthonormal(m: NDArray[np.float64]) -> NDArray[np.float64]:
-        u, singular, _ = np.linalg.svd(m, full_matrices=False)
-        return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
-
-    qx, qy = orthonormal(x), orthonormal(y)
-    if not qx.shape[1] or not qy.shape[1]:
-        return 0.0
-    return float(np.linalg.svd(qx.T @ qy, compute_uv=False).max() ** 2)
+    return span_share([orthonormal_span(x)], [orthonormal_span(y)])
 
 
 def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:

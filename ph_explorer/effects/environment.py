@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -92,12 +94,8 @@ class Drift(Effect):
             [t / SECONDS_PER_HOUR, 1.0 - np.exp(-t / tau), np.sin(2 * np.pi * t / period), np.cos(2 * np.pi * t / period)],
             axis=-1,
         )
-        u = radial_unit(touches)
-        stylus = ball_centre_mm(touches) / touches.geometry.pivot_to_ball_mm  # unit stylus direction s_k
-        # A touch reads -d . u_k: stylus growth d = g s_k, head growth d = g (-z).
-        along_stylus = -np.einsum("...i,...i->...", stylus, u)[..., None]
-        pivot_down = u[..., 2][..., None]
-        cols = np.concatenate([histories * along_stylus, histories * pivot_down], axis=-1)
+        levers = touches.memo("drift_levers", lambda: _drift_levers(touches))  # the same at every scanned setting
+        cols = np.concatenate([histories * levers[..., :1], histories * levers[..., 1:]], axis=-1)
         names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
         return full_shape(cols, touches), names
 
@@ -184,8 +182,24 @@ class RingForm(Effect):
         return out
 
 
+def _drift_levers(touches: Touches) -> NDArray[np.float64]:
+    """What a unit growth of the stylus and of the head does to each touch's reading, (..., 2)."""
+    u = radial_unit(touches)
+    stylus = ball_centre_mm(touches) / touches.geometry.pivot_to_ball_mm  # unit stylus direction s_k
+    # A touch reads -d . u_k: stylus growth d = g s_k, head growth d = g (-z).
+    return np.stack([-np.einsum("...i,...i->...", stylus, u), u[..., 2]], axis=-1)
+
+
 def _peak_to_valley(coef: NDArray[np.float64], orders: NDArray[np.float64], samples: int = 3600) -> float:
     """Peak-to-valley of sum_n c_n cos(n theta) + s_n sin(n theta), on a dense circle."""
-    theta = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)[:, None] * orders
-    curve = np.cos(theta) @ coef[0::2] + np.sin(theta) @ coef[1::2]
-    return float(np.ptp(curve))
+    cos, sin = _dense_circle(tuple(float(n) for n in orders), samples)
+    return float(np.ptp(cos @ coef[0::2] + sin @ coef[1::2]))
+
+
+@functools.lru_cache(maxsize=8)
+def _dense_circle(orders: tuple[float, ...], samples: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """cos and sin of n theta on the dense circle (samples, orders): a jackknife asks for the same again and again."""
+    theta = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)[:, None] * np.asarray(orders)
+    cos, sin = np.cos(theta), np.sin(theta)
+    cos.flags.writeable = sin.flags.writeable = False
+    return cos, sin
