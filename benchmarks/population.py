@@ -10,7 +10,8 @@ nested cross-validation, which gives no verdict and which the explorer streams a
 3. catalog_effect: heads with one hidden catalog effect (drawn from the catalog; one that cannot
    reach the strength plausibly on the design is replaced by the next; a head on which none does,
    by another head) at 1-3x its detection
-   limit: "missing" or "partial" with the right effect at its settings, or with a found effect
+   limit: "missing" or "partial" with the right effect at its settings (or at settings it cannot
+   exclude: search.SETTINGS_NOT_EXCLUDED), or with a found effect
    confounded with it; and for the right effect found, every true parameter within fit +- U.
 4. outside_catalog: heads with one effect of a shape no catalog holds (benchmarks.outside_catalog)
    at 2-4x its detection limit (as a candidate would be seen): the share called "missing" (a
@@ -130,6 +131,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
         {
             "effect": c.effect,
             "settings": {k: float(v) for k, v in c.settings.items()},
+            "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
             "params": {k: float(v) for k, v in c.params.items()},
             "params_u": {k: float(v) for k, v in c.params_u.items()},
             "confounded_with": [o["effect"] for o in c.confounded_with],
@@ -145,13 +147,17 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
+def true_settings(record: dict[str, Any]) -> dict[str, float]:
+    """The hidden effect's scanned settings (e.g. its cycles per revolution)."""
+    return {name: float(record["truth"][name]) for name in DEFAULT_CATALOG[record["truth"]["id"]].scan}
+
+
 def right_effect(record: dict[str, Any]) -> dict[str, Any] | None:
-    """The found effect that is the hidden one at its settings, or one confounded with it."""
-    truth = record["truth"]
-    cls = DEFAULT_CATALOG[truth["id"]]
-    settings = {name: float(truth[name]) for name in cls.scan}
+    """The found effect that is the hidden one at its settings (or at settings it cannot exclude),
+    or one confounded with it."""
+    truth, settings = record["truth"], true_settings(record)
     for found in record["found"]:
-        if found["effect"] == truth["id"] and found["settings"] == settings:
+        if found["effect"] == truth["id"] and (found["settings"] == settings or settings in found.get("not_excluded", [])):
             return found
     return next((f for f in record["found"] if truth["id"] in f["confounded_with"]), None)
 
@@ -224,7 +230,8 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     out["stability"] = rate(sum(first.get(r["seed"]) == r["verdict"] for r in again), len(again))
     effect = [r for r in by_group.get("catalog_effect", []) if r["verdict"] != "error"]
     right = [(r, right_effect(r)) for r in effect]
-    exact = [(r, f) for r, f in right if f is not None and f["effect"] == r["truth"]["id"]]
+    # U is judged where the effect is found at its true settings (at another period its phases are another's).
+    exact = [(r, f) for r, f in right if f is not None and f["effect"] == r["truth"]["id"] and f["settings"] == true_settings(r)]
     out["catalog_effect"] = {
         "found": rate(sum(f is not None and r["verdict"] in ("missing", "partial") for r, f in right), len(effect)),
         "truth_within_u": rate(sum(covered(r, f) for r, f in exact), len(exact)),

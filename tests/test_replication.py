@@ -88,3 +88,20 @@ def test_a_model_within_noise_takes_no_effect_however_much_a_candidate_lowers_th
     untested = Candidate.untested("lobing", "Lobing", "")
     failing = NoiseTest(np.full(5, 1e-4), 5, 3.0, 1.0, 1e-4, True)
     assert next_found([untested], failing, None, None, [], {}) is None and untested.status != "not needed"
+
+
+def test_five_check_rings_that_all_gain_replicate_an_effect_the_lattice_rings_cannot_see():
+    """An effect of A0 alone: the interpolator reproduces it along B at every lattice ring (gain
+    exactly 0: no units), so five check rings are the evidence; sign flips cannot reach 0.05 with
+    four of them, Student's t can, and does when they gain together."""
+    gain = np.zeros(N_RINGS)
+    five = np.flatnonzero(CHECK)[:5]
+    check = np.zeros(N_RINGS, dtype=bool)
+    check[five] = True
+    gain[five] = [1486.0, 1236.0, 1404.0, 1412.0, 1254.0]
+    test = replication(gain, check)
+    assert test.replicated and test.rings == 5 and test.p_without_top < 0.01 and test.as_dict()["lattice_gain"] is None
+    # One of the five carries it, the others are noise: not replicated.
+    gain[five] = [1486.0, 0.8, -1.1, 0.4, -0.3]
+    test = replication(gain, check)
+    assert not test.replicated and test.carried_by[0] == five[0]

@@ -52,6 +52,8 @@ class Candidate:
     replication: dict[str, Any] = field(default_factory=dict)  # Replication.as_dict(), for a candidate the search would take
     # Significant, but the model is within noise without it: nothing is missing that the campaign shows.
     not_needed: bool = False
+    # Other scanned settings the data cannot exclude (search.SETTINGS_NOT_EXCLUDED), e.g. a period one off.
+    settings_not_excluded: list[dict[str, Any]] = field(default_factory=list)
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
@@ -203,7 +205,10 @@ class Diagnosis:
             "baseline": {"model": self.baseline_model, "mae_um": rounded(self.baseline_mae_um)},
             "candidates": [c.as_dict() for c in self.candidates],
             "verdict": self.verdict,
-            "found": [{k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "replication")} for c in self.found],
+            "found": [
+                {k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "settings_not_excluded", "replication")}
+                for c in self.found
+            ],
             "suggested": [
                 {k: c.as_dict()[k] for k in ("effect", "params", "params_u", "settings", "replication", "note")} for c in self.suggested
             ],
@@ -249,6 +254,10 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         lines.append(f"Resumed with {already} in the model; the search continued from there.")
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
+        for c in result.found:
+            if c.settings_not_excluded:
+                others = "; ".join(", ".join(f"{k} {v:g}" for k, v in o.items()) for o in c.settings_not_excluded)
+                lines.append(f"{c.effect}: the campaign cannot exclude {others} beside the setting found (95 %).")
     test = after if result.verdict in ("missing", "partial") else before
     if test is None:
         lines.append("One repetition: no repetition spread, so 'within noise' could not be tested.")

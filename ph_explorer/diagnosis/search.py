@@ -34,6 +34,10 @@ from ph_explorer.uncertainty.jackknife import jackknife_parameters
 
 # Monte Carlo draws of pure noise for the significance of a candidate's scan.
 NULL_DRAWS = 39
+# The scanned settings the data cannot exclude beside the best: those whose explained sum of squares
+# is within this many residual variances per touch of it (a profile likelihood's 95 % set for one
+# parameter, chi-square with 1 degree of freedom).
+SETTINGS_NOT_EXCLUDED = 3.84
 # A candidate must explain more than NULL_MARGIN times the most that pure noise explained in the
 # same scan (a look-elsewhere-corrected significance test) ...
 # ... and lower the out-of-sample rms error against the reference that exposes it by at least this
@@ -219,6 +223,8 @@ class CandidateSearch:
             if reduction >= MATERIAL_REDUCTION:
                 break
         explained, settings, reduction, design, joint = chosen
+        left = max(total - explained, 0.0) / self.residual.size  # what is left, per touch
+        not_excluded = [other for value, other in scanned if other != settings and explained - value <= SETTINGS_NOT_EXCLUDED * left]
         own = least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0]
         found = effect.with_settings(**settings)
         if self.detail:
@@ -239,6 +245,7 @@ class CandidateSearch:
             params={k: float(v) for k, v in params.items()},
             params_u={k: float(v) for k, v in params_u.items()},
             settings=settings,
+            settings_not_excluded=not_excluded,
             teaching=effect.teaching,
             evidence=self.evidence(found, design, own) if self.detail else {},
             note="best catalog fit implausible: " + "; ".join(implausible) if implausible else "",
