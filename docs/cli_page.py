@@ -13,6 +13,7 @@ from typing import Any
 # still listed, without the link).
 TOPIC_PAGES = {
     "inspect": ("Files and conventions", "formats.md#inspecting-a-campaign"),
+    "merge": ("Files and conventions", "formats.md#merging-campaigns"),
     "simulate": ("The twin and its effects", "twin.md"),
     "train": ("Models", "models.md"),
     "evaluate": ("Models", "models.md#evaluate-the-papers-tables-1-3"),

@@ -1,4 +1,4 @@
-"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, report, serve.
+"""The `ph-explorer` command line: inspect, simulate, train, evaluate, diagnose, effects, design, uncertainty, report, serve, merge.
 
 This module holds the typer app, the options each command takes and one wrapper; the work of each
 command is in its own module (cli/inspect_command.py, ...). A command module imports the torch- or
@@ -25,6 +25,7 @@ from ph_explorer.cli import (
     effects_command as effects,
     evaluate_command as evaluate,
     inspect_command as inspect,
+    merge_command as merge,
     report_command as report,
     serve_command as serve,
     simulate_command as simulate,
@@ -316,6 +317,20 @@ def _inspect(
 ) -> None:
     """What a campaign holds: orientations, lattice, off-grid rings, noise."""
     _run("inspect", inspect.inspect_command, file=file, json_output=json_output, geometry=geometry)
+
+
+@app.command("merge")
+@with_geometry
+def _merge(
+    base: Annotated[Path, typer.Argument(help="The campaign CSV measured first.")],
+    new: Annotated[Path, typer.Argument(help="The campaign CSV of the new rings, measured after it on the same set-up.")],
+    out: Annotated[Path, typer.Option(help="The merged campaign CSV to write (its sidecar TOML beside it); never an input.")],
+    replace: Annotated[bool, typer.Option("--replace", help="Let a new ring stand in place of the same orientation in BASE.")] = False,
+    json_output: JsonOpt = False,
+    geometry: dict[str, float] | None = None,
+) -> None:
+    """Append new rings to a campaign: the same set-up, repetitions and kind of file, times after the base's."""
+    _run("merge", merge.merge_command, base=base, new=new, out=out, replace=replace, json_output=json_output, geometry=geometry)
 
 
 def main() -> None:

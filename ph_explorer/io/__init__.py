@@ -3,7 +3,8 @@
 reader.py reads and validates a CSV (every problem one line: file, row, column), sidecar.py reads
 and writes NAME.toml beside NAME.csv, writer.py writes both atomically and deterministically,
 summary.py says what a campaign holds (the `inspect --json` object), files.py checksums files and
-reads and writes JSON documents (a diagnosis's study) atomically.
+reads and writes JSON documents (a diagnosis's study) atomically, merge.py appends new rings to a
+campaign after checking that they belong to it.
 """
 
 from ph_explorer.io.files import campaign_sha256, file_sha256, json_object_text, parse_json_object, read_json_object, write_json_object

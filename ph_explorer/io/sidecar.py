@@ -2,8 +2,8 @@
 
 NAME.toml beside NAME.csv is optional. [geometry] sets pivot_to_ball_mm, ball_diameter_mm and
 bore_diameter_mm (points_per_circle, when given, must agree with the CSV); [scenario], written by
-simulate, records name, description, seed, check_orientations, hidden and effects. Options given on
-the command line win over [geometry].
+simulate, records name, description, seed, check_orientations, hidden and effects, and merge adds
+`merges` (io.merge). Options given on the command line win over [geometry].
 """
 
 from __future__ import annotations
