@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -73,3 +74,22 @@ def test_the_merge_never_writes_over_an_input(tmp_path, head):
     before = base.read_bytes()
     result = run_cli("merge", base, new, "--out", base)
     assert result.returncode == 2 and "--out" in result.stderr and base.read_bytes() == before
+
+
+def test_a_study_continues_on_its_campaign_merged_with_new_rings_and_records_them(tmp_path, head):
+    n = head.n_orientations
+    later = np.arange(n) // 6 == 2  # six lattice rings measured after the others
+    base, new = written(tmp_path, "base", head.subset(~later)), written(tmp_path, "new", head.subset(later))
+    study = tmp_path / "study.json"
+    assert run_cli("diagnose", "--data", base, "--save", study, "--json").returncode == 0
+    assert run_cli("merge", base, new, "--out", tmp_path / "all.csv").returncode == 0
+    result = run_cli("diagnose", "--data", tmp_path / "all.csv", "--resume", study, "--json")
+    assert result.returncode == 0, result.stderr
+    saved = json.loads(study.read_text())
+    added = saved["runs"][-1]["rings_added"]
+    assert len(added) == 1 and len(added[0]["added"]) == 6 and added[0]["from"].endswith("new.csv")
+    assert saved["campaign"]["orientations"] == n and "rings_added" not in saved["runs"][0]
+    # Another campaign is still refused, in one line.
+    other = written(tmp_path, "other", random_campaign(4, "coarse"))
+    refused = run_cli("diagnose", "--data", other, "--resume", study)
+    assert refused.returncode == 2 and "nor on a campaign merged from it" in refused.stderr

@@ -49,9 +49,8 @@ def diagnose_command(
     ids = parse_add(add, catalog)
     start = study_chain(previous, catalog, str(resume)) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
-    if previous:
-        check_campaign(previous, sha256, str(resume), str(data))
     campaign = read_campaign(Path(data), geometry or {})
+    rings_added = check_campaign(previous, sha256, str(resume), str(data), campaign.scenario.get("merges", [])) if previous else []
     baseline = None
     if model is not None:
         baseline = baseline_of(load_models(Path(model)))
@@ -81,7 +80,9 @@ def diagnose_command(
     target = save if save is not None else resume
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
-        study = study_record(result, result.chain, described, data_part, None if effects is None else str(effects), previous)
+        study = study_record(
+            result, result.chain, described, data_part, None if effects is None else str(effects), previous, rings_added=rings_added
+        )
         write_json_object(target, study)
     if json_output:
         print(json.dumps(result.as_dict()))

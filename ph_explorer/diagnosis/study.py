@@ -35,9 +35,11 @@ def study_record(
     effects_file: str | None = None,
     previous: dict[str, Any] | None = None,
     steps: list[Step] | None = None,
+    rings_added: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """The study after this run: the chain the run reached (start + what it added), its figures,
-    and the runs before it (from `previous`, the study it resumed, if any).
+    and the runs before it (from `previous`, the study it resumed, if any). rings_added: the rings
+    merged into the campaign since the study's last run (check_campaign), recorded with the run.
 
     steps: the error history when it is not the diagnosis's own (the app's refits); its last
     step's parameters are the chain's.
@@ -74,6 +76,8 @@ def study_record(
         "added": [effect_label(e) for e in chain[started_from:]],
         "verdict": result.verdict,
     }
+    if rings_added:
+        run["rings_added"] = rings_added
     return {
         "format": STUDY_FORMAT,
         "campaign": campaign,
@@ -131,14 +135,22 @@ def study_chain(study: dict[str, Any], catalog: Catalog, source: str) -> list[Ef
     return chain
 
 
-def check_campaign(study: dict[str, Any], sha256: str, source: str, data: str) -> None:
-    """A study continues only on the campaign it was made on (the same bytes)."""
-    if study["campaign"]["sha256"] != sha256:
-        made_on = study["campaign"].get("file") or "another campaign"
-        raise InputError(
-            f"the study was made on {made_on} (sha256 {study['campaign']['sha256'][:12]}), not on {data} (sha256 {sha256[:12]})",
-            file=source,
-        )
+def check_campaign(study: dict[str, Any], sha256: str, source: str, data: str, merges: list[dict[str, Any]] = ()) -> list[dict[str, Any]]:
+    """A study continues on the campaign it was made on (the same bytes), or on a merge of it with
+    new rings (merges: the campaign's record of them, io.merge). Returns the merges since the
+    study's campaign: the rings added, and from which file ([] on the same campaign)."""
+    made = study["campaign"]["sha256"]
+    if made == sha256:
+        return []
+    bases = [m.get("base_sha256") for m in merges]
+    if made in bases:
+        since = merges[bases.index(made) :]
+        return [{"from": m.get("added_from"), "added": m.get("added", []), "replaced": m.get("replaced", [])} for m in since]
+    made_on = study["campaign"].get("file") or "another campaign"
+    raise InputError(
+        f"the study was made on {made_on} (sha256 {made[:12]}), not on {data} (sha256 {sha256[:12]}) nor on a campaign merged from it",
+        file=source,
+    )
 
 
 def study_steps(study: dict[str, Any] | None, source: str = "study") -> list[Step]:

@@ -20,8 +20,11 @@ from ph_explorer.errors import InputError
 from ph_explorer.io.sidecar import GEOMETRY_KEYS
 
 
-def merged_campaign(base: Campaign, new: Campaign, replace: bool = False) -> tuple[Campaign, dict[str, Any]]:
-    """(the merged campaign, what the merge did); InputError (naming NEW's file) when they conflict."""
+def merged_campaign(
+    base: Campaign, new: Campaign, replace: bool = False, base_sha256: str | None = None
+) -> tuple[Campaign, dict[str, Any]]:
+    """(the merged campaign, what the merge did); InputError (naming NEW's file) when they conflict.
+    base_sha256: the base file's, recorded so that a study made on it continues on the merge."""
     _check_compatible(base, new)
     same = orientation_match(base.orientations, new.orientations)  # (n_base, n_new)
     if same.any() and not replace:
@@ -39,6 +42,7 @@ def merged_campaign(base: Campaign, new: Campaign, replace: bool = False) -> tup
     checks = _union(base.check_orientations, new.check_orientations)
     record = {
         "base": base.source,
+        "base_sha256": base_sha256,
         "added_from": new.source,
         "added": [[float(a), float(b)] for a, b in new.orientations],
         "replaced": [[float(a), float(b)] for a, b in base.orientations[~keep]],
