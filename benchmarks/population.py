@@ -139,7 +139,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
         for c in result.found
     ]
     record["suggested"] = [c.effect for c in result.suggested]
-    record["not_needed"] = [c.effect for c in result.rankings[-1] if c.not_needed]
+    record["not_needed"] = [c.effect for c in result.not_needed]
     before = result.within_noise["baseline"]
     record["baseline_test"] = None if before is None else {k: before.as_dict()[k] for k in ("fails", "statistic", "critical")}
     first = next((entry for entry in result.signature if entry["significant"]), None)

@@ -85,9 +85,11 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         s.wait()
         # Diagnose continues from the chain: the candidates re-ranked with the 22/rev error in the model.
         fake.click("Diagnose")
-        assert wait_for(lambda: bool(s.jobs))
+        # Wait on the Diagnose's own outcome (any other job of the session could satisfy "a job runs").
+        done = wait_for(lambda: s.loop.diagnosis is not None or "Cannot diagnose" in p.verdict.content, timeout=300)
         s.wait(timeout=300)
         result = s.loop.diagnosis
+        assert done and result is not None, f"no diagnosis: status {p.status.content!r}, verdict {p.verdict.content!r}"
         assert result.started_from == 1 and [effect_label(e) for e in result.chain[:1]] == [B22]
         assert f"Resumed with {B22} in the model" in p.verdict.content and "continuing the study" in p.status.content
         assert len(s.loop.steps) == 2  # the study's history goes on, not restarted at the baseline

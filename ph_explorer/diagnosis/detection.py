@@ -49,7 +49,8 @@ class DetectionLimits:
         """Whether the baseline fails the within-noise test with the effect at this factor added."""
         changing = 0.0 if within is None else factor * within
         residual = self.search.residual + factor * mean[:, None, :] + changing
-        test = within_noise(residual, self.search.smoother.weights, self.search.campaign.deviations + changing, self.seed, self.null)
+        # The spread only draws the test's null, which is given: the campaign's as it is.
+        test = within_noise(residual, self.search.smoother.weights, self.search.campaign.deviations, self.seed, self.null)
         return test is not None and test.fails
 
     def gate(self, design: Design) -> float:

@@ -11,6 +11,7 @@ Method: docs/methods/study_file.md.
 from __future__ import annotations
 
 import datetime
+from collections.abc import Sequence
 from typing import Any
 
 from ph_explorer.campaign import Campaign
@@ -135,7 +136,9 @@ def study_chain(study: dict[str, Any], catalog: Catalog, source: str) -> list[Ef
     return chain
 
 
-def check_campaign(study: dict[str, Any], sha256: str, source: str, data: str, merges: list[dict[str, Any]] = ()) -> list[dict[str, Any]]:
+def check_campaign(
+    study: dict[str, Any], sha256: str, source: str, data: str, merges: Sequence[dict[str, Any]] = ()
+) -> list[dict[str, Any]]:
     """A study continues on the campaign it was made on (the same bytes), or on a merge of it with
     new rings (merges: the campaign's record of them, io.merge). Returns the merges since the
     study's campaign: the rings added, and from which file ([] on the same campaign)."""

@@ -5,7 +5,7 @@ The new rings must come from the same set-up (geometry, points per circle, repet
 same kind of file (touch times or none); their times are moved to begin after the base's last
 touch, one of the base's own touch intervals later, so that time-dependent effects (drift) read
 one campaign. An orientation measured in both is refused unless `replace` (the new ring then
-stands in the base's place). Method: docs/methods/merging.md.
+replaces the base's ring). Method: docs/methods/merging.md.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ def merged_campaign(
     _check_compatible(base, new)
     same = orientation_match(base.orientations, new.orientations)  # (n_base, n_new)
     if same.any() and not replace:
-        i, j = np.argwhere(same)[0]
+        j = np.argwhere(same)[0, 1]
         raise InputError(
             f"{orientation_label(*new.orientations[j])} is already in {base.source}: "
             f"{int(same.any(axis=0).sum())} ring(s) measured twice; give --replace to let the new ones stand",
