@@ -246,18 +246,29 @@ def _effects(
 @app.command("design")
 @with_geometry
 def _design(
-    budget: Annotated[int, typer.Option(help="How many rings (orientations) to propose.")],
+    budget: Annotated[
+        Optional[int], typer.Option(help="How many rings (orientations) to propose (with --decide: at most; default 6).")
+    ] = None,
     data: Annotated[
         Optional[Path],
         typer.Option(help="A campaign CSV already measured: propose the next rings, those that most reduce its uncertainty."),
+    ] = None,
+    decide: Annotated[
+        bool,
+        typer.Option("--decide", help="With --data: the rings that decide what its diagnosis cannot (confounded or suggested candidates)."),
+    ] = False,
+    out: Annotated[
+        Optional[Path], typer.Option(help="With --decide: write the rings as a CSV (A_deg,B_deg,order,reason) for a CMM program.")
     ] = None,
     effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
     json_output: JsonOpt = False,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Which rings to measure and in what order: the catalog's effects identifiable (D-optimal on their
-    bases at the head touches) and the data part covered (space filling); with --data, the next rings."""
-    _run("design", design.design_command, budget=budget, data=data, effects=effects_file, json_output=json_output, geometry=geometry)
+    bases at the head touches) and the data part covered (space filling); with --data, the next rings;
+    with --decide, the rings that decide between the diagnosis's candidates."""
+    options = {"data": data, "decide": decide, "out": out, "effects": effects_file, "json_output": json_output}
+    _run("design", design.design_command, budget=budget, geometry=geometry, **options)
 
 
 @app.command("uncertainty")

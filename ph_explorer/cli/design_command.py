@@ -13,16 +13,28 @@ from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 
+DECIDE_BUDGET = 6  # rings proposed by --decide when no --budget is given
+
 
 def design_command(
-    budget: int,
+    budget: int | None,
     json_output: bool = False,
     data: Path | None = None,
     effects: Path | None = None,
     geometry: dict[str, float] | None = None,
+    decide: bool = False,
+    out: Path | None = None,
 ) -> int:
     """Print the proposed rings in measuring order, as text or one JSON object."""
     catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+    if budget is not None and budget < 1:
+        raise InputError(f"must be at least 1, got {budget}", option="--budget")
+    if decide:
+        return decide_command(DECIDE_BUDGET if budget is None else budget, data, catalog, json_output, geometry, out)
+    if out is not None:
+        raise InputError("writes the rings of --decide only", option="--out")
+    if budget is None:
+        raise InputError("how many rings to propose: give --budget N (or --decide with --data)", option="--budget")
     # Imported when the command runs: the design reads the hybrid's bases, whose module loads torch.
     from ph_explorer.io import read_campaign
     from ph_explorer.planning.ring_design import propose_rings
@@ -55,3 +67,45 @@ def design_text(report: dict[str, Any]) -> str:
     if report["not_designed_for"]:
         lines.append("not designed for: " + "; ".join(report["not_designed_for"]))
     return "\n".join(lines) + "\n"
+
+
+def decide_command(
+    budget: int, data: Path | None, catalog: Any, json_output: bool, geometry: dict[str, float] | None, out: Path | None
+) -> int:
+    """design --decide: the campaign diagnosed (the verdict, without the nested figures), then the
+    rings that decide its questions (planning.deciding)."""
+    if data is None:
+        raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.io import read_campaign
+    from ph_explorer.io.writer import atomic_write
+    from ph_explorer.planning.deciding import rings_text, rings_that_decide
+
+    campaign = read_campaign(Path(data), geometry or {})
+    result = diagnose(campaign, catalog=catalog, nested=False)
+    decision = rings_that_decide(campaign, result, catalog, budget)
+    if out is not None:
+        rows = ["A_deg,B_deg,order,reason"] + [f'{r["A_deg"]:g},{r["B_deg"]:g},{r["order"]},"{r["reason"]}"' for r in decision.rings]
+        atomic_write([(Path(out), "\n".join(rows) + "\n")])
+    report = {"data": Path(data).name, "verdict": result.verdict, "budget": budget, **decision.as_dict()}
+    if json_output:
+        print(json.dumps(report, allow_nan=False))
+        return 0
+    head = (
+        f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
+    )
+    lines = [f"{Path(data).name}: verdict {result.verdict}; {head}"]
+    lines += rings_text(decision)
+    for label, expected in decision.expected.items():
+        if expected.get("decided_by_rings") is False:
+            other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
+            lines.append(f"{label}: no ring of this stylus decides it{other}")
+        elif "shared_now" in expected:
+            lines.append(
+                f"{label}: shared {100 * expected['shared_now']:.0f} % now, {100 * expected['shared_after']:.0f} % with these rings"
+            )
+    if decision.rings:
+        minutes = f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note
+        lines.append(minutes + (f"; written to {out}" if out is not None else ""))
+    print("\n".join(lines))
+    return 0
