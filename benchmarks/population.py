@@ -52,7 +52,7 @@ import numpy as np  # noqa: E402
 from benchmarks.calibration import clopper_pearson, code_version, share  # noqa: E402
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS  # noqa: E402
 from ph_explorer.diagnosis import diagnose  # noqa: E402
-from ph_explorer.diagnosis.detection import head_with_effect  # noqa: E402
+from ph_explorer.diagnosis.detection import hidden_effect_of  # noqa: E402
 from ph_explorer.diagnosis.loop import honest_after  # noqa: E402
 from ph_explorer.diagnosis.search import CandidateSearch  # noqa: E402
 from ph_explorer.diagnosis.within_noise import MEAN_TOLERANCE, within_noise  # noqa: E402
@@ -60,7 +60,7 @@ from ph_explorer.effects import DEFAULT_CATALOG, Catalog  # noqa: E402
 from ph_explorer.errors import InputError  # noqa: E402
 from ph_explorer.io import write_campaign  # noqa: E402
 from ph_explorer.twin import load_scenario, simulate  # noqa: E402
-from ph_explorer.twin.random_heads import design_of, random_campaign  # noqa: E402
+from ph_explorer.twin.random_heads import design_of, random_campaign, random_head  # noqa: E402
 
 SPEED_REPEATS = 3
 # Every diagnosis's record of a full run, beside results.json: what each head was and what was said.
@@ -89,9 +89,18 @@ CATALOG_EFFECTS = [effect_id for effect_id, cls in DEFAULT_CATALOG.candidates().
 
 def campaign_of(job: dict[str, Any]) -> tuple[Any, dict[str, Any] | None]:
     """The job's campaign and its hidden effect's description (None for a healthy head)."""
+    scenario, truth = head_of(job)
+    if truth is None:
+        return random_campaign(job["seed"], noise_seed=job.get("noise_seed")), None
+    return random_campaign(truth["head_seed"], None, scenario.effects[-1:]), truth
+
+
+def head_of(job: dict[str, Any]) -> tuple[Any, dict[str, Any] | None]:
+    """The job's head (a Scenario, its hidden effect last) and that effect's description (None for
+    a healthy head)."""
     seed, group = job["seed"], job["group"]
     if group in ("healthy", "stability"):
-        return random_campaign(seed, noise_seed=job.get("noise_seed")), None
+        return random_head(seed), None
     rng = np.random.default_rng(seed)
     if group == "catalog_effect":
         choices, catalog, strength = list(rng.permutation(CATALOG_EFFECTS)), DEFAULT_CATALOG, None
@@ -103,11 +112,11 @@ def campaign_of(job: dict[str, Any]) -> tuple[Any, dict[str, Any] | None]:
     for head in (seed + REPLACEMENT_STRIDE * k for k in range(REPLACEMENTS)):
         for effect_id in choices:
             try:
-                campaign, drawn = head_with_effect(head, str(effect_id), strength, catalog=catalog)
+                hidden, drawn = hidden_effect_of(head, str(effect_id), strength, catalog=catalog)
             except InputError:
                 continue  # it cannot reach the strength plausibly on this design: the next effect
-            truth = next(e for e in campaign.scenario["effects"] if e["hidden"])
-            return campaign, {**truth, "strength": round(drawn, 3), "head_seed": head}
+            truth = {**hidden.describe(), "hidden": True}
+            return random_head(head, hidden=[hidden]), {**truth, "strength": round(drawn, 3), "head_seed": head}
     raise RuntimeError(f"no effect reaches its strength on seed {seed} nor its {REPLACEMENTS - 1} replacements")
 
 

@@ -93,3 +93,24 @@ def test_a_study_continues_on_its_campaign_merged_with_new_rings_and_records_the
     other = written(tmp_path, "other", random_campaign(4, "coarse"))
     refused = run_cli("diagnose", "--data", other, "--resume", study)
     assert refused.returncode == 2 and "nor on a campaign merged from it" in refused.stderr
+
+
+def test_new_rings_off_the_lattice_join_the_base_check_rings_when_the_new_file_names_none(head):
+    from ph_explorer.io.merge import merged_campaign
+
+    assert head.check_orientations is not None and len(head.check_orientations)
+    lattice = ~head.off_grid_mask()
+    base = head.subset(np.flatnonzero(lattice)[:-2])
+    # two lattice rings the base lacks and one ring off the lattice, in a file that names no check rings
+    off = dataclasses.replace(head.subset([0]), orientations=head.orientations[[0]] + [[2.5, 7.0]])
+    new = dataclasses.replace(head.subset(np.flatnonzero(lattice)[-2:]), check_orientations=None)
+    both = dataclasses.replace(
+        new,
+        orientations=np.concatenate([new.orientations, off.orientations]),
+        deviations=np.concatenate([new.deviations, off.deviations]),
+        times_s=np.concatenate([new.times_s, off.times_s]),
+    )
+    merged, _ = merged_campaign(base, both)
+    held = merged.holdout_mask()
+    assert held[-1] and not held[-3:-1].any()  # the ring off the lattice is a check ring, the lattice ones train
+    assert held[: base.n_orientations].sum() == base.holdout_mask().sum()

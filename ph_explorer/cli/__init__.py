@@ -145,6 +145,12 @@ def _simulate(
     strength: Annotated[
         Optional[str], typer.Option(help="The hidden effect's size in multiples of its detection limit (default: drawn from 1-3).")
     ] = None,
+    rings: Annotated[
+        Optional[Path],
+        typer.Option(
+            help="With --scenario: the same head measured after its campaign at these rings only (a CSV with A_deg, B_deg, as design --decide --out writes)."
+        ),
+    ] = None,
 ) -> None:
     """Simulate a campaign with the digital twin of the head, or a random head of the population."""
     _run(
@@ -158,6 +164,7 @@ def _simulate(
         design=design,
         hidden_effect=hidden_effect,
         strength=strength,
+        rings=rings,
     )
 
 

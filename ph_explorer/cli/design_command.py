@@ -78,34 +78,21 @@ def decide_command(
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
     from ph_explorer.diagnosis import diagnose
     from ph_explorer.io import read_campaign
+    from ph_explorer.io.rings import rings_csv_text
     from ph_explorer.io.writer import atomic_write
-    from ph_explorer.planning.deciding import rings_text, rings_that_decide
+    from ph_explorer.planning.deciding import decision_lines, rings_that_decide
 
     campaign = read_campaign(Path(data), geometry or {})
     result = diagnose(campaign, catalog=catalog, nested=False)
     decision = rings_that_decide(campaign, result, catalog, budget)
     if out is not None:
-        rows = ["A_deg,B_deg,order,reason"] + [f'{r["A_deg"]:g},{r["B_deg"]:g},{r["order"]},"{r["reason"]}"' for r in decision.rings]
-        atomic_write([(Path(out), "\n".join(rows) + "\n")])
+        atomic_write([(Path(out), rings_csv_text(decision.rings))])
     report = {"data": Path(data).name, "verdict": result.verdict, "budget": budget, **decision.as_dict()}
     if json_output:
         print(json.dumps(report, allow_nan=False))
         return 0
-    head = (
-        f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
-    )
-    lines = [f"{Path(data).name}: verdict {result.verdict}; {head}"]
-    lines += rings_text(decision)
-    for label, expected in decision.expected.items():
-        if expected.get("decided_by_rings") is False:
-            other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
-            lines.append(f"{label}: no ring of this stylus decides it{other}")
-        elif "shared_now" in expected:
-            lines.append(
-                f"{label}: shared {100 * expected['shared_now']:.0f} % now, {100 * expected['shared_after']:.0f} % with these rings"
-            )
-    if decision.rings:
-        minutes = f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note
-        lines.append(minutes + (f"; written to {out}" if out is not None else ""))
+    lines = [f"{Path(data).name}: verdict {result.verdict}; " + decision_lines(decision, budget)[0], *decision_lines(decision, budget)[1:]]
+    if out is not None and decision.rings:
+        lines[-1] += f"; written to {out}"
     print("\n".join(lines))
     return 0

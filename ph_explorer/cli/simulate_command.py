@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from ph_explorer import twin
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
@@ -20,12 +22,15 @@ def simulate_command(
     design: str | None = None,
     hidden_effect: str | None = None,
     strength: str | None = None,
+    rings: Path | None = None,
 ) -> int:
     """Simulate the scenario (seed: default the scenario's), or a random head, into out; or list the scenarios."""
     if list_scenarios:
         for line in scenario_lines():
             print(line)
         return 0
+    if rings is not None and scenario is None:
+        raise InputError("measures a scenario's head at other rings: give --scenario NAME|PATH", option="--rings")
     if random_head is None:
         for value, option in ((design, "--design"), (hidden_effect, "--hidden-effect"), (strength, "--strength")):
             if value is not None:
@@ -42,6 +47,8 @@ def simulate_command(
         name, checks = campaign.scenario["name"], len(campaign.check_orientations)
     else:
         loaded = twin.load_scenario(scenario)
+        if rings is not None:
+            loaded, seed = rings_of(loaded, rings, seed)
         campaign = twin.simulate(loaded, seed)
         hidden, name, checks = len(loaded.hidden_ids), loaded.name, len(loaded.check_orientations)
     path = write_campaign(campaign, out)
@@ -83,3 +90,16 @@ def scenario_lines() -> list[str]:
     shipped = twin.list_scenarios()
     width = max((len(name) for name, _ in shipped), default=0)
     return [f"{name:<{width}}  {description}" for name, description in shipped]
+
+
+def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[twin.Scenario, int]:
+    """The scenario's head at the file's rings, after its campaign, and the seed: given, else one
+    drawn from the scenario's seed and the rings (not the campaign's own noise again)."""
+    from ph_explorer.io.rings import read_rings
+
+    orientations = read_rings(rings)
+    if seed is None:
+        seed = int(
+            np.random.SeedSequence([scenario.seed, *np.round(orientations * 1000).astype(np.int64).ravel() % 2**32]).generate_state(1)[0]
+        )
+    return scenario.at_rings(orientations), seed

@@ -116,8 +116,16 @@ def head_with_effect(
     seed: int, effect_id: str, strength: float | None = None, design: str | None = None, catalog: Catalog = DEFAULT_CATALOG
 ) -> tuple[Campaign, float]:
     """(campaign, strength): the random head of `seed` with one hidden catalog effect at `strength`
-    times its detection limit (None: drawn from 1-3). Settings are redrawn until its amplitudes
-    stay within their plausible ranges."""
+    times its detection limit (None: drawn from 1-3); see hidden_effect_of."""
+    hidden, strength = hidden_effect_of(seed, effect_id, strength, design, catalog)
+    return random_campaign(seed, design_of(seed, design), [hidden]), strength
+
+
+def hidden_effect_of(
+    seed: int, effect_id: str, strength: float | None = None, design: str | None = None, catalog: Catalog = DEFAULT_CATALOG
+) -> tuple[Effect, float]:
+    """(effect, strength): the effect head_with_effect hides in the head of `seed`. Settings are
+    redrawn until its amplitudes stay within their plausible ranges."""
     if effect_id not in catalog:
         error = catalog.unknown(effect_id, column=None)
         error.option = "--hidden-effect"
@@ -139,7 +147,7 @@ def head_with_effect(
         scaled = {**effect.params, **{name: effect.params[name] * factor for name in cls.amplitudes()}}
         hidden = cls(**scaled)
         if np.isfinite(factor) and not cls.implausible(hidden.params):
-            return random_campaign(seed, design, [hidden]), strength
+            return hidden, strength
     raise InputError(
         f"effect {effect_id!r} cannot reach {strength:g}x its detection limit on this design within its plausible range",
         option="--strength",

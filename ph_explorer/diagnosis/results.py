@@ -294,13 +294,30 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
             + "."
         )
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
-        if candidate.confounded_with:
-            shared = ", ".join(f"{o['effect']} ({100 * o['shared']:.0f} % shared)" for o in candidate.confounded_with)
+        told = [o for o in candidate.confounded_with if o.get("told_apart")]
+        untold = [o for o in candidate.confounded_with if not o.get("told_apart")]
+        for other in told:
+            lines.append(
+                f"{candidate.effect} shares {100 * other['shared']:.0f} % of its columns with {other['effect']}, yet the rings tell them "
+                f"apart: {told_apart_text(other)}."
+            )
+        if untold:
+            shared = ", ".join(
+                f"{o['effect']} ({100 * o['shared']:.0f} % shared" + (f"; {told_apart_text(o)}" if "told_apart" in o else "") + ")"
+                for o in untold
+            )
             lines.append(f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to split.")
-            lines += [text for other in candidate.confounded_with if (text := separation_text(candidate.effect, other))]
+            if any("told_apart" in o for o in untold):
+                lines.append("The rings that would tell them apart: ph-explorer design --data CAMPAIGN.csv --decide.")
+            lines += [text for other in untold if (text := separation_text(candidate.effect, other))]
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def told_apart_text(other: dict[str, Any]) -> str:
+    """'better on 10 of 12 rings, p = 0.002 (0.004 without the top ring)': diagnosis.telling_apart in words."""
+    return f"better on {other['rings_better']} of {other['rings']} rings, p = {other['p_value']:.3g} ({other['p_without_top']:.3g} without the top ring)"
 
 
 def separation_text(effect: str, other: dict[str, Any]) -> str:

@@ -153,6 +153,18 @@ class Effect:
         names = list(cls.scan)
         return [dict(zip(names, values)) for values in itertools.product(*(cls.scan[n] for n in names))]
 
+    def neighbour_settings(self) -> list[dict[str, float]]:
+        """Its settings and those one scan step away in each scanned parameter: where a fit of the
+        same data may move when rings are added (an n/rev error seen through a lever that turns
+        once a revolution reads as n - 1 and n + 1)."""
+        near = []
+        for name in self.scan:
+            values = list(self.scan[name])
+            value = self.params[name]
+            i = min(range(len(values)), key=lambda k: abs(values[k] - value))
+            near.append([value] + [values[k] for k in (i - 1, i + 1) if 0 <= k < len(values) and values[k] != value])
+        return [dict(zip(self.scan, combo)) for combo in itertools.product(*near)]
+
     def settings(self) -> dict[str, float]:
         """The values of the scanned parameters this instance uses (e.g. {"cycles_per_rev": 22})."""
         return {k: self.params[k] for k in self.scan}

@@ -5,7 +5,8 @@ The new rings must come from the same set-up (geometry, points per circle, repet
 same kind of file (touch times or none); their times are moved to begin after the base's last
 touch, one of the base's own touch intervals later, so that time-dependent effects (drift) read
 one campaign. An orientation measured in both is refused unless `replace` (the new ring then
-replaces the base's ring). Method: docs/methods/merging.md.
+replaces the base's ring). When the base names its check rings and the new file none, the new
+rings off the lattice join them. Method: docs/methods/merging.md.
 """
 
 from __future__ import annotations
@@ -59,6 +60,11 @@ def merged_campaign(
         scenario=scenario,
         source=None,
     )
+    if new.check_orientations is None and base.check_orientations is not None:
+        # The base names its check rings, the new file none: its rings off the lattice are held
+        # out, as they would be in a campaign that names none (the rings that decide are tested there).
+        added = np.arange(out.n_orientations) >= int(keep.sum())
+        out.check_orientations = _union(checks, out.orientations[added & out.off_grid_mask()])
     return out, record
 
 

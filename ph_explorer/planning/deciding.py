@@ -1,20 +1,20 @@
-"""Rings that decide: where to measure next when the diagnosis cannot tell candidates apart, or
+"""Rings that decide: where to measure next when the diagnosis cannot tell two candidates apart, or
 cannot confirm one.
 
-Two kinds of question come from a diagnosis: **separate** a found or suggested candidate from a
-partner it is confounded with (they explain the measured rings alike), and **confirm or refute**
-a suggested candidate (its gain rests on a few rings). Each candidate is taken at its fitted
-parameters; its term at a ring that is not yet measured, after the ring's circle fit and less
-what the data model (the trilinear interpolator over the measured training rings) would predict
-there from the measured rings, is what that ring would show of it. The ring's score is the rms
-over its points of the two candidates' difference (separate) or of the candidate's term (confirm),
-over the noise floor of a new ring's mean curve predicted out of sample. Rings are taken best
-first, in turn for each question. Method: docs/methods/deciding.md.
+Two kinds of question come from a diagnosis: **separate** a claimed or suggested candidate from a
+confounded partner the rings do not tell it from (diagnosis.telling_apart), and **confirm or
+refute** a suggested candidate (its gain is not replicated over rings). Each candidate is taken at
+its fitted parameters; what a ring not yet measured would show of it is its term there, after the
+ring's circle fit, less what the data model (the trilinear interpolator over the training rings)
+would predict there from the measured rings. A ring's expected gain is that difference (separate)
+or that term (confirm), summed in squares over its touches and repetitions, in touch noise
+variances: the same figure the test over rings adds up ring by ring. Each question takes rings
+until they decide: at least DECIDING_RINGS, with DECIDING_EVIDENCE even without the ring that adds
+most. Method: docs/methods/deciding.md.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -24,29 +24,29 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import Candidate, Diagnosis
 from ph_explorer.effects import Catalog, Effect
-from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
-from ph_explorer.models.crossval import unit_campaign
+from ph_explorer.kinematics import campaign_touches, touch_kinematics
+from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import fitted_basis
-from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
 
 
 @dataclass
 class Question:
-    """What a few rings should decide: separate `effect` from `other`, or confirm `effect` (other None)."""
+    """What a few rings should decide: tell `effect` from `other`, or confirm `effect` (other None)."""
 
     effect: Effect
     other: Effect | None = None
-    separated_by: str = ""  # what the diagnosis found would separate the pair, when not rings (diagnosis.separation)
+    shared: float = 0.0  # the share of their columns' variance on the measured rings (search.confounding)
+    separated_by: str = ""  # a measurement other than rings that would separate them (diagnosis.separation)
 
     @property
     def label(self) -> str:
         return f"{self.effect.id} vs {self.other.id}" if self.other is not None else self.effect.id
 
-    def reason(self, ratio: float) -> str:
+    def reason(self, gain: float, total: float) -> str:
         if self.other is not None:
-            return f"separates {self.effect.id} from {self.other.id}: predicted difference {ratio:.1f}x floor"
-        return f"confirms or refutes {self.effect.id}: predicted term {ratio:.1f}x floor"
+            return f"tells {self.effect.id} from {self.other.id}: {gain:.0f} of its set's {total:.0f} noise variances that neither fits as the other"
+        return f"confirms or refutes {self.effect.id}: its term here is {gain:.0f} of its set's {total:.0f} noise variances"
 
 
 @dataclass
@@ -70,8 +70,8 @@ class Decision:
 
 
 def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
-    """Every question the diagnosis leaves: each found or suggested candidate against each partner
-    it is confounded with, and each suggested candidate to confirm."""
+    """Every question the diagnosis leaves: each claimed or suggested candidate against each
+    confounded partner its rings do not tell it from, and each suggested candidate to confirm."""
     ranked: dict[str, Candidate] = {}
     for ranking in [result.candidates, *result.rankings]:
         for c in ranking:
@@ -81,9 +81,9 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
         effect = fitted_effect(candidate, catalog)
         for partner in candidate.confounded_with:
             other = ranked.get(partner["effect"])
-            if other is not None and other.params:
+            if partner.get("told_apart") is False and other is not None and other.params:
                 measurement = (partner.get("separated_by") or {}).get("measurement", "")
-                out.append(Question(effect, fitted_effect(other, catalog), measurement))
+                out.append(Question(effect, fitted_effect(other, catalog), float(partner["shared"]), measurement))
         if candidate.suggested:
             out.append(Question(effect))
     return out
@@ -96,17 +96,16 @@ def fitted_effect(candidate: Candidate, catalog: Catalog) -> Effect:
     return cls(**{k: v for k, v in {**candidate.params, **candidate.settings}.items() if k in known})
 
 
-def seen_at(effect: Effect, campaign: Campaign, rings: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
-    """What each new ring would show of the effect's term: at the ring, after its circle fit, less
-    the data model's prediction there from the measured rings (weights: (n_new, n_o)), (n_new, n_pt)."""
-    new = touch_kinematics(rings, campaign.geometry, 1)
-    own = campaign_touches(campaign)
+def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The effect's columns as the out-of-sample residual sees them, at the measured rings then the
+    pool's, (n_o + n_pool, n_pt, k): after each ring's circle fit, less the data model's prediction
+    there (weights: the smoother over both, the pool's rings held out); zeros where it cannot act."""
+    own, new = campaign_touches(campaign), touch_kinematics(pool, campaign.geometry, 1)
+    k = len(effect.coefficients())
     if effect.unmet_needs(new) or effect.unmet_needs(own):
-        return np.zeros((len(rings), campaign.n_points))
-    coef = effect.coefficients()
-    at_new = fitted_basis(effect, new)[0][:, 0] @ coef
-    at_measured = (fitted_basis(effect, own)[0] @ coef).mean(axis=1)
-    return at_new - weights @ at_measured
+        return np.zeros((len(weights), campaign.n_points, k))
+    columns = np.concatenate([fitted_basis(effect, own)[0].mean(axis=1), fitted_basis(effect, new)[0][:, 0]])
+    return np.nan_to_num(columns - np.tensordot(weights, columns, axes=(1, 0)))
 
 
 def ring_minutes(campaign: Campaign) -> float | None:
@@ -120,125 +119,158 @@ def ring_minutes(campaign: Campaign) -> float | None:
     return float(np.median(last - first) + np.median(np.maximum(moves, 0.0))) / 60.0
 
 
-DECIDE_A_STEP_DEG = 5.0  # the pool of new rings: finer in A than a lattice (near-vertical rings separate B's location errors)
-# A ring separates a pair only when it lowers their shared fraction by this much (a parameter-free
-# criterion: two fits that span the same columns predict the same everywhere); it confirms or
-# refutes a suggested candidate when its term there is beyond the floor of the ring's mean curve.
-LOWERS_SHARED = 0.02
-BEYOND_FLOOR = 1.0
+DECIDE_A_STEP_DEG = 5.0  # the pool of new rings: finer in A than a lattice
+# A ring's gain scatters about its expectation g with variance ~4 g (the cross term of the
+# difference with the touch noise), so rings of total expected gain E give z ~ sqrt(E) / 2. The
+# rings decide when that reaches the one-sided 5 % level with 90 % power, z = 1.645 + 1.282, even
+# without the ring that adds most (no single ring decides), and they are at least DECIDING_RINGS.
+DECIDING_EVIDENCE = 4.0 * (1.645 + 1.282) ** 2  # 34.3 touch noise variances
+DECIDING_RINGS = 3
 
 
-def ring_grams(effect: Effect, other: Effect, touches: Touches, weight: float = 1.0) -> tuple[NDArray, NDArray, NDArray]:
-    """Per ring, the Gram blocks (X'X, Y'Y, X'Y) of two effects' columns after each ring's circle
-    fit, over its first repetition's touches times `weight` (its repetitions), (n_o, k, k) each."""
-    x, y = fitted_basis(effect, touches)[0][:, 0], fitted_basis(other, touches)[0][:, 0]  # (n_o, n_pt, k)
-    x, y = np.nan_to_num(x), np.nan_to_num(y)
-    return (
-        weight * np.einsum("opi,opj->oij", x, x),
-        weight * np.einsum("opi,opj->oij", y, y),
-        weight * np.einsum("opi,opj->oij", x, y),
-    )
+class Evidence:
+    """What new rings would add to one question, in touch noise variances, ring by ring as the
+    test over rings sees them (module docstring). For a pair, each candidate's prediction in turn
+    is the truth and the other, at its settings or one scan step away (neighbour_settings), is
+    refitted without the ring on the measured rings and the other new ones: what it cannot follow
+    at the ring is the ring's evidence, and the truth and refit that leave least count. For a
+    suggested candidate, its term at the ring."""
+
+    def __init__(self, question: Question, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> None:
+        self.scale = campaign.n_repetitions / max(campaign.noise_sigma_um(), 1e-12) ** 2
+        n_o = campaign.n_orientations
+        x = seen_columns(question.effect, campaign, pool, weights)
+        cx = np.asarray(question.effect.coefficients(), dtype=float)
+        if question.other is None:
+            self.term = np.einsum("opi,i->op", x[n_o:], cx)
+            self.fits = []
+            return
+        y = seen_columns(question.other, campaign, pool, weights)
+        cy = np.asarray(question.other.coefficients(), dtype=float)
+        # Per (truth, refit): the truth's signal energy per ring, the refit's Gram blocks and their
+        # products with the signal per new ring, and the measured rings' sums of both.
+        self.fits = []
+        for truth, coef, rival in ((x, cx, question.other), (y, cy, question.effect)):
+            signal = np.einsum("opi,i->op", truth, coef)
+            for settings in rival.neighbour_settings():
+                fitted = seen_columns(rival.with_settings(**settings), campaign, pool, weights)
+                gram = np.einsum("opi,opj->oij", fitted, fitted)
+                cross = np.einsum("opi,op->oi", fitted, signal)
+                energy = (signal**2).sum(axis=1)
+                self.fits.append((gram[n_o:], cross[n_o:], energy[n_o:], gram[:n_o].sum(axis=0), cross[:n_o].sum(axis=0)))
+
+    def per_ring(self, rings: list[int], extra: NDArray[np.int64]) -> NDArray[np.float64]:
+        """(len(extra), len(rings) + 1): each ring's evidence when the pool's `rings` and, in turn,
+        each of `extra` (last column) are measured."""
+        if not self.fits:
+            term = self.scale * (self.term**2).sum(axis=1)
+            return np.column_stack([np.broadcast_to(term[rings], (len(extra), len(rings))), term[extra]])
+        out = []
+        for gram, cross, energy, gram_measured, cross_measured in self.fits:
+            total_g = gram_measured + gram[rings].sum(axis=0) + gram[extra]  # (n_extra, k, k)
+            total_c = cross_measured + cross[rings].sum(axis=0) + cross[extra]
+            columns = []
+            for j in [*rings, None]:  # the rings chosen (a few), then each extra ring itself
+                g, c, e = (gram[extra], cross[extra], energy[extra]) if j is None else (gram[j], cross[j], energy[j])
+                beta = np.einsum("nij,nj->ni", np.linalg.pinv(total_g - g, rcond=1e-10, hermitian=True), total_c - c)
+                curvature = np.einsum("ni,nij,nj->n" if j is None else "ni,ij,nj->n", beta, g, beta)
+                columns.append(e - 2 * np.einsum("...i,...i->...", c, beta) + curvature)
+            out.append(np.column_stack(columns))
+        each = np.stack(out)  # (fits, n_extra, rings + 1)
+        least = np.argmin(each.sum(axis=2), axis=0)  # per extra ring, the fit that leaves least
+        return self.scale * each[least, np.arange(len(extra))]
 
 
-def shared_from_grams(gx: NDArray, gy: NDArray, gxy: NDArray) -> NDArray[np.float64]:
-    """The largest squared canonical correlation from Gram blocks, stacked over the leading axes."""
-    product = np.linalg.pinv(gx, rcond=1e-10, hermitian=True) @ gxy @ np.linalg.pinv(gy, rcond=1e-10, hermitian=True)
-    values = np.linalg.eigvals(product @ np.swapaxes(gxy, -1, -2))
-    return np.clip(values.real.max(axis=-1), 0.0, 1.0)
+def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple[list[int], list[float], float]:
+    """The question's rings, best first, until they decide (module docstring) or the budget ends:
+    (rings, each one's evidence, their evidence without the ring that adds most); no rings when
+    the budget ends first."""
+    rings: list[int] = []
+    each_ring: list[float] = []
+    without_top = 0.0
+    while len(rings) < budget and free.any():
+        candidates = np.flatnonzero(free)
+        each = evidence.per_ring(rings, candidates)  # (n_candidates, len(rings) + 1)
+        # The ring whose set leaves most without its strongest ring: no single ring decides.
+        robust = each.sum(axis=1) - each.max(axis=1)
+        pick = int(np.argmax(robust + 1e-9 * each.sum(axis=1)))
+        rings.append(int(candidates[pick]))
+        free = free.copy()
+        free[rings[-1]] = False
+        each_ring, without_top = [float(v) for v in each[pick]], float(robust[pick])
+        if len(rings) >= DECIDING_RINGS and without_top >= DECIDING_EVIDENCE:
+            return rings, each_ring, without_top
+    return [], each_ring, without_top
 
 
 def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, budget: int) -> Decision:
     """Up to `budget` new rings that decide the diagnosis's questions (module docstring)."""
     asked = questions_of(result, catalog)
     if not asked:
-        return Decision([], {}, 0.0, note="nothing to decide: no found or suggested candidate is confounded or unconfirmed")
+        return Decision([], {}, 0.0, note="nothing to decide: every claimed candidate is told from its partners, none is only suggested")
     pool = distinct_rings(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
     # Within the measured A0 range: beyond it the data model extrapolates, and what a ring would
     # show of a term is the extrapolation's as much as the term's.
     pool = pool[pool[:, 0] <= campaign.orientations[:, 0].max() + 1e-9]
-    train = ~campaign.holdout_mask()
-    weights = TrilinearModel().fit(unit_campaign(campaign.orientations), train).interpolate(pool)  # (n_pool, n_o)
-    sigma = campaign.noise_sigma_um()
-    floor = sigma / math.sqrt(campaign.n_repetitions) * np.sqrt(1.0 + (weights**2).sum(axis=1))  # (n_pool,)
-    own, new = campaign_touches(campaign), touch_kinematics(pool, campaign.geometry, 1)
-    ratio, grams, measured = [], [], []
-    for question in asked:
-        shown = seen_at(question.effect, campaign, pool, weights)
-        if question.other is not None:
-            shown = shown - seen_at(question.other, campaign, pool, weights)
-            # A new ring is measured as the others: its repetitions weigh in.
-            grams.append(ring_grams(question.effect, question.other, new, campaign.n_repetitions))
-            measured.append(tuple(g.sum(axis=0) for g in ring_grams(question.effect, question.other, own, campaign.n_repetitions)))
-        else:
-            grams.append(None)
-            measured.append(None)
-        ratio.append(np.sqrt((shown**2).mean(axis=1)) / floor)
-    # The closest pairs first, then the candidates to confirm; in turn, each takes the ring that
-    # lowers its shared fraction most (separate) or shows its term most (confirm).
-    shared_now = [float(shared_from_grams(*m)) if m is not None else -1.0 for m in measured]
-    turn = sorted(range(len(asked)), key=lambda q: -shared_now[q])
-    taken: list[tuple[int, int, float]] = []  # (question, ring, shared after it)
-    mine: dict[int, list[int]] = {q: [] for q in turn}
-    current = {q: shared_now[q] for q in turn}
-    open_questions = list(turn)
-    while len(taken) < budget and open_questions:
-        for q in list(open_questions):
-            free = np.setdiff1d(np.arange(len(pool)), [i for _, i, _ in taken])
-            if len(taken) >= budget or not free.size:
-                break
-            if grams[q] is not None:
-                # Each free ring added to the measured rings and this question's rings so far.
-                base = [m + g[mine[q]].sum(axis=0) for m, g in zip(measured[q], grams[q])]
-                after = shared_from_grams(*(b[None] + g[free] for b, g in zip(base, grams[q])))
-                pick = int(np.argmin(after - 1e-6 * ratio[q][free]))  # ties: the larger difference
-                best, shared = int(free[pick]), float(after[pick])
-                decides = current[q] - shared >= LOWERS_SHARED
-            else:
-                best, shared = int(free[np.argmax(ratio[q][free])]), float("nan")
-                decides = ratio[q][best] >= BEYOND_FLOOR
-            if not decides:
-                open_questions.remove(q)  # no ring left decides it: said below, not padded with rings
-                continue
-            taken.append((q, best, shared))
-            mine[q].append(best)
-            current[q] = shared
-    taken.sort(key=lambda item: -ratio[item[0]][item[1]])  # the most decisive difference first
-    rings = []
-    for order, (q, i, shared) in enumerate(taken, start=1):
-        entry = {
-            "A_deg": float(pool[i, 0]),
-            "B_deg": float(pool[i, 1]),
-            "order": order,
-            "question": asked[q].label,
-            "reason": asked[q].reason(float(ratio[q][i])),
-            "over_floor": round(float(ratio[q][i]), 2),
-        }
-        if np.isfinite(shared):
-            entry["shared_after"] = round(shared, 3)
-        rings.append(entry)
-    expected: dict[str, dict[str, float]] = {}
+    # The smoother over the measured rings and the pool's, these held out as check rings are.
+    train = np.concatenate([~campaign.holdout_mask(), np.zeros(len(pool), dtype=bool)])
+    weights = OutOfSampleSmoother(np.concatenate([campaign.orientations, pool]), train).weights
+    free = np.ones(len(pool), dtype=bool)
+    taken: list[tuple[int, int]] = []
+    evidence_of: dict[int, float] = {}  # each proposed ring's evidence within its question's set
+    expected: dict[str, dict[str, Any]] = {}
     for q, question in enumerate(asked):
-        if grams[q] is not None:
-            total = [m + g[mine[q]].sum(axis=0) for m, g in zip(measured[q], grams[q])]
-            expected[question.label] = {"shared_now": round(shared_now[q], 3), "shared_after": round(float(shared_from_grams(*total)), 3)}
-        else:
-            expected[question.label] = {"best_over_floor": round(float(ratio[q].max()), 2)}
-    for q in range(len(asked)):
-        if not mine[q]:
-            expected[asked[q].label]["decided_by_rings"] = False
-            if asked[q].separated_by:
-                expected[asked[q].label]["separated_by"] = asked[q].separated_by
+        rings, each_ring, without_top = rings_for(Evidence(question, campaign, pool, weights), free, budget - len(taken))
+        total = sum(each_ring)
+        evidence_of.update(zip(rings, each_ring))
+        free[rings] = False
+        taken += [(q, i) for i in rings]
+        expected[question.label] = {
+            "decided_by_rings": bool(rings),
+            "expected_gain": round(total, 1),
+            "without_top_ring": round(without_top, 1),
+        }
+        if question.other is not None:
+            expected[question.label]["shared_now"] = question.shared
+        if not rings and question.separated_by:
+            expected[question.label]["separated_by"] = question.separated_by
+    entries = []
+    for order, (q, i) in enumerate(taken, start=1):
+        entries.append(
+            {
+                "A_deg": float(pool[i, 0]),
+                "B_deg": float(pool[i, 1]),
+                "order": order,
+                "question": asked[q].label,
+                "reason": asked[q].reason(evidence_of[i], expected[asked[q].label]["expected_gain"]),
+                "expected_gain": round(evidence_of[i], 1),
+            }
+        )
     per_ring = ring_minutes(campaign)
     return Decision(
-        rings,
+        entries,
         expected,
-        None if per_ring is None else per_ring * len(rings),
+        None if per_ring is None else per_ring * len(entries),
         [q.label for q in asked],
         "" if per_ring is not None else "no touch times in the campaign: the CMM time cannot be estimated",
     )
 
 
-def rings_text(decision: Decision) -> list[str]:
-    """The decision in lines, one ring a line."""
-    lines = [f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings]
+def decision_lines(decision: Decision, budget: int) -> list[str]:
+    """The decision in words: a head line, one line a ring in measuring order, a line per question
+    no ring decides, and the CMM time."""
+    if decision.rings:
+        lines = [f"{len(decision.rings)} rings that decide, in this order:"]
+    else:
+        lines = [decision.note or "no ring decides what is open"]
+    lines += [f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings]
+    for label, expected in decision.expected.items():
+        if not expected["decided_by_rings"]:
+            other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
+            lines.append(
+                f"{label}: no {budget} rings of this stylus decide it (they would show {expected['without_top_ring']:g} noise "
+                f"variances without the strongest; {DECIDING_EVIDENCE:.0f} decide){other}"
+            )
+    if decision.rings:
+        lines.append(f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note)
     return lines

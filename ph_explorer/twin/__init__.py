@@ -12,7 +12,7 @@ Method, and the scenario TOML: docs/methods/digital_twin.md.
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +50,7 @@ class Scenario:
     touch_s: float = 2.0
     move_s: float = 8.0
     source: str | None = None
+    start_s: float = 0.0  # the first touch's time: later than 0 for rings measured after the campaign (at_rings)
 
     @property
     def hidden_ids(self) -> list[str]:
@@ -67,7 +68,14 @@ class Scenario:
         circle = o * n_rep + r if self.scan_order == "orientation" else r * n_o + o
         reverse = (r % 2 == 1) if self.scan_direction == "alternating" else np.zeros_like(r, dtype=bool)
         position = np.where(reverse, n_pt - 1 - k, k)
-        return circle * (n_pt * self.touch_s + self.move_s) + position * self.touch_s
+        return self.start_s + circle * (n_pt * self.touch_s + self.move_s) + position * self.touch_s
+
+    def at_rings(self, rings: NDArray[np.float64]) -> Scenario:
+        """The same head measured again at other rings after its campaign (the rings that would
+        decide, design --decide): every one a check ring, its touches after the campaign's last."""
+        rings = np.asarray(rings, dtype=float).reshape(-1, 2)
+        after = self.start_s + float(self.times_s().max()) + self.touch_s + self.move_s
+        return replace(self, orientations=rings, check_orientations=rings.copy(), start_s=after)
 
     def record(self, seed: int) -> dict[str, Any]:
         """What a campaign's sidecar records about the scenario."""
@@ -81,6 +89,7 @@ class Scenario:
             "touch_s": self.touch_s,
             "move_s": self.move_s,
             "hidden": self.hidden_ids,
+            **({"start_s": self.start_s} if self.start_s else {}),
             "effects": [{**e.describe(), "hidden": h} for e, h in zip(self.effects, self.hidden)],
         }
 

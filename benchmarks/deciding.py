@@ -1,0 +1,169 @@
+"""Rings that decide (issue 29): the whole loop a metrologist runs when the diagnosis cannot tell two
+candidates apart, or cannot confirm one: diagnose, `design --decide`, measure the proposed rings
+(the twin measures them, after the campaign, on another noise draw), merge, diagnose again.
+
+Cases, each over its own noise seeds or heads:
+- a_axis_angular: the paper's campaign with a hidden A-axis angular positioning error (EAA) at
+  26/rev, 1.0 arcsec; its confounded partner is the A-axis radial motion at the same period.
+- b_axis_tilt: the paper's campaign with a hidden B-axis tilt motion at 26/rev, 1.0 arcsec about
+  x; its confounded partner is the B-axis radial motion at the same period.
+- false_suggestions: the heads of the population run (benchmarks/population_records.json) whose
+  diagnosis suggested a candidate that is false (a healthy head, or an effect in no catalog).
+
+Success: the angular and tilt cases end with the true effect claimed at its period and told from
+every confounded partner (diagnosis.telling_apart); a false suggestion ends not claimed. Method:
+docs/methods/deciding.md.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks.population import head_of
+from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.io.merge import merged_campaign
+from ph_explorer.planning.deciding import rings_that_decide
+from ph_explorer.twin import Scenario, load_scenario, simulate
+from ph_explorer.twin.random_heads import DESIGNS, design_of
+
+BUDGET = 8
+PAIR_CASES = {
+    "a_axis_angular": ({"id": "a_axis_cyclic", "amplitude_arcsec": 1.0, "phase_deg": 70.0, "cycles_per_rev": 26}, 710_000),
+    "b_axis_tilt": (
+        {"id": "b_axis_tilt_motion", "about_x_amplitude_arcsec": 1.0, "about_x_phase_deg": 30.0, "cycles_per_rev": 26},
+        720_000,
+    ),
+}
+SEEDS, QUICK_SEEDS = 10, 1
+NEW_RINGS_SEED = 500  # the new rings' noise: the campaign's seed + this (another draw)
+RECORDS = Path(__file__).with_name("population_records.json")
+
+
+def paper_with(spec: dict[str, Any]) -> Scenario:
+    """The paper's scenario with one hidden effect."""
+    scenario = load_scenario("paper")
+    params = {k: v for k, v in spec.items() if k != "id"}
+    scenario.effects = [*scenario.effects, DEFAULT_CATALOG[spec["id"]](**params)]
+    scenario.hidden = [*scenario.hidden, True]
+    return scenario
+
+
+def measured(scenario: Scenario, seed: int, with_times: bool = True) -> Campaign:
+    campaign = simulate(scenario, seed)
+    if not with_times:
+        campaign.times_s = None
+    return campaign
+
+
+def claims(result: Diagnosis) -> list[dict[str, Any]]:
+    """The claimed candidates, each with its confounded partners and whether the rings tell them apart."""
+    return [
+        {
+            "effect": c.effect,
+            "settings": {k: float(v) for k, v in c.settings.items()},
+            "partners": [
+                {"effect": o["effect"], "shared": o["shared"], **{k: o[k] for k in ("told_apart", "p_value", "p_without_top") if k in o}}
+                for o in c.confounded_with
+                if "separated_by" in o
+            ],
+        }
+        for c in result.found
+    ]
+
+
+def loop_once(scenario: Scenario, seed: int, with_times: bool = True, catalog: Any = DEFAULT_CATALOG) -> dict[str, Any]:
+    """Diagnose, decide, measure the rings (the twin, another noise draw), merge, diagnose again."""
+    started = time.perf_counter()
+    base = measured(scenario, seed, with_times)
+    first = diagnose(base, nested=False)
+    decision = rings_that_decide(base, first, DEFAULT_CATALOG, BUDGET)
+    record: dict[str, Any] = {
+        "seed": seed,
+        "before": {"verdict": first.verdict, "claimed": claims(first), "suggested": [c.effect for c in first.suggested]},
+        "questions": decision.questions,
+        "rings": [[r["A_deg"], r["B_deg"]] for r in decision.rings],
+        "expected": decision.expected,
+        "minutes": None if decision.minutes is None else round(decision.minutes, 1),
+    }
+    second = first
+    if decision.rings:
+        rings = np.array(record["rings"], dtype=float)
+        new = measured(scenario.at_rings(rings), seed + NEW_RINGS_SEED, with_times)
+        second = diagnose(merged_campaign(base, new)[0], nested=False)
+    record["after"] = {"verdict": second.verdict, "claimed": claims(second), "suggested": [c.effect for c in second.suggested]}
+    record["seconds"] = round(time.perf_counter() - started, 1)
+    return record
+
+
+def named_and_told_apart(record: dict[str, Any], truth: dict[str, Any], when: str = "after") -> bool:
+    """The true effect claimed at its period and told from every confounded partner."""
+    for claim in record[when]["claimed"]:
+        if claim["effect"] == truth["id"] and claim["settings"].get("cycles_per_rev") == float(truth["cycles_per_rev"]):
+            return all(p.get("told_apart") for p in claim["partners"])
+    return False
+
+
+def suggestion_heads(limit: int) -> list[dict[str, Any]]:
+    """The population run's heads whose diagnosis suggested a false candidate, first seeds first."""
+    records = json.loads(RECORDS.read_text())["records"]
+    false = [r for r in records if r["group"] in ("healthy", "outside_catalog") and r.get("suggested")]
+    return sorted(false, key=lambda r: r["seed"])[:limit]
+
+
+def head_scenario(record: dict[str, Any]) -> tuple[Scenario, bool]:
+    """The head of a population record (its hidden effect too), and whether its design has touch times."""
+    scenario, truth = head_of({"group": record["group"], "seed": record["seed"]})
+    seed = record["seed"] if truth is None else truth["head_seed"]
+    return scenario, DESIGNS[design_of(seed)]["times"]
+
+
+def rate(k: int, n: int) -> dict[str, Any]:
+    return {"count": k, "of": n, "rate": round(k / n, 3) if n else None}
+
+
+def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    out: dict[str, Any] = {"budget": BUDGET, "records": {}}
+    n = QUICK_SEEDS if quick else SEEDS
+    for name, (spec, first_seed) in PAIR_CASES.items():
+        scenario = paper_with(spec)
+        records = []
+        for k in range(n):
+            records.append(loop_once(scenario, first_seed + k))
+            log(
+                f"  {name} seed {first_seed + k}: {records[-1]['before']['verdict']} -> {records[-1]['after']['verdict']}, {len(records[-1]['rings'])} rings"
+            )
+        out["records"][name] = records
+        out[name] = {
+            "truth": spec,
+            "named_and_told_apart_before": rate(sum(named_and_told_apart(r, spec, "before") for r in records), n),
+            "named_and_told_apart_after": rate(sum(named_and_told_apart(r, spec) for r in records), n),
+            "rings_proposed": [len(r["rings"]) for r in records],
+            "minutes": [r["minutes"] for r in records],
+        }
+    records = []
+    for head in suggestion_heads(n):
+        scenario, with_times = head_scenario(head)
+        seed = int(scenario.seed)
+        record = loop_once(scenario, seed, with_times)
+        record.update(group=head["group"], head=head["seed"], truth=(head.get("truth") or {}).get("id"))
+        wrong = set(head["suggested"])
+        record["false_claimed_after"] = sorted(wrong & {c["effect"] for c in record["after"]["claimed"]})
+        records.append(record)
+        log(
+            f"  false suggestion head {head['seed']}: {record['before']['verdict']} -> {record['after']['verdict']}, {len(record['rings'])} rings"
+        )
+    out["records"]["false_suggestions"] = records
+    out["false_suggestions"] = {
+        "refuted_or_left_suggested": rate(sum(not r["false_claimed_after"] for r in records), len(records)),
+        "rings_proposed": [len(r["rings"]) for r in records],
+    }
+    return out

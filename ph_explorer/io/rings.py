@@ -1,0 +1,52 @@
+"""A file of rings to measure: the orientations `design --decide --out` writes and `simulate --rings`
+reads (columns A_deg, B_deg; others, e.g. order and reason, are kept for the reader of the file).
+Format: docs/formats.md#rings-to-measure.
+"""
+
+from __future__ import annotations
+
+import csv
+import io as _io
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.campaign import orientation_label, orientation_match
+from ph_explorer.errors import InputError
+from ph_explorer.io.reader import _decode, _numeric_column, _parse_rows, _read_bytes
+
+RING_COLUMNS = ("A_deg", "B_deg")
+
+
+def read_rings(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """(n, 2) orientations in the file's order; InputError naming the file, row and column."""
+    name = str(path)
+    header, header_line, rows, lines = _parse_rows(_decode(_read_bytes(Path(path)), name), name)
+    for column in RING_COLUMNS:
+        if column not in header:
+            raise InputError(f"no {column} column (a rings file has A_deg and B_deg)", file=name, row=header_line)
+    if not rows:
+        raise InputError("no rings: the header and no rows", file=name, row=header_line)
+    index = [header.index(c) for c in RING_COLUMNS]
+    for record, line in zip(rows, lines):
+        if len(record) <= max(index):
+            raise InputError(f"{len(record)} fields where the header has {len(header)}", file=name, row=int(line))
+    rings = np.stack([_numeric_column([r[j] for r in rows], c, lines, name) for j, c in zip(index, RING_COLUMNS)], axis=1)
+    same = np.triu(orientation_match(rings, rings), k=1)
+    if same.any():
+        i, j = np.argwhere(same)[0]
+        raise InputError(f"{orientation_label(*rings[j])} is listed twice (first on row {lines[i]})", file=name, row=int(lines[j]))
+    return rings
+
+
+def rings_csv_text(rings: list[dict[str, Any]]) -> str:
+    """The rings (each with A_deg, B_deg, order, reason) as CSV text, for a CMM program."""
+    out = _io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow([*RING_COLUMNS, "order", "reason"])
+    for ring in rings:
+        writer.writerow([f"{ring['A_deg']:g}", f"{ring['B_deg']:g}", ring["order"], ring["reason"]])
+    return out.getvalue()
