@@ -22,7 +22,18 @@ from typing import Any
 
 import torch
 
-from benchmarks import calibration, data_efficiency, hidden_effects, large_campaign, plots, population, scale, speed, uncertainty_coverage
+from benchmarks import (
+    calibration,
+    data_efficiency,
+    deciding,
+    hidden_effects,
+    large_campaign,
+    plots,
+    population,
+    scale,
+    speed,
+    uncertainty_coverage,
+)
 from ph_explorer.app.server import build_server
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
@@ -43,6 +54,7 @@ SECTIONS = (
     "scale",
     "diagnosis_calibration",
     "population",
+    "deciding",
     "hidden_effects",
     "uncertainty_coverage",
     "large_campaign",
@@ -227,6 +239,10 @@ def main(argv: list[str] | None = None) -> int:
         # the verdicts over a population of random heads (issue 28)
         log("population")
         results["population"] = population.run(quick=quick, log=log)
+    if "deciding" in sections:
+        # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
+        log("deciding")
+        results["deciding"] = deciding.run(quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         log("hidden effects")

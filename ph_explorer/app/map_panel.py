@@ -51,6 +51,8 @@ class MapPanel:
         self.failing_targets: dict[str, tuple[float, float]] = {}
         self.show = gui.add_checkbox("3D field around the head", False, hint="the same figure on the dome of stylus directions (context)")
         self._shown: tuple[MapFigure, NDArray[np.float64], NDArray[np.bool_], str] | None = None
+        self._current: tuple[float, float] | None = None
+        self.proposed: NDArray[np.float64] | None = None
         self.set_failing(None)
 
     def _go(self, label: str, targets: dict[str, tuple[float, float]]) -> None:
@@ -76,10 +78,17 @@ class MapPanel:
         self.ring.value = NO_CHOICE
 
     def draw(self, a_deg: float, b_deg: float) -> None:
-        """The map with the current orientation marked."""
+        """The map with the current orientation marked (and the rings proposed, crossed)."""
+        self._current = (a_deg, b_deg)
         if self._shown is not None:
             figure, orientations, check, name = self._shown
-            self.plot.content = map_svg(figure, orientations, check, (a_deg, b_deg), name)
+            self.plot.content = map_svg(figure, orientations, check, (a_deg, b_deg), name, self.proposed)
+
+    def propose(self, rings: NDArray[np.float64] | None) -> None:
+        """Rings to measure next (the rings that would decide), crossed on the map; None: none."""
+        self.proposed = rings
+        if self._current is not None:
+            self.draw(*self._current)
 
     def set_failing(self, rings: Sequence[FailingRing] | None, tested: bool = True) -> None:
         """The rings that fail, worst first, a button each; before a diagnosis, say so."""

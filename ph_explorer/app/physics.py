@@ -14,15 +14,22 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
+from numpy.typing import NDArray
+
 from ph_explorer import diagnosis
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.study_file import APP_DATA_PART, StudyFile, chain_of
+from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.study import study_record, study_steps
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
+from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
+from ph_explorer.planning.deciding import DECIDE_BUDGET, decision_lines, rings_that_decide
+from ph_explorer.twin import simulate, twin_scenario
 
 
 class PhysicsLoop:
@@ -35,11 +42,16 @@ class PhysicsLoop:
         current: Callable[[], Dataset],
         show: Callable[[Dataset], None],
         study: StudyFile | None = None,
+        propose: Callable[[NDArray[np.float64] | None], None] = lambda rings: None,
+        load: Callable[[Campaign, str], None] = lambda campaign, label: None,
     ) -> None:
         self.panel = panel
         self.catalog = catalog  # the effects this session diagnoses and fits with
         self.current = current  # the Dataset the session shows now
         self.show = show  # show another Dataset (one with a new model or figure)
+        self.propose = propose  # mark rings to measure on the map (None: none)
+        self.load = load  # show a new campaign (the data with the rings the twin measured)
+        self.proposed: NDArray[np.float64] | None = None  # the rings that would decide, not measured yet
         self.diagnosis: diagnosis.Diagnosis | None = None
         self.steps: list[diagnosis.Step] = []
         # The study this session continues: as opened or last saved (`previous` of the next save),
@@ -70,6 +82,8 @@ class PhysicsLoop:
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply, nor does the study."""
         self.diagnosis = None
+        self.proposed = None
+        self.propose(None)
         self.steps = []
         self.panel.clear()
         # The study belongs to the served campaign only; reloading the page opens it again.
@@ -123,6 +137,39 @@ class PhysicsLoop:
             p.nested = result.nested
             p.show_history(self.steps)
         p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned{continued}.")
+
+    def decide(self) -> None:
+        """The rings that would decide what the diagnosis leaves open (planning.deciding), on the map."""
+        p, ds, result = self.panel, self.current(), self.diagnosis
+        if result is None:
+            p.decision.content = "_Diagnose first: the rings to measure answer what its verdict leaves open._"
+            return
+        p.decision.content = "_finding the rings that would decide…_"
+        decision = rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET)
+        if ds.campaign is not self.current().campaign:
+            return
+        self.proposed = np.array([[r["A_deg"], r["B_deg"]] for r in decision.rings]).reshape(-1, 2)
+        twin = twin_scenario(ds.campaign)
+        p.show_decision(decision_lines(decision, DECIDE_BUDGET), twin is not None)
+        if decision.rings and twin is None:
+            p.decision.content += (
+                "\n\n_Measure them on your CMM (`ph-explorer design --data FILE.csv --decide --out rings.csv` writes them), "
+                "then `ph-explorer merge FILE.csv NEW.csv --out ALL.csv` and diagnose ALL.csv._"
+            )
+        self.propose(self.proposed if len(self.proposed) else None)
+
+    def measure(self) -> None:
+        """The twin measures the proposed rings after the campaign; the campaign with them is shown."""
+        p, ds = self.panel, self.current()
+        twin = twin_scenario(ds.campaign)
+        if self.proposed is None or not len(self.proposed) or twin is None:
+            p.decision.content = "_Nothing to measure: find the rings that would decide first (a teaching scenario's twin measures them)._"
+            return
+        p.decision.content = f"_the twin measures {len(self.proposed)} rings…_"
+        new = simulate(twin.at_rings(self.proposed))
+        merged, _ = merged_campaign(ds.campaign, new)
+        rings = ", ".join(orientation_label(a, b) for a, b in self.proposed)
+        self.load(merged, f"{ds.label} + {len(self.proposed)} rings measured by the twin ({rings})")
 
     def show_evidence(self, label: str) -> None:
         if self.diagnosis is not None:

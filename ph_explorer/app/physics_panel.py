@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
+from ph_explorer.diagnosis.results import percent
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg
@@ -57,9 +58,14 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
     cell = "padding:2px 4px;vertical-align:top;"
     rows = []
     for c in shown:
-        if c.confounded_with:
-            shared = "; ".join(f"{100 * o['shared']:.0f} % with {o['effect']}" for o in c.confounded_with[:3])
+        untold = [o for o in c.confounded_with if not o.get("told_apart")]
+        told = [o for o in c.confounded_with if o.get("told_apart")]
+        if untold:
+            shared = "; ".join(f"{percent(o['shared'])} with {o['effect']}" for o in untold[:3])
             ident = f'<span style="color:#b35900">confounded: shares {shared}</span>'
+        elif told:
+            shared = "; ".join(f"{percent(o['shared'])} with {o['effect']}" for o in told[:3])
+            ident = f"told apart by the rings, though it shares {shared}"
         else:
             ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"
         rows.append(
@@ -153,6 +159,19 @@ class PhysicsPanel:
         self.status = gui.add_markdown("")
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.verdict = gui.add_markdown("")
+        # When the rings cannot decide (a confounded pair, a suggestion): the rings that would, on
+        # the map as crosses; the twin measures them for a teaching scenario.
+        self.decide = gui.add_button(
+            "Rings that would decide",
+            visible=False,
+            hint="the rings to measure next that would tell confounded candidates apart or confirm a suggestion",
+        )
+        self.decision = gui.add_markdown("")
+        self.measure = gui.add_button(
+            "Measure them",
+            visible=False,
+            hint="the digital twin measures the proposed rings after the campaign; they join it as check rings",
+        )
         # The effects the diagnosis found, ready to tick; every other effect in a collapsed folder.
         self.gui = gui
         self.found_folder = gui.add_folder("Effects found: tick, then Refit", visible=False)
@@ -229,8 +248,10 @@ class PhysicsPanel:
             self.history_table,
             self.revealed,
             self.study_status,
+            self.decision,
         ):
             handle.content = ""
+        self.decide.visible = self.measure.visible = False
         self.candidates.content = self.evidence.content = self.fit.content = ""
         self.progress.visible = self.refit_progress.visible = False
         self.results_folder.visible = self.history.visible = False
@@ -268,7 +289,7 @@ class PhysicsPanel:
         # The verdict in short (what was found, what to do); the tests' figures, the teaching text
         # (shown once, here) and the verdicts under "More".
         # The found effects' parameters +- U are in the results' table just below: not repeated here.
-        short = [line for line in lines if line.startswith("Resumed with")]
+        short = [line for line in lines if line.startswith("Resumed with") or "told apart" in line or "tell them apart" in line]
         self.nested = result.nested  # the honest "after", shown with the error history
         self.verdict.content = "\n\n".join([f"**{headline}**", *short])
         self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
@@ -292,6 +313,17 @@ class PhysicsPanel:
         self.evidence_of.visible = bool(options)
         self.fit.content = fit_html(result, self.catalog)
         self.results_folder.visible = True
+        self.decide.visible = True
+        self.decision.content = ""
+        self.measure.visible = False
+
+    def show_decision(self, lines: list[str], measurable: bool) -> None:
+        """The rings that would decide (planning.deciding.decision_lines); Measure them when the twin can."""
+        head, rings = lines[0], [line for line in lines[1:] if line[:4].strip().rstrip(".").isdigit()]
+        rest = [line for line in lines[1:] if line not in rings]
+        listed = "\n".join(" ".join(line.split()) for line in rings)  # "1. A10 B-20 tells ...": a numbered list
+        self.decision.content = f"**{head}**\n\n{listed}\n\n" + "\n\n".join(rest) if rings else "\n\n".join([f"**{head}**", *rest])
+        self.measure.visible = bool(rings) and measurable
 
     def _candidate_caption(self, candidate: Candidate) -> str:
         # Short: its parameters +- U are in the table under the plot.

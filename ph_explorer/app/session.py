@@ -119,7 +119,9 @@ class Session:
                 self.data_panel = DataPanel(gui, list(shared.scenarios))
                 self.report_panel = ReportPanel(gui, self)  # Export report, Open study
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
-        self.loop = PhysicsLoop(self.physics, self.catalog, lambda: self.dataset, self.set_dataset, study=shared.study)
+        self.loop = PhysicsLoop(
+            self.physics, self.catalog, lambda: self.dataset, self.set_dataset, shared.study, self.map_panel.propose, self._new_data
+        )
         self._wire()
         self.set_dataset(dataset)
         self.loop.open_study()
@@ -138,6 +140,8 @@ class Session:
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
         p.save_study.on_click(lambda _: self.submit(self.loop.save_study))
         p.reveal.on_click(lambda _: self.loop.reveal())
+        p.decide.on_click(lambda _: self.submit(self.loop.decide))
+        p.measure.on_click(lambda _: self.submit(self.loop.measure))
         p.evidence_of.on_update(lambda _: self.loop.show_evidence(p.evidence_of.value))
 
         @c.worst.on_update
@@ -370,7 +374,7 @@ class Session:
 
     def _new_data(self, campaign: Campaign, label: str, what: str | None = None) -> None:
         """Fit the models to new data and show it, the progress above the fold (a few seconds)."""
-        what = what or campaign.source
+        what = what or campaign.source or label
         try:
             self.controls.working(f"{what}: fitting the models (leave one orientation out)…", 0.3)
             dataset = dataset_for(campaign, label, None)

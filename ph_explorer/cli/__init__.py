@@ -148,7 +148,7 @@ def _simulate(
     rings: Annotated[
         Optional[Path],
         typer.Option(
-            help="With --scenario: the same head measured after its campaign at these rings only (a CSV with A_deg, B_deg, as design --decide --out writes)."
+            help="With --scenario: its head measured at these rings only, after its campaign (of --seed), on another noise draw; a CSV with A_deg, B_deg, as design --decide --out writes."
         ),
     ] = None,
 ) -> None:

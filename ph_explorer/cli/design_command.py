@@ -12,8 +12,7 @@ from typing import Any
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
-
-DECIDE_BUDGET = 6  # rings proposed by --decide when no --budget is given
+from ph_explorer.planning.deciding import DECIDE_BUDGET
 
 
 def design_command(

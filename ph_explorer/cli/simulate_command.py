@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from ph_explorer import twin
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
@@ -92,14 +90,13 @@ def scenario_lines() -> list[str]:
     return [f"{name:<{width}}  {description}" for name, description in shipped]
 
 
-def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[twin.Scenario, int]:
-    """The scenario's head at the file's rings, after its campaign, and the seed: given, else one
-    drawn from the scenario's seed and the rings (not the campaign's own noise again)."""
+def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[twin.Scenario, int | None]:
+    """The scenario's head at the file's rings, after its campaign (Scenario.at_rings), from the
+    campaign of `seed` (default: the scenario's)."""
+    from dataclasses import replace
+
     from ph_explorer.io.rings import read_rings
 
     orientations = read_rings(rings)
-    if seed is None:
-        seed = int(
-            np.random.SeedSequence([scenario.seed, *np.round(orientations * 1000).astype(np.int64).ravel() % 2**32]).generate_state(1)[0]
-        )
-    return scenario.at_rings(orientations), seed
+    base = scenario if seed is None else replace(scenario, seed=int(seed))
+    return base.at_rings(orientations), None

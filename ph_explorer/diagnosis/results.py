@@ -298,21 +298,28 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         untold = [o for o in candidate.confounded_with if not o.get("told_apart")]
         for other in told:
             lines.append(
-                f"{candidate.effect} shares {100 * other['shared']:.0f} % of its columns with {other['effect']}, yet the rings tell them "
+                f"{candidate.effect} shares {percent(other['shared'])} of its columns with {other['effect']}, yet the rings tell them "
                 f"apart: {told_apart_text(other)}."
             )
         if untold:
             shared = ", ".join(
-                f"{o['effect']} ({100 * o['shared']:.0f} % shared" + (f"; {told_apart_text(o)}" if "told_apart" in o else "") + ")"
+                f"{o['effect']} ({percent(o['shared'])} shared" + (f"; {told_apart_text(o)}" if "told_apart" in o else "") + ")"
                 for o in untold
             )
             lines.append(f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to split.")
             if any("told_apart" in o for o in untold):
-                lines.append("The rings that would tell them apart: ph-explorer design --data CAMPAIGN.csv --decide.")
+                lines.append(
+                    "Which rings would tell them apart: Rings that would decide (explorer), or ph-explorer design --data FILE.csv --decide."
+                )
             lines += [text for other in untold if (text := separation_text(candidate.effect, other))]
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def percent(share: float) -> str:
+    """'83 %', '99.6 %': a share near 1 keeps a decimal (rounded to 100 % it would read as identical)."""
+    return f"{100 * share:.1f} %" if 0.995 <= share < 1.0 else f"{100 * share:.0f} %"
 
 
 def told_apart_text(other: dict[str, Any]) -> str:

@@ -5,7 +5,7 @@ yet the share they do not have can still be many noise variances at a ring when 
 large. The question is answered as a claim is (diagnosis.replication), with rings as units: each
 ring's out-of-sample sum of squares with the partner in the model less that with the candidate,
 in the ring's own noise variances, tested over rings by sign flips (Student's t on few rings),
-and still significant without the most influential ring. Method: docs/methods/telling_apart.md.
+and still significant without the most influential ring. Method: docs/methods/deciding.md#told-apart.
 """
 
 from __future__ import annotations

@@ -40,6 +40,7 @@ NO_VALUE_RGB = 170  # grey: a ring where the figure does not exist (e.g. in samp
 # A verdict's categories, in order of their value (0, 1, ...): calm for "within", red for "exceeds".
 CATEGORY_COLORS = ("#8fb3d9", "#d62728", "#ff9f1c", "#2ca02c")
 CURRENT = "#111"  # the current orientation's ring and cross hairs
+PROPOSED = "#c2185b"  # rings proposed to measure (design --decide): magenta, apart from the bar and the verdicts' colours
 A_TICK_DEG = 15.0
 B_TICKS_DEG = tuple(range(-180, 181, 60))
 STATIC_CACHE = 64  # maps (figure, rings) whose static SVG is kept: a few per browser
@@ -112,11 +113,14 @@ def map_svg(
     check: ArrayLike,
     current: tuple[float, float] | None = None,
     title: str = "",
+    proposed: ArrayLike | None = None,
 ) -> str:
     """The map as an SVG string (see the module docstring); sized by its viewBox to the panel's width.
+    proposed: rings not measured yet (design --decide), drawn as crosses.
 
-    Everything but the current orientation's marker is kept for the last few (figure, orientations)
-    objects: a slider move redraws the marker only (the explorer draws the map on every move)."""
+    Everything but the current orientation's and the proposed rings' markers is kept for the last
+    few (figure, orientations) objects: a slider move redraws those only (the explorer draws the
+    map on every move)."""
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
     a_low, a_high = a_axis_range(o, None if current is None else current[0])
     key = (id(figure), id(orientations), id(check), title, a_low, a_high)
@@ -130,8 +134,9 @@ def map_svg(
             while len(_STATIC) > STATIC_CACHE:
                 _STATIC.popitem(last=False)
     before, after, x_of, y_of, frame = entry[3:]
+    crosses = _proposed_markers(np.asarray(proposed if proposed is not None else [], dtype=float).reshape(-1, 2), x_of, y_of, frame)
     if current is None:
-        return before + after
+        return before + crosses + after
     left, plot_w, top, bottom = frame
     # The current orientation: a black ring on a white halo with cross hairs, readable on every
     # colour of the bar and distinct from a verdict's red.
@@ -142,7 +147,27 @@ def map_svg(
         f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="#fff" stroke-width="4.5"/>'
         f'<circle cx="{x:.1f}" cy="{y:.1f}" r="9" fill="none" stroke="{CURRENT}" stroke-width="2.2"/>'
     )
-    return before + marker + after
+    return before + crosses + marker + after
+
+
+def _proposed_markers(rings: NDArray[np.float64], x_of: Callable, y_of: Callable, frame: tuple[float, float, float, float]) -> str:
+    """Rings proposed, not measured: a bold cross each, named in its tooltip, and their key."""
+    if not len(rings):
+        return ""
+    left, plot_w, top, _ = frame
+    parts = []
+    for (a, b), x, y in zip(rings, x_of(rings[:, 1]), y_of(rings[:, 0])):
+        d = 6.0
+        parts.append(
+            f'<path d="M{x - d:.1f},{y - d:.1f} L{x + d:.1f},{y + d:.1f} M{x - d:.1f},{y + d:.1f} L{x + d:.1f},{y - d:.1f}" '
+            f'stroke="#fff" stroke-width="5"/><path d="M{x - d:.1f},{y - d:.1f} L{x + d:.1f},{y + d:.1f} M{x - d:.1f},{y + d:.1f} '
+            f'L{x + d:.1f},{y - d:.1f}" stroke="{PROPOSED}" stroke-width="2.6"><title>A{a:g} B{b:g}: proposed, not measured yet</title></path>'
+        )
+    parts.append(
+        f'<text x="{left + plot_w:.1f}" y="{top - 4:.1f}" font-size="10" fill="{PROPOSED}" font-weight="600" text-anchor="end">'
+        "✕ rings that would decide (not measured)</text>"
+    )
+    return "".join(parts)
 
 
 def _static_parts(

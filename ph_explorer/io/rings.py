@@ -1,6 +1,6 @@
 """A file of rings to measure: the orientations `design --decide --out` writes and `simulate --rings`
 reads (columns A_deg, B_deg; others, e.g. order and reason, are kept for the reader of the file).
-Format: docs/formats.md#rings-to-measure.
+Format: docs/formats.md#rings-to-measure; method: docs/methods/deciding.md.
 """
 
 from __future__ import annotations

@@ -1,16 +1,11 @@
-"""Rings that decide: where to measure next when the diagnosis cannot tell two candidates apart, or
-cannot confirm one.
+"""Rings that decide: where to measure next when the diagnosis cannot tell a claim from a confounded
+partner (diagnosis.telling_apart), or cannot confirm a suggested candidate.
 
-Two kinds of question come from a diagnosis: **separate** a claimed or suggested candidate from a
-confounded partner the rings do not tell it from (diagnosis.telling_apart), and **confirm or
-refute** a suggested candidate (its gain is not replicated over rings). Each candidate is taken at
-its fitted parameters; what a ring not yet measured would show of it is its term there, after the
-ring's circle fit, less what the data model (the trilinear interpolator over the training rings)
-would predict there from the measured rings. A ring's expected gain is that difference (separate)
-or that term (confirm), summed in squares over its touches and repetitions, in touch noise
-variances: the same figure the test over rings adds up ring by ring. Each question takes rings
-until they decide: at least DECIDING_RINGS, with DECIDING_EVIDENCE even without the ring that adds
-most. Method: docs/methods/deciding.md.
+A ring's evidence is what the test over rings would add up there, in touch noise variances: the
+candidate's term (confirm), or what each candidate cannot follow of the other's prediction when
+refitted without that ring (separate); both after the ring's circle fit and less what the data
+model predicts there. Each question takes rings until they decide: at least DECIDING_RINGS, with
+DECIDING_EVIDENCE without the ring that adds most. Method: docs/methods/deciding.md.
 """
 
 from __future__ import annotations
@@ -45,8 +40,8 @@ class Question:
 
     def reason(self, gain: float, total: float) -> str:
         if self.other is not None:
-            return f"tells {self.effect.id} from {self.other.id}: {gain:.0f} of its set's {total:.0f} noise variances that neither fits as the other"
-        return f"confirms or refutes {self.effect.id}: its term here is {gain:.0f} of its set's {total:.0f} noise variances"
+            return f"tells {self.effect.id} from {self.other.id}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
+        return f"confirms or refutes {self.effect.id}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
 
 
 @dataclass
@@ -119,6 +114,7 @@ def ring_minutes(campaign: Campaign) -> float | None:
     return float(np.median(last - first) + np.median(np.maximum(moves, 0.0))) / 60.0
 
 
+DECIDE_BUDGET = 6  # rings proposed when no budget is given (the command and the explorer)
 DECIDE_A_STEP_DEG = 5.0  # the pool of new rings: finer in A than a lattice
 # A ring's gain scatters about its expectation g with variance ~4 g (the cross term of the
 # difference with the touch noise), so rings of total expected gain E give z ~ sqrt(E) / 2. The

@@ -72,10 +72,13 @@ class Scenario:
 
     def at_rings(self, rings: NDArray[np.float64]) -> Scenario:
         """The same head measured again at other rings after its campaign (the rings that would
-        decide, design --decide): every one a check ring, its touches after the campaign's last."""
+        decide, design --decide): every one a check ring, its touches after the campaign's last,
+        its seed drawn from the campaign's and the rings (another draw of the touch noise)."""
         rings = np.asarray(rings, dtype=float).reshape(-1, 2)
         after = self.start_s + float(self.times_s().max()) + self.touch_s + self.move_s
-        return replace(self, orientations=rings, check_orientations=rings.copy(), start_s=after)
+        millidegrees = np.round(rings * 1000).astype(np.int64).ravel() % 2**32
+        seed = int(np.random.SeedSequence([self.seed, *millidegrees]).generate_state(1)[0] % 2**31)
+        return replace(self, orientations=rings, check_orientations=rings.copy(), start_s=after, seed=seed)
 
     def record(self, seed: int) -> dict[str, Any]:
         """What a campaign's sidecar records about the scenario."""
@@ -212,6 +215,16 @@ def load_scenario(name_or_path: str | Path, catalog: Catalog = DEFAULT_CATALOG) 
 def list_scenarios() -> list[tuple[str, str]]:
     """(name, one-line description) of every shipped scenario."""
     return [(s.name, s.description) for s in (load_scenario(p) for p in shipped_scenario_paths())]
+
+
+def twin_scenario(campaign: Campaign) -> Scenario | None:
+    """The shipped scenario a campaign was simulated from, at its seed (its twin can measure more
+    rings of the same head); None for measured data or a scenario not shipped."""
+    record = campaign.scenario or {}
+    name = record.get("name")
+    if name not in {n for n, _ in list_scenarios()} or "seed" not in record:
+        return None
+    return replace(load_scenario(name), seed=int(record["seed"]))
 
 
 # -- simulation ------------------------------------------------------------------------------------

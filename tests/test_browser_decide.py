@@ -1,0 +1,112 @@
+"""Issue 29's explorer line: when the rings cannot decide, the rings that would, measured by the twin,
+in a real headless Chromium at 1440x900, driven by labels, nothing scrolled.
+
+The teacher loads head_6 (a hidden effect that another mechanism mimics on the paper's rings),
+diagnoses it (the claim cannot be told from its partner), asks for the rings that would decide
+(listed, and crossed on the error map), has the twin measure them (they join the campaign as
+check rings, on the map), and diagnoses again: the verdict now tells the two apart. A screenshot
+of each step goes to docs/decide_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from fake_browser import wait_for
+from test_browser_loop import ARGS, CHROMIUM, DOCS, HEIGHT, WIDTH, chart_drawn, in_view, step_shot
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
+    pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium", allow_module_level=True)
+
+SCENARIO = "head_6"
+
+
+def decide(page, session, shots: Path) -> None:
+    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
+    page.get_by_role("tab", name="Data").click()
+    page.get_by_label("Scenario").click()
+    page.get_by_role("option", name=SCENARIO).click()
+    assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
+    session.wait(timeout=300)
+    measured = session.dataset.campaign.n_orientations
+
+    # 1. Diagnose: the claim cannot be told from its partner on these rings.
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
+    session.wait(timeout=300)
+    before = session.physics.verdict.content
+    assert "cannot be told apart" in before, before
+    in_view(page.get_by_text("cannot be told apart", exact=False).first, "the untold pair")
+    step_shot(page, shots, "decide_1_diagnosed")
+
+    # 2. Rings that would decide: listed with their reasons and the CMM time, crossed on the map.
+    button = page.get_by_role("button", name="Rings that would decide")
+    in_view(button, "Rings that would decide")
+    button.click()
+    assert wait_for(lambda: session.loop.proposed is not None and len(session.loop.proposed) > 0, timeout=300)
+    session.wait(timeout=120)
+    proposed = [(float(a), float(b)) for a, b in session.loop.proposed]
+    in_view(page.get_by_text("rings that decide, in this order", exact=False).first, "the rings listed")
+    in_view(page.get_by_text("minutes of CMM time", exact=False).first, "the CMM time")
+    error_map = page.locator('svg[aria-label^="error map"]').first
+    assert wait_for(lambda: error_map.inner_html().count("proposed, not measured yet") == len(proposed), timeout=30)
+    chart_drawn(page, "error map")
+    step_shot(page, shots, "decide_2_rings")
+
+    # 3. Measure them: the twin measures them after the campaign; they are on the map as check rings.
+    measure = page.get_by_role("button", name="Measure them")
+    in_view(measure, "Measure them")
+    measure.click()
+    assert wait_for(lambda: session.dataset.campaign.n_orientations == measured + len(proposed), timeout=600)
+    session.wait(timeout=300)
+    assert wait_for(lambda: "proposed, not measured yet" not in error_map.inner_html(), timeout=30)
+    for a, b in proposed:
+        assert wait_for(lambda a=a, b=b: f"A{a:g} B{b:g}:" in error_map.inner_html(), timeout=30), (a, b)
+    assert f"{len(proposed)} rings measured by the twin" in session.data_panel.source.content
+    chart_drawn(page, "error map")
+    step_shot(page, shots, "decide_3_measured")
+
+    # 4. Diagnose again: the verdict has changed, the rings now tell the pair apart.
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
+    session.wait(timeout=300)
+    after = session.physics.verdict.content
+    assert after != before and "the rings tell them apart" in after, after
+    in_view(page.get_by_text("the rings tell them apart", exact=False).first, "the pair told apart")
+    step_shot(page, shots, "decide_4_decided")
+
+
+def test_the_rings_that_would_decide_measured_by_the_twin_decide_at_1440x900() -> None:
+    from playwright.sync_api import sync_playwright
+
+    from ph_explorer.app.server import build_server
+
+    app = build_server(port=0)
+    shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
+    shots.mkdir(parents=True, exist_ok=True)
+    for stale in shots.glob("decide_*.png"):
+        stale.unlink()
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
+            errors: list[str] = []
+            page.on("pageerror", lambda error: errors.append(str(error)))
+            page.goto(app.url)
+            session = app.session(timeout=60)
+            assert wait_for(lambda: session.render_count >= 1)
+            try:
+                decide(page, session, shots)
+            except Exception:
+                page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / "ph_explorer_decide_failed.png"))
+                raise
+            assert not [e for e in errors if "TypeError" in e], errors
+            browser.close()
+    finally:
+        app.stop()
+    assert len(list(shots.glob("decide_*.png"))) == 4
