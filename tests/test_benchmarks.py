@@ -189,6 +189,14 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert population["seconds_per_diagnosis"]["median"] > 0
     tolerance = population["tolerance"]
     assert tolerance["used"] == 2.0 and {x["of"] for x in tolerance["baseline_fails"].values()} == {2}
+    deciding = results["deciding"]
+    assert [len(deciding["records"][k]) for k in ("a_axis_angular", "b_axis_tilt", "false_suggestions")] == [1, 0, 0]
+    (loop,) = deciding["records"]["a_axis_angular"]
+    # The loop ran: rings proposed for the open question (within the budget, at least three) and,
+    # after the twin measured them, a second diagnosis of the merged campaign.
+    assert loop["questions"] == ["a_axis_cyclic vs a_axis_radial_motion"] or loop["questions"] == []
+    assert len(loop["rings"]) == 0 or 3 <= len(loop["rings"]) <= deciding["budget"]
+    assert loop["after"]["verdict"] in ("missing", "partial") and deciding["a_axis_angular"]["named_and_told_apart_after"]["of"] == 1
     hidden = results["hidden_effects"]
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]

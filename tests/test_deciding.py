@@ -4,6 +4,8 @@ twin measuring a scenario's head at them (`simulate --rings`). The whole loop ov
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,15 @@ from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import read_campaign
 from ph_explorer.io.rings import read_rings, rings_csv_text
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.planning.deciding import DECIDE_A_STEP_DEG, DECIDING_EVIDENCE, DECIDING_RINGS, Evidence, Question, rings_for
+from ph_explorer.planning.deciding import (
+    DECIDE_A_STEP_DEG,
+    DECIDING_POWER,
+    DECIDING_RINGS,
+    Evidence,
+    Question,
+    decision_power,
+    rings_for,
+)
 from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
 from ph_explorer.twin import load_scenario, simulate
 from tests.command_line import run_cli
@@ -39,19 +49,28 @@ def paper():
 def test_an_angular_error_and_the_radial_motion_that_mimics_it_are_decided_by_a_few_rings_none_alone(paper):
     campaign, pool, weights = paper
     evidence = Evidence(Question(ANGULAR, RADIAL), campaign, pool, weights)
-    rings, each, without_top = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)
+    before = decision_power(*evidence.every_ring([]))
+    rings, each, power = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)
     assert DECIDING_RINGS <= len(rings) <= 8 and len(set(rings)) == len(rings)
-    assert without_top >= DECIDING_EVIDENCE and sum(each) - max(each) == pytest.approx(without_top)
-    # Fewer rings than a decision needs: none proposed, and what they would show is said.
-    rings, each, without_top = rings_for(evidence, np.ones(len(pool), dtype=bool), DECIDING_RINGS - 1)
-    assert rings == [] and 0 < without_top < DECIDING_EVIDENCE
+    assert power >= DECIDING_POWER > before and len(each) == len(rings)
+    # Fewer rings than a decision needs: none proposed, and the power they would reach is said.
+    rings, each, power = rings_for(evidence, np.ones(len(pool), dtype=bool), DECIDING_RINGS - 1)
+    assert rings == [] and power < DECIDING_POWER
+
+
+def test_the_power_is_the_diagnosis_test_over_rings_on_the_expected_gains():
+    check = np.array([True] * 6 + [False] * 6)
+    assert decision_power(np.zeros(12), check) == 0.0  # nothing to see: never passes
+    assert decision_power(np.full(12, 400.0), check) == 1.0  # every ring far beyond its scatter
+    # One ring carrying it all never decides: the test must hold without its most influential ring.
+    assert decision_power(np.r_[1e4, np.zeros(11)], check) == 0.0
 
 
 def test_an_effect_cannot_be_told_from_itself_so_no_ring_is_proposed(paper):
     campaign, pool, weights = paper
     evidence = Evidence(Question(ANGULAR, ANGULAR), campaign, pool, weights)
-    rings, each, without_top = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)
-    assert rings == [] and abs(without_top) < 1e-6 * DECIDING_EVIDENCE
+    rings, each, power = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)
+    assert rings == [] and power == 0.0 and max(abs(v) for v in each) < 1e-6
 
 
 def test_a_suggested_candidate_is_confirmed_where_its_term_is_largest_and_its_evidence_grows_as_its_square(paper):
@@ -105,3 +124,31 @@ def test_a_bad_rings_file_is_one_line_naming_its_row_and_column(tmp_path, text, 
 def test_rings_are_for_a_scenario(tmp_path):
     result = run_cli("simulate", "--random-head", "3", "--rings", tmp_path / "r.csv", "--out", tmp_path / "new.csv")
     assert result.returncode == 2 and "--rings" in result.stderr and "--scenario" in result.stderr
+
+
+def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_cmm(tmp_path):
+    campaign = tmp_path / "head_6.csv"
+    assert run_cli("simulate", "--scenario", "head_6", "--out", campaign).returncode == 0
+    result = run_cli("design", "--data", campaign, "--decide", "--out", tmp_path / "rings.csv", "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["questions"] == ["a_axis_cyclic vs a_axis_radial_motion"] and report["verdict"] == "missing"
+    expected = report["expected"]["a_axis_cyclic vs a_axis_radial_motion"]
+    assert expected["decided_by_rings"] and expected["power"] >= DECIDING_POWER and expected["shared_now"] > 0.99
+    assert DECIDING_RINGS <= len(report["rings"]) <= 6 and report["minutes"] > 0
+    assert [r["order"] for r in report["rings"]] == list(range(1, len(report["rings"]) + 1))
+    written = read_rings(tmp_path / "rings.csv")
+    assert np.allclose(written, [[r["A_deg"], r["B_deg"]] for r in report["rings"]])
+
+
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (("--decide",), "--data FILE.csv"),
+        (("--budget", "3", "--study", "s.json"), "--decide"),
+        (("--budget", "3", "--out", "r.csv"), "--decide"),
+    ],
+)
+def test_design_decide_options_out_of_place_are_one_line(args, words):
+    result = run_cli("design", *args)
+    assert result.returncode == 2 and words in result.stderr and len(result.stderr.strip().splitlines()) == 1

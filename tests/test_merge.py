@@ -57,8 +57,17 @@ def test_a_ring_measured_twice_is_refused_unless_replace(tmp_path, head):
         (lambda c: dataclasses.replace(c, geometry=dataclasses.replace(c.geometry, pivot_to_ball_mm=100.0)), "pivot_to_ball_mm is 100"),
         (lambda c: dataclasses.replace(c, deviations=c.deviations[:, :3], times_s=c.times_s[:, :3]), "repetitions here"),
         (lambda c: dataclasses.replace(c, times_s=None), "has touch times"),
+        (
+            lambda c: dataclasses.replace(
+                c,
+                deviations=c.deviations[..., ::2],
+                times_s=c.times_s[..., ::2],
+                geometry=dataclasses.replace(c.geometry, points_per_circle=c.n_points // 2),
+            ),
+            "points per circle here",
+        ),
     ],
-    ids=["geometry", "repetitions", "times"],
+    ids=["geometry", "repetitions", "times", "points"],
 )
 def test_another_set_up_is_refused_in_one_line_and_nothing_is_written(tmp_path, head, change, words):
     base = written(tmp_path, "base", head.subset(np.arange(30)))

@@ -267,6 +267,9 @@ def _design(
     out: Annotated[
         Optional[Path], typer.Option(help="With --decide: write the rings as a CSV (A_deg,B_deg,order,reason) for a CMM program.")
     ] = None,
+    study: Annotated[
+        Optional[Path], typer.Option(help="With --decide: continue this study (its chain in the model), as diagnose --resume does.")
+    ] = None,
     effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
     json_output: JsonOpt = False,
     geometry: dict[str, float] | None = None,
@@ -274,7 +277,7 @@ def _design(
     """Which rings to measure and in what order: the catalog's effects identifiable (D-optimal on their
     bases at the head touches) and the data part covered (space filling); with --data, the next rings;
     with --decide, the rings that decide between the diagnosis's candidates."""
-    options = {"data": data, "decide": decide, "out": out, "effects": effects_file, "json_output": json_output}
+    options = {"data": data, "decide": decide, "out": out, "study": study, "effects": effects_file, "json_output": json_output}
     _run("design", design.design_command, budget=budget, geometry=geometry, **options)
 
 

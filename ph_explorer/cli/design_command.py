@@ -23,13 +23,16 @@ def design_command(
     geometry: dict[str, float] | None = None,
     decide: bool = False,
     out: Path | None = None,
+    study: Path | None = None,
 ) -> int:
     """Print the proposed rings in measuring order, as text or one JSON object."""
     catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     if budget is not None and budget < 1:
         raise InputError(f"must be at least 1, got {budget}", option="--budget")
     if decide:
-        return decide_command(DECIDE_BUDGET if budget is None else budget, data, catalog, json_output, geometry, out)
+        return decide_command(DECIDE_BUDGET if budget is None else budget, data, catalog, json_output, geometry, out, study)
+    if study is not None:
+        raise InputError("is for --decide: the rings that decide what the study's diagnosis leaves open", option="--study")
     if out is not None:
         raise InputError("writes the rings of --decide only", option="--out")
     if budget is None:
@@ -69,10 +72,17 @@ def design_text(report: dict[str, Any]) -> str:
 
 
 def decide_command(
-    budget: int, data: Path | None, catalog: Any, json_output: bool, geometry: dict[str, float] | None, out: Path | None
+    budget: int,
+    data: Path | None,
+    catalog: Any,
+    json_output: bool,
+    geometry: dict[str, float] | None,
+    out: Path | None,
+    study: Path | None = None,
 ) -> int:
-    """design --decide: the campaign diagnosed (the verdict, without the nested figures), then the
-    rings that decide its questions (planning.deciding)."""
+    """design --decide: the campaign diagnosed (the verdict, without the nested figures; from the
+    study's chain with --study, as diagnose --resume does), then the rings that decide its questions
+    (planning.deciding)."""
     if data is None:
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
     from ph_explorer.diagnosis import diagnose
@@ -82,7 +92,15 @@ def decide_command(
     from ph_explorer.planning.deciding import decision_lines, rings_that_decide
 
     campaign = read_campaign(Path(data), geometry or {})
-    result = diagnose(campaign, catalog=catalog, nested=False)
+    start = []
+    if study is not None:
+        from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain
+        from ph_explorer.io.files import file_sha256, read_json_object
+
+        previous = check_study(read_json_object(study, "study"), str(study))
+        start = study_chain(previous, catalog, str(study))
+        check_campaign(previous, file_sha256(Path(data)), str(study), str(data), campaign.scenario.get("merges", []))
+    result = diagnose(campaign, catalog=catalog, nested=False, start=start)
     decision = rings_that_decide(campaign, result, catalog, budget)
     if out is not None:
         atomic_write([(Path(out), rings_csv_text(decision.rings))])

@@ -4,8 +4,9 @@ partner (diagnosis.telling_apart), or cannot confirm a suggested candidate.
 A ring's evidence is what the test over rings would add up there, in touch noise variances: the
 candidate's term (confirm), or what each candidate cannot follow of the other's prediction when
 refitted without that ring (separate); both after the ring's circle fit and less what the data
-model predicts there. Each question takes rings until they decide: at least DECIDING_RINGS, with
-DECIDING_EVIDENCE without the ring that adds most. Method: docs/methods/deciding.md.
+model predicts there. Each question takes rings until the diagnosis's own test over rings, run on
+those expectations with their scatter, would pass with DECIDING_POWER (at least DECIDING_RINGS
+rings). Method: docs/methods/deciding.md.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import Candidate, Diagnosis
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
@@ -116,74 +118,103 @@ def ring_minutes(campaign: Campaign) -> float | None:
 
 DECIDE_BUDGET = 6  # rings proposed when no budget is given (the command and the explorer)
 DECIDE_A_STEP_DEG = 5.0  # the pool of new rings: finer in A than a lattice
-# A ring's gain scatters about its expectation g with variance ~4 g (the cross term of the
-# difference with the touch noise), so rings of total expected gain E give z ~ sqrt(E) / 2. The
-# rings decide when that reaches the one-sided 5 % level with 90 % power, z = 1.645 + 1.282, even
-# without the ring that adds most (no single ring decides), and they are at least DECIDING_RINGS.
-DECIDING_EVIDENCE = 4.0 * (1.645 + 1.282) ** 2  # 34.3 touch noise variances
+# The rings of a question decide when the test the diagnosis runs over rings (replication: sign
+# flips, significant at 5 % and without the ring that adds most) would pass with this probability,
+# its rings' gains scattering about their expectations (decision_power, POWER_DRAWS draws).
+DECIDING_POWER = 0.95  # the level expanded uncertainties are stated at (k = 2)
+POWER_DRAWS = 100
+SEES_NOTHING = 1e-6  # a ring whose evidence is below this share of the largest (or of one noise variance) sees nothing
 DECIDING_RINGS = 3
 
 
 class Evidence:
-    """What new rings would add to one question, in touch noise variances, ring by ring as the
-    test over rings sees them (module docstring). For a pair, each candidate's prediction in turn
-    is the truth and the other, at its settings or one scan step away (neighbour_settings), is
-    refitted without the ring on the measured rings and the other new ones: what it cannot follow
-    at the ring is the ring's evidence, and the truth and refit that leave least count. For a
-    suggested candidate, its term at the ring."""
+    """What each ring, measured or new, would add to one question, in touch noise variances, as the
+    test over rings sees it (module docstring). For a pair, each candidate's prediction in turn is
+    the truth and the other, at its settings or one scan step away (neighbour_settings), is refitted
+    without the ring on the measured rings and the chosen new ones: what it cannot follow at the
+    ring is the ring's evidence, and the truth and refit that leave least count. For a suggested
+    candidate, its term at the ring."""
 
     def __init__(self, question: Question, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> None:
         self.scale = campaign.n_repetitions / max(campaign.noise_sigma_um(), 1e-12) ** 2
-        n_o = campaign.n_orientations
+        self.n_o = campaign.n_orientations
+        self.check = campaign.holdout_mask()
         x = seen_columns(question.effect, campaign, pool, weights)
         cx = np.asarray(question.effect.coefficients(), dtype=float)
+        self.term = (np.einsum("opi,i->op", x, cx) ** 2).sum(axis=1)  # (n_o + n_pool,), a suggestion's evidence
+        # Per (truth, refit): the truth's signal energy per ring, the refit's Gram blocks and their
+        # products with the signal per ring (the measured rings first, then the pool's).
+        self.fits: list[tuple[NDArray, NDArray, NDArray]] = []
         if question.other is None:
-            self.term = np.einsum("opi,i->op", x[n_o:], cx)
-            self.fits = []
             return
         y = seen_columns(question.other, campaign, pool, weights)
         cy = np.asarray(question.other.coefficients(), dtype=float)
-        # Per (truth, refit): the truth's signal energy per ring, the refit's Gram blocks and their
-        # products with the signal per new ring, and the measured rings' sums of both.
-        self.fits = []
         for truth, coef, rival in ((x, cx, question.other), (y, cy, question.effect)):
             signal = np.einsum("opi,i->op", truth, coef)
             for settings in rival.neighbour_settings():
                 fitted = seen_columns(rival.with_settings(**settings), campaign, pool, weights)
-                gram = np.einsum("opi,opj->oij", fitted, fitted)
-                cross = np.einsum("opi,op->oi", fitted, signal)
-                energy = (signal**2).sum(axis=1)
-                self.fits.append((gram[n_o:], cross[n_o:], energy[n_o:], gram[:n_o].sum(axis=0), cross[:n_o].sum(axis=0)))
+                self.fits.append(
+                    (np.einsum("opi,opj->oij", fitted, fitted), np.einsum("opi,op->oi", fitted, signal), (signal**2).sum(axis=1))
+                )
+
+    def _left(self, fit: tuple[NDArray, NDArray, NDArray], total_g: NDArray, total_c: NDArray, at: NDArray[np.int64]) -> NDArray:
+        """What the refit, on the totals less each ring of `at` (totals: one per ring or shared),
+        cannot follow of the truth at that ring, (len(at),)."""
+        gram, cross, energy = fit[0][at], fit[1][at], fit[2][at]
+        beta = np.einsum("nij,nj->ni", np.linalg.pinv(total_g - gram, rcond=1e-10, hermitian=True), total_c - cross)
+        return energy - 2 * np.einsum("ni,ni->n", cross, beta) + np.einsum("ni,nij,nj->n", beta, gram, beta)
 
     def per_ring(self, rings: list[int], extra: NDArray[np.int64]) -> NDArray[np.float64]:
-        """(len(extra), len(rings) + 1): each ring's evidence when the pool's `rings` and, in turn,
-        each of `extra` (last column) are measured."""
+        """(len(extra), len(rings) + 1): each new ring's evidence when the pool's `rings` and, in
+        turn, each of `extra` (last column) are measured."""
+        new = [self.n_o + i for i in rings]
         if not self.fits:
-            term = self.scale * (self.term**2).sum(axis=1)
-            return np.column_stack([np.broadcast_to(term[rings], (len(extra), len(rings))), term[extra]])
+            term = self.scale * self.term
+            return np.column_stack([np.broadcast_to(term[new], (len(extra), len(rings))), term[self.n_o + extra]])
         out = []
-        for gram, cross, energy, gram_measured, cross_measured in self.fits:
-            total_g = gram_measured + gram[rings].sum(axis=0) + gram[extra]  # (n_extra, k, k)
-            total_c = cross_measured + cross[rings].sum(axis=0) + cross[extra]
-            columns = []
-            for j in [*rings, None]:  # the rings chosen (a few), then each extra ring itself
-                g, c, e = (gram[extra], cross[extra], energy[extra]) if j is None else (gram[j], cross[j], energy[j])
-                beta = np.einsum("nij,nj->ni", np.linalg.pinv(total_g - g, rcond=1e-10, hermitian=True), total_c - c)
-                curvature = np.einsum("ni,nij,nj->n" if j is None else "ni,ij,nj->n", beta, g, beta)
-                columns.append(e - 2 * np.einsum("...i,...i->...", c, beta) + curvature)
+        for fit in self.fits:
+            gram, cross = fit[0], fit[1]
+            total_g = gram[: self.n_o].sum(axis=0) + gram[new].sum(axis=0) + gram[self.n_o + extra]  # (n_extra, k, k)
+            total_c = cross[: self.n_o].sum(axis=0) + cross[new].sum(axis=0) + cross[self.n_o + extra]
+            columns = [self._left(fit, total_g, total_c, np.full(len(extra), j)) for j in new]  # the rings chosen (a few)
+            columns.append(self._left(fit, total_g, total_c, self.n_o + extra))  # each extra ring itself
             out.append(np.column_stack(columns))
         each = np.stack(out)  # (fits, n_extra, rings + 1)
         least = np.argmin(each.sum(axis=2), axis=0)  # per extra ring, the fit that leaves least
         return self.scale * each[least, np.arange(len(extra))]
 
+    def every_ring(self, rings: list[int]) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """Every ring's evidence, the measured rings' then the pool's `rings`, with the pool's
+        measured, and which are check rings (the new ones are): the test's units and their groups."""
+        at = np.concatenate([np.arange(self.n_o), self.n_o + np.asarray(rings, dtype=int)])
+        check = np.concatenate([self.check, np.ones(len(rings), dtype=bool)])
+        if not self.fits:
+            return self.scale * self.term[at], check
+        left = []
+        for fit in self.fits:
+            total_g, total_c = fit[0][at].sum(axis=0), fit[1][at].sum(axis=0)
+            left.append(self._left(fit, total_g, total_c, at))
+        each = np.stack(left)
+        return self.scale * each[np.argmin(each.sum(axis=1))], check
+
+
+def decision_power(gains: NDArray[np.float64], check: NDArray[np.bool_], draws: int = POWER_DRAWS) -> float:
+    """How often the test over rings (diagnosis.replication: significant, and without its most
+    influential ring) passes when each ring's gain scatters about its expectation g with variance
+    4 g (its cross term with the touch noise); rings that see nothing (g = 0) are no units."""
+    gains = np.maximum(np.asarray(gains, dtype=float), 0.0)
+    seen = gains > max(SEES_NOTHING * float(gains.max(initial=0.0)), SEES_NOTHING)
+    noise = np.random.default_rng(0).standard_normal((draws, gains.size))
+    drawn = np.where(seen, gains + 2.0 * np.sqrt(gains) * noise, 0.0)
+    return float(np.mean([replication(d, check, True, seed=k).replicated for k, d in enumerate(drawn)]))
+
 
 def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple[list[int], list[float], float]:
-    """The question's rings, best first, until they decide (module docstring) or the budget ends:
-    (rings, each one's evidence, their evidence without the ring that adds most); no rings when
-    the budget ends first."""
+    """The question's rings, best first, until the test over rings would pass with DECIDING_POWER
+    or the budget ends: (rings, each one's evidence, the power); no rings when the budget ends first."""
     rings: list[int] = []
     each_ring: list[float] = []
-    without_top = 0.0
+    power = decision_power(*evidence.every_ring([]))
     while len(rings) < budget and free.any():
         candidates = np.flatnonzero(free)
         each = evidence.per_ring(rings, candidates)  # (n_candidates, len(rings) + 1)
@@ -193,10 +224,12 @@ def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple
         rings.append(int(candidates[pick]))
         free = free.copy()
         free[rings[-1]] = False
-        each_ring, without_top = [float(v) for v in each[pick]], float(robust[pick])
-        if len(rings) >= DECIDING_RINGS and without_top >= DECIDING_EVIDENCE:
-            return rings, each_ring, without_top
-    return [], each_ring, without_top
+        each_ring = [float(v) for v in each[pick]]
+        if len(rings) >= DECIDING_RINGS:
+            power = decision_power(*evidence.every_ring(rings))
+            if power >= DECIDING_POWER:
+                return rings, each_ring, power
+    return [], each_ring, power
 
 
 def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, budget: int) -> Decision:
@@ -216,13 +249,15 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
     evidence_of: dict[int, float] = {}  # each proposed ring's evidence within its question's set
     expected: dict[str, dict[str, Any]] = {}
     for q, question in enumerate(asked):
-        rings, each_ring, without_top = rings_for(Evidence(question, campaign, pool, weights), free, budget - len(taken))
+        rings, each_ring, power = rings_for(Evidence(question, campaign, pool, weights), free, budget - len(taken))
         total = sum(each_ring)
+        without_top = total - max(each_ring, default=0.0)
         evidence_of.update(zip(rings, each_ring))
         free[rings] = False
         taken += [(q, i) for i in rings]
         expected[question.label] = {
             "decided_by_rings": bool(rings),
+            "power": round(power, 2),
             "expected_gain": round(total, 1),
             "without_top_ring": round(without_top, 1),
         }
@@ -264,8 +299,8 @@ def decision_lines(decision: Decision, budget: int) -> list[str]:
         if not expected["decided_by_rings"]:
             other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
             lines.append(
-                f"{label}: no {budget} rings of this stylus decide it (they would show {expected['without_top_ring']:g} noise "
-                f"variances without the strongest; {DECIDING_EVIDENCE:.0f} decide){other}"
+                f"{label}: no {budget} rings of this stylus decide it (the test over rings would pass "
+                f"{100 * expected['power']:.0f} % of the time with them, {100 * DECIDING_POWER:.0f} % decides){other}"
             )
     if decision.rings:
         lines.append(f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note)
