@@ -13,9 +13,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from fake_browser import wait_for
 from test_browser_loop import ARGS, CHROMIUM, DOCS, HEIGHT, WIDTH, chart_drawn, in_view, step_shot
+
+from ph_explorer.io.rings import read_rings
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -57,6 +60,11 @@ def decide(page, session, shots: Path) -> None:
     assert wait_for(lambda: error_map.inner_html().count("proposed, not measured yet") == len(proposed), timeout=30)
     chart_drawn(page, "error map")
     step_shot(page, shots, "decide_2_rings")
+    # The same rings as a file for a CMM program (what design --decide --out writes).
+    with page.expect_download() as download:
+        page.get_by_role("button", name="Download rings.csv").click()
+    path = download.value.path()
+    assert np.allclose(read_rings(path), proposed)
 
     # 3. Measure them: the twin measures them after the campaign; they are on the map as check rings.
     measure = page.get_by_role("button", name="Measure them")

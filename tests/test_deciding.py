@@ -4,6 +4,7 @@ twin measuring a scenario's head at them (`simulate --rings`). The whole loop ov
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -23,7 +24,8 @@ from ph_explorer.planning.deciding import (
     rings_for,
 )
 from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
-from ph_explorer.twin import load_scenario, simulate
+from ph_explorer.twin import load_scenario, simulate, twin_scenario
+from ph_explorer.twin.random_heads import random_campaign
 from tests.command_line import run_cli
 
 ANGULAR = DEFAULT_CATALOG["a_axis_cyclic"](amplitude_arcsec=1.5, phase_deg=70.0, cycles_per_rev=26)
@@ -152,3 +154,40 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
 def test_design_decide_options_out_of_place_are_one_line(args, words):
     result = run_cli("design", *args)
     assert result.returncode == 2 and words in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    "make", [lambda: random_campaign(3), lambda: simulate(load_scenario("head_6"), 11)], ids=["random head", "scenario"]
+)
+def test_the_twin_of_a_simulated_campaign_is_its_head_so_it_can_measure_more_rings_of_it(make):
+    campaign = make()
+    head = twin_scenario(campaign)
+    assert head is not None and head.seed == campaign.scenario["seed"]
+    again = simulate(head)  # the same head, the same draw: the same campaign, to the last digit
+    assert np.array_equal(again.deviations, campaign.deviations) and np.array_equal(again.orientations, campaign.orientations)
+    assert head.hidden_ids == campaign.scenario["hidden"]
+    # Measured data (no scenario recorded) has no twin.
+    assert twin_scenario(dataclasses.replace(campaign, scenario={})) is None
+
+
+def test_the_report_lists_the_rings_that_would_decide_without_naming_a_teaching_scenarios_effects():
+    from ph_explorer.figures.diagnosis_report import EffectNames, decision_section
+
+    campaign = simulate(load_scenario("head_6"))
+    decision = {
+        "rings": [
+            {"A_deg": 10.0, "B_deg": -20.0, "order": 1, "reason": "tells a_axis_cyclic from a_axis_radial_motion: 19 of the set's 57"}
+        ],
+        "expected": {
+            "a_axis_cyclic vs a_axis_radial_motion": {"decided_by_rings": True, "power": 0.97},
+            "b_axis_cyclic": {"decided_by_rings": False, "power": 0.4},
+        },
+        "minutes": 68.0,
+        "questions": ["a_axis_cyclic vs a_axis_radial_motion", "b_axis_cyclic"],
+        "note": "",
+    }
+    teaching = "".join(decision_section(decision, EffectNames(campaign, DEFAULT_CATALOG, reveal=False)))
+    assert "A10 B-20" in teaching and "68 minutes" in teaching and "power 40 %" in teaching
+    assert "a_axis" not in teaching and "b_axis" not in teaching and "effect A" in teaching
+    revealed = "".join(decision_section(decision, EffectNames(campaign, DEFAULT_CATALOG, reveal=True)))
+    assert "tells a_axis_cyclic from a_axis_radial_motion" in revealed

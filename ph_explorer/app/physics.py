@@ -28,7 +28,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
-from ph_explorer.planning.deciding import DECIDE_BUDGET, decision_lines, rings_that_decide
+from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_lines, rings_that_decide
 from ph_explorer.twin import simulate, twin_scenario
 
 
@@ -52,6 +52,7 @@ class PhysicsLoop:
         self.propose = propose  # mark rings to measure on the map (None: none)
         self.load = load  # show a new campaign (the data with the rings the twin measured)
         self.proposed: NDArray[np.float64] | None = None  # the rings that would decide, not measured yet
+        self.decision: Decision | None = None  # ... and why (the report shows it)
         self.diagnosis: diagnosis.Diagnosis | None = None
         self.steps: list[diagnosis.Step] = []
         # The study this session continues: as opened or last saved (`previous` of the next save),
@@ -82,7 +83,7 @@ class PhysicsLoop:
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply, nor does the study."""
         self.diagnosis = None
-        self.proposed = None
+        self.proposed, self.decision = None, None
         self.propose(None)
         self.steps = []
         self.panel.clear()
@@ -148,12 +149,13 @@ class PhysicsLoop:
         decision = rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET)
         if ds.campaign is not self.current().campaign:
             return
+        self.decision = decision
         self.proposed = np.array([[r["A_deg"], r["B_deg"]] for r in decision.rings]).reshape(-1, 2)
-        twin = twin_scenario(ds.campaign)
+        twin = twin_scenario(ds.campaign, self.catalog)
         p.show_decision(decision_lines(decision, DECIDE_BUDGET), twin is not None)
         if decision.rings and twin is None:
             p.decision.content += (
-                "\n\n_Measure them on your CMM (`ph-explorer design --data FILE.csv --decide --out rings.csv` writes them), "
+                "\n\n_Measure them on your CMM (**Download rings.csv** gives them to a CMM program), "
                 "then `ph-explorer merge FILE.csv NEW.csv --out ALL.csv` and diagnose ALL.csv._"
             )
         self.propose(self.proposed if len(self.proposed) else None)
@@ -161,12 +163,14 @@ class PhysicsLoop:
     def measure(self) -> None:
         """The twin measures the proposed rings after the campaign; the campaign with them is shown."""
         p, ds = self.panel, self.current()
-        twin = twin_scenario(ds.campaign)
+        twin = twin_scenario(ds.campaign, self.catalog)
         if self.proposed is None or not len(self.proposed) or twin is None:
             p.decision.content = "_Nothing to measure: find the rings that would decide first (a teaching scenario's twin measures them)._"
             return
         p.decision.content = f"_the twin measures {len(self.proposed)} rings…_"
         new = simulate(twin.at_rings(self.proposed))
+        if ds.campaign.times_s is None:
+            new.times_s = None  # a design without touch times (a random head's no_times): merged as it is
         merged, _ = merged_campaign(ds.campaign, new)
         rings = ", ".join(orientation_label(a, b) for a, b in self.proposed)
         self.load(merged, f"{ds.label} + {len(self.proposed)} rings measured by the twin ({rings})")

@@ -172,6 +172,9 @@ class PhysicsPanel:
             visible=False,
             hint="the digital twin measures the proposed rings after the campaign; they join it as check rings",
         )
+        self.download_rings = gui.add_button(
+            "Download rings.csv", visible=False, hint="the proposed rings for a CMM program (A_deg, B_deg, order, reason)"
+        )
         # The effects the diagnosis found, ready to tick; every other effect in a collapsed folder.
         self.gui = gui
         self.found_folder = gui.add_folder("Effects found: tick, then Refit", visible=False)
@@ -251,7 +254,7 @@ class PhysicsPanel:
             self.decision,
         ):
             handle.content = ""
-        self.decide.visible = self.measure.visible = False
+        self.decide.visible = self.measure.visible = self.download_rings.visible = False
         self.candidates.content = self.evidence.content = self.fit.content = ""
         self.progress.visible = self.refit_progress.visible = False
         self.results_folder.visible = self.history.visible = False
@@ -313,9 +316,9 @@ class PhysicsPanel:
         self.evidence_of.visible = bool(options)
         self.fit.content = fit_html(result, self.catalog)
         self.results_folder.visible = True
-        self.decide.visible = True
+        self.decide.visible = result.leaves_open  # else nothing to decide: the loop keeps its place on the page
         self.decision.content = ""
-        self.measure.visible = False
+        self.measure.visible = self.download_rings.visible = False
 
     def show_decision(self, lines: list[str], measurable: bool) -> None:
         """The rings that would decide (planning.deciding.decision_lines); Measure them when the twin can."""
@@ -324,6 +327,7 @@ class PhysicsPanel:
         listed = "\n".join(" ".join(line.split()) for line in rings)  # "1. A10 B-20 tells ...": a numbered list
         self.decision.content = f"**{head}**\n\n{listed}\n\n" + "\n\n".join(rest) if rings else "\n\n".join([f"**{head}**", *rest])
         self.measure.visible = bool(rings) and measurable
+        self.download_rings.visible = bool(rings)
 
     def _candidate_caption(self, candidate: Candidate) -> str:
         # Short: its parameters +- U are in the table under the plot.

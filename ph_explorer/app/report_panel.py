@@ -31,6 +31,7 @@ from ph_explorer.effects import Catalog, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.figures.html_report import default_orientations, report_html
 from ph_explorer.io import campaign_sha256, json_object_text, parse_json_object
+from ph_explorer.io.rings import rings_csv_text
 
 
 class Session(Protocol):
@@ -124,6 +125,7 @@ class ReportPanel:
             reveal=bool(self.reveal.value),
             created=created,
             source=name,
+            decision=loop.decision.as_dict() if loop.decision is not None else None,
         )
         return text, report_file_name(campaign, ds.label), study is not None
 
@@ -134,6 +136,12 @@ class ReportPanel:
         self.session.client.send_file_download(file_name, content, save_immediately=True)
         holds = "with its diagnosis" if diagnosed else "not diagnosed yet: Diagnose (Physics tab) or Open study first for its diagnosis"
         self.status.content = f"Report sent: **{file_name}** ({len(content) // 1024} KiB, one file, {holds})."
+
+    def send_rings(self) -> None:
+        """The rings that would decide (Physics tab), as the file `design --decide --out` writes."""
+        decision = self.session.loop.decision
+        if decision is not None and decision.rings:
+            self.session.client.send_file_download("rings.csv", rings_csv_text(decision.rings).encode("utf-8"), save_immediately=True)
 
     def download_study(self) -> None:
         """The study Save study would write, sent to the browser as a file (diagnose --resume and Open

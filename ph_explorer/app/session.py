@@ -142,6 +142,7 @@ class Session:
         p.reveal.on_click(lambda _: self.loop.reveal())
         p.decide.on_click(lambda _: self.submit(self.loop.decide))
         p.measure.on_click(lambda _: self.submit(self.loop.measure))
+        p.download_rings.on_click(lambda _: self.report_panel.send_rings())
         p.evidence_of.on_update(lambda _: self.loop.show_evidence(p.evidence_of.value))
 
         @c.worst.on_update

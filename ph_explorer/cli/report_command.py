@@ -80,7 +80,14 @@ def report_command(
             )
         previous = study_record(result, result.chain, study_campaign(name, sha256, campaign), "trilinear")
     created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, result, reveal=reveal, created=created)
+    decision = None
+    if result is not None:
+        from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
+
+        decision = rings_that_decide(campaign, result, DEFAULT_CATALOG, DECIDE_BUDGET).as_dict()
+    text = report_html(
+        campaign, models, train, DEFAULT_CATALOG, chosen, previous, result, reveal=reveal, created=created, decision=decision
+    )
     try:
         atomic_write([(out, text)])
     except OSError as error:

@@ -182,6 +182,14 @@ class Diagnosis:
         return flagged_in(self.rankings or [self.candidates], "suggested")
 
     @property
+    def leaves_open(self) -> bool:
+        """Whether rings could decide something this diagnosis leaves open: a claimed or suggested
+        candidate its rings do not tell from a confounded partner, or a suggested one
+        (planning.deciding)."""
+        candidates = [*self.found, *self.suggested]
+        return bool(self.suggested) or any(o.get("told_apart") is False for c in candidates for o in c.confounded_with)
+
+    @property
     def not_needed(self) -> list[Candidate]:
         """Significant candidates the search did not take because the model was within noise without them."""
         return flagged_in(self.rankings or [self.candidates], "not_needed")

@@ -252,3 +252,30 @@ def diagnosis_figures(result: Diagnosis) -> dict[str, MapFigure]:
             verdict, "", "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual", RING_VERDICTS
         ),
     }
+
+
+# -- the rings that would decide ---------------------------------------------------------------------
+def decision_section(decision: Mapping[str, Any], names: EffectNames) -> list[str]:
+    """The rings to measure next (planning.deciding), in measuring order with their reasons, and each
+    question the budget cannot decide."""
+    rows = "".join(
+        f"<tr><td>{r['order']}</td><td>{_e(orientation_label(r['A_deg'], r['B_deg']))}</td><td>{_e(names.text(r['reason']))}</td></tr>"
+        for r in decision.get("rings", [])
+    )
+    minutes = decision.get("minutes")
+    parts = ['<section id="decide"><h2>Rings that would decide</h2>']
+    if rows:
+        parts.append(
+            f"<p>What the diagnosis leaves open, and the rings that would decide it once measured (as check rings; about "
+            f"{_e(f'{minutes:.0f}') if minutes is not None else '?'} minutes of CMM time by this campaign's cadence):</p>"
+            f"<table><tr><th>order</th><th>ring</th><th>why</th></tr>{rows}</table>"
+        )
+    for label, expected in decision.get("expected", {}).items():
+        if not expected.get("decided_by_rings"):
+            parts.append(
+                f"<p>{_e(names.text(label))}: no ring of this budget decides it (power {100 * expected.get('power', 0.0):.0f} %).</p>"
+            )
+    if not rows and not any(not e.get("decided_by_rings") for e in decision.get("expected", {}).values()):
+        parts.append(f"<p>{_e(decision.get('note', ''))}</p>")
+    parts.append("</section>")
+    return parts

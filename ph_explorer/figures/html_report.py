@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_label
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import Catalog
-from ph_explorer.figures.diagnosis_report import EffectNames, diagnosis_figures, diagnosis_section, reveal_section
+from ph_explorer.figures.diagnosis_report import EffectNames, decision_section, diagnosis_figures, diagnosis_section, reveal_section
 from ph_explorer.figures.orientation_map import MapFigure, map_svg
 from ph_explorer.figures.polar import curves_svg, polar_scale
 from ph_explorer.harmonics import ron_t
@@ -84,6 +84,7 @@ def report_html(
     reveal: bool = False,
     created: str = "",
     source: str | None = None,
+    decision: Mapping[str, Any] | None = None,
 ) -> str:
     """The report as one self-contained HTML document (docs/methods/html_report.md).
 
@@ -94,7 +95,8 @@ def report_html(
     diagnosis: the run that made it, when at hand: names the failing rings and maps each ring's test;
     orientations: where the polar plots and tables are drawn (default: `default_orientations`);
     reveal: name a teaching scenario's hidden effects, with their true parameters;
-    source: what the report calls the campaign (default: campaign.source).
+    source: what the report calls the campaign (default: campaign.source);
+    decision: the rings that would decide what the diagnosis leaves open (planning.deciding, as_dict).
     """
     names = EffectNames(campaign, catalog, reveal)
     check = ~np.asarray(train_mask, dtype=bool)
@@ -112,6 +114,8 @@ def report_html(
     parts += _map_section(campaign, check, chosen[0], diagnosis)
     parts += _orientation_sections(campaign, models, check, chosen)
     parts += diagnosis_section(study, diagnosis, catalog, names)
+    if decision is not None and (decision.get("rings") or decision.get("questions")):
+        parts += decision_section(decision, names)
     if reveal:
         parts += reveal_section(campaign, catalog, study)
     parts.append("</body></html>")

@@ -217,14 +217,39 @@ def list_scenarios() -> list[tuple[str, str]]:
     return [(s.name, s.description) for s in (load_scenario(p) for p in shipped_scenario_paths())]
 
 
-def twin_scenario(campaign: Campaign) -> Scenario | None:
-    """The shipped scenario a campaign was simulated from, at its seed (its twin can measure more
-    rings of the same head); None for measured data or a scenario not shipped."""
+def twin_scenario(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG) -> Scenario | None:
+    """The head a simulated campaign came from, at its seed, so that its twin can measure more rings
+    of it: the shipped scenario of that name, else the head its sidecar records (every effect with
+    its parameters: a random head, a scenario of one's own). None for measured data, or an effect
+    the catalog does not know."""
     record = campaign.scenario or {}
-    name = record.get("name")
-    if name not in {n for n, _ in list_scenarios()} or "seed" not in record:
+    name, specs = record.get("name"), record.get("effects")
+    if "seed" not in record or not name:
         return None
-    return replace(load_scenario(name), seed=int(record["seed"]))
+    if name in {n for n, _ in list_scenarios()}:
+        return replace(load_scenario(name), seed=int(record["seed"]))
+    if not specs or any(spec.get("id") not in catalog for spec in specs):
+        return None
+    try:
+        effects = [catalog[spec["id"]](**{k: v for k, v in spec.items() if k not in ("id", "hidden")}) for spec in specs]
+    except (TypeError, ValueError):
+        return None  # a sidecar written by hand, whose parameters are not the effect's
+    return Scenario(
+        name=str(name),
+        description=str(record.get("description", "")),
+        orientations=campaign.orientations.copy(),
+        effects=effects,
+        hidden=[bool(spec.get("hidden", False)) for spec in specs],
+        check_orientations=campaign.orientations[campaign.holdout_mask()],
+        seed=int(record["seed"]),
+        repetitions=campaign.n_repetitions,
+        geometry=campaign.geometry,
+        scan_order=str(record.get("scan_order", "orientation")),
+        scan_direction=str(record.get("scan_direction", "forward")),
+        touch_s=float(record.get("touch_s", 2.0)),
+        move_s=float(record.get("move_s", 8.0)),
+        start_s=float(record.get("start_s", 0.0)),
+    )
 
 
 # -- simulation ------------------------------------------------------------------------------------
