@@ -50,8 +50,9 @@ class Question:
 class Decision:
     """The rings that decide, in measuring order, and what they are expected to do."""
 
-    rings: list[dict[str, Any]]  # {"A_deg", "B_deg", "order", "question", "reason", "over_floor"}
-    expected: dict[str, dict[str, float]]  # per question: shared fraction now and after (separate), or the best ring's ratio
+    rings: list[dict[str, Any]]  # {"A_deg", "B_deg", "order", "question", "reason", "expected_gain"}
+    # per question: decided_by_rings, power, expected_gain and without_top_ring (noise variances), shared_now (a pair)
+    expected: dict[str, dict[str, Any]]
     minutes: float | None  # estimated CMM time from the campaign's own touch and move times; None without times
     questions: list[str] = field(default_factory=list)
     note: str = ""
@@ -74,11 +75,14 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
         for c in ranking:
             ranked.setdefault(c.effect, c)
     out: list[Question] = []
+    asked: set[frozenset[str]] = set()  # a pair once, whichever of the two asks
     for candidate in [*result.found, *result.suggested]:
         effect = fitted_effect(candidate, catalog)
         for partner in candidate.confounded_with:
             other = ranked.get(partner["effect"])
-            if partner.get("told_apart") is False and other is not None and other.params:
+            pair = frozenset((candidate.effect, partner["effect"]))
+            if partner.get("told_apart") is False and other is not None and other.params and pair not in asked:
+                asked.add(pair)
                 measurement = (partner.get("separated_by") or {}).get("measurement", "")
                 out.append(Question(effect, fitted_effect(other, catalog), float(partner["shared"]), measurement))
         if candidate.suggested:
