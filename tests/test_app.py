@@ -16,6 +16,7 @@ from synthetic import lobing_campaign
 from viser.transforms import SO3
 
 from ph_explorer.app.dataset import Dataset, dataset_for
+from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.app.render_queue import RenderState
 from ph_explorer.app.scene import a_joint, b_joint, head_orientation
 from ph_explorer.app.server import ExplorerApp, build_server
@@ -550,12 +551,12 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
 
 
 @pytest.mark.slow
-def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
+def test_teaching_loop_diagnose_add_refit_error_falls(opened, tmp_path) -> None:
     """Done-when of issue 6: on a teaching scenario the GUI loop diagnose -> add -> refit lowers the error."""
     fake, s = opened
     s.data_panel.scenario.value = "head_3"
     s.wait(timeout=300)
-    assert "head_3" in s.data_panel.source.content
+    assert "head_3" in s.data_panel.source.content and s.data_panel.scenario.value == "head_3"  # the box names what is shown
     click(fake, s, "Diagnose", timeout=600)
     p = s.physics
     best = s.loop.diagnosis.candidates[0]
@@ -615,6 +616,11 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened) -> None:
     s.data_panel.scenario.value = "paper"
     s.wait(timeout=300)
     assert s.loop.steps == [] and s.loop.diagnosis is None and not p.history.visible and "hybrid" not in s.dataset.models
+    # An upload after a scenario and a report: neither the scenario box nor the report's line stays.
+    s.report_panel.status.content = "Report sent: **report_paper.html**"
+    s.load_upload("mine.csv", write_campaign(lobing_campaign(seed=9, n_repetitions=3), tmp_path / "mine.csv").read_bytes())
+    assert "mine.csv" in s.data_panel.source.content
+    assert s.data_panel.scenario.value == NO_CHOICE and s.report_panel.status.content == "" and not p.revealed.content
 
 
 # -- the default start: the shipped paper campaign with assets/models/paper -----------------------------------

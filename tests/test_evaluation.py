@@ -14,6 +14,7 @@ from ph_explorer.metrics import noise_floor
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paper.tables import evaluation_report, mean_mae, orientation_tables
+from tests.command_line import run_cli
 
 
 class Oracle(DeviationModel):
@@ -74,3 +75,32 @@ def test_tables_at_the_default_holdout_follow_the_paper():
         assert row["mae_um"]["trilinear"]["single"] > row["mae_um"]["trilinear"]["mean"]
     text = format_report(evaluation_report(campaign, {"trilinear": model}))
     assert "Table 1" in text and "Table 3" in text and "A 43 B 91" in text and "noise floor" in text
+
+
+def test_evaluate_says_in_one_line_when_the_model_was_trained_on_another_file(tmp_path):
+    from ph_explorer.paths import assets_dir
+
+    model = assets_dir() / "models" / "paper"
+    other = tmp_path / "head_3.csv"
+    assert run_cli("simulate", "--scenario", "head_3", "--out", other).returncode == 0
+    result = run_cli("evaluate", "--model", model, "--data", other)
+    assert result.returncode == 0 and "Table 1" in result.stdout
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "trained on paper.csv" in warnings[0] and "not on head_3.csv" in warnings[0]
+    strict = run_cli("evaluate", "--model", model, "--data", other, "--strict")
+    assert strict.returncode == 2 and "not on head_3.csv" in strict.stderr and len(strict.stderr.strip().splitlines()) == 1
+    same = run_cli("evaluate", "--model", model, "--data", assets_dir() / "data" / "paper.csv", "--strict")
+    assert same.returncode == 0 and "warning" not in same.stderr
+
+
+def test_the_explorer_and_the_report_note_a_model_trained_on_another_file(tmp_path):
+    from ph_explorer.io import read_campaign
+    from ph_explorer.models.folder import campaign_models
+    from ph_explorer.paths import assets_dir
+
+    other = tmp_path / "head_3.csv"
+    assert run_cli("simulate", "--scenario", "head_3", "--out", other).returncode == 0
+    notes = campaign_models(read_campaign(other), assets_dir() / "models" / "paper")[2]
+    assert any(n.startswith("warning: the model was trained on paper.csv") and "head_3.csv" in n for n in notes)
+    notes = campaign_models(read_campaign(assets_dir() / "data" / "paper.csv"), assets_dir() / "models" / "paper")[2]
+    assert not any(n.startswith("warning") for n in notes)

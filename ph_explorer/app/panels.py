@@ -316,5 +316,10 @@ class DataPanel:
     def show_error(self, line: str) -> None:
         self.message.content = f"**Not loaded** — {line}\n\nThe session keeps its current data."
 
+    def forget(self, keep: str) -> None:
+        """New data: the scenario box names no scenario unless the data is that scenario (`keep`)."""
+        if self.scenario.value != keep:
+            self.scenario.value = NO_CHOICE
+
     def show_info(self, text: str) -> None:
         self.message.content = text

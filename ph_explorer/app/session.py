@@ -58,8 +58,7 @@ class Shared:
 
 
 TASK_SETTLE_S = 0.5  # the sliders at rest this long: compute the task's RONt (a second or so per model)
-# A following camera moves at most this often while the sliders move (three messages and ~0.5 ms
-# each time); once they stop it is put where the last orientation wants it.
+# A following camera moves at most this often while the sliders move; then where the last orientation wants it.
 CAMERA_INTERVAL_S = 0.2
 
 
@@ -86,8 +85,7 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
-        # A following camera: at most every CAMERA_INTERVAL_S; once it may move again, the render
-        # thread catches it up with the last drawn orientation (not a render: no render figures).
+        # A following camera: at most every CAMERA_INTERVAL_S, then caught up with the last drawn orientation.
         self._camera_catch_up = RenderState(lambda: self._follow(self.view.a_deg, self.view.b_deg))
         self._camera_due = Throttle(CAMERA_INTERVAL_S, lambda: self.shared.renders.request(self._camera_catch_up))
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
@@ -383,6 +381,8 @@ class Session:
             self.controls.working(f"{what}: drawing the field and the rings…", 0.8)
             self.loop.clear()
             self.set_dataset(dataset)
+            self.data_panel.forget(keep=what)  # nothing of the old data stays: its scenario, its report's line
+            self.report_panel.status.content = ""
         finally:
             self.controls.idle()
 

@@ -193,10 +193,13 @@ def _evaluate(
     model: Annotated[Path, typer.Option(help="A trained model folder.")],
     data: Annotated[Path, typer.Option(help="The campaign CSV with the measurements to compare with.")],
     json_output: JsonOpt = False,
+    strict: Annotated[
+        bool, typer.Option("--strict", help="A model trained on another file than --data is an error (exit 2), not a warning.")
+    ] = False,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """The paper's Tables 1-3 at every held-out orientation."""
-    _run("evaluate", evaluate.evaluate_command, model=model, data=data, json_output=json_output, geometry=geometry)
+    _run("evaluate", evaluate.evaluate_command, model=model, data=data, json_output=json_output, geometry=geometry, strict=strict)
 
 
 @app.command("diagnose")

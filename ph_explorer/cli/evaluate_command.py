@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -12,14 +13,23 @@ from ph_explorer.io import read_campaign
 from ph_explorer.paper.tables import evaluation_report, mean_mae
 
 
-def evaluate_command(model: Path, data: Path, json_output: bool = False, geometry: dict[str, float] | None = None) -> int:
-    """Evaluate the models of a folder on a campaign, at the card's holdout (else the campaign's own)."""
+def evaluate_command(
+    model: Path, data: Path, json_output: bool = False, geometry: dict[str, float] | None = None, strict: bool = False
+) -> int:
+    """Evaluate the models of a folder on a campaign, at the card's holdout (else the campaign's own);
+    a model trained on another file is said in one line on stderr (an error with strict)."""
     # The models' classes import torch: only when the command runs (inspect must work without it).
-    from ph_explorer.models.folder import holdout_from_card, load_card, load_models
+    from ph_explorer.models.folder import holdout_from_card, load_card, load_models, other_training_data
 
     campaign = read_campaign(Path(data), geometry or {})
+    card = load_card(Path(model))
+    other = other_training_data(card, Path(data))
+    if other is not None and strict:
+        raise InputError(other, file=str(model), option="--strict")
+    if other is not None:
+        print(f"ph-explorer evaluate: warning: {other}", file=sys.stderr)
     models = load_models(Path(model))
-    mask = holdout_from_card(campaign, load_card(Path(model)))
+    mask = holdout_from_card(campaign, card)
     if not mask.any():
         raise InputError(
             "no held-out orientation to evaluate: the model's holdout is not in the data and the data has "

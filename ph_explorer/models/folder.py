@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.errors import InputError
+from ph_explorer.io.files import file_sha256
 from ph_explorer.models import trilinear
 from ph_explorer.models.deviation_model import DeviationModel
 
@@ -61,6 +62,21 @@ def load_card(directory: Path) -> dict[str, Any]:
         raise InputError(f"unreadable model card: {error}", file=str(path)) from None
 
 
+def other_training_data(card: Mapping[str, Any], data: Path) -> str | None:
+    """A line when the models were trained on another file than `data` (the card's sha256 differs
+    from the file's), naming both; None when it is the same file or the card records none."""
+    trained = card.get("data") or {}
+    if not trained.get("sha256") or not Path(data).is_file():
+        return None
+    sha256 = file_sha256(Path(data))
+    if sha256 == trained["sha256"]:
+        return None
+    return (
+        f"the model was trained on {trained.get('file', 'another file')} (sha256 {trained['sha256'][:12]}), "
+        f"not on {Path(data).name} (sha256 {sha256[:12]}): its figures here are a prediction for another campaign"
+    )
+
+
 def baseline_of(models: Mapping[str, DeviationModel]) -> DeviationModel | None:
     """The model a diagnosis starts from: the first of MODEL_TYPES (the network, then the
     trilinear tables) among these models; the CLI and the app take the same one."""
@@ -96,8 +112,12 @@ def campaign_models(campaign: Campaign, model_dir: Path | None) -> tuple[dict[st
     train = ~campaign.holdout_mask()
     if model_dir is not None:
         models = dict(load_models(Path(model_dir)))
-        train = ~np.asarray(holdout_from_card(campaign, load_card(Path(model_dir))), dtype=bool)
+        card = load_card(Path(model_dir))
+        train = ~np.asarray(holdout_from_card(campaign, card), dtype=bool)
         notes.append(f"models from {model_dir}")
+        other = other_training_data(card, Path(campaign.source)) if campaign.source else None
+        if other is not None:
+            notes.append(f"warning: {other}")
     if "trilinear" not in models and train.any():
         models["trilinear"] = trilinear.TrilinearModel().fit(campaign, train)
         notes.append("trilinear tables fitted on the training rings")
