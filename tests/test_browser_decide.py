@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import ARGS, CHROMIUM, DOCS, HEIGHT, WIDTH, chart_drawn, in_view, step_shot
+from test_browser_loop import CHROMIUM, chart_drawn, in_view, step_shot, walk_in_chromium
 
 from ph_explorer.io.rings import read_rings
 
@@ -90,31 +90,5 @@ def decide(page, session, shots: Path) -> None:
 
 
 def test_the_rings_that_would_decide_measured_by_the_twin_decide_at_1440x900() -> None:
-    from playwright.sync_api import sync_playwright
-
-    from ph_explorer.app.server import build_server
-
-    app = build_server(port=0)
-    shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
-    shots.mkdir(parents=True, exist_ok=True)
-    for stale in shots.glob("decide_*.png"):
-        stale.unlink()
-    try:
-        with sync_playwright() as pw:
-            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
-            page = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
-            errors: list[str] = []
-            page.on("pageerror", lambda error: errors.append(str(error)))
-            page.goto(app.url)
-            session = app.session(timeout=60)
-            assert wait_for(lambda: session.render_count >= 1)
-            try:
-                decide(page, session, shots)
-            except Exception:
-                page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / "ph_explorer_decide_failed.png"))
-                raise
-            assert not [e for e in errors if "TypeError" in e], errors
-            browser.close()
-    finally:
-        app.stop()
+    shots = walk_in_chromium(decide, "decide_")
     assert len(list(shots.glob("decide_*.png"))) == 4

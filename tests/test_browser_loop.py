@@ -242,7 +242,10 @@ def teach(page, session, shots: Path) -> None:
     step_shot(page, shots, "loop_6_revealed")
 
 
-def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
+def walk_in_chromium(walk, prefix: str) -> Path:
+    """Serve the default data, open it in chromium at 1440x900 and run walk(page, session, shots);
+    the page as it stood goes to PH_EXPLORER_LOOP_FAILED (default /tmp) when it fails. The walk's
+    screenshots, `prefix`*.png, go to docs/ (PH_EXPLORER_LOOP_SHOTS: elsewhere), older ones gone."""
     from playwright.sync_api import sync_playwright
 
     from ph_explorer.app.server import build_server
@@ -250,7 +253,7 @@ def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
     app = build_server(port=0)  # the default data: the shipped paper campaign and assets/models/paper
     shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
     shots.mkdir(parents=True, exist_ok=True)
-    for stale in shots.glob("loop_*.png"):  # the screenshots of this loop only, never an older layout's
+    for stale in shots.glob(f"{prefix}*.png"):  # the screenshots of this walk only, never an older layout's
         stale.unlink()
     try:
         with sync_playwright() as pw:
@@ -262,12 +265,17 @@ def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
             session = app.session(timeout=60)
             assert wait_for(lambda: session.render_count >= 1)
             try:
-                teach(page, session, shots)
+                walk(page, session, shots)
             except Exception:  # the page as it stood, for whoever reads the failure
-                page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / "ph_explorer_loop_failed.png"))
+                page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / f"ph_explorer_{prefix}failed.png"))
                 raise
             assert not [e for e in errors if "TypeError" in e], errors
             browser.close()
     finally:
         app.stop()
+    return shots
+
+
+def test_the_whole_teaching_loop_by_labels_at_1440x900() -> None:
+    shots = walk_in_chromium(teach, "loop_")
     assert len(list(shots.glob("loop_*.png"))) == 6
