@@ -50,7 +50,7 @@ def campaigns(quick: bool) -> list[tuple[str, Campaign, Scenario, dict[str, Devi
     """(name, campaign, scenario, shipped models or None): the shipped paper data first, then each scenario."""
     paper = read_campaign(assets_dir() / "data" / "paper.csv")
     out = [("paper (shipped data and model)", paper, load_scenario("paper"), load_models(default_model_dir()))]
-    names = ["head_3"] if quick else [name for name, _ in list_scenarios() if name != "paper"]
+    names = ["head_3"] if quick else [s.name for s in list_scenarios() if s.name != "paper"]
     for name in names:
         scenario = load_scenario(name)
         out.append((name, simulate(scenario, scenario.seed), scenario, None))

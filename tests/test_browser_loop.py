@@ -218,7 +218,7 @@ def teach(page, session, shots: Path) -> None:
     assert after < before
     first, last = session.loop.steps[0], session.loop.steps[-1]
     assert (before, after) == (round(first.mae_um["mean"], 3), round(last.mae_um["mean"], 3))
-    in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
+    in_view(page.locator('svg[aria-label="history of the check-ring error"]').first, "history chart")
     # The polar plot at the failing ring now draws the hybrid beside the measured mean.
     assert "hybrid" in session.polar.plot.content
     figures_drawn(page, f"A{a_target:g} B{b_target:g}")
@@ -235,7 +235,7 @@ def teach(page, session, shots: Path) -> None:
     in_view(page.get_by_text("diagnosis (significant", exact=False).first, "what was found")
     in_view(page.get_by_text("last refit:", exact=False).first, "the last refit")
     in_view(fall, "the error fall")
-    in_view(page.locator(".uplot", has_text="Check-ring MAE (um) per step").first, "history chart")
+    in_view(page.locator('svg[aria-label="history of the check-ring error"]').first, "history chart")
     hidden = [e["id"] for e in session.dataset.campaign.scenario["effects"] if e.get("hidden")]
     assert any(f"`{effect_id}`" in session.physics.revealed.content for effect_id in hidden)
     figures_drawn(page)

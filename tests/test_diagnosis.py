@@ -453,9 +453,44 @@ def test_the_stylus_ball_form_next_to_lobing_is_reported_as_confounded():
     partner = "ball_form" if best.effect == "lobing" else "lobing"
     shared = {o["effect"]: o["shared"] for o in best.confounded_with}
     assert shared.get(partner, 0.0) > 0.9
-    assert f"cannot be told apart from {partner}" in "\n".join(verdict_text(result, catalog)[1])
+    assert f"is also explained by {partner}: this campaign cannot tell them apart" in "\n".join(verdict_text(result, catalog)[1])
     assert result.as_dict()["candidates"][0]["confounded_with"]
     # ... and what would separate them: the seats and a 3-lobe ball are the same over any head touches.
     closest = best.confounded_with[0]
     assert closest["effect"] == partner and closest["separated_by"]["measurement"] == ""
     assert f"To tell {best.effect} from {partner}: none of the measurements tried" in "\n".join(verdict_text(result, catalog)[1])
+
+
+@pytest.mark.slow
+def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a_candidate_is_shown(diagnoses):
+    """Issue 31, item 8, on the paper scenario: its baseline passes the campaign's within-noise test,
+    one ring exceeds at the ring level, and candidates beyond noise are shown, one confounded."""
+    from ph_explorer.app.map_panel import failing_label
+    from ph_explorer.app.physics_panel import fit_html
+    from ph_explorer.diagnosis.results import VERDICTS, shared_text
+
+    result = diagnoses[("paper", True)]
+    test = result.within_noise["baseline"]
+    shown = [c for c in result.candidates if c.beyond_noise or c.significant]
+    assert result.verdict == "none" and not test.fails and shown  # the case the words must get right
+    headline, lines = verdict_text(result, DEFAULT_CATALOG)
+    assert headline == f"Verdict: none - {VERDICTS['none']}." and "within-noise test passes" in headline
+    noise_line = next(line for line in lines if line.startswith("Within-noise test (the baseline)"))
+    if test.failing_rings:  # rings that exceed alone do not contradict a campaign within noise: said so
+        assert "the campaign is within noise, though a few rings exceed at the ring level" in noise_line
+    # Every ring listed as exceeding does, by one of the test's two statistics, and says which when
+    # its MAE is under its floor.
+    for ring in result.failing_rings():
+        assert ring.ratio > 1 or ring.by_scatter, ring
+        assert ("by its repetitions' scatter" in failing_label(ring)) == ring.by_scatter
+    # The candidates shown beside a `none` carry their status: none of them reads as found.
+    table = fit_html(result, DEFAULT_CATALOG)
+    assert all(c.status in table and c.status != "found" for c in shown)
+    # A confounded pair says what its share means, in the verdict and in the table.
+    pairs = [(c, o) for c in shown for o in c.confounded_with]
+    assert pairs, "the paper scenario has no confounded candidate any more: pick another campaign for this test"
+    c, other = pairs[0]
+    words = shared_text(c.effect, other)
+    assert words.endswith(f"of what this campaign shows of {c.effect} is also explained by {other['effect']}")
+    assert any(words in line and "this campaign cannot tell them apart" in line for line in lines)
+    assert f"{words}: this campaign cannot tell them apart" in table

@@ -16,7 +16,7 @@ from ph_explorer.io import read_campaign
 def shipped_campaigns() -> dict[str, object]:
     """The shipped data (assets/data) and every `simulate --list` scenario, simulated with its seed."""
     campaigns = {path.name: read_campaign(path) for path in sorted((paths.assets_dir() / "data").glob("*.csv"))}
-    for name, _ in twin.list_scenarios():
+    for name in [s.name for s in twin.list_scenarios()]:
         scenario = twin.load_scenario(name)
         campaigns[f"scenario {name}"] = twin.simulate(scenario, scenario.seed)
     return campaigns

@@ -88,7 +88,7 @@ def test_the_report_is_one_file_with_the_campaign_its_figures_and_its_diagnosis(
     # Figures inline: the two maps, a polar plot and Tables 1-3 per chosen orientation.
     assert report.count('aria-label="error map') == 2 and report.count('aria-label="polar plot') == 2
     assert "A43 B90 — measured, held out of training (check ring)" in report and "A30 B0 — measured, a training ring" in report
-    assert report.count("Table 3 — mean absolute simulation error") == 2
+    assert report.count("Table 3 — mean absolute prediction error") == 2
     # The diagnosis: verdict, the fitted effect +- U, each step with its MAE and floor, nested figures, failing rings.
     assert "Verdict: missing" in report
     entry = study["chain"][0]

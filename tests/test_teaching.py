@@ -24,7 +24,7 @@ from ph_explorer.cli.simulate_command import simulate_command
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import read_campaign
 
-TEACHING = [name for name, _ in twin.list_scenarios() if twin.load_scenario(name).hidden_ids]
+TEACHING = [s.name for s in twin.list_scenarios() if s.hidden_ids]
 
 
 def spoilers(name: str) -> set[str]:

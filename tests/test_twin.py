@@ -166,9 +166,16 @@ def test_scenario_from_a_user_path_with_a_user_effect(tmp_path):
 
 
 def test_list_scenarios_describes_every_shipped_scenario():
-    shipped = dict(list_scenarios())
+    shipped = {s.name: s for s in list_scenarios()}
     assert {"paper", *TEACHING} <= set(shipped)
-    assert all(text and "\n" not in text for text in shipped.values())
+    assert all(s.description and "\n" not in s.description for s in shipped.values())
+    # The explorer's list shows each one's purpose: short, and nothing of what is hidden in it
+    # (neither the hidden effect's id nor a word of its name or id, such as "axis" or "cyclic").
+    for s in shipped.values():
+        assert 10 <= len(s.purpose) <= 60, (s.name, s.purpose)
+        hidden = [e for e, h in zip(s.effects, s.hidden) if h]
+        words = {w.lower() for e in hidden for w in [*e.id.split("_"), *e.name.replace("-", " ").split()] if len(w) > 3}
+        assert not words & set(s.purpose.lower().replace(";", " ").replace("?", " ").split()), (s.name, s.purpose, words)
 
 
 def test_simulate_command_writes_campaign_and_sidecar(tmp_path, capsys):

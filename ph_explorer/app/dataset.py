@@ -393,9 +393,9 @@ def simulated_scenario(name: str) -> Campaign:
     return twin.simulate(scenario, scenario.seed)
 
 
-def scenario_descriptions() -> dict[str, str]:
-    """Shipped scenario name -> its one-line description."""
-    return dict(twin.list_scenarios())
+def shipped_scenarios() -> dict[str, twin.Scenario]:
+    """The shipped scenarios by name (their purpose for the list, their description once loaded)."""
+    return {s.name: s for s in twin.list_scenarios()}
 
 
 def default_dataset(

@@ -16,7 +16,7 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE, orientation_label
-from ph_explorer.diagnosis.results import FailingRing
+from ph_explorer.diagnosis.results import FailingRing, exceeding_text
 from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
 
 MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict shows the rest
@@ -25,7 +25,8 @@ MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict
 def failing_label(ring: FailingRing) -> str:
     """A failing ring's button: where, its error and floor in um, how far above its floor."""
     kind = ", check ring" if ring.held_out else ""
-    return f"{orientation_label(ring.a_deg, ring.b_deg)}: {ring.mae_um:.3f} um, floor {ring.floor_um:.3f} um ({ring.ratio:.1f}x{kind})"
+    by = ", by its repetitions' scatter" if ring.by_scatter else ""  # its mean may be under its floor
+    return f"{orientation_label(ring.a_deg, ring.b_deg)}: {ring.mae_um:.3f} um, floor {ring.floor_um:.3f} um ({ring.ratio:.1f}x{kind}{by})"
 
 
 class MapPanel:
@@ -107,8 +108,15 @@ class MapPanel:
         more = (
             f" The first {MAX_FAILING_BUTTONS} have a button; the map's ring verdict shows all." if len(rings) > MAX_FAILING_BUTTONS else ""
         )
+        scatter = (
+            " A ring marked 'by its repetitions' scatter' exceeds by the scatter between its repetitions (harmonics 2-8), "
+            "the test's second statistic, though its mean may lie under its floor."
+            if any(ring.by_scatter for ring in rings)
+            else ""
+        )
         self.failing_text.content = (
-            f"**{len(rings)} rings exceed their noise**, worst first (out-of-sample MAE vs the mean / its floor); click to go there.{more}"
+            f"**{exceeding_text(len(rings))}** by the within-noise test (ring level 1 %), worst first (out-of-sample MAE vs "
+            f"the mean / its floor); click to go there.{scatter}{more}"
         )
         with self.failing_folder:
             for ring in rings[:MAX_FAILING_BUTTONS]:

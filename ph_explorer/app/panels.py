@@ -299,9 +299,11 @@ class ChartsPanel:
 class DataPanel:
     """Where the session's data came from; scenario picker and CSV upload, with the reader's error line."""
 
-    def __init__(self, gui: viser.GuiApi, scenarios: Sequence[str]) -> None:
+    def __init__(self, gui: viser.GuiApi, scenarios: Mapping[str, str]) -> None:
+        """scenarios: name -> its purpose, shown beside the name (a teacher picks by what each is for)."""
         self.source = gui.add_markdown("")
-        self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *scenarios), hint="a campaign simulated by the twin")
+        self.names = {(f"{name} · {purpose}" if purpose else name): name for name, purpose in scenarios.items()}
+        self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *self.names), hint="a campaign simulated by the twin")
         self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
         self.message = gui.add_markdown("")
 
@@ -318,8 +320,16 @@ class DataPanel:
 
     def forget(self, keep: str) -> None:
         """New data: the scenario box names no scenario unless the data is that scenario (`keep`)."""
-        if self.scenario.value != keep:
+        if self.chosen() != keep:
             self.scenario.value = NO_CHOICE
+
+    def chosen(self) -> str | None:
+        """The scenario chosen in the box, by name; None for no choice."""
+        return self.names.get(self.scenario.value)
+
+    def label_of(self, name: str) -> str:
+        """The box's entry for a scenario name (as a browser would choose it)."""
+        return next(label for label, n in self.names.items() if n == name)
 
     def show_info(self, text: str) -> None:
         self.message.content = text

@@ -11,43 +11,17 @@ from collections.abc import Sequence
 
 import numpy as np
 import viser
-from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
-from ph_explorer.diagnosis.results import percent
+from ph_explorer.diagnosis.results import shared_text
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
-from ph_explorer.figures.charts import evidence_svg
-
-# Error history: one colour per reference, solid = MAE of the step, dashed = that step's noise floor.
-HISTORY_SERIES = (
-    {"label": "step"},
-    {"label": "MAE vs mean", "stroke": "#2a9d3c", "width": 2, "points": {"show": True, "size": 7}},
-    {"label": "floor (mean)", "stroke": "#2a9d3c", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
-    {"label": "MAE vs single", "stroke": "#7b3fa0", "width": 2, "points": {"show": True, "size": 7}},
-    {"label": "floor (single)", "stroke": "#7b3fa0", "width": 1, "dash": (6.0, 4.0), "points": {"show": False}},
-)
+from ph_explorer.figures.charts import evidence_svg, history_svg
 
 
 def step_label(step: Step) -> str:
     return f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
-
-
-def history_data(steps: Sequence[Step]) -> tuple[NDArray[np.float64], ...]:
-    """uPlot data of the error history: per step, MAE and floor against the mean and single repetitions."""
-    x = np.arange(len(steps), dtype=float)
-
-    def per_step(attr: str, reference: str) -> NDArray[np.float64]:
-        return np.array([float(getattr(s, attr)[reference]) for s in steps])
-
-    return (
-        x,
-        per_step("mae_um", "mean"),
-        per_step("noise_floor_um", "mean"),
-        per_step("mae_um", "single"),
-        per_step("noise_floor_um", "single"),
-    )
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -61,15 +35,17 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
         untold = [o for o in c.confounded_with if not o.get("told_apart")]
         told = [o for o in c.confounded_with if o.get("told_apart")]
         if untold:
-            shared = "; ".join(f"{percent(o['shared'])} with {o['effect']}" for o in untold[:3])
-            ident = f'<span style="color:#b35900">confounded: shares {shared}</span>'
+            shared = "; ".join(shared_text(c.effect, o) for o in untold[:3])
+            ident = f'<span style="color:#b35900">confounded: {shared}: this campaign cannot tell them apart</span>'
         elif told:
-            shared = "; ".join(f"{percent(o['shared'])} with {o['effect']}" for o in told[:3])
-            ident = f"told apart by the rings, though it shares {shared}"
+            shared = "; ".join(shared_text(c.effect, o) for o in told[:3])
+            ident = f"told apart by the rings, though {shared}"
         else:
             ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"
         rows.append(
-            f'<tr style="border-bottom:1px solid #eee"><td style="{cell}font-weight:600;overflow-wrap:anywhere">{c.effect}</td>'
+            # Its status beside its name: a candidate shown when nothing is found is not a claim.
+            f'<tr style="border-bottom:1px solid #eee"><td style="{cell}font-weight:600;overflow-wrap:anywhere">{c.effect}'
+            f'<div style="font-weight:400;color:#555">{c.status}</div></td>'
             f'<td style="{cell}">{catalog[c.effect].parameters_text(c.params, c.params_u)}<div style="color:#555">{ident}</div></td></tr>'
         )
     if not rows:
@@ -183,16 +159,8 @@ class PhysicsPanel:
         self.refit_status = gui.add_markdown("")
         self.fall = gui.add_markdown("")
         # The history right under the fall, above Reveal: still in view once the truth is shown.
-        self.history = gui.add_uplot(
-            (np.array([0.0]), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1)),
-            HISTORY_SERIES,
-            title="Check-ring MAE (um) per step, dashed: noise floor",
-            aspect=4.6,
-            scales={"x": {"time": False, "range": [-0.5, 0.5]}},
-            axes=({"size": 24}, {"size": 48}),  # no axis titles: the chart's title says step and um
-            legend={"live": False},  # the series' names, not "step: --" until hovered
-            visible=False,
-        )
+        # The same SVG chart as the report's (figures.charts): steps named on the axis, round ticks.
+        self.history = gui.add_html("", visible=False)
         self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
         self.revealed = gui.add_markdown("")
         # The diagnosis's results (issue 15 item 6): a signature plot (a candidate's, or what is left
@@ -281,9 +249,12 @@ class PhysicsPanel:
     def show_diagnosis(self, result: Diagnosis) -> None:
         floor, base = result.noise_floor_um, result.baseline_mae_um
         n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
+        test = result.within_noise["baseline"]
+        campaign = "" if test is None else f"; the campaign test, which no single ring decides, {'fails' if test.fails else 'passes'}"
         self.summary.content = (
             f"**Rings that exceed their noise:** {n_fail} of {len(result.failing)} orientations "
-            f"(out of sample, the within-noise test; the Map tab names them, worst first). On the {n_check} check rings the {result.baseline_model} baseline has MAE "
+            f"(out of sample, the within-noise test at the ring level, 1 %{campaign}; the Map tab names them, worst first). "
+            f"On the {n_check} check rings the {result.baseline_model} baseline has MAE "
             f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
@@ -352,11 +323,7 @@ class PhysicsPanel:
             self.history.visible = False
             self.history_table.content = self.fall.content = ""
             return
-        self.history.data = history_data(steps)
-        # From zero: the fall is read against the whole error, not against a zoomed-in difference.
-        top = 1.15 * max(float(np.nanmax(series)) for series in self.history.data[1:])
-        self.history.scales = {"x": {"time": False, "range": [-0.5, len(steps) - 0.5]}, "y": {"range": [0.0, top]}}
-        self.history.axes = ({"size": 24, "splits": tuple(float(k) for k in range(len(steps)))}, {"size": 48})
+        self.history.content = history_svg(steps)  # from zero: the fall is read against the whole error
         # One step is one point: the fall line says it; the chart (and its room) waits for a refit.
         self.history.visible = len(steps) > 1
         lines = ["| step | vs mean (floor) | vs single (floor) |", "|---|---|---|"]

@@ -20,7 +20,7 @@ from pathlib import Path
 import viser
 
 from ph_explorer import paths
-from ph_explorer.app.dataset import Dataset, default_dataset, scenario_descriptions
+from ph_explorer.app.dataset import Dataset, default_dataset, shipped_scenarios
 from ph_explorer.app.loading import LoadingNotice, open_server
 from ph_explorer.app.render_queue import RenderQueue, RenderStats
 from ph_explorer.app.scene import ring_camera
@@ -61,7 +61,7 @@ class ExplorerApp:
             renders=self.renders,
             heavy=threading.BoundedSemaphore(HEAVY_JOBS),
             catalog=catalog,
-            scenarios=scenario_descriptions(),
+            scenarios=shipped_scenarios(),
             geometry_overrides=dict(geometry_overrides or {}),
             stats=self.stats,
             study=study,

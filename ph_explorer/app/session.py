@@ -36,6 +36,7 @@ from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.figures.polar import polar_scale
 from ph_explorer.geometry import wrap_deg
+from ph_explorer.twin import Scenario
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
 # The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
@@ -51,7 +52,7 @@ class Shared:
     renders: RenderQueue  # the one render thread
     heavy: threading.BoundedSemaphore  # diagnoses, refits and loads running at once over all sessions
     catalog: Catalog  # the effects a session diagnoses and fits with
-    scenarios: Mapping[str, str]  # shipped scenario name -> description
+    scenarios: Mapping[str, Scenario]  # the shipped scenarios by name
     geometry_overrides: Mapping[str, float] = field(default_factory=dict)  # applied to uploaded files
     stats: RenderStats = field(default_factory=RenderStats)
     study: StudyFile | None = None  # the operator's study (serve --study), continued by every browser
@@ -114,7 +115,7 @@ class Session:
             with tabs.add_tab("Charts"):
                 self.charts = ChartsPanel(gui, self.view, self.controls.shown())
             with tabs.add_tab("Data"):
-                self.data_panel = DataPanel(gui, list(shared.scenarios))
+                self.data_panel = DataPanel(gui, {name: s.purpose for name, s in shared.scenarios.items()})
                 self.report_panel = ReportPanel(gui, self)  # Export report, Open study
         name_inputs(client)  # sliders reachable by their labels (a screen reader, a test's get_by_label)
         self.loop = PhysicsLoop(
@@ -155,8 +156,9 @@ class Session:
 
         @data.scenario.on_update
         def _(_: viser.GuiEvent) -> None:
-            if data.scenario.value in self.shared.scenarios:
-                self.submit(self.load_scenario, data.scenario.value)
+            name = data.chosen()
+            if name in self.shared.scenarios:
+                self.submit(self.load_scenario, name)
 
     def _control_changed(self, event: viser.GuiEvent) -> None:
         if event.client is not None:
@@ -368,7 +370,9 @@ class Session:
             self.controls.idle()
             self.data_panel.show_error(error.line())
             return
-        self.data_panel.show_info(f"Scenario **{name}** simulated by the twin. {self.shared.scenarios.get(name, '')}")
+        self.data_panel.show_info(
+            f"Scenario **{name}** simulated by the twin. {self.shared.scenarios[name].description if name in self.shared.scenarios else ''}"
+        )
         self._new_data(campaign, f"scenario {name} (simulated by the twin)", name)
 
     def _new_data(self, campaign: Campaign, label: str, what: str | None = None) -> None:

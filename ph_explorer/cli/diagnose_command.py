@@ -145,7 +145,9 @@ def _where_it_fails(result: Diagnosis) -> list[str]:
     ]
     for ring in result.failing_rings()[:5]:
         kind = "held out" if ring.held_out else "leave-one-out"
-        lines.append(f"  A {ring.a_deg:g} B {ring.b_deg:g} ({kind}): MAE {ring.mae_um:.3f} um, {ring.ratio:.1f}x its floor")
+        lines.append(
+            f"  A {ring.a_deg:g} B {ring.b_deg:g} ({kind}): MAE {ring.mae_um:.3f} um, {ring.ratio:.1f}x its floor; exceeds {ring.reason}"
+        )
     return lines
 
 

@@ -81,7 +81,7 @@ def format_report(report: Mapping[str, Any]) -> str:
     average = mean_mae(report)
     cells.append(["average"] + [f"{average[n][ref]:.3f}" for n in names for ref in references])
     cells.append(["noise floor"] + [_figure(floor[ref]) for n in names for ref in references])
-    table("Table 3. Mean absolute simulation error eps_s = delta_model - delta_measured / um", header, cells)
+    table("Table 3. Mean absolute prediction error (the paper's simulation error) eps_s = delta_model - delta_measured / um", header, cells)
     return "\n".join(out).rstrip() + "\n"
 
 

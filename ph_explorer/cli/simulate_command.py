@@ -84,10 +84,10 @@ def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None,
 
 
 def scenario_lines() -> list[str]:
-    """The shipped scenarios, 'name  description' with the names aligned."""
+    """The shipped scenarios, 'name  purpose' with the names aligned (the description: --scenario's run)."""
     shipped = twin.list_scenarios()
-    width = max((len(name) for name, _ in shipped), default=0)
-    return [f"{name:<{width}}  {description}" for name, description in shipped]
+    width = max((len(s.name) for s in shipped), default=0)
+    return [f"{s.name:<{width}}  {s.purpose or s.description}" for s in shipped]
 
 
 def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[twin.Scenario, int | None]:

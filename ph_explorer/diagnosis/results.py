@@ -6,6 +6,7 @@ that does not exist (no noise floor with one repetition) is null, never NaN.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -20,7 +21,7 @@ DIGITS = 5
 NULL_MARGIN = 2.0  # a candidate is beyond noise when it explains more than this multiple of the noise null
 # What the diagnosis can say of a campaign, and what each means.
 VERDICTS = {
-    "none": "the model predicts every ring within what its noise explains",
+    "none": "the campaign's within-noise test passes: what the model leaves of every ring but the worst is what its noise explains",
     "missing": "catalog effects found, replicated over rings, and with them the model is within noise",
     "suggested": "the model fails beyond noise; a catalog effect may explain it, but its gain is not replicated over rings",
     "partial": "catalog effects found, but the model still fails beyond noise with them",
@@ -130,10 +131,16 @@ class FailingRing:
     mae_um: float
     floor_um: float
     held_out: bool  # a check ring (predicted by the baseline), else predicted leave-one-out
+    by_scatter: bool = False  # exceeds by the scatter between its repetitions, not by its mean
 
     @property
     def ratio(self) -> float:
         return self.mae_um / self.floor_um if self.floor_um > 0 else float("inf")
+
+    @property
+    def reason(self) -> str:
+        """By which of the test's two statistics the ring exceeds (docs/methods/within_noise.md)."""
+        return "by the scatter between its repetitions (harmonics 2-8)" if self.by_scatter else "by its repetition mean"
 
 
 RING_VERDICTS = ("within its noise", "exceeds its noise")  # the within-noise test of one ring, 0 and 1
@@ -198,9 +205,16 @@ class Diagnosis:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
         out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
         mae, floor = self.out_of_sample_mae_um["mean"], self.out_of_sample_floor_um["mean"]
+        test = self.within_noise.get("baseline")
+        by_scatter = test.ring_by_scatter if test is not None else np.zeros(len(self.failing), dtype=bool)
         rings = [
             FailingRing(
-                float(self.orientations[i, 0]), float(self.orientations[i, 1]), float(mae[i]), float(floor[i]), bool(self.held_out[i])
+                float(self.orientations[i, 0]),
+                float(self.orientations[i, 1]),
+                float(mae[i]),
+                float(floor[i]),
+                bool(self.held_out[i]),
+                bool(by_scatter[i]),
             )
             for i in np.flatnonzero(self.failing)
         ]
@@ -274,7 +288,12 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         lines.append(
             f"Within-noise test ({model}): {test.failing_rings} of {len(test.ring_p_value)} rings exceed their noise; "
             f"by how much, summed over all rings but the worst: {test.statistic:.1f}, and the campaign fails above "
-            f"{test.critical:.1f} (p = {test.p_value:.3g}; false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)."
+            f"{test.critical:.1f} (p = {test.p_value:.3g}; false-alarm rate {100 * test.as_dict()['false_alarm_rate']:.0f} %)"
+            + (
+                ": the campaign is within noise, though a few rings exceed at the ring level (1 %), as noise alone makes some."
+                if test.failing_rings and not test.fails
+                else "."
+            )
         )
     for candidate in result.suggested:
         lines.append(
@@ -305,16 +324,13 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         told = [o for o in candidate.confounded_with if o.get("told_apart")]
         untold = [o for o in candidate.confounded_with if not o.get("told_apart")]
         for other in told:
+            lines.append(f"{shared_text(candidate.effect, other)}, yet the rings tell them apart: {told_apart_text(other)}.")
+        for other in untold:
+            told = f" ({told_apart_text(other)})" if "told_apart" in other else ""
             lines.append(
-                f"{candidate.effect} shares {percent(other['shared'])} of its columns with {other['effect']}, yet the rings tell them "
-                f"apart: {told_apart_text(other)}."
+                f"{shared_text(candidate.effect, other)}: this campaign cannot tell them apart{told}; the credit is not theirs to split."
             )
         if untold:
-            shared = ", ".join(
-                f"{o['effect']} ({percent(o['shared'])} shared" + (f"; {told_apart_text(o)}" if "told_apart" in o else "") + ")"
-                for o in untold
-            )
-            lines.append(f"{candidate.effect} cannot be told apart from {shared} on this campaign: the credit is not theirs to split.")
             if any("told_apart" in o for o in untold):
                 lines.append(
                     "Which rings would tell them apart: Rings that would decide (explorer), or ph-explorer design --data FILE.csv --decide."
@@ -323,6 +339,17 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def exceeding_text(count: int) -> str:
+    """'1 ring exceeds its noise', '3 rings exceed their noise'."""
+    return "1 ring exceeds its noise" if count == 1 else f"{count} rings exceed their noise"
+
+
+def shared_text(effect: str, other: Mapping[str, Any]) -> str:
+    """What a confounded partner's share means: '93 % of what this campaign shows of X is also
+    explained by Y' (the largest squared canonical correlation of their columns over the touches)."""
+    return f"{percent(other['shared'])} of what this campaign shows of {effect} is also explained by {other['effect']}"
 
 
 def percent(share: float) -> str:

@@ -44,10 +44,22 @@ class NoiseTest:
     p_value: float  # chance that pure noise gives at least this statistic
     fails: bool
     tolerance: float = MEAN_TOLERANCE  # the systematic error a ring's mean may hold, times its noise
+    # Each ring's p-value of its repetition mean (against the tolerance) and of the scatter between
+    # its repetitions (harmonics WITHIN_HARMONICS): which of the two makes a ring exceed.
+    ring_p_mean: NDArray[np.float64] | None = None
+    ring_p_within: NDArray[np.float64] | None = None
 
     @property
     def ring_exceeds(self) -> NDArray[np.bool_]:
         return self.ring_p_value < RING_LEVEL
+
+    @property
+    def ring_by_scatter(self) -> NDArray[np.bool_]:
+        """Rings whose scatter between repetitions, not their mean, gives the smaller p-value: such a
+        ring can exceed its noise with a repetition-mean MAE under its floor."""
+        if self.ring_p_mean is None or self.ring_p_within is None:
+            return np.zeros(len(self.ring_p_value), dtype=bool)
+        return self.ring_p_within < self.ring_p_mean
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -187,7 +199,7 @@ def within_noise(
     p_undone = _upper_p((undone**2).mean(axis=-1), tolerance * null_stat)
     statistic = float(np.delete(_excess(_combined(p_undone, p_within)), worst).sum())
     p_value = float((1.0 + (null.null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
-    return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance)
+    return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance, p_mean, p_within)
 
 
 def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:

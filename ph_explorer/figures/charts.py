@@ -7,7 +7,9 @@ Figures: docs/explorer.md.
 
 from __future__ import annotations
 
+import html
 import math
+import re
 from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
@@ -21,6 +23,7 @@ if TYPE_CHECKING:  # the charts stay light: the map imports nice_ticks from here
 RESIDUAL_COLOR, FITTED_COLOR = "#444444", "#d62728"
 # The history chart: one colour per reference (solid the step's MAE, dashed its noise floor).
 HISTORY_COLORS = {"mean": "#1f77b4", "single": "#d95f02"}
+HISTORY_TITLE = "Check-ring MAE (um) per step"
 GRID = "#e2e2e2"
 
 
@@ -85,7 +88,9 @@ def evidence_svg(evidence: dict, title: str) -> str:
     round ticks on both axes (nice_ticks), the units in the axis titles."""
     x = np.asarray(evidence["x"], dtype=float)
     residual, fitted = np.asarray(evidence["residual"], dtype=float), np.asarray(evidence["fitted"], dtype=float)
-    width, height, left, right, top, bottom = 400.0, 176.0, 46.0, 10.0, 22.0, 126.0
+    # The y title runs above the plot, not up its side: a long one ("out-of-sample residual along
+    # the fitted ring pattern (um)") is longer than the plot is tall.
+    width, height, left, right, top, bottom = 400.0, 188.0, 40.0, 10.0, 34.0, 138.0
     x_low, x_high = float(x.min()), float(x.max())
     x_pad = 0.02 * (x_high - x_low if x_high > x_low else 1.0)  # the end bins' dots inside the frame
     x_low, x_high = x_low - x_pad, x_high + x_pad
@@ -102,20 +107,17 @@ def evidence_svg(evidence: dict, title: str) -> str:
         return bottom - (np.asarray(v, dtype=float) - y_low) / (y_high - y_low) * (bottom - top)
 
     parts = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
+        f'<svg viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
         f'aria-label="signature plot {title}" style="font-family:sans-serif;background:#fff">',
-        f'<text x="2" y="14" font-size="11.5" font-weight="600">{title}</text>',
+        f'<text x="2" y="14" font-size="11.5" font-weight="600">{_escaped(title)}</text>',
         f'<rect x="{left}" y="{top}" width="{width - left - right}" height="{bottom - top}" fill="#fafafa" stroke="#888"/>',
     ]
     parts += x_axis_svg(nice_ticks(x_low, x_high), sx, top, bottom, font_size=10)
     parts += y_axis_svg(nice_ticks(y_low, y_high, 4), sy, left, width - right, font_size=10, zero_stroke="#999")
     parts.append(
-        f'<text x="{(left + width - right) / 2:.1f}" y="{bottom + 26}" font-size="10.5" text-anchor="middle">{evidence["x_label"]}</text>'
+        f'<text x="{(left + width - right) / 2:.1f}" y="{bottom + 26}" font-size="10.5" text-anchor="middle">{_escaped(evidence["x_label"])}</text>'
     )
-    parts.append(
-        f'<text x="10" y="{(top + bottom) / 2:.1f}" font-size="10.5" text-anchor="middle" '
-        f'transform="rotate(-90 10 {(top + bottom) / 2:.1f})">{evidence["y_label"]}</text>'
-    )
+    parts.append(f'<text x="{left}" y="{top - 5}" font-size="10.5">{_escaped(evidence["y_label"])}</text>')
     order = np.argsort(x, kind="stable")
     line = " L".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x[order]), sy(fitted[order])) if np.isfinite(b))
     parts.append(f'<path d="M{line}" fill="none" stroke="{FITTED_COLOR}" stroke-width="2"/>')
@@ -131,11 +133,38 @@ def evidence_svg(evidence: dict, title: str) -> str:
     return "".join(parts)
 
 
-def history_svg(steps: Sequence[Step]) -> str:
-    """The error history as a chart: MAE against the repetition mean and single repetitions per step,
-    each with its noise floor dashed, steps across, um up (round ticks)."""
-    width, left, right, top, plot_h = 420.0, 48.0, 110.0, 14.0, 200.0
+def step_names(steps: Sequence[Step]) -> list[str]:
+    """Each step by what it added: "baseline", then "+ b_axis_cyclic" (the effects new at that step)."""
+    names, before = [], set()
+    for step in steps:
+        new = [e for e in step.added if e not in before] or list(step.added)
+        names.append("+ " + " + ".join(new) if new else "baseline")
+        before = set(step.added)
+    return names
+
+
+def wrapped(text: str, chars: int) -> list[str]:
+    """text in lines of about `chars` characters, broken after a space or an underscore (effect ids)."""
+    lines, line = [], ""
+    for token in re.findall(r"[^ _]+[ _]?|[ _]", text):
+        if line and len(line) + len(token.rstrip()) > chars:
+            lines.append(line.rstrip())
+            line = ""
+        line += token
+    return [*lines, line.rstrip()] if line.strip() else lines
+
+
+def history_svg(steps: Sequence[Step], names: Sequence[str] | None = None) -> str:
+    """The error history as a chart: MAE against the repetition mean and single repetitions per step
+    (solid, dots), each with its noise floor (dashed), the steps named under the axis (`step_names`,
+    or `names`), um up (round ticks), the legend under the names in the lines' own styles."""
+    names = list(names) if names is not None else step_names(steps)
+    width, left, right, top, plot_h, font = 420.0, 44.0, 10.0, 24.0, 150.0, 10.5
     plot_w = width - left - right
+    n = len(steps)
+    slot = plot_w / max(n, 1)
+    label_lines = [wrapped(name, max(6, int(slot / (0.56 * font)))) for name in names]
+    rows = max((len(lines) for lines in label_lines), default=1)
     mae = {ref: np.array([s.mae_um[ref] for s in steps], dtype=float) for ref in HISTORY_COLORS}
     floor = {ref: np.array([s.noise_floor_um[ref] for s in steps], dtype=float) for ref in HISTORY_COLORS}
     values = np.concatenate([*mae.values(), *floor.values()])
@@ -143,38 +172,50 @@ def history_svg(steps: Sequence[Step]) -> str:
     high = float(values.max()) * 1.1 if values.size else 1.0
     ticks = nice_ticks(0.0, high)
     high = max(high, ticks[-1] if ticks else high)
-    n = len(steps)
-    xs = left + (np.arange(n) + 0.5) / n * plot_w
+    xs = left + (np.arange(n) + 0.5) * slot
     bottom = top + plot_h
+    legend_top = bottom + 16 + 13 * (rows - 1) + 22  # under the last line of names
+    height = legend_top + 2 * 15 + 4
 
     def y_of(v: NDArray[np.float64]) -> NDArray[np.float64]:
         return bottom - np.asarray(v, dtype=float) / high * plot_h
 
     parts = [
-        f'<svg viewBox="0 0 {width:g} {bottom + 36:g}" width="100%" role="img" aria-label="history of the check-ring error" '
-        'style="font-family:sans-serif;background:#fff">',
+        f'<svg viewBox="0 0 {width:g} {height:g}" width="100%" role="img" '
+        'aria-label="history of the check-ring error" style="font-family:sans-serif;background:#fff">',
+        f'<text x="2" y="13" font-size="11.5" font-weight="600">{HISTORY_TITLE}</text>',
         f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fafafa" stroke="#888"/>',
     ]
-    parts += y_axis_svg(ticks, y_of, left, left + plot_w, font_size=11)
-    parts += x_axis_svg(range(n), lambda k: xs[k], top, bottom, font_size=11, grid=False, label_gap=14)
-    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 30}" font-size="12" text-anchor="middle">step</text>')
-    half = 0.4 * plot_w / n  # a floor is a level across its step's width: one step shows it too
-    for k, (ref, color) in enumerate(HISTORY_COLORS.items()):
+    parts += y_axis_svg(ticks, y_of, left, left + plot_w, font_size=font)
+    for x, lines in zip(xs, label_lines):  # each step's name under its slot, on as many lines as it needs
+        spans = "".join(f'<tspan x="{x:.1f}" dy="{0 if k == 0 else 13}">{_escaped(line)}</tspan>' for k, line in enumerate(lines))
+        parts.append(f'<text x="{x:.1f}" y="{bottom + 16}" font-size="{font:g}" text-anchor="middle">{spans}</text>')
+    half = 0.4 * slot  # a floor is a level across its step's width: one step shows it too
+    for ref, color in HISTORY_COLORS.items():
         finite = np.isfinite(floor[ref])
         levels = " ".join(f"{x - half:.1f},{y:.1f} {x + half:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(floor[ref][finite])))
-        parts.append(f'<polyline points="{levels}" fill="none" stroke="{color}" stroke-width="2.5" stroke-dasharray="5 4"/>')
+        parts.append(f'<polyline points="{levels}" fill="none" stroke="{color}" stroke-width="2" stroke-dasharray="5 4"/>')
         finite = np.isfinite(mae[ref])
         points = " ".join(f"{x:.1f},{y:.1f}" for x, y in zip(xs[finite], y_of(mae[ref][finite])))
         parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="2.5"/>')
-        for x, y in zip(xs, y_of(mae[ref])):
-            if math.isfinite(y):
-                parts.append(f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{color}"/>')
-        legend_y = top + 14 + 34 * k
+        for x, y, name, value, level in zip(xs, y_of(mae[ref]), names, mae[ref], floor[ref]):
+            if math.isfinite(y):  # its figures on hover
+                parts.append(
+                    f'<circle cx="{x:.1f}" cy="{y:.1f}" r="4" fill="{color}"><title>{_escaped(name)}: '
+                    f"{value:.3f} um vs {ref}, floor {level:.3f}</title></circle>"
+                )
+    for k, (ref, color) in enumerate(HISTORY_COLORS.items()):  # the legend: each line in its own style
+        y = legend_top + 15 * k
         parts.append(
-            f'<line x1="{left + plot_w + 8}" y1="{legend_y}" x2="{left + plot_w + 26}" y2="{legend_y}" stroke="{color}" stroke-width="2.5"/>'
-            f'<text x="{left + plot_w + 30}" y="{legend_y + 4}" font-size="11">vs {ref}</text>'
-            f'<line x1="{left + plot_w + 8}" y1="{legend_y + 14}" x2="{left + plot_w + 26}" y2="{legend_y + 14}" stroke="{color}" '
-            f'stroke-width="2.5" stroke-dasharray="5 4"/><text x="{left + plot_w + 30}" y="{legend_y + 18}" font-size="11">its floor</text>'
+            f'<line x1="{left}" y1="{y - 3.5}" x2="{left + 22}" y2="{y - 3.5}" stroke="{color}" stroke-width="2.5"/>'
+            f'<circle cx="{left + 11}" cy="{y - 3.5}" r="3.5" fill="{color}"/>'
+            f'<text x="{left + 28}" y="{y}" font-size="{font:g}">MAE vs {ref}</text>'
+            f'<line x1="{left + 170}" y1="{y - 3.5}" x2="{left + 192}" y2="{y - 3.5}" stroke="{color}" stroke-width="2" '
+            f'stroke-dasharray="5 4"/><text x="{left + 198}" y="{y}" font-size="{font:g}">its noise floor</text>'
         )
-    parts.append(f'<text x="4" y="{top + 10}" font-size="11">um</text></svg>')
+    parts.append("</svg>")
     return "".join(parts)
+
+
+def _escaped(text: str) -> str:
+    return html.escape(text, quote=False)

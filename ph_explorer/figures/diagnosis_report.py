@@ -20,7 +20,7 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, Step
 from ph_explorer.diagnosis.study import study_steps
 from ph_explorer.effects import Catalog
-from ph_explorer.figures.charts import history_svg
+from ph_explorer.figures.charts import history_svg, step_names
 from ph_explorer.figures.orientation_map import MapFigure
 
 MAX_FAILING_LISTED = 15  # the worst failing rings named; the map's colours show every ring
@@ -140,8 +140,8 @@ def _history(steps: Sequence[Step], names: EffectNames) -> list[str]:
     )
     return [
         '<h3>History: the check-ring error as effects were added</h3><div class="pair" id="history">',
-        f'<figure id="history-chart">{history_svg(steps)}<figcaption>MAE on the check rings per step (um); dashed: '
-        "each reference's noise floor.</figcaption></figure>",
+        f'<figure id="history-chart">{history_svg(steps, [names.text(name) for name in step_names(steps)])}'
+        "<figcaption>MAE on the check rings per step (um); dashed: each reference's noise floor.</figcaption></figure>",
         "<div><table><tr><th>step</th><th>model</th><th>MAE vs mean, um</th><th>floor</th><th>MAE vs single, um</th><th>floor</th></tr>"
         f"{rows}</table></div></div>",
     ]
@@ -189,14 +189,14 @@ def _where_it_fails(study: Mapping[str, Any], diagnosis: Diagnosis | None) -> li
         return parts + ["<p>No ring exceeds its noise (the within-noise test, ring level 1 %).</p>"]
     rows = "".join(
         f'<tr><td>{_e(orientation_label(r.a_deg, r.b_deg))}</td><td class="t">{"check ring" if r.held_out else "leave-one-out"}</td>'
-        f"<td>{r.mae_um:.3f}</td><td>{r.floor_um:.3f}</td><td>{r.ratio:.1f}</td></tr>"
+        f'<td>{r.mae_um:.3f}</td><td>{r.floor_um:.3f}</td><td>{r.ratio:.1f}</td><td class="t">{_e(r.reason)}</td></tr>'
         for r in rings[:MAX_FAILING_LISTED]
     )
     more = f" The worst {MAX_FAILING_LISTED} are listed; the map shows every ring." if len(rings) > MAX_FAILING_LISTED else ""
     return parts + [
         f"<p>{len(rings)} of {len(diagnosis.failing)} rings exceed their noise under the baseline, worst first (out-of-sample MAE "
         f"against the repetition mean over its own floor).{more}</p>",
-        f"<table><tr><th>ring</th><th>predicted</th><th>MAE, um</th><th>floor, um</th><th>x floor</th></tr>{rows}</table>",
+        f"<table><tr><th>ring</th><th>predicted</th><th>MAE, um</th><th>floor, um</th><th>x floor</th><th>exceeds</th></tr>{rows}</table>",
     ]
 
 

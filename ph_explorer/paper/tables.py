@@ -1,7 +1,7 @@
 """The paper's Tables 1-3 at held-out orientations, with the noise floor each figure is read against.
 
 For each held-out orientation: the range and the maximum |deviation| of the measured mean curve
-and of each model's curve (Tables 1 and 2), and the mean absolute simulation error
+and of each model's curve (Tables 1 and 2), and the mean absolute prediction error (the paper's "simulation error")
 eps_s = delta_model - delta_measured (Table 3) against two references: the mean of the
 repetitions, and single repetitions (averaged over them). The MAE and the noise floor come from
 ph_explorer.metrics; cli/evaluate_command.py prints the tables. `tables_at` gives them at one orientation
@@ -113,7 +113,12 @@ def tables_markdown(
     lines.append("")
     if t["mae_um"]:
         models = list(t["mae_um"])
-        lines += ["Table 3 — mean absolute simulation error", "", "| um | " + " | ".join(models) + " |", "|---|" + "---|" * len(models)]
+        lines += [
+            "Table 3 — mean absolute prediction error (the paper's simulation error)",
+            "",
+            "| um | " + " | ".join(models) + " |",
+            "|---|" + "---|" * len(models),
+        ]
         lines.append("| vs mean | " + " | ".join(_fmt(t["mae_um"][m]["mean"]) for m in models) + " |")
         lines.append("| vs single | " + " | ".join(_fmt(t["mae_um"][m]["single"]) for m in models) + " |")
         if noise_floor_um:

@@ -29,7 +29,7 @@ from ph_explorer.paths import scenarios_dir
 
 SCAN_ORDERS = ("orientation", "repetition")
 SCAN_DIRECTIONS = ("forward", "alternating")
-TOP_KEYS = {"name", "description", "seed", "repetitions", "check_orientations", "geometry", "orientations", "scan", "effects"}
+TOP_KEYS = {"name", "purpose", "description", "seed", "repetitions", "check_orientations", "geometry", "orientations", "scan", "effects"}
 
 
 @dataclass
@@ -51,6 +51,7 @@ class Scenario:
     move_s: float = 8.0
     source: str | None = None
     start_s: float = 0.0  # the first touch's time: later than 0 for rings measured after the campaign (at_rings)
+    purpose: str = ""  # what it is for, in a few words that give nothing hidden away (the explorer's list)
 
     @property
     def hidden_ids(self) -> list[str]:
@@ -175,6 +176,7 @@ def scenario_from_dict(
     return Scenario(
         name=str(data.get("name", default_name)),
         description=" ".join(str(data.get("description", "")).split()),
+        purpose=" ".join(str(data.get("purpose", "")).split()),
         orientations=orientations,
         effects=effects,
         hidden=hidden,
@@ -212,9 +214,9 @@ def load_scenario(name_or_path: str | Path, catalog: Catalog = DEFAULT_CATALOG) 
     return scenario_from_dict(data, source=str(path), default_name=path.stem, catalog=catalog)
 
 
-def list_scenarios() -> list[tuple[str, str]]:
-    """(name, one-line description) of every shipped scenario."""
-    return [(s.name, s.description) for s in (load_scenario(p) for p in shipped_scenario_paths())]
+def list_scenarios() -> list[Scenario]:
+    """Every shipped scenario, by name (its purpose and description: what a list shows of it)."""
+    return [load_scenario(p) for p in shipped_scenario_paths()]
 
 
 def twin_scenario(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG) -> Scenario | None:
@@ -226,7 +228,7 @@ def twin_scenario(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG) -> Sce
     name, specs = record.get("name"), record.get("effects")
     if "seed" not in record or not name:
         return None
-    if name in {n for n, _ in list_scenarios()}:
+    if name in {s.name for s in list_scenarios()}:
         return replace(load_scenario(name), seed=int(record["seed"]))
     if not specs or any(spec.get("id") not in catalog for spec in specs):
         return None
