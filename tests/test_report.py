@@ -332,6 +332,40 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
         fake.close()
 
 
+def test_the_report_after_a_refit_is_the_session(app) -> None:
+    """Issue 31, item 7: Diagnose, tick the found effect, Refit, Export report: the report holds the
+    model as refitted (not "the baseline alone"), every step of the history, the candidates ranked
+    and a signature plot; the found effect is named only once the browser has revealed it."""
+    fake, s = open_session(app)
+    try:
+        fake.click("Diagnose")
+        assert wait_for(lambda: s.loop.diagnosis is not None, timeout=300)
+        s.wait(timeout=300)
+        found = s.loop.diagnosis.found[0].effect
+        s.physics.effects[found].value = True
+        fake.click("Refit the hybrid")
+        assert wait_for(lambda: len(s.loop.steps) == 2, timeout=300)
+        s.wait(timeout=120)
+        fake.click("Export report")
+        page = fake.download("report_small_b22.html", timeout=120).decode("utf-8")
+        assert "the model is the baseline" not in page and "Effects in the model, fitted parameters" in page
+        history = page[page.index('id="history"') :]
+        for step in s.loop.steps:  # every step of the session's history, in its table
+            assert f"<td>{step.mae_um['mean']:.3f}</td>" in history
+        assert history.count("</tspan></text>") >= 2 and ">baseline</tspan>" in history  # steps named on the chart
+        assert "Candidate effects, best first" in page and 'id="signature-chart"' in page and "signature plot" in page
+        assert named(page, "head_3") == []  # a teaching campaign, not revealed: "effect A"
+        fake.click("Reveal the hidden effect")
+        assert wait_for(lambda: s.loop.revealed, timeout=60)
+        fake.click("Export report")
+        assert wait_for(lambda: len(fake.downloaded()) == 2, timeout=120)
+        page = fake.download("report_small_b22.html", timeout=120).decode("utf-8")
+        assert f"{DEFAULT_CATALOG[found].name} ({found})" in page and f"+ {found}" in page
+    finally:
+        s.wait(timeout=120)
+        fake.close()
+
+
 def test_download_study_before_anything_says_what_to_do_first(app) -> None:
     fake, s = open_session(app)
     try:

@@ -61,6 +61,7 @@ class PhysicsLoop:
         self.previous = study.current() if study is not None else None
         self.chain: list[Effect] = chain_of(self.previous, catalog, str(study.path)) if study is not None else []
         self.refitted: list[Effect] | None = None
+        self.revealed = False  # the browser asked what a teaching scenario hides: its report names it
         self.diagnosed = False  # a diagnosis since the study was opened or last saved: a run to save
         # The study applies while this session shows the campaign it belongs to (until new data).
         self.study_open = study is not None
@@ -90,6 +91,7 @@ class PhysicsLoop:
         # The study belongs to the served campaign only; reloading the page opens it again.
         self.study_open = False
         self.refitted = None
+        self.revealed = False
         self._show_study_line()
 
     def diagnose(self) -> None:
@@ -127,6 +129,7 @@ class PhysicsLoop:
         self.show(ds.with_figures(diagnosis_figures(result)))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
             self.steps = list(result.steps[: 1 + len(start)])
+            self.refitted = None  # a new history: no refit of it yet
         p.show_history(self.steps)
         self.diagnosed = self.study_open
         continued = f", continuing the study from {' + '.join(effect_label(e) for e in start)}" if start else ""
@@ -206,8 +209,7 @@ class PhysicsLoop:
         )
         if ds.campaign is not self.current().campaign:
             return  # the data changed meanwhile
-        if self.study_open:
-            self.refitted = effects  # the next save's chain
+        self.refitted = effects  # the next save's chain, the report's model
         self.steps.append(step)
         p.show_history(self.steps)
         fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
@@ -251,6 +253,7 @@ class PhysicsLoop:
         if not scenario.get("hidden"):
             self.panel.revealed.content = "_This campaign records no hidden effect (it is not a teaching scenario)._"
             return
+        self.revealed = True
         found = {c.effect: c for c in reversed(self.diagnosis.candidates)} if self.diagnosis is not None else {}
         refitted = {p["effect"]: p["params"] for step in self.steps for p in step.params}
         lines = []

@@ -72,6 +72,8 @@ def session_study(loop: PhysicsLoop, described: dict[str, Any]) -> dict[str, Any
         if loop.study_open:
             chain = loop.refitted if loop.refitted is not None else loop.chain
             return study_record(loop.diagnosis, chain, described, APP_DATA_PART, None, loop.previous, steps=loop.steps)
+        if loop.refitted is not None:  # the model as refitted last and the history of every step
+            return study_record(loop.diagnosis, loop.refitted, described, APP_DATA_PART, steps=loop.steps)
         return study_record(loop.diagnosis, loop.diagnosis.chain, described, APP_DATA_PART)
     return loop.previous if loop.study_open else None
 
@@ -122,7 +124,7 @@ class ReportPanel:
             chosen[:3],
             study,
             loop.diagnosis,
-            reveal=bool(self.reveal.value),
+            reveal=bool(self.reveal.value) or loop.revealed,  # named once the browser has revealed them
             created=created,
             source=name,
             decision=loop.decision.as_dict() if loop.decision is not None else None,

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import Diagnosis, Step
+from ph_explorer.diagnosis.results import Diagnosis, Step, signature_text
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
 
@@ -93,7 +93,29 @@ def study_record(
         # the one the study's last nested figures measured.
         "nested_after": figures["nested_after"] if figures["nested_after"] is not None else (previous or {}).get("nested_after"),
         "runs": [*(previous or {}).get("runs", []), run],
+        # What the last run saw, for its report: the candidates ranked and one signature plot.
+        "candidates": [
+            {
+                k: c[k]
+                for k in ("effect", "status", "explained_fraction", "error_reduction", "noise_fraction", "params", "params_u", "settings")
+            }
+            for c in figures["candidates"]
+        ],
+        "signature_plot": signature_plot(result),
     }
+
+
+def signature_plot(result: Diagnosis) -> dict[str, Any] | None:
+    """The run's plot of evidence worth a report: the first found effect's signature (its residual
+    and fitted term), else what is left unexplained, else the top candidate's; None if none has one."""
+    for candidate in [*result.found, *result.suggested]:
+        if candidate.evidence.get("x"):
+            return {"title": f"{candidate.effect} ({candidate.status})", "evidence": candidate.evidence}
+    for entry in result.signature:
+        if entry["significant"] and entry["evidence"].get("x"):
+            return {"title": "left unexplained: " + signature_text(entry), "evidence": entry["evidence"]}
+    top = next((c for c in result.candidates if c.evidence.get("x")), None)
+    return None if top is None else {"title": f"{top.effect} ({top.status}, the best candidate)", "evidence": top.evidence}
 
 
 def check_study(study: dict[str, Any], source: str) -> dict[str, Any]:

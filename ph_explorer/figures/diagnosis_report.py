@@ -20,7 +20,7 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, Step
 from ph_explorer.diagnosis.study import study_steps
 from ph_explorer.effects import Catalog
-from ph_explorer.figures.charts import history_svg, step_names
+from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
 from ph_explorer.figures.orientation_map import MapFigure
 
 MAX_FAILING_LISTED = 15  # the worst failing rings named; the map's colours show every ring
@@ -73,6 +73,8 @@ def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | No
     parts += _chain_table(study, catalog, names)
     if diagnosis is not None and diagnosis.found and not names.teaching:  # a teaching text says what the effect is
         parts.append(f'<p class="note">{_e(diagnosis.found[0].teaching)}</p>')
+    parts += _ranking(study, catalog, names)
+    parts += _signature(study, names)
     steps = study_steps(dict(study), "study")
     parts += _history(steps, names)
     parts += _nested(study.get("nested_after"), names)
@@ -119,6 +121,54 @@ def _chain_table(study: Mapping[str, Any], catalog: Catalog, names: EffectNames)
         "<table><tr><th>effect</th><th>scanned settings</th><th>fitted parameters +- expanded uncertainty</th></tr>"
         + "".join(rows)
         + "</table>",
+    ]
+
+
+RANKED_SHOWN = 8  # the report's candidate table: the best this many
+
+
+def _ranking(study: Mapping[str, Any], catalog: Catalog, names: EffectNames) -> list[str]:
+    """The last run's candidates, best first: what each explains, the fall of the check rings'
+    error, what noise alone explains, and its status (a study made before 2026-11 has none)."""
+    candidates = study.get("candidates") or []
+    if not candidates:
+        return []
+    rows = []
+    for rank, c in enumerate(candidates[:RANKED_SHOWN], 1):
+        cls = catalog.get(str(c["effect"]))
+        fitted = (
+            cls.parameters_text(c.get("params") or {}, c.get("params_u") or None)
+            if cls is not None and c["status"] != "not significant"
+            else ""
+        )
+        rows.append(
+            f'<tr><td class="t">{rank}. {_e(names.label(str(c["effect"])))}</td><td>{100 * c["explained_fraction"]:.1f} %</td>'
+            f'<td>{100 * c["error_reduction"]:.0f} %</td><td>{100 * c["noise_fraction"]:.2f} %</td><td class="t">{_e(c["status"])}</td>'
+            f'<td class="t">{_e(names.text(fitted))}</td></tr>'
+        )
+    more = f" The best {RANKED_SHOWN} of {len(candidates)}." if len(candidates) > RANKED_SHOWN else ""
+    return [
+        "<h3>Candidate effects, best first</h3>",
+        "<table><tr><th>effect</th><th>explains</th><th>error &darr;</th><th>noise alone</th><th>status</th>"
+        f"<th>fitted +- U (k = 2)</th></tr>{''.join(rows)}</table>",
+        '<p class="note">explains: share of what the baseline cannot predict out of sample; error &darr;: fall of the '
+        f"check rings' error with it; noise alone: the most the same scan explains on pure noise.{more}</p>",
+    ]
+
+
+def _signature(study: Mapping[str, Any], names: EffectNames) -> list[str]:
+    """The run's signature plot (diagnosis.study.signature_plot): a residual binned against the
+    head's variable that shows it, and the fitted term."""
+    plot = study.get("signature_plot")
+    if not plot:
+        return []
+    evidence = dict(plot["evidence"])
+    evidence["x_label"], evidence["y_label"] = names.text(evidence["x_label"]), names.text(evidence["y_label"])
+    title = names.text(str(plot["title"]))
+    return [
+        "<h3>Signature</h3>",
+        f'<figure id="signature-chart" style="max-width:560px">{evidence_svg(evidence, title)}<figcaption>Every touch\'s out-of-sample residual, '
+        "binned against the variable that shows it (dots), and the term fitted to it (line).</figcaption></figure>",
     ]
 
 
