@@ -81,9 +81,23 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             renders = session.render_count
 
             # Every control is reachable by its label or its name, as a screen reader finds it (the
-            # Curves folder, collapsed at start so that the tabs sit high, opened by its title first).
-            page.get_by_text("Curves", exact=True).click()
+            # Curves folder, collapsed at start so that the tabs sit high, opened by its title first:
+            # a folder is a button named by its title, expanded or not, and opens with the keyboard).
+            nameless = "() => [...document.querySelectorAll('button, [role=button]')].filter(b => !(b.innerText.trim() || b.getAttribute('aria-label'))).length"
+            assert wait_for(lambda: page.evaluate(nameless) == 0, timeout=30), "a button without a name"
+            for name in ("Orientation", "Curves", "Effects in the hybrid (all)", "More: candidates, tests, history", "Settings"):
+                assert page.get_by_role("button", name=name, exact=True).count() == 1, name
+            curves = page.get_by_role("button", name="Curves", exact=True)
+            assert curves.get_attribute("aria-expanded") == "false"
+            curves.focus()
+            page.keyboard.press("Enter")
             page.get_by_label("Magnification").wait_for(timeout=30_000)
+            assert wait_for(lambda: curves.get_attribute("aria-expanded") == "true")
+            # The software-WebGL notice (no GPU here) closes by its name.
+            notices = page.locator(".mantine-Notification-root")
+            if notices.count():
+                page.get_by_role("button", name="Close notice").first.click()
+                assert wait_for(lambda: notices.count() == 0, timeout=10)
             for label in ("A (deg)", "B (deg)", "Magnification", "Worst", "Measured mean", "Monte Carlo band"):
                 assert page.get_by_label(label).count() == 1, label
             for name in ("A (deg)", "B (deg)", "Magnification"):
