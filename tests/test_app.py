@@ -115,24 +115,30 @@ def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
     s = browser
     axial = s.dataset.campaign.geometry.axial_distance_mm
     s.go_to(43.0, 90.0)
-    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm)
+    aspect = s.client.camera.aspect  # the fake browser's canvas: 800 x 600
+    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=aspect)
     np.testing.assert_allclose(s.client.camera.position, position, atol=1e-6)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    np.testing.assert_allclose(look_at, axial * stylus_direction(43.0, 90.0), atol=1e-9)  # the ring mid-canvas
     assert s.head.root.visible
     s.look("along the axis")
     s.go_to(75.0, 40.0)  # the following camera keeps the chosen view
-    position, look_at, up = axis_camera(75.0, 40.0, axial, s.ring.extent_mm)
+    position, look_at, up = axis_camera(75.0, 40.0, axial, s.ring.extent_mm, aspect)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
     view = (look_at - s.client.camera.position) / np.linalg.norm(look_at - s.client.camera.position)
     np.testing.assert_allclose(view, stylus_direction(75.0, 40.0), atol=1e-9)  # square to the ring plane: undistorted
     # The head, between the camera and the ring, is hidden; the whole chart is inside the field
-    # of view; the ring's e2 is up, so theta turns counter-clockwise as on the panel's chart.
+    # of view, centred, both ways for this canvas's aspect; the ring's e2 is up, so theta turns
+    # counter-clockwise as on the panel's chart.
     centre = axial * stylus_direction(75.0, 40.0)
     distance = float(np.dot(centre - np.asarray(s.client.camera.position), view))
     assert distance > 0.0 and not s.head.root.visible
-    half = np.tan(np.radians(0.5 * CAMERA_FOV_DEG))  # vertical; a 1440x900 window is 1.6 times wider
-    assert s.ring.extent_mm / distance < half
-    assert (np.linalg.norm(look_at - centre) + s.ring.extent_mm) / distance < 1.6 * half
+    np.testing.assert_allclose(look_at, centre, atol=1e-9)
+    half = np.tan(np.radians(0.5 * CAMERA_FOV_DEG))  # vertical
+    assert s.ring.extent_mm / distance < half * min(1.0, aspect)
+    for narrow in (0.52, 0.66):  # a 1280x720 canvas between the panels, and narrower: still whole
+        position, _, _ = axis_camera(75.0, 40.0, axial, s.ring.extent_mm, narrow)
+        assert s.ring.extent_mm / np.linalg.norm(centre - position) < half * narrow
     np.testing.assert_allclose(s.client.camera.up_direction, rotation_of(s.ring.frame.wxyz)[:, 1], atol=1e-9)
     s.controls.follow.value = False
     s.go_to(15.0, -20.0)  # not following: the camera stays where the user put it
@@ -157,7 +163,8 @@ def test_magnification_scales_the_deviation_about_the_reference_circle(browser) 
 
 def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_circles(browser) -> None:
     """At every offered magnification, with each repetition shown, nothing drawn reaches the centre;
-    each scale circle's label in the scene says the deviation its radius stands for."""
+    each scale circle's label in the flat polar plot says the deviation its radius stands for, and
+    the plot writes the magnification and scale (the 3D chart writes only point numbers and theta)."""
     from ph_explorer.figures.polar import INNER_CLEARANCE, offered_magnifications
 
     s = browser
@@ -169,14 +176,10 @@ def test_the_polar_chart_keeps_every_repetition_off_the_centre_and_labels_its_ci
         assert scale.magnification == m
         reps = np.asarray(s.ring.repetitions.points)[:, 0, :2]
         assert np.linalg.norm(reps, axis=1).min() >= INNER_CLEARANCE * scale.base_mm - 1e-3
-        for handle, (_text, _radius) in zip(s.ring.scale_labels, scale.labelled_circles()):
-            value = float(handle.text.split(" um")[0])
-            assert handle.visible and np.isclose(
-                np.linalg.norm(np.asarray(handle.position)[:2]), scale.base_mm + m * 1e-3 * value, rtol=1e-5
-            )
-        assert f"x{m:g}" in s.ring.caption.text and f"x{m:g}" in s.polar.plot.content
-        # The title and the magnification on opposite sides of the chart: never drawn over each other.
-        assert s.ring.title.position[1] * s.ring.caption.position[1] < 0
+        for text, radius in scale.labelled_circles():
+            assert f">{text}" in s.polar.plot.content  # the flat chart labels every circle
+            assert np.isclose(radius, scale.base_mm + m * 1e-3 * float(text.split(" um")[0]), rtol=1e-5)
+        assert f"x{m:g}, " in s.polar.plot.content  # the scale, beside the scene
     s.controls.repetitions.value = False
     s.controls.magnification.value = 10000.0
 
@@ -187,7 +190,7 @@ def test_unmeasured_orientation_is_labelled_a_prediction(browser) -> None:
     assert not s.view.measured
     assert "measured" not in s.view.curves and not s.ring.curves["measured"].visible
     assert "prediction" in s.tables.markdown.content.lower()
-    assert "prediction" in s.ring.title.text.lower()
+    assert "prediction" in s.ring.title.lower() and "prediction" in s.polar.plot.content.lower()
     assert "Table 3 needs a measurement" in s.tables.markdown.content
 
 

@@ -43,8 +43,8 @@ def decide(page, session, shots: Path) -> None:
     assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
     session.wait(timeout=300)
     before = session.physics.verdict.content
-    assert "cannot be told apart" in before, before
-    in_view(page.get_by_text("cannot be told apart", exact=False).first, "the untold pair")
+    assert "cannot tell them apart" in before, before
+    in_view(page.get_by_text("cannot tell them apart", exact=False).first, "the untold pair")
     step_shot(page, shots, "decide_1_diagnosed")
 
     # 2. Rings that would decide: listed with their reasons and the CMM time, crossed on the map.

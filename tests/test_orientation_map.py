@@ -11,6 +11,7 @@ from synthetic import lobing_campaign
 
 from ph_explorer.app.dataset import LOO_FIGURE, LOO_RATIO_FIGURE, RONT_FIGURE, Dataset, dataset_for
 from ph_explorer.diagnosis.results import RING_VERDICTS, Diagnosis
+from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.figures.charts import nice_ticks
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
@@ -112,6 +113,7 @@ def diagnosis_of(mae: list[float], floor: list[float], failing: list[bool], held
     """A Diagnosis holding only what the per-ring figures read."""
     n = len(mae)
     orientations = np.column_stack([np.full(n, 30.0), np.arange(n) * 20.0 - 160.0])
+    p_ring = np.where(failing, 1e-4, 0.5)
     return Diagnosis(
         noise_floor_um={},
         baseline_model="trilinear",
@@ -120,9 +122,10 @@ def diagnosis_of(mae: list[float], floor: list[float], failing: list[bool], held
         verdict="unexplained",
         found=[],
         signature=[],
-        within_noise={"baseline": object(), "after": None},
+        # Failing rings by their mean (the smaller p-value), as the per-ring figures read them.
+        within_noise={"baseline": NoiseTest(p_ring, int(sum(failing)), 2.0, 1.0, 0.01, True, 2.0, p_ring / 2, np.ones(n)), "after": None},
         steps=[],
-        orientations=orientations,  # type: ignore[dict-item]
+        orientations=orientations,
         out_of_sample_mae_um={"mean": np.array(mae)},
         out_of_sample_floor_um={"mean": np.array(floor)},
         failing=np.array(failing),
@@ -141,6 +144,7 @@ def test_failing_rings_are_worst_first_by_their_error_over_their_floor() -> None
     rings = result.failing_rings()
     assert [(r.b_deg, round(r.ratio, 2)) for r in rings] == [(-140.0, 4.0), (-120.0, 4.0), (-160.0, 2.0), (-80.0, 1.25)]
     assert rings[0].held_out and rings[0].mae_um == 0.12 and rings[0].floor_um == 0.03
+    assert not any(r.by_scatter for r in rings) and rings[0].reason == "by its repetition mean"
     figures = diagnosis_figures(result)
     verdict = figures["diagnosis: ring verdict (within-noise test)"]
     np.testing.assert_array_equal(verdict.values, [1, 1, 1, 0, 1])

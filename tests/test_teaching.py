@@ -83,7 +83,7 @@ def test_the_explorer_names_no_hidden_effect_until_reveal(app) -> None:
             messages = [
                 s.data_panel.message.content,
                 s.data_panel.source.content,
-                s.ring.title.text,
+                s.ring.title,
                 s.physics.status.content,
                 s.physics.summary.content,
                 s.physics.revealed.content,

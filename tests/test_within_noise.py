@@ -55,6 +55,7 @@ def test_an_error_shared_by_several_rings_fails_the_campaign(smoother):
     deviations += 0.15 * sign[:, None, None] * np.cos(3 * THETA)
     result = judge(deviations, smoother)
     assert result.fails and result.statistic > result.critical and result.p_value <= FALSE_ALARM
+    assert not result.ring_by_scatter[result.ring_exceeds].any()  # they exceed by their mean
 
 
 def test_an_error_smaller_than_the_noise_is_within_noise(smoother):
@@ -74,6 +75,9 @@ def test_repetitions_that_differ_systematically_fail_even_when_their_mean_is_rig
     result = judge(deviations, smoother)
     assert np.abs(smoother.residual(deviations).mean(axis=1) - smoother.residual(noise(4)).mean(axis=1)).max() < 1e-12
     assert result.fails and result.statistic > result.critical
+    # Each failing ring says by which statistic: here the scatter between repetitions, their mean
+    # being noise (so a report lists such a ring even under 1x its floor, and says why).
+    assert result.ring_exceeds.any() and result.ring_by_scatter[result.ring_exceeds].all()
 
 
 def test_one_repetition_cannot_be_tested(smoother):

@@ -1,19 +1,18 @@
-"""Accessible names for viser's GUI inputs, folders and icon buttons, so that a browser (a screen
-reader, Playwright's `get_by_label("A (deg)")`, `get_by_role("button", name="Curves")`) finds each
-control by the label written beside it.
+"""Accessible names for viser's GUI (a screen reader, Playwright's `get_by_label("A (deg)")`,
+`get_by_role("button", name="Curves")`), and a step's results brought into view.
 
-viser 1.1 writes a `<label for=ID>` beside every input; checkboxes, dropdowns and buttons are
-named by it (or by their text), but a slider's ID sits on Mantine's slider root, a <div> that a
-label cannot name, and its thumb (role="slider") is left with aria-label="". The server sends each
-browser this script once (viser's own RunJavascriptMessage, the message it sends plotly.js with:
-code goes from the server to the browser, never the other way). It copies each label's text onto
-the thumb it stands for, and onto the number box beside it as a title (a name for the box, without
-making `get_by_label` ambiguous), again whenever the panel redraws. A folder's title bar becomes a
-button named by its title (aria-expanded from its chevron; Enter or Space opens it); a notice's
-close button is "Close notice", the settings icon "Settings".
+viser 1.1 names checkboxes, dropdowns and buttons by their `<label for=ID>` or text, but a
+slider's thumb (role="slider") is left with aria-label="". The server sends each browser a script
+once (viser's RunJavascriptMessage, as it sends plotly.js: code goes from the server to the
+browser, never the other way) that copies each label onto its thumb and, as a title, onto the
+number box beside it; makes a folder's title bar a button named by its title (aria-expanded,
+Enter or Space opens it); names a notice's close button "Close notice" and the settings icon
+"Settings"; again whenever the panel redraws. Method: docs/explorer.md#accessibility.
 """
 
 from __future__ import annotations
+
+import json
 
 import viser
 from viser import _messages
@@ -77,3 +76,45 @@ def name_inputs(client: viser.ClientHandle) -> None:
     """Send this browser the script that names its sliders by their labels."""
     # viser has no public call for it; the GUI API sends plotly.js through the same message.
     client.gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=NAME_SLIDERS_JS))
+
+
+BRING_INTO_VIEW_JS = r"""
+((first, last) => {
+  // The control panel's text that a step just wrote: scrolled into view (the panel, not the page),
+  // its last line first, then its first, so that a block that fits is wholly in view. The text
+  // arrives with the panel's next redraw: looked for during a few seconds.
+  // The deepest shown element holding the text (a markdown line's <p> or <li>, not its panel).
+  const find = (text) => {
+    const hits = [...document.querySelectorAll("p, li, td, span, div, strong, em")].filter(
+      (e) => e.textContent.includes(text) && e.getClientRects().length
+        && ![...e.children].some((child) => child.textContent.includes(text)));
+    return hits.length ? hits[hits.length - 1] : null;
+  };
+  const start = performance.now();
+  const attempt = () => {
+    const a = find(first), b = last ? find(last) : null;
+    if (!a || (last && !b)) {
+      if (performance.now() - start < 5000) requestAnimationFrame(attempt);
+      return;
+    }
+    // The panel that scrolls, and the part of it inside the window (it may reach below it).
+    let box = a.parentElement;
+    while (box && !(box.scrollHeight > box.clientHeight && /(auto|scroll)/.test(getComputedStyle(box).overflowY))) box = box.parentElement;
+    if (!box) return;
+    const view = box.getBoundingClientRect();
+    const top = Math.max(view.top, 0) + 8, bottom = Math.min(view.bottom, window.innerHeight) - 8;
+    const from = a.getBoundingClientRect().top, to = (b || a).getBoundingClientRect().bottom;
+    let delta = to > bottom ? to - bottom : 0;  // the last line up into view ...
+    if (from - delta < top) delta = from - top;  // ... but never the first out at the top
+    box.scrollTop += delta;
+  };
+  attempt();
+})(%s, %s);
+"""
+
+
+def bring_into_view(gui: viser.GuiApi, first: str, last: str | None = None) -> None:
+    """Scroll this browser's control panel so that the text a step just wrote (from the line holding
+    `first` to the one holding `last`) is in view, wherever the panels left it (issue 31, item 4)."""
+    source = BRING_INTO_VIEW_JS % (json.dumps(first), json.dumps(last))
+    gui._websock_interface.queue_message(_messages.RunJavascriptMessage(source=source))

@@ -214,6 +214,7 @@ class PhysicsLoop:
         p.show_history(self.steps)
         fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
         p.done(f"Refitted: {fitted or label}.", refit=True)  # its error: the fall line and the history under it
+        p.keep_in_view("Check-ring MAE:")
         # No physical term ticked: the hybrid would be the baseline again; draw no separate curve.
         self.show(ds.with_model("hybrid", hybrid) if ids else ds.without_model("hybrid"))
 
@@ -277,3 +278,6 @@ class PhysicsLoop:
             if cls is not None and (candidate is None or not candidate.significant):
                 lines.append(f"- _{cls.teaching}_")  # else the verdict's "More" already teaches it
         self.panel.revealed.content = "\n".join(lines)
+        # From the first effect's name to the last line's own words ("last refit:", "truth:", ...).
+        last = next((line[2:].split(":")[0] + ":" for line in reversed(lines) if line.startswith("- ") and ":" in line), None)
+        self.panel.keep_in_view("Hidden:", last)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 import viser
 
+from ph_explorer.app.accessibility import bring_into_view
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
 from ph_explorer.diagnosis.results import shared_text
@@ -232,6 +233,10 @@ class PhysicsPanel:
             box.value = False
         self._place_effects(set())
 
+    def keep_in_view(self, first: str, last: str | None = None) -> None:
+        """The lines a step just wrote, from `first` to `last`, scrolled into the panel's view."""
+        bring_into_view(self.gui, first, last)
+
     def show_progress(self, text: str, fraction: float | None, refit: bool = False) -> None:
         bar, status = (self.refit_progress, self.refit_status) if refit else (self.progress, self.status)
         bar.visible = True
@@ -266,6 +271,7 @@ class PhysicsPanel:
         short = [line for line in lines if line.startswith("Resumed with") or "told apart" in line or "tell them apart" in line]
         self.nested = result.nested  # the honest "after", shown with the error history
         self.verdict.content = "\n\n".join([f"**{headline}**", *short])
+        self.keep_in_view("Verdict:")
         self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
         self._place_effects({c.effect for c in result.found})
         # What is left (the signature) first, then each candidate's evidence, by the label shown in the dropdown.

@@ -1,9 +1,12 @@
 """The ring gauge in the 3D scene and its polar roundness plot, drawn on the ring as an instrument's chart.
 
 The chart follows ph_explorer.figures.polar: the least-squares reference circle at the chart's base
-radius, scale circles labelled in um, the curves at base + magnification x deviation (true scale
-in the scene's mm), point numbers, the direction of theta and the magnification. The object owns
-its viser handles; the session updates them inside one `client.atomic()` batch.
+radius, scale circles, the curves at base + magnification x deviation (true scale in the scene's
+mm), point numbers and the direction of theta. In 3D only the point numbers and theta are
+written, apart from each other at the cameras of "ring + head" and "along the axis" (and hidden in
+"whole field", where the ring is a few pixels wide); the flat polar plot beside the scene has the
+full set: its title, the magnification and scale, each circle's value. The object owns its viser
+handles; the session updates them inside one `client.atomic()` batch.
 """
 
 from __future__ import annotations
@@ -20,7 +23,6 @@ from ph_explorer.figures.polar import PolarScale, scale_label
 from ph_explorer.geometry import Geometry, point_angles_deg
 
 FINE_DEG = np.linspace(0.0, 360.0, 181)[:-1]  # a smooth circle
-SCALE_LABEL_DEG = 45.0  # the scale circles' labels sit along this radius, between point numbers
 
 
 def closed_polyline(points: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -70,7 +72,6 @@ class RingScene:
         # The least-squares reference circle (the chart's base circle) and the scale circles.
         self.reference = scene.add_line_segments("/ring/reference", np.zeros((1, 2, 3)), CURVE_COLORS["reference"], thickness=2.0, **line)
         self.grid = scene.add_line_segments("/ring/scale_circles", np.zeros((1, 2, 3)), (200, 200, 200), thickness=1.0, **line)
-        self.scale_labels: list[viser.LabelHandle] = []
         self.arrow = scene.add_line_segments("/ring/theta_arrow", np.zeros((1, 2, 3)), (60, 60, 60), thickness=1.5, **line)
         self.arrow_label = scene.add_label(
             "/ring/theta_label", "θ", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.8
@@ -96,8 +97,7 @@ class RingScene:
             scene.add_label(f"/ring/point_{k}", str(k), position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.7)
             for k in self.numbered
         ]
-        self.title = scene.add_label("/ring/title", "", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.8)
-        self.caption = scene.add_label("/ring/magnification", "", position=(0.0, 0.0, 0.0), anchor="center-center", font_screen_scale=0.75)
+        self.title = ""  # what the chart shows (the flat polar plot writes it; tests read it here)
         self.scale: PolarScale | None = None  # the chart drawn last
         self._chart_drawn: tuple[PolarScale, float] | None = None  # what _update_chart last sent
         self.points: dict[str, NDArray[np.float64]] = {}  # the drawn curve points, for tests and picking
@@ -123,6 +123,11 @@ class RingScene:
         scale = self.scale
         outer = max(scale.outer_mm if scale else self.bore_radius, self.bore_radius + 7.0, self._profile_mm)
         return outer + 4.0
+
+    def show_labels(self, visible: bool) -> None:
+        """The point numbers and theta's label: hidden when the camera is too far for them to stay apart."""
+        for handle in [*self.labels, self.arrow_label]:
+            self._show(handle.name, handle, visible)
 
     def _show(self, name: str, handle: viser.SceneNodeHandle, visible: bool) -> None:
         if self._visible.get(name) != visible:
@@ -159,7 +164,7 @@ class RingScene:
         self._show("repetitions", self.repetitions, repetitions is not None and show_repetitions)
         self._update_band(band, scale)
         self._update_chart(scale)
-        self.title.text = title
+        self.title = title
 
     def _update_chart(self, scale: PolarScale) -> None:
         """Reference and scale circles with their labels, point numbers, theta's direction, magnification.
@@ -173,26 +178,10 @@ class RingScene:
         others = [r for text, r in scale.labelled_circles() if text != scale_label(0.0)]
         circles = [closed_polyline(ring_points(r, FINE_DEG)) for r in others] or [np.zeros((1, 2, 3))]
         self.grid.points = np.concatenate(circles).astype(np.float32)
-        circles_text = scale.labelled_circles()
-        while len(self.scale_labels) < len(circles_text):
-            index = len(self.scale_labels)
-            self.scale_labels.append(
-                self.scene.add_label(f"/ring/scale_{index}", "", position=(0.0, 0.0, 0.0), anchor="bottom-left", font_screen_scale=0.6)
-            )
-        for handle, (text, radius) in zip(self.scale_labels, circles_text):
-            handle.text = text + (" LS circle" if text == scale_label(0.0) else "")
-            handle.position = tuple(float(v) for v in ring_points(radius, np.array([SCALE_LABEL_DEG]))[0])
-            handle.visible = True
-        for handle in self.scale_labels[len(circles_text) :]:
-            handle.visible = False
         for handle, k in zip(self.labels, self.numbered):
             handle.position = tuple(float(v) for v in ring_points(numbers, np.array([self.theta[k]]))[0])
         self.arrow.points = theta_arrow(numbers + 2.0).astype(np.float32)
         self.arrow_label.position = tuple(float(v) for v in ring_points(numbers + 5.0, np.array([20.0]))[0])
-        self.title.position = (0.0, -(numbers + 6.0), 0.0)
-        # On the far side from the title: seen obliquely, two labels on one side are drawn over each other.
-        self.caption.position = (0.0, numbers + 8.0, 0.0)
-        self.caption.text = scale.caption()
 
     def _update_band(self, band: tuple[str, NDArray[np.float64], NDArray[np.float64]] | None, scale: PolarScale) -> None:
         if band is None:

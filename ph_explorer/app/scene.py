@@ -65,53 +65,74 @@ CHART_EXTENT_MM = 26.0
 CAMERA_FOV_DEG = 75.0
 
 
+# The scene's canvas lies between the docked panels; narrower than tall at 1440x900 (632 x 900 px)
+# and 1280x720 (472 x 720 px). A camera that has not reported its aspect is taken to have this one.
+DEFAULT_ASPECT = 0.7
+
+
+def fit_distance(extent_mm: float, aspect: float, margin: float = 1.2) -> float:
+    """How far (mm) a camera stands for a disc of radius extent_mm, seen square, to fill the
+    canvas to 1 / margin of its half-height or half-width, whichever is smaller (aspect = w / h)."""
+    return margin * extent_mm / (np.tan(np.radians(0.5 * CAMERA_FOV_DEG)) * min(1.0, aspect))
+
+
 def ring_camera(
     a_deg: float,
     b_deg: float,
     axial_distance_mm: float,
     distance_mm: float = 105.0,
     off_axis_deg: float = 62.0,
-    shift_mm: float = 18.0,
     extent_mm: float = CHART_EXTENT_MM,
+    aspect: float = DEFAULT_ASPECT,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Camera (position, look_at) in mm showing the ring obliquely from the head's side, the stylus behind it.
 
     The camera sits off the ring axis towards the A joint's axis (always horizontal), a little
-    raised, so the ring plane, its curves and the stylus arm stay in view at any orientation. The
-    look-at point is shifted to the camera's right so that the ring sits left of the side panel.
-    A larger chart (extent_mm, at high magnification) moves the camera back in proportion.
+    raised, so the ring plane, its curves and the stylus arm stay in view at any orientation; it
+    looks at the ring's centre, so the ring sits in the middle of the canvas between the panels.
+    A larger chart (extent_mm, at high magnification) or a canvas narrower than DEFAULT_ASPECT
+    moves the camera back in proportion.
     """
-    grow = max(1.0, extent_mm / CHART_EXTENT_MM)
-    distance_mm, shift_mm = distance_mm * grow, shift_mm * grow
+    grow = max(1.0, extent_mm / CHART_EXTENT_MM, fit_distance(extent_mm, aspect) / fit_distance(extent_mm, DEFAULT_ASPECT))
     s = stylus_direction(a_deg, b_deg)
     centre = axial_distance_mm * s
     b = np.radians(b_deg)
     side = np.array([np.cos(b), np.sin(b), 0.0])  # the A axis after B: perpendicular to the stylus
     e = np.radians(off_axis_deg)
     direction = -np.cos(e) * s + np.sin(e) * side + np.array([0.0, 0.0, 0.12])
-    position = centre + distance_mm * direction / np.linalg.norm(direction)
-    right = np.cross(centre - position, [0.0, 0.0, 1.0])
-    norm = np.linalg.norm(right)
-    look_at = centre + (shift_mm * right / norm if norm > 1e-9 else 0.0)
-    return position + (look_at - centre), look_at
+    return centre + distance_mm * grow * direction / np.linalg.norm(direction), centre
 
 
 def axis_camera(
-    a_deg: float, b_deg: float, axial_distance_mm: float, extent_mm: float = CHART_EXTENT_MM
+    a_deg: float, b_deg: float, axial_distance_mm: float, extent_mm: float = CHART_EXTENT_MM, aspect: float = DEFAULT_ASPECT
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Camera (position, look_at, up) looking down the ring's axis from the head's side.
 
     The chart lies in a plane square to the view, so it is drawn undistorted, oriented as the
-    panel's flat polar plot: e1 to the right, e2 up, theta counter-clockwise. The camera stands
-    back far enough for the whole chart (the head, between it and the ring, is hidden in this view).
+    panel's flat polar plot: e1 to the right, e2 up, theta counter-clockwise. It looks at the
+    ring's centre from far enough for the whole chart to fit the canvas of this aspect (the head,
+    between it and the ring, is hidden in this view).
     """
-    frame = head_orientation(a_deg, b_deg).as_matrix()
-    e1, e2 = frame[:, 0], frame[:, 1]
+    e2 = head_orientation(a_deg, b_deg).as_matrix()[:, 1]
     s = stylus_direction(a_deg, b_deg)
     centre = axial_distance_mm * s
-    distance = 1.25 * extent_mm / np.tan(np.radians(0.5 * CAMERA_FOV_DEG))
-    look_at = centre + 0.45 * extent_mm * e1  # the ring left of the side panel
-    return look_at - distance * s, look_at, e2
+    return centre - fit_distance(extent_mm, aspect) * s, centre, e2
+
+
+# The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
+FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
+
+
+def view_camera(
+    view: str, a_deg: float, b_deg: float, axial_distance_mm: float, extent_mm: float, aspect: float = DEFAULT_ASPECT
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(position, look_at, up) of a View button's camera: 'ring + head', 'along the axis', 'whole field'."""
+    if view == "along the axis":
+        return axis_camera(a_deg, b_deg, axial_distance_mm, extent_mm, aspect)
+    if view == "whole field":
+        return np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"]), np.array([0.0, 0.0, 1.0])
+    position, look_at = ring_camera(a_deg, b_deg, axial_distance_mm, extent_mm=extent_mm, aspect=aspect)
+    return position, look_at, np.array([0.0, 0.0, 1.0])
 
 
 # -- the PH20 / TP20 head, built with trimesh ----------------------------------------------------------

@@ -29,7 +29,7 @@ from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
-from ph_explorer.app.scene import HeadScene, axis_camera, ring_camera
+from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
 from ph_explorer.app.study_file import StudyFile
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import Catalog
@@ -39,8 +39,6 @@ from ph_explorer.geometry import wrap_deg
 from ph_explorer.twin import Scenario
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
-# The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
-FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
 # The longest a render by the server itself (go_to) waits for the render thread to finish this session's render.
 RENDER_WAIT_S = 30.0
 
@@ -185,18 +183,12 @@ class Session:
     def look(self, view: str) -> None:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
         a, b = self.orientation
-        axial = self.dataset.campaign.geometry.axial_distance_mm
-        extent = self.ring.extent_mm
-        up = np.array([0.0, 0.0, 1.0])
-        if view == "along the axis":
-            position, look_at, up = axis_camera(a, b, axial, extent)
-        elif view == "whole field":
-            position, look_at = np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"])
-        else:
-            position, look_at = ring_camera(a, b, axial, extent_mm=extent)
+        extent, aspect = self.ring.extent_mm, float(getattr(self.client.camera, "aspect", 0.0) or DEFAULT_ASPECT)
+        position, look_at, up = view_camera(view, a, b, self.dataset.campaign.geometry.axial_distance_mm, extent, aspect)
         with self.client.atomic():  # position first: viser moves look_at along with it
             # Along the axis the camera looks through the head: hidden there, shown in the other views.
             self.head.set_visible(view != "along the axis")
+            self.ring.show_labels(view != "whole field")  # there the ring is a few pixels wide
             self.client.camera.position = position
             self.client.camera.look_at = look_at
             self.client.camera.up_direction = up

@@ -134,12 +134,20 @@ def evidence_svg(evidence: dict, title: str) -> str:
 
 
 def step_names(steps: Sequence[Step]) -> list[str]:
-    """Each step by what it added: "baseline", then "+ b_axis_cyclic" (the effects new at that step)."""
-    names, before = [], set()
+    """Each step by what it added: "baseline", then "+ b_axis_cyclic" (the effects new at that step);
+    a refit of the same effects is "refitted", one that took effects out "- lobing"."""
+    names: list[str] = []
+    before: list[str] | None = None
     for step in steps:
-        new = [e for e in step.added if e not in before] or list(step.added)
-        names.append("+ " + " + ".join(new) if new else "baseline")
-        before = set(step.added)
+        new = [e for e in step.added if e not in (before or [])]
+        gone = [e for e in (before or []) if e not in step.added]
+        if not step.added:
+            names.append("baseline")
+        elif new:
+            names.append("+ " + " + ".join(new))
+        else:
+            names.append("- " + " - ".join(gone) if gone else "refitted")
+        before = list(step.added)
     return names
 
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.figures.charts import nice_ticks
+from ph_explorer.figures.charts import nice_ticks, x_axis_svg, y_axis_svg
 
 # A few stops of the viridis colormap (0..1 -> RGB): perceptually uniform, colour-blind safe.
 VIRIDIS = np.array(
@@ -196,15 +196,11 @@ def _static_parts(
         f'<text x="2" y="14" font-size="12" font-weight="600">{title}</text>',
         f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fafafa" stroke="#888" stroke-width="1"/>',
     ]
-    for b in B_TICKS_DEG:  # B across, ticks in degrees
-        x = float(x_of(b)) if b != 180 else left + plot_w
-        parts.append(f'<line x1="{x:.1f}" y1="{top}" x2="{x:.1f}" y2="{bottom}" stroke="#e2e2e2"/>')
-        parts.append(f'<text x="{x:.1f}" y="{bottom + 13}" font-size="11" text-anchor="middle">{b}</text>')
-    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 28}" font-size="12" text-anchor="middle">B (deg)</text>')
-    for a in np.arange(a_low, a_high + 0.5, A_TICK_DEG * (2 if a_high - a_low > 120 else 1)):
-        y = float(y_of(a))
-        parts.append(f'<line x1="{left}" y1="{y:.1f}" x2="{left + plot_w}" y2="{y:.1f}" stroke="#e2e2e2"/>')
-        parts.append(f'<text x="{left - 4}" y="{y + 3.5:.1f}" font-size="11" text-anchor="end">{a:g}</text>')
+    # B across, A up, with the charts' shared axes; the B labels low enough to clear the A = 0 label.
+    parts += x_axis_svg(B_TICKS_DEG, lambda b: float(x_of(b)) if b != 180 else left + plot_w, top, bottom, font_size=11, label_gap=16)
+    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 31}" font-size="12" text-anchor="middle">B (deg)</text>')
+    a_ticks = np.arange(a_low, a_high + 0.5, A_TICK_DEG * (2 if a_high - a_low > 120 else 1))
+    parts += y_axis_svg([float(a) for a in a_ticks], lambda a: float(y_of(a)), left, left + plot_w, font_size=11)
     parts.append(
         f'<text x="11" y="{top + plot_h / 2:.1f}" font-size="12" text-anchor="middle" '
         f'transform="rotate(-90 11 {top + plot_h / 2:.1f})">A (deg)</text>'
