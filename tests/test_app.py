@@ -208,9 +208,11 @@ def test_tables_show_the_core_figures_for_a_check_ring(browser, dataset: Dataset
     assert f"{row['range_um']['measured']:.2f}" in text
     assert f"{row['mae_um']['trilinear']['single']:.2f}" in text
     # The deviation chart carries the drawn curves.
-    labels = [series["label"] for series in s.charts.deviation.series]
-    assert labels[:3] == ["point", "measured", "trilinear"]
-    np.testing.assert_allclose(s.charts.deviation.data[1], s.view.curves["measured"])
+    assert list(s.charts.drawn["deviation"])[:2] == ["measured", "trilinear"]
+    np.testing.assert_allclose(s.charts.drawn["deviation"]["measured"], s.view.curves["measured"])
+    assert (
+        "measured mean" in s.charts.deviation.content and 'aria-label="chart Deviation against point number"' in s.charts.deviation.content
+    )
 
 
 def test_harmonic_chart_bars_are_the_spectrum(browser) -> None:
@@ -219,10 +221,10 @@ def test_harmonic_chart_bars_are_the_spectrum(browser) -> None:
     s = browser
     s.go_to(75.0, 40.0)
     amp = harmonic_spectrum(s.view.curves["measured"])[0]
-    x, measured = np.asarray(s.charts.harmonics.data[0]), np.asarray(s.charts.harmonics.data[1])
+    measured = s.charts.drawn["harmonics"]["measured"]  # UPR 2, 3, ...
     for k in (2, 3, 6):
-        inside = np.abs(x - k) < 0.45
-        assert measured[inside].max() == pytest.approx(amp[k], rel=1e-9)
+        assert measured[k - 2] == pytest.approx(amp[k], rel=1e-9)
+        assert f"<title>measured mean, {k}: {amp[k]:.3g}</title>" in s.charts.harmonics.content  # its bar
 
 
 def test_presets_and_marker_clicks_move_the_sliders(opened) -> None:
@@ -608,7 +610,7 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened, tmp_path) -> None:
     assert "hybrid" in s.dataset.models
     s.go_to(43.0, 90.0)
     assert "hybrid" in s.view.curves and s.ring.curves["hybrid"].visible
-    assert "hybrid" in [series["label"] for series in s.charts.deviation.series]
+    assert "hybrid" in s.charts.drawn["deviation"]
     assert "hybrid" in s.tables.markdown.content
     fake.click("Reveal the hidden effect")
     assert wait_for(lambda: "b_axis_cyclic" in p.revealed.content)
@@ -647,7 +649,7 @@ def test_default_start_shows_measured_network_and_trilinear(default_app: Explore
         assert view.measured and view.held_out  # A15 B-20: a check ring of assets/models/paper
         for name in ("measured", "network", "trilinear"):
             assert s.ring.curves[name].visible, name
-        assert [series["label"] for series in s.charts.deviation.series] == ["point", "measured", "network", "trilinear"]
+        assert list(s.charts.drawn["deviation"]) == ["measured", "network", "trilinear"]
         text = s.tables.markdown.content
         assert "| um | measured | network | trilinear |" in text
         mae = view.tables["mae_um"]["network"]["mean"]

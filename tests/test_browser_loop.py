@@ -343,6 +343,9 @@ def teach(page, session, shots: Path) -> None:
         if curves.get_attribute("aria-expanded") != "true":
             curves.click()
         readable_scene(page, session)
+        page.get_by_role("tab", name="Charts").click()  # the deviation and harmonic charts, same axes
+        page.locator('svg[aria-label^="chart Harmonics"]').first.wait_for(timeout=30_000)
+        assert svg_text_overlaps(page) == []
         page.get_by_role("tab", name="Physics").click()
         steps = len(session.loop.steps)
         page.get_by_role("button", name="Refit the hybrid").click()

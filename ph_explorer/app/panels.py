@@ -6,7 +6,7 @@ The Physics tab is in physics_panel.py.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import numpy as np
 import viser
@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 from ph_explorer.app.dataset import Dataset, OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
 from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's panels import it from here)
+from ph_explorer.figures.charts import bar_chart_svg, line_chart_svg
 from ph_explorer.figures.orientation_map import MapFigure
 from ph_explorer.figures.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
 from ph_explorer.paper.tables import tables_markdown as orientation_tables_markdown
@@ -215,85 +216,42 @@ def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = F
     )
 
 
-def deviation_chart_data(view: OrientationView, shown: Mapping[str, bool]) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
-    """uPlot data and series: deviation (um) against point number for the shown curves."""
-    names = [n for n in CURVE_ORDER if n in view.curves and shown.get(n, True)]
+def deviation_chart(view: OrientationView, shown: Mapping[str, bool]) -> tuple[str, dict[str, NDArray[np.float64]]]:
+    """The deviation (um) against point number of the shown curves, as an SVG chart, and what it drew."""
+    drawn = {n: np.asarray(view.curves[n], dtype=float) for n in CURVE_ORDER if n in view.curves and shown.get(n, True)}
     n_pt = next(iter(view.curves.values())).size if view.curves else 64
-    x = np.arange(n_pt, dtype=float)
-    data = (x, *(np.asarray(view.curves[n], dtype=float) for n in names))
-    series = ({"label": "point"}, *({"label": n, "stroke": hex_color(curve_color(n)), "width": 2} for n in names))
-    if not names:  # uPlot needs a y series: an honest flat zero labelled as such
-        data = (x, np.zeros(n_pt))
-        series = ({"label": "point"}, {"label": "no curve shown", "stroke": "#bbbbbb", "width": 1})
-    return data, series
+    series = [(LEGEND_LABELS.get(n, n), v, hex_color(curve_color(n))) for n, v in drawn.items()]
+    title = "Deviation against point number" + ("" if series else ": no curve shown")
+    return line_chart_svg(np.arange(n_pt, dtype=float), series, title, "point number", "deviation (um)"), drawn
 
 
-def harmonic_chart_data(
-    view: OrientationView, shown: Mapping[str, bool], max_upr: int = MAX_UPR
-) -> tuple[tuple[NDArray, ...], tuple[dict, ...]]:
-    """uPlot data and series drawing grouped bars: amplitude (um) per UPR 2..max_upr for each curve.
-
-    uPlot has no bar renderer without JavaScript callbacks, so each bar is drawn as a filled
-    rectangle path (0 -> a -> a -> 0) on a shared x axis where the other curves sit at 0.
-    """
-    names = [n for n in CURVE_ORDER if n in view.spectra and shown.get(n, True)]
-    if not names:
-        x = np.array([2.0, float(max_upr)])
-        return (x, np.zeros(2)), ({"label": "UPR"}, {"label": "no curve shown", "stroke": "#bbbbbb"})
+def harmonic_chart(view: OrientationView, shown: Mapping[str, bool], max_upr: int = MAX_UPR) -> tuple[str, dict[str, NDArray[np.float64]]]:
+    """The amplitude (um) per UPR 2..max_upr of the shown curves, as grouped bars, and what it drew."""
     upr = np.arange(2, max_upr + 1)
-    width = 0.8 / len(names)
-    # (UPR, curve, corner): bar j of UPR k spans [left, left + width], its top on the middle two corners.
-    left = (upr[:, None] - 0.4) + np.arange(len(names))[None, :] * width
-    xs = left[:, :, None] + np.array([0.0, 0.02 * width, 0.98 * width, width])
-    amplitudes = np.zeros((len(names), upr.size))  # (curve, UPR); 0 beyond a curve's spectrum
-    for j, n in enumerate(names):
-        spectrum = np.asarray(view.spectra[n], dtype=float)[2 : max_upr + 1]
-        amplitudes[j, : spectrum.size] = spectrum
-    # Curve j's series: its amplitudes on its own bars' top corners, 0 on everyone else's bars.
-    ys = np.eye(len(names))[:, None, :, None] * amplitudes[:, :, None, None] * np.array([0.0, 1.0, 1.0, 0.0])
-    data = (xs.ravel(), *ys.reshape(len(names), -1))
-    series = (
-        {"label": "UPR"},
-        *(
-            {
-                "label": n,
-                "stroke": hex_color(curve_color(n)),
-                "fill": hex_color(curve_color(n)) + "99",
-                "width": 1,
-                "points": {"show": False},
-            }
-            for n in names
-        ),
-    )
-    return data, series
-
-
-ChartData = Callable[[OrientationView, Mapping[str, bool]], tuple[tuple[NDArray, ...], tuple[dict, ...]]]
+    drawn = {}
+    for n in (n for n in CURVE_ORDER if n in view.spectra and shown.get(n, True)):
+        spectrum = np.zeros(upr.size)  # 0 beyond a curve's spectrum
+        part = np.asarray(view.spectra[n], dtype=float)[2 : max_upr + 1]
+        spectrum[: part.size] = part
+        drawn[n] = spectrum
+    series = [(LEGEND_LABELS.get(n, n), v, hex_color(curve_color(n))) for n, v in drawn.items()]
+    title = "Harmonics: amplitude per UPR" + ("" if series else ": no curve shown")
+    return bar_chart_svg(upr, series, title, "UPR (undulations per revolution)", "amplitude (um)"), drawn
 
 
 class ChartsPanel:
-    """Deviation against point number, and the harmonic (UPR) bar chart, for the shown curves."""
-
-    CHARTS: tuple[tuple[str, str, ChartData], ...] = (
-        ("Deviation (um) against point number", "point", deviation_chart_data),
-        ("Harmonics: amplitude (um) per UPR", "UPR", harmonic_chart_data),
-    )
+    """The deviation and harmonic charts of the current orientation (flat SVG, the shared axes)."""
 
     def __init__(self, gui: viser.GuiApi, view: OrientationView, shown: Mapping[str, bool]) -> None:
-        self.charts: list[tuple[viser.GuiUplotHandle, ChartData]] = []
-        for title, x_label, chart_data in self.CHARTS:
-            data, series = chart_data(view, shown)
-            axes = ({"label": x_label}, {"label": "um"})
-            handle = gui.add_uplot(data, series, title=title, aspect=1.6, scales={"x": {"time": False}}, axes=axes)
-            self.charts.append((handle, chart_data))
-        self.deviation, self.harmonics = (handle for handle, _ in self.charts)
+        self.deviation, self.harmonics = gui.add_html(""), gui.add_html("")
+        self.drawn: dict[str, dict[str, NDArray[np.float64]]] = {}  # chart -> curve -> values drawn (tests read it)
+        self.update(view, shown)
 
     def update(self, view: OrientationView, shown: Mapping[str, bool]) -> None:
-        for handle, chart_data in self.charts:
-            data, series = chart_data(view, shown)
-            if tuple(handle.series) != series:  # series change only with the shown curves: resent only then
-                handle.series = series
-            handle.data = data
+        for key, handle, chart in (("deviation", self.deviation, deviation_chart), ("harmonics", self.harmonics, harmonic_chart)):
+            svg, self.drawn[key] = chart(view, shown)
+            if handle.content != svg:
+                handle.content = svg
 
 
 class DataPanel:

@@ -1,6 +1,7 @@
 """Flat SVG charts with round ticks: the shared axes (`nice_ticks`, `x_axis_svg`, `y_axis_svg`), the
-signature plot of a candidate or of what is left (`evidence_svg`), and the error history of a
-diagnosis (`history_svg`). The explorer and the report draw the same strings.
+signature plot of a candidate or of what is left (`evidence_svg`), the error history of a
+diagnosis (`history_svg`), and curves or grouped bars (`line_chart_svg`, `bar_chart_svg`: the
+deviation against point number, the harmonics). The explorer and the report draw the same strings.
 
 Figures: docs/explorer.md.
 """
@@ -14,7 +15,7 @@ from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 if TYPE_CHECKING:  # the charts stay light: the map imports nice_ticks from here
     from ph_explorer.diagnosis.results import Step
@@ -227,3 +228,102 @@ def history_svg(steps: Sequence[Step], names: Sequence[str] | None = None) -> st
 
 def _escaped(text: str) -> str:
     return html.escape(text, quote=False)
+
+
+Series = tuple[str, NDArray[np.float64], str]  # a chart's curve or bars: (label, values, colour)
+
+
+def _frame(title: str, aria: str, width: float, height: float, left: float, top: float, plot_w: float, plot_h: float) -> list[str]:
+    return [
+        f'<svg viewBox="0 0 {width:g} {height:g}" width="100%" role="img" aria-label="{_escaped(aria)}" '
+        'style="font-family:sans-serif;background:#fff">',
+        f'<text x="2" y="13" font-size="11.5" font-weight="600">{_escaped(title)}</text>',
+        f'<rect x="{left}" y="{top}" width="{plot_w}" height="{plot_h}" fill="#fafafa" stroke="#888"/>',
+    ]
+
+
+def _legend(series: Sequence[Series], left: float, y: float, bars: bool) -> list[str]:
+    """One row per three entries under the x title, each in its series' own style (a line or a swatch)."""
+    parts = []
+    for k, (label, _, color) in enumerate(series):
+        x, row = left + (k % 3) * 120.0, y + 14.0 * (k // 3)
+        mark = (
+            f'<rect x="{x}" y="{row - 8}" width="14" height="9" fill="{color}" fill-opacity="0.7" stroke="{color}"/>'
+            if bars
+            else f'<line x1="{x}" y1="{row - 3.5}" x2="{x + 16}" y2="{row - 3.5}" stroke="{color}" stroke-width="2"/>'
+        )
+        parts.append(mark + f'<text x="{x + 20}" y="{row}" font-size="10">{_escaped(label)}</text>')
+    return parts
+
+
+def line_chart_svg(x: NDArray[np.float64], series: Sequence[Series], title: str, x_label: str, y_label: str) -> str:
+    """Curves against x (e.g. the deviation against point number), round ticks on both axes (the
+    shared helpers), the y title above the plot, the legend under it in the curves' styles."""
+    width, left, right, top, plot_h = 400.0, 40.0, 10.0, 34.0, 150.0
+    plot_w, bottom = width - left - right, top + plot_h
+    values = np.concatenate([np.asarray(v, dtype=float).ravel() for _, v, _ in series] or [np.zeros(1)])
+    values = values[np.isfinite(values)]
+    low, high = (float(values.min()), float(values.max())) if values.size else (-1.0, 1.0)
+    pad = 0.06 * (high - low if high > low else 1.0)
+    low, high = low - pad, high + pad
+    x_low, x_high = float(np.min(x)), float(np.max(x))
+    x_span = x_high - x_low if x_high > x_low else 1.0
+
+    def sx(v: ArrayLike) -> NDArray[np.float64]:
+        return left + (np.asarray(v, dtype=float) - x_low) / x_span * plot_w
+
+    def sy(v: ArrayLike) -> NDArray[np.float64]:
+        return bottom - (np.asarray(v, dtype=float) - low) / (high - low) * plot_h
+
+    legend_y = bottom + 42.0
+    height = legend_y + 14.0 * ((len(series) - 1) // 3) + 8.0
+    parts = _frame(title, f"chart {title}", width, height, left, top, plot_w, plot_h)
+    parts += x_axis_svg(nice_ticks(x_low, x_high), sx, top, bottom, font_size=10, label_gap=13)
+    parts += y_axis_svg(nice_ticks(low, high, 5), sy, left, left + plot_w, font_size=10, zero_stroke="#999")
+    parts.append(f'<text x="{left}" y="{top - 5}" font-size="10.5">{_escaped(y_label)}</text>')
+    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 27}" font-size="10.5" text-anchor="middle">{_escaped(x_label)}</text>')
+    for _, v, color in series:
+        points = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(sx(x), sy(v)) if np.isfinite(b))
+        parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="1.8" stroke-linejoin="round"/>')
+    parts += _legend(series, left, legend_y, bars=False)
+    parts.append("</svg>")
+    return "".join(parts)
+
+
+def bar_chart_svg(x: NDArray[np.int64], series: Sequence[Series], title: str, x_label: str, y_label: str) -> str:
+    """Grouped bars from zero at integer x (e.g. the amplitude per UPR), one colour per series, round
+    ticks on both axes (the shared helpers), the legend under the plot in the bars' colours."""
+    width, left, right, top, plot_h = 400.0, 40.0, 10.0, 34.0, 150.0
+    plot_w, bottom = width - left - right, top + plot_h
+    values = np.concatenate([np.asarray(v, dtype=float).ravel() for _, v, _ in series] or [np.zeros(1)])
+    high = float(np.nanmax(values)) * 1.08 if values.size and np.nanmax(values) > 0 else 1.0
+    ticks = nice_ticks(0.0, high, 4)
+    x_low, x_high = float(np.min(x)) - 0.5, float(np.max(x)) + 0.5
+
+    def sx(v: ArrayLike) -> NDArray[np.float64]:
+        return left + (np.asarray(v, dtype=float) - x_low) / (x_high - x_low) * plot_w
+
+    def sy(v: ArrayLike) -> NDArray[np.float64]:
+        return bottom - np.asarray(v, dtype=float) / high * plot_h
+
+    legend_y = bottom + 42.0
+    height = legend_y + 14.0 * ((len(series) - 1) // 3) + 8.0
+    parts = _frame(title, f"chart {title}", width, height, left, top, plot_w, plot_h)
+    step = max(1, int(np.ceil(len(x) / 8)))  # about eight labelled bars' positions
+    parts += x_axis_svg([int(v) for v in x[::step]], sx, top, bottom, font_size=10, grid=False, label_gap=13)
+    parts += y_axis_svg(ticks, sy, left, left + plot_w, font_size=10)
+    parts.append(f'<text x="{left}" y="{top - 5}" font-size="10.5">{_escaped(y_label)}</text>')
+    parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 27}" font-size="10.5" text-anchor="middle">{_escaped(x_label)}</text>')
+    bar = 0.8 / max(len(series), 1) * plot_w / (x_high - x_low)
+    for j, (label, v, color) in enumerate(series):
+        v = np.asarray(v, dtype=float)
+        starts = sx(np.asarray(x, dtype=float) - 0.4) + j * bar
+        tops = sy(np.nan_to_num(v))
+        parts += [
+            f'<rect x="{a:.1f}" y="{t:.1f}" width="{bar:.1f}" height="{bottom - t:.1f}" fill="{color}" fill-opacity="0.7">'
+            f"<title>{_escaped(label)}, {int(k)}: {value:.3g}</title></rect>"
+            for a, t, k, value in zip(starts, tops, x, v)
+        ]
+    parts += _legend(series, left, legend_y, bars=True)
+    parts.append("</svg>")
+    return "".join(parts)
