@@ -56,7 +56,9 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     # noise with absurd coefficients. It is zero in the deviations: make it exactly zero.
     before = np.sqrt((columns**2).sum(axis=(0, 1, 2)))
     after = np.sqrt((fitted**2).sum(axis=(0, 1, 2)))
-    fitted = np.where(after <= ABSORBED_RTOL * before, 0.0, fitted)
+    absorbed = after <= ABSORBED_RTOL * before
+    if absorbed.any():  # else no copy: most effects keep every column
+        fitted = np.where(absorbed, 0.0, fitted)
     return np.broadcast_to(fitted, touches.shape + fitted.shape[3:]), list(names)
 
 

@@ -139,14 +139,10 @@ def _pseudo_inverse(gram: NDArray[np.float64], scale: float, n_rows: int) -> NDA
     return np.einsum("...ij,...j,...kj->...ik", vectors, inverse, vectors)
 
 
-def _column_products(stacked: NDArray[np.float64]) -> NDArray[np.float64]:
-    """(S, c, c): each design's X'X from its columns stacked (rows, S, c), a few columns each."""
-    c = stacked.shape[-1]
-    out = np.empty((stacked.shape[1], c, c))
-    for i in range(c):
-        for j in range(i, c):
-            out[:, i, j] = out[:, j, i] = np.einsum("rs,rs->s", stacked[..., i], stacked[..., j])
-    return out
+def _side_by_side(parts: list[NDArray[np.float64]], c: int) -> NDArray[np.float64]:
+    """(S, c, rows): each design's columns (..., c) as the rows of one contiguous matrix, so that
+    every product below is one batched BLAS call."""
+    return np.stack([part.reshape(-1, c).T for part in parts])
 
 
 def explained_beyond(fixed: Design | None, designs: list[Design], targets: Design) -> NDArray[np.float64]:
@@ -158,29 +154,25 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
     """
     c = designs[0].n_columns
     n_rep = targets.n_rep
-    # (rows, S * c): every design's mean columns side by side, one product with the targets.
-    stacked = np.stack([d.mean for d in designs], axis=-2).reshape(-1, len(designs), c)  # (rows, S, c)
-    means = stacked.reshape(stacked.shape[0], -1)
+    means = _side_by_side([d.mean for d in designs], c)  # (S, c, rows)
     t_mean, t_within = targets.flat()
-    u = n_rep * (means.T @ t_mean)
-    gram = n_rep * _column_products(stacked)
+    u = n_rep * (means @ t_mean)  # (S, c, k)
+    gram = n_rep * (means @ np.swapaxes(means, 1, 2))  # (S, c, c)
     withins = [d.within for d in designs]
-    if any(w is not None for w in withins):
+    changing = any(w is not None for w in withins)
+    if changing:
         shape = targets.mean.shape[:1] + (n_rep,) + targets.mean.shape[1:2] + (c,)
-        w_stacked = np.stack([w if w is not None else np.zeros(shape) for w in withins], axis=-2).reshape(-1, len(designs), c)
-        w_all = w_stacked.reshape(w_stacked.shape[0], -1)
+        w_all = _side_by_side([w if w is not None else np.zeros(shape) for w in withins], c)
         if t_within is not None:
-            u = u + w_all.T @ t_within
-        gram = gram + _column_products(w_stacked)
-    u = u.reshape(len(designs), c, -1)
+            u = u + w_all @ t_within
+        gram = gram + w_all @ np.swapaxes(w_all, 1, 2)
     scale = max(d.scale for d in designs)
     rows = _rows(designs[0])
     if fixed is not None and fixed.n_columns:
         f_mean, f_within = fixed.flat()
-        cross = n_rep * (means.T @ f_mean)
-        if f_within is not None and any(w is not None for w in withins):
-            cross = cross + w_all.T @ f_within
-        cross = cross.reshape(len(designs), c, -1)  # (S, c, f): X_s' F
+        cross = n_rep * (means @ f_mean)  # (S, c, f): X_s' F
+        if f_within is not None and changing:
+            cross = cross + w_all @ f_within
         a_inverse = _pseudo_inverse(fixed.gram(), fixed.scale, rows)
         v = fixed.dot(targets)  # (f, k)
         u = u - cross @ (a_inverse @ v)
@@ -196,9 +188,15 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
 def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
     """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
     target = targets.first_column()
-    gram, dot = design.gram(), design.dot(target)
-    ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)
-    return np.stack([solve(gram - ring_gram[j], dot - ring_dot[j], design.scale, _rows(design), ridge)[0][:, 0] for j in rings])
+    rings = np.asarray(rings, dtype=np.intp)
+    # Every ring's normal equations at once, solved as solve() solves one: (m, c, c) and (m, c).
+    gram = design.gram()[None] - design.ring_gram()[rings]
+    dot = design.dot(target)[None, :, 0] - design.ring_dot(target)[rings, :, 0]
+    values, vectors = np.linalg.eigh(gram)
+    keep = values > 1e-12 * max(design.scale**2 * _rows(design), 1e-300)
+    projected = np.einsum("mcj,mc->mj", vectors, dot)
+    shrunk = np.where(keep, projected / np.where(keep, values + ridge, 1.0), 0.0)
+    return np.einsum("mcj,mj->mc", vectors, shrunk)
 
 
 def choose_ridge(design: Design, targets: Design) -> float:
