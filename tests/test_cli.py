@@ -123,6 +123,10 @@ def test_without_torch_train_reports_the_import_error_and_inspect_works(tmp_path
     assert json.loads(inspect.stdout)["orientations"] == 11
     listed = run_without_torch("simulate", "--list")  # the twin needs no torch either
     assert listed.returncode == 0 and listed.stdout.startswith("head_2")
+    # Nor the diagnosis on the trilinear baseline (issue 28: no torch unless the network is asked for).
+    diagnosed = run_without_torch("diagnose", "--data", str(path), "--json")
+    assert diagnosed.returncode == 0, diagnosed.stderr
+    assert json.loads(diagnosed.stdout)["baseline"]["model"] == "trilinear"
 
 
 def test_importing_the_cli_imports_neither_torch_nor_viser() -> None:

@@ -33,11 +33,9 @@ def diagnose_command(
 ) -> int:
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
     with --save or --resume, write the study."""
-    # torch: imported when the command runs, so that the CLI (and inspect) works without it.
     from ph_explorer.diagnosis import diagnose
     from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record
     from ph_explorer.models.folder import baseline_of, load_models
-    from ph_explorer.models.network import FourierNetwork
 
     previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
     data_part = data_part or (previous["data_part"] if previous else "trilinear")
@@ -58,6 +56,7 @@ def diagnose_command(
         task = bar.add_task("scanning candidate effects", total=None)
         data_model: str | Callable[[], DeviationModel] = data_part
         if data_part == "network":
+            from ph_explorer.models.network import FourierNetwork  # torch: only when the network is asked for
 
             def data_model() -> DeviationModel:
                 # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
