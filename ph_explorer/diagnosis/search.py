@@ -60,6 +60,12 @@ class Scan:
     null_best: NDArray[np.float64]  # (NULL_DRAWS,)
 
 
+# The columns that change between repetitions a shared FittedBases keeps (the nested folds'):
+# head_3's drift scan is 36 settings x 5.5 MB; a dense campaign's would not fit, and is made again.
+WITHIN_BUDGET_BYTES = 256 * 2**20
+FOLD_DESIGN_BUDGET_BYTES = 128 * 2**20  # a nested fold's designs kept (head_3's: about 100 MB)
+
+
 def settings_key(effect: Effect) -> tuple[str, tuple]:
     """An effect at its settings, as a dictionary key (the same columns for the same key)."""
     return effect.id, tuple(sorted(effect.settings().items()))
@@ -71,7 +77,8 @@ class FittedBases:
     The nested folds' searches run on the campaign without some rings: their columns are the
     whole campaign's, sliced (`subset`). That is also the touches as they were measured: the
     approach of a fold's first touch at a ring comes from the touch before it in the campaign.
-    Columns that change between repetitions are n_rep times larger and made again when asked.
+    Columns that change between repetitions (drift) are n_rep times larger: kept while they fit in
+    WITHIN_BUDGET_BYTES (every fold asks for each again), made again when asked beyond it.
     """
 
     def __init__(self, touches: Touches, keep: bool = True) -> None:
@@ -80,11 +87,13 @@ class FittedBases:
         self.keep = keep
         self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
         self._rings: NDArray[np.intp] | None = None
+        self._within_bytes = [0]  # shared with the subsets: one budget for the whole campaign
 
     def subset(self, rings: NDArray[np.intp]) -> FittedBases:
         """The same columns at some rings only (indices into the campaign's orientations)."""
         out = object.__new__(FittedBases)
         out.touches, out.keep, out._columns, out._rings = self.touches, self.keep, self._columns, np.asarray(rings)
+        out._within_bytes = self._within_bytes
         return out
 
     def __call__(self, effect: Effect) -> NDArray[np.float64]:
@@ -96,6 +105,9 @@ class FittedBases:
                 columns = columns[:, :1]
                 if self.keep:
                     self._columns[key] = columns
+            elif self.keep and self._within_bytes[0] + columns.nbytes <= WITHIN_BUDGET_BYTES:
+                self._within_bytes[0] += columns.nbytes
+                self._columns[key] = columns
         if self._rings is not None:
             columns = columns[self._rings]
         # Broadcast over the repetitions again (a view: Design sees that it has no within part).
@@ -124,6 +136,7 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
+        self._design_bytes = 0
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
         sigma = campaign.noise_sigma_um()
@@ -156,15 +169,18 @@ class CandidateSearch:
         if key in self._designs:
             return self._designs[key]
         design = Design(self.bases(effect), self.smoother)
-        # One that changes between repetitions is n_rep times larger: made again. A search on shared
-        # bases (a nested fold's) keeps none: the bases are kept, and its designs are quick to make.
-        if design.within is None and not self.bases.keep:
+        # One that changes between repetitions is n_rep times larger: made again (a nested fold's
+        # shared bases keep its columns). The others are a ring's mean only: kept for the search,
+        # a nested fold's search (on shared bases, two at a time) within FOLD_DESIGN_BUDGET_BYTES.
+        if design.within is None and (not self.bases.keep or self._design_bytes + design.mean.nbytes <= FOLD_DESIGN_BUDGET_BYTES):
+            self._design_bytes += design.mean.nbytes
             self._designs[key] = design
         return design
 
     def forget_designs(self) -> None:
         """Let the designs made so far go (their memory), e.g. before the nested folds' searches."""
         self._designs.clear()
+        self._design_bytes = 0
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,
