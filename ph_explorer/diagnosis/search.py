@@ -136,7 +136,7 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
-        self._design_bytes = 0
+        self._design_bytes = self._within_design_bytes = 0
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
         sigma = campaign.noise_sigma_um()
@@ -169,18 +169,25 @@ class CandidateSearch:
         if key in self._designs:
             return self._designs[key]
         design = Design(self.bases(effect), self.smoother)
-        # One that changes between repetitions is n_rep times larger: made again (a nested fold's
-        # shared bases keep its columns). The others are a ring's mean only: kept for the search,
-        # a nested fold's search (on shared bases, two at a time) within FOLD_DESIGN_BUDGET_BYTES.
-        if design.within is None and (not self.bases.keep or self._design_bytes + design.mean.nbytes <= FOLD_DESIGN_BUDGET_BYTES):
-            self._design_bytes += design.mean.nbytes
+        # Kept for the search: a ring's mean only, always (a nested fold's search, on shared bases
+        # and two at a time, within FOLD_DESIGN_BUDGET_BYTES); one that changes between
+        # repetitions, n_rep times larger, within WITHIN_BUDGET_BYTES of the search's own (a nested
+        # fold's shared bases keep its columns instead).
+        size = design.mean.nbytes + (0 if design.within is None else design.within.nbytes)
+        if self.bases.keep:
+            keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
+        else:
+            keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
+            self._within_design_bytes += size if keep and design.within is not None else 0
+        if keep:
+            self._design_bytes += size
             self._designs[key] = design
         return design
 
     def forget_designs(self) -> None:
         """Let the designs made so far go (their memory), e.g. before the nested folds' searches."""
         self._designs.clear()
-        self._design_bytes = 0
+        self._design_bytes = self._within_design_bytes = 0
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,

@@ -158,6 +158,26 @@ def noise_null(
     return NoiseNull(null_stat, null_statistic, critical, tolerance)
 
 
+# The last few nulls drawn: a diagnosis tests the baseline and what the effects found leave on the
+# same rings, smoother and noise (the null depends on nothing else), and its chain step by step.
+_NULLS: dict[tuple, NoiseNull] = {}
+NULLS_KEPT = 8
+
+
+def kept_null(
+    weights: NDArray[np.float64], sigma: NDArray[np.float64], n_rep: int, n_pt: int, seed: int = 0, tolerance: float = MEAN_TOLERANCE
+) -> NoiseNull:
+    """noise_null, drawn once for the same weights, sigma, shape, seed and tolerance."""
+    key = (weights.shape, weights.tobytes(), np.asarray(sigma, dtype=float).tobytes(), n_rep, n_pt, seed, tolerance)
+    null = _NULLS.get(key)
+    if null is None:
+        null = noise_null(weights, sigma, n_rep, n_pt, seed, tolerance)
+        while len(_NULLS) >= NULLS_KEPT:
+            _NULLS.pop(next(iter(_NULLS)), None)  # the oldest first
+        _NULLS[key] = null
+    return null
+
+
 def within_noise(
     residual: NDArray[np.float64],
     weights: NDArray[np.float64],
@@ -179,7 +199,7 @@ def within_noise(
     if n_rep < 2:
         return None
     if null is None:
-        null = noise_null(weights, ring_sigma(spread), n_rep, n_pt, seed, tolerance)
+        null = kept_null(weights, ring_sigma(spread), n_rep, n_pt, seed, tolerance)
     null_stat, tolerance = null.null_stat, null.tolerance
     mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)
     p_mean = _upper_p(mean_stat, tolerance * null_stat)

@@ -106,12 +106,27 @@ def unit_campaign(orientations: ArrayLike) -> Campaign:
     return Campaign(o, np.eye(len(o))[:, None, :])
 
 
+# The last few W made (read-only): a diagnosis asks for the same rings' W in its search, its
+# within-noise tests and its hybrid fits; each is n_o^2 floats (146 kB for 135 rings).
+_WEIGHTS: dict[tuple, NDArray[np.float64]] = {}
+WEIGHTS_KEPT = 16
+
+
 def out_of_sample_weights(
     orientations: ArrayLike, train: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel
 ) -> NDArray[np.float64]:
     """W (n_o x n_o) of a model linear in its data: row i predicts orientation i out of sample
-    (its interpolation of unit vectors, before any circle fit: unit_campaign)."""
-    return _out_of_sample(model_type, unit_campaign(orientations), train, lambda model, at: model.interpolate(at))
+    (its interpolation of unit vectors, before any circle fit: unit_campaign). Read-only."""
+    o, mask = as_orientations(orientations), np.asarray(train, dtype=bool)
+    key = (model_type, o.shape, o.tobytes(), mask.tobytes())
+    weights = _WEIGHTS.get(key)
+    if weights is None:
+        weights = _out_of_sample(model_type, unit_campaign(o), mask, lambda model, at: model.interpolate(at))
+        weights.flags.writeable = False
+        while len(_WEIGHTS) >= WEIGHTS_KEPT:
+            _WEIGHTS.pop(next(iter(_WEIGHTS)), None)  # the oldest first
+        _WEIGHTS[key] = weights
+    return weights
 
 
 class OutOfSampleSmoother:
