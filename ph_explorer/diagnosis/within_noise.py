@@ -13,6 +13,7 @@ Method: docs/methods/within_noise.md.
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -162,6 +163,7 @@ def noise_null(
 # same rings, smoother and noise (the null depends on nothing else), and its chain step by step.
 _NULLS: dict[tuple, NoiseNull] = {}
 NULLS_KEPT = 8
+_NULLS_LOCK = threading.Lock()  # the explorer's sessions diagnose in threads
 
 
 def kept_null(
@@ -172,9 +174,11 @@ def kept_null(
     null = _NULLS.get(key)
     if null is None:
         null = noise_null(weights, sigma, n_rep, n_pt, seed, tolerance)
-        while len(_NULLS) >= NULLS_KEPT:
-            _NULLS.pop(next(iter(_NULLS)), None)  # the oldest first
-        _NULLS[key] = null
+        null.null_stat.flags.writeable = null.null_statistic.flags.writeable = False  # shared: read-only
+        with _NULLS_LOCK:
+            while len(_NULLS) >= NULLS_KEPT:
+                _NULLS.pop(next(iter(_NULLS)))  # the oldest first
+            _NULLS[key] = null
     return null
 
 

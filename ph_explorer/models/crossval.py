@@ -11,6 +11,7 @@ Method: docs/methods/crossval.md.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -110,6 +111,7 @@ def unit_campaign(orientations: ArrayLike) -> Campaign:
 # within-noise tests and its hybrid fits; each is n_o^2 floats (146 kB for 135 rings).
 _WEIGHTS: dict[tuple, NDArray[np.float64]] = {}
 WEIGHTS_KEPT = 16
+_WEIGHTS_LOCK = threading.Lock()  # the explorer's sessions diagnose in threads
 
 
 def out_of_sample_weights(
@@ -123,9 +125,10 @@ def out_of_sample_weights(
     if weights is None:
         weights = _out_of_sample(model_type, unit_campaign(o), mask, lambda model, at: model.interpolate(at))
         weights.flags.writeable = False
-        while len(_WEIGHTS) >= WEIGHTS_KEPT:
-            _WEIGHTS.pop(next(iter(_WEIGHTS)), None)  # the oldest first
-        _WEIGHTS[key] = weights
+        with _WEIGHTS_LOCK:
+            while len(_WEIGHTS) >= WEIGHTS_KEPT:
+                _WEIGHTS.pop(next(iter(_WEIGHTS)))  # the oldest first
+            _WEIGHTS[key] = weights
     return weights
 
 
