@@ -4,7 +4,9 @@ A local defect of an axis (a damaged gear tooth, a dent in an encoder track) is 
 confined to a few degrees of its joint angle: a bump, not a cycle. A probe module whose seats wore
 unevenly adds a seven-lobe term in the force azimuth; the catalog's probe terms have 2-5 lobes
 (ball form) and the seats' 3, 6, 9, 12. Each names the variable of the signature that should read
-it first (`truth_variable`).
+it first (`truth_variable`) and the variables of the same joint (`joint_variables`): a ring's
+nominal B0 is where the B joint stands during that ring, give or take the head's own sweep into
+each touch, so a B defect read first in b0_deg still sends the metrologist to the right axis.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ class _JointBump(Effect):
     axis: ClassVar[str] = "B"
     kind = "angular_positioning"
     truth_variable: ClassVar[str] = ""
+    joint_variables: ClassVar[tuple[str, ...]] = ()
     parameters = (
         Parameter("amplitude_arcsec", "arcsec", 2.0, "peak angular error at the defect", plausible=(0.0, 6.0)),
         Parameter("centre_deg", "deg", 0.0, "joint angle of the defect", period=360.0),
@@ -49,6 +52,7 @@ class BJointBump(_JointBump):
     name = "A local defect of the B axis (outside the catalog)"
     axis = "B"
     truth_variable = "b_joint_deg"
+    joint_variables = ("b_joint_deg", "b0_deg")
 
 
 class AJointBump(_JointBump):
@@ -56,6 +60,7 @@ class AJointBump(_JointBump):
     name = "A local defect of the A axis (outside the catalog)"
     axis = "A"
     truth_variable = "a_joint_deg"
+    joint_variables = ("a_joint_deg", "a0_deg")
 
 
 class ProbeSevenLobes(Effect):
@@ -64,6 +69,7 @@ class ProbeSevenLobes(Effect):
     axis = "probe"
     kind = "probe"
     truth_variable: ClassVar[str] = "probe_azimuth_deg"
+    joint_variables: ClassVar[tuple[str, ...]] = ("probe_azimuth_deg",)
     parameters = (
         Parameter("amplitude_um", "um", 0.2, "amplitude of the seven-lobe pre-travel term at a lateral force", plausible=(0.0, 0.6)),
         Parameter("phase_deg", "deg", 0.0, "phase of the lobes", period=360.0),

@@ -3,6 +3,8 @@
 - cli.md from the typer app (docs/cli_page.py);
 - benchmarks.md from benchmarks/results.json (docs/benchmarks_page.py), with the plots
   benchmarks/*.png as img/benchmarks/*.png;
+- the population's verdict rates in diagnosis.md, in place of its `<!-- verdict-rates -->` line
+  (docs/benchmarks_page.py, `verdict_rates`);
 - the effects catalog's table in twin.md, in place of its `<!-- effects-catalog -->` line
   (docs/cli_page.py, `catalog_table`).
 
@@ -49,6 +51,8 @@ def on_files(files: Files, config) -> Files:
 
 
 def on_page_markdown(markdown: str, page, config, files) -> str:
+    if benchmarks_page.VERDICT_RATES_MARKER in markdown:
+        markdown = markdown.replace(benchmarks_page.VERDICT_RATES_MARKER, benchmarks_page.verdict_rates(benchmarks_page.load()))
     if cli_page.CATALOG_MARKER in markdown:
         markdown = markdown.replace(cli_page.CATALOG_MARKER, cli_page.catalog_table())
     return markdown

@@ -81,6 +81,33 @@ def test_target_reads_the_curves() -> None:
 
 
 @pytest.mark.slow
+def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> None:
+    """The population's false alarms (benchmarks/population.py): a verdict that names only terms the
+    head has, at their settings, is a finding; a wrong setting, a term it lacks or a failing model
+    with nothing named are alarms."""
+    from benchmarks.population import alarm
+
+    background = [{"effect": "b_axis_cyclic", "settings": {"cycles_per_rev": 4.0}}, {"effect": "b_axis_position", "settings": {}}]
+
+    def record(verdict: str, found: list[tuple[str, float]], suggested: list[str] = ()) -> dict:
+        return {
+            "verdict": verdict,
+            "background": background,
+            "found": [{"effect": e, "settings": {"cycles_per_rev": k}, "not_excluded": []} for e, k in found],
+            "suggested": list(suggested),
+            "suggested_settings": [{} for _ in suggested],
+        }
+
+    assert not alarm(record("none", []))
+    assert not alarm(record("missing", [("b_axis_cyclic", 4.0)]))
+    assert not alarm(record("suggested", [], ["b_axis_position"]))
+    assert alarm(record("missing", [("b_axis_cyclic", 5.0)]))
+    assert alarm(record("missing", [("a_axis_cyclic", 4.0)]))
+    assert alarm(record("missing", [("b_axis_cyclic", 4.0)], ["lobing"]))
+    assert alarm(record("unexplained", []))
+    assert alarm(record("partial", [("b_axis_cyclic", 4.0)]))
+
+
 def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     result = subprocess.run(
         [sys.executable, "-m", "benchmarks", "--quick", "--out", str(tmp_path)],
@@ -189,6 +216,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert population["seconds_per_diagnosis"]["median"] > 0
     tolerance = population["tolerance"]
     assert tolerance["used"] == 2.0 and {x["of"] for x in tolerance["baseline_fails"].values()} == {2}
+    u_calibration = population["u_calibration"]
+    assert u_calibration["seeds"] == [950_000, 950_000] and u_calibration["inflation_used"] > 0
+    assert population["commit"] and "truth_within_u_every_parameter" in population["catalog_effect"]
     deciding = results["deciding"]
     assert [len(deciding["records"][k]) for k in ("a_axis_angular", "b_axis_tilt", "false_suggestions")] == [1, 0, 0]
     (loop,) = deciding["records"]["a_axis_angular"]

@@ -3,6 +3,7 @@ to a name the code no longer has fails here, as the README's links to the site w
 
 from __future__ import annotations
 
+import json
 import re
 import subprocess
 import sys
@@ -23,6 +24,12 @@ def test_the_site_builds_strictly(tmp_path):
     # The generated pages hold what the code and the results hold, not a hand copy.
     benchmarks = (site / "benchmarks" / "index.html").read_text(encoding="utf-8")
     assert re.search(r"\d+\.\d+", benchmarks)
+    # the verdicts' promises carry the population's measured rates, written from results.json
+    diagnosis = (site / "diagnosis" / "index.html").read_text(encoding="utf-8")
+    assert "verdict-rates" not in diagnosis
+    population = json.loads((ROOT / "benchmarks" / "results.json").read_text(encoding="utf-8"))["population"]
+    healthy = population["healthy"]["verdicts"]
+    assert f"{healthy.get('none', 0)} of {sum(healthy.values())}" in diagnosis
     cli = (site / "cli" / "index.html").read_text(encoding="utf-8")
     assert all(command in cli for command in ("inspect", "simulate", "train", "evaluate", "diagnose", "design", "serve"))
 
