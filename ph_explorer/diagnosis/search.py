@@ -45,7 +45,9 @@ SETTINGS_NOT_EXCLUDED = 3.84
 MATERIAL_REDUCTION = 0.15
 # Significant scan values of one effect tried for materiality, most explained first.
 MAX_MATERIAL_TRIALS = 8
-SCAN_CHUNK_WITHIN = 6  # scan values fitted at once when their columns change between repetitions
+# Scan values fitted at once when their columns change between repetitions: as many as hold this
+# many bytes of such columns (explained_beyond copies them once more), at least one.
+SCAN_CHUNK_WITHIN_BYTES = 64 * 2**20
 # A ring's out-of-sample residual and columns hold its neighbours' touches (through the
 # interpolator), so delete-one-ring fits are not independent and the jackknife understates the
 # spread. The factor that brings 95 % of fitted parameters within U on calibration heads of their
@@ -203,23 +205,32 @@ class CandidateSearch:
             return Candidate.untested(effect.id, effect.name, effect.teaching, note=f"the {effect.id} effect {'; '.join(unmet)}")
         total_all = self.targets_total
         base = least_squares.fit(fixed, self.targets)[1] if fixed is not None else np.zeros_like(total_all)
-        grid, designs = [], []
-        for settings in effect.scan_grid():
-            design = self.design([effect.with_settings(**settings)])
-            if design.n_columns:
-                grid.append(settings)
-                designs.append(design)
-        if not designs:
+        every = effect.scan_grid()
+        if not every:
             return Candidate.untested(effect.id, effect.name, effect.teaching)
-        # Every scanned value at once (least_squares.explained_beyond), a few at a time where the
-        # columns change between repetitions (n_rep times larger), grouped by their column count.
-        explained = np.zeros((len(designs), 1 + NULL_DRAWS))
-        chunk = SCAN_CHUNK_WITHIN if any(d.within is not None for d in designs) else len(designs)
-        for count in {d.n_columns for d in designs}:
-            same = [i for i, d in enumerate(designs) if d.n_columns == count]
-            for start in range(0, len(same), chunk):
-                part = same[start : start + chunk]
-                explained[part] = least_squares.explained_beyond(fixed, [designs[i] for i in part], self.targets)
+        # Every scanned value at once (least_squares.explained_beyond), grouped by column count; a
+        # few at a time where the columns change between repetitions (n_rep times larger), each
+        # few made only when scored, so that a dense campaign never holds every scan value's.
+        first = self.design([effect.with_settings(**every[0])])
+        chunk = len(every) if first.within is None else max(1, min(len(every), SCAN_CHUNK_WITHIN_BYTES // max(first.within.nbytes, 1)))
+        grid: list[dict[str, Any]] = []
+        parts = []
+        for start in range(0, len(every), chunk):
+            part = [
+                (settings, first if start + i == 0 else self.design([effect.with_settings(**settings)]))
+                for i, settings in enumerate(every[start : start + chunk])
+            ]
+            part = [(settings, design) for settings, design in part if design.n_columns]
+            block = np.zeros((len(part), 1 + NULL_DRAWS))
+            for count in {design.n_columns for _, design in part}:
+                same = [i for i, (_, design) in enumerate(part) if design.n_columns == count]
+                block[same] = least_squares.explained_beyond(fixed, [part[i][1] for i in same], self.targets)
+            grid += [settings for settings, _ in part]
+            parts.append(block)
+            del part
+        if not grid:
+            return Candidate.untested(effect.id, effect.name, effect.teaching)
+        explained = np.concatenate(parts)
         null_best = np.maximum(0.0, explained[:, 1:].max(axis=0))
         scanned = sorted(((float(e), settings) for e, settings in zip(explained[:, 0], grid)), key=lambda item: item[0], reverse=True)
         return Scan(effect, fixed, float(total_all[0] - base[0]), scanned, null_best)
