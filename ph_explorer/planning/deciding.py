@@ -71,7 +71,7 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
     """Every question the diagnosis leaves: each claimed or suggested candidate against each
     confounded partner its rings do not tell it from, and each suggested candidate to confirm."""
     ranked: dict[str, Candidate] = {}
-    for ranking in [result.candidates, *result.rankings]:
+    for ranking in result.rankings or [result.candidates]:
         for c in ranking:
             ranked.setdefault(c.effect, c)
     out: list[Question] = []
@@ -145,11 +145,11 @@ class Evidence:
         self.check = campaign.holdout_mask()
         x = seen_columns(question.effect, campaign, pool, weights)
         cx = np.asarray(question.effect.coefficients(), dtype=float)
-        self.term = (np.einsum("opi,i->op", x, cx) ** 2).sum(axis=1)  # (n_o + n_pool,), a suggestion's evidence
         # Per (truth, refit): the truth's signal energy per ring, the refit's Gram blocks and their
         # products with the signal per ring (the measured rings first, then the pool's).
         self.fits: list[tuple[NDArray, NDArray, NDArray]] = []
         if question.other is None:
+            self.term = (np.einsum("opi,i->op", x, cx) ** 2).sum(axis=1)  # (n_o + n_pool,), a suggestion's evidence
             return
         y = seen_columns(question.other, campaign, pool, weights)
         cy = np.asarray(question.other.coefficients(), dtype=float)

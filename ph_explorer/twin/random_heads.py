@@ -30,8 +30,8 @@ def _signed(rng: np.random.Generator, high: float) -> float:
 
 def _low_order_cyclic(effect_id: str) -> Callable[[np.random.Generator], list[dict[str, Any]]]:
     """Two cyclic errors of an axis at distinct low orders k (1-4 cycles/rev), 0.2-2 arcsec divided
-    by max(1, k / 2): higher harmonics of a drive or an encoder are smaller, and a healthy head's
-    are what its lattice resolves."""
+    by max(1, k / 2): higher harmonics of a drive or an encoder are smaller (a 4/rev one near
+    1 arcsec is more than a 20 deg lattice interpolates: docs/methods/random_heads.md)."""
 
     def draw(rng: np.random.Generator) -> list[dict[str, Any]]:
         orders = rng.choice([1, 2, 3, 4], size=2, replace=False)
