@@ -443,7 +443,7 @@ def commit() -> str:
 def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = WORKERS) -> dict[str, Any]:
     """Every part; the results["population"] object."""
     started = time.perf_counter()
-    code = code_version()
+    code, checkout = code_version(), commit()  # what the diagnoses run on, read before they start
     todo = jobs(quick)
     log(f"  {len(todo)} diagnoses of random heads in {workers} processes")
     records = run_jobs(todo, workers, log)
@@ -452,7 +452,7 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
     out = {
         "mode": "quick" if quick else "full",
         "code_sha256": code,
-        "commit": commit(),
+        "commit": checkout,
         "targets": TARGETS,
         "counts": {g: sum(r["group"] == g for r in records) for g in COUNTS},
     }

@@ -11,12 +11,14 @@ date and the code it was measured on.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import json
 import os
 import platform
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -46,6 +48,17 @@ SCENARIOS = ("paper", "head_3")
 
 def log(text: str) -> None:
     print(text, flush=True)
+
+
+@contextlib.contextmanager
+def section(title: str, key: str, results: dict[str, Any]) -> Iterator[None]:
+    """One section of the run, logged with its wall seconds (results["section_seconds"][key])."""
+    log(title)
+    started = time.perf_counter()
+    yield
+    seconds = round(time.perf_counter() - started, 1)
+    results.setdefault("section_seconds", {})[key] = seconds
+    log(f"  ({title}: {seconds} s)")
 
 
 SECTIONS = (
@@ -226,35 +239,34 @@ def main(argv: list[str] | None = None) -> int:
         }
 
     if "data_efficiency" in sections:
-        log("data efficiency")
-        run_data_efficiency(quick, network_config, results)
+        with section("data efficiency", "data_efficiency", results):
+            run_data_efficiency(quick, network_config, results)
     if "speed" in sections or "scale" in sections:
-        log("speed")
-        run_speed(quick, network_config, results, with_scale="scale" in sections)
+        with section("speed", "speed_and_scale", results):
+            run_speed(quick, network_config, results, with_scale="scale" in sections)
     if "diagnosis_calibration" in sections:
         # false alarms, stability, coverage, power (issue 13)
-        log("diagnosis calibration")
-        results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+        with section("diagnosis calibration", "diagnosis_calibration", results):
+            results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
     if "population" in sections:
         # the verdicts over a population of random heads (issue 28)
-        log("population")
-        results["population"] = population.run(quick=quick, log=log)
+        with section("population", "population", results):
+            results["population"] = population.run(quick=quick, log=log)
     if "deciding" in sections:
         # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
-        log("deciding")
-        results["deciding"] = deciding.run(quick=quick, log=log)
+        with section("deciding", "deciding", results):
+            results["deciding"] = deciding.run(quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
-        log("hidden effects")
-        results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
+        with section("hidden effects", "hidden_effects", results):
+            results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
     if "uncertainty_coverage" in sections:
         # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
-        log("uncertainty coverage")
-        results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(quick=quick, log=log)}
+        with section("uncertainty coverage", "uncertainty_coverage", results):
+            results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(quick=quick, log=log)}
     if "large_campaign" in sections:
         # every command at the paper's size and at 16x its touches (issue 16)
-        log("large campaign")
-        with tempfile.TemporaryDirectory() as folder:
+        with section("large campaign", "large_campaign", results), tempfile.TemporaryDirectory() as folder:
             results["large_campaign"] = large_campaign.run(Path(folder), quick=quick, log=log)
 
     seconds = round(time.perf_counter() - started, 1)
