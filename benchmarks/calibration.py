@@ -34,18 +34,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-# One BLAS thread per process (as ph_explorer does): the worker processes inherit it.
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+import numpy as np
+from scipy.stats import binomtest
+from threadpoolctl import threadpool_limits
 
-import numpy as np  # noqa: E402
-from scipy.stats import binomtest  # noqa: E402
-
-import ph_explorer  # noqa: E402
-from ph_explorer.diagnosis import VERDICTS, diagnose  # noqa: E402
-from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL  # noqa: E402
-from ph_explorer.paths import scenarios_dir  # noqa: E402
-from ph_explorer.twin import scenario_from_dict, simulate  # noqa: E402
+import ph_explorer
+from ph_explorer.diagnosis import VERDICTS, diagnose
+from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL
+from ph_explorer.paths import scenarios_dir
+from ph_explorer.twin import scenario_from_dict, simulate
 
 WORKERS = max(1, min(2, os.cpu_count() or 1))
 TARGET_FALSE_ALARM = 0.05
@@ -365,6 +362,16 @@ def power_point(amplitude: float, records: list[dict[str, Any]]) -> dict[str, An
     }
 
 
+_LIMITS: list[Any] = []
+
+
+def one_thread_each() -> None:
+    """A worker process's BLAS and OpenMP pools at one thread (Pool initializer): the workers share
+    the cores. Set in the workers only, so that the rest of a benchmark run (training, serving)
+    keeps its threads."""
+    _LIMITS.append(threadpool_limits(1))  # kept: the limits hold while the object lives
+
+
 def code_version() -> str:
     """A short sha256 of the package's Python sources: which code the figures were measured on."""
     digest = hashlib.sha256()
@@ -448,7 +455,7 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
             log(f"  {done}/{total} diagnoses ({time.perf_counter() - started:.0f} s)")
 
     if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
             for record in pool.imap_unordered(diagnose_one, todo, chunksize=1):
                 take(record)
     else:

@@ -53,23 +53,20 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_variable, "1")
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from benchmarks.calibration import clopper_pearson, code_version, share  # noqa: E402
-from benchmarks.outside_catalog import OUTSIDE_EFFECTS  # noqa: E402
-from ph_explorer.diagnosis import diagnose  # noqa: E402
-from ph_explorer.diagnosis.detection import hidden_effect_of  # noqa: E402
-from ph_explorer.diagnosis.loop import honest_after  # noqa: E402
-from ph_explorer.diagnosis.search import JACKKNIFE_INFLATION, CandidateSearch  # noqa: E402
-from ph_explorer.diagnosis.within_noise import MEAN_TOLERANCE, within_noise  # noqa: E402
-from ph_explorer.effects import DEFAULT_CATALOG, Catalog  # noqa: E402
-from ph_explorer.errors import InputError  # noqa: E402
-from ph_explorer.io import write_campaign  # noqa: E402
-from ph_explorer.twin import load_scenario, simulate  # noqa: E402
-from ph_explorer.twin.random_heads import design_of, random_campaign, random_head  # noqa: E402
+from benchmarks.calibration import clopper_pearson, code_version, one_thread_each, share
+from benchmarks.outside_catalog import OUTSIDE_EFFECTS
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.detection import hidden_effect_of
+from ph_explorer.diagnosis.loop import honest_after
+from ph_explorer.diagnosis.search import JACKKNIFE_INFLATION, CandidateSearch
+from ph_explorer.diagnosis.within_noise import MEAN_TOLERANCE, within_noise
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog
+from ph_explorer.errors import InputError
+from ph_explorer.io import write_campaign
+from ph_explorer.twin import load_scenario, simulate
+from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
 
 SPEED_REPEATS = 3
 # Every diagnosis's record of a full run, beside results.json: what each head was and what was said.
@@ -278,7 +275,7 @@ def tolerance_curve(quick: bool, workers: int) -> dict[str, Any]:
     """Part 0 (module docstring): the baseline's failing share over calibration heads at each tolerance."""
     seeds = range(CALIBRATION_SEED, CALIBRATION_SEED + (QUICK_CALIBRATION_HEADS if quick else CALIBRATION_HEADS))
     if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
             heads = pool.map(baseline_fails, seeds, chunksize=4)
     else:
         heads = [baseline_fails(seed) for seed in seeds]
@@ -313,7 +310,7 @@ def run_jobs(todo: list[dict[str, Any]], workers: int, log: Callable[[str], None
     """diagnose_one over todo in `workers` processes; the records sorted by group and seed."""
     started, records = time.perf_counter(), []
     if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers) as pool:
+        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
             for record in pool.imap_unordered(diagnose_one, todo, chunksize=1):
                 records.append(record)
                 if log is not None and len(records) % 50 == 0:
