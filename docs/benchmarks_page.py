@@ -16,7 +16,18 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results.json"
 PLOTS = ("data_efficiency.png", "speed.png", "calibration.png")
-METADATA = ("date", "mode", "machine", "total_seconds", "updated", "data_efficiency_details", "target", "scale_100")
+METADATA = (
+    "date",
+    "mode",
+    "commit",
+    "machine",
+    "total_seconds",
+    "section_seconds",
+    "updated",
+    "data_efficiency_details",
+    "target",
+    "scale_100",
+)
 
 Plots = Mapping[str, str]  # file name -> its path in the site, relative to benchmarks.md
 
@@ -132,11 +143,12 @@ def overview(results: Mapping[str, Any]) -> str:
         "## The run",
         "",
         table(
-            ["date", "mode", "seconds", "cores (os.cpu_count)", "torch threads", "Python", "platform"],
+            ["date", "mode", "commit", "seconds", "cores (os.cpu_count)", "torch threads", "Python", "platform"],
             [
                 [
                     results.get("date"),
                     results.get("mode"),
+                    results.get("commit", ""),
                     results.get("total_seconds"),
                     machine.get("cpu_count"),
                     machine.get("torch_threads"),
@@ -149,13 +161,17 @@ def overview(results: Mapping[str, Any]) -> str:
     updated = results.get("updated") or {}
     if updated:
         out += [
-            "Sections run again since (with `--only`), each measured on the code named by its sha256:",
+            "Sections run again since (with `--only`), each measured on the code named by its sha256 (and its commit, "
+            "recorded since 2026-11-27):",
             "",
             table(
-                ["section", "date", "mode", "code sha256"],
-                [[name, s.get("date"), s.get("mode"), s.get("code_sha256")] for name, s in updated.items()],
+                ["section", "date", "mode", "code sha256", "commit"],
+                [[name, s.get("date"), s.get("mode"), s.get("code_sha256"), s.get("commit", "")] for name, s in updated.items()],
             ),
         ]
+    seconds = results.get("section_seconds") or {}
+    if seconds:
+        out += ["", "Wall seconds of each section at its last run: " + joined([f"{k} {num(v, 's')}" for k, v in seconds.items()]) + "."]
     out += ["## Targets at a glance", "", table(["section", "target", "result"], list(target_rows(results)))]
     return "\n".join(out)
 

@@ -264,10 +264,15 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     )
     assert again.returncode == 0, again.stderr[-3000:]
     updated = json.loads((tmp_path / "results.json").read_text())
-    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated")} == {
-        k: v for k, v in results.items() if k != "hidden_effects"
+    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated", "section_seconds")} == {
+        k: v for k, v in results.items() if k not in ("hidden_effects", "section_seconds")
+    }
+    before, after = results["section_seconds"], updated["section_seconds"]  # only the section run again has new seconds
+    assert set(after) == set(before) and {k: after[k] for k in after if k != "hidden_effects"} == {
+        k: before[k] for k in before if k != "hidden_effects"
     }
     assert set(updated["updated"]) == {"hidden_effects"} and updated["updated"]["hidden_effects"]["code_sha256"]
+    assert updated["updated"]["hidden_effects"]["commit"] == results["commit"]
     assert updated["hidden_effects"]["cases"].keys() == hidden["cases"].keys()
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
