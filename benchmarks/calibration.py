@@ -26,6 +26,7 @@ import copy
 import hashlib
 import multiprocessing
 import os
+import subprocess
 import time
 import tomllib
 from collections import Counter
@@ -370,6 +371,20 @@ def one_thread_each() -> None:
     the cores. Set in the workers only, so that the rest of a benchmark run (training, serving)
     keeps its threads."""
     _LIMITS.append(threadpool_limits(1))  # kept: the limits hold while the object lives
+
+
+def commit() -> str:
+    """The checkout's short commit, with "+changes" when the package or the benchmarks differ from it:
+    which checkout the figures were measured on."""
+    root = Path(__file__).resolve().parent.parent
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, check=True).stdout.strip()
+        changed = subprocess.run(
+            ["git", "status", "--porcelain", "--", "ph_explorer", "benchmarks/*.py"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+    return head + ("+changes" if changed else "")
 
 
 def code_version() -> str:

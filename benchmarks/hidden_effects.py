@@ -18,6 +18,7 @@ import tomllib
 from collections.abc import Callable
 from typing import Any
 
+from benchmarks.population import error_over_u
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.paths import scenarios_dir
@@ -57,17 +58,7 @@ NEAR_VERTICAL_CASES: dict[str, tuple[str, dict[str, float]]] = {
 
 def covered(effect_id: str, truth: dict[str, float], found: dict[str, Any]) -> bool:
     """Every true parameter the fit reports within fit +- U (phases wrapped by their period)."""
-    periods = {p.name: p.period for p in DEFAULT_CATALOG[effect_id].parameters}
-    for name, value in truth.items():
-        if name not in found["params_u"] or name in found["settings"]:
-            continue
-        diff = found["params"][name] - value
-        period = periods.get(name)
-        if period:
-            diff = (diff + period / 2) % period - period / 2
-        if abs(diff) > found["params_u"][name]:
-            return False
-    return True
+    return all(ratio <= 1.0 for ratio in error_over_u(effect_id, truth, found))
 
 
 def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[str, Any]:

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.calibration import clopper_pearson, code_version, one_thread_each, share
+from benchmarks.calibration import clopper_pearson, code_version, commit, one_thread_each, share
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.detection import hidden_effect_of
@@ -226,16 +226,13 @@ def right_effect(record: dict[str, Any]) -> dict[str, Any] | None:
     return next((f for f in record["found"] if truth["id"] in f["confounded_with"]), None)
 
 
-def error_over_u(record: dict[str, Any], found: dict[str, Any]) -> list[float]:
-    """Per fitted parameter, |fit - truth| / U, the truth put in the fit's own convention
-    (amplitudes >= 0; phases compared modulo their period)."""
-    truth = record["truth"]
-    cls = DEFAULT_CATALOG[truth["id"]]
-    effect = cls(**{k: v for k, v in truth.items() if k in {p.name for p in cls.parameters}})
-    canonical = effect.from_coefficients(effect.coefficients())
+def error_over_u(effect_id: str, truth: dict[str, float], found: dict[str, Any]) -> list[float]:
+    """Per parameter of `truth` that the fit reports with a U, |fit - truth| / U (phases compared
+    modulo their period; scanned settings are chosen, not fitted, and skipped)."""
+    cls = DEFAULT_CATALOG[effect_id]
     periods = {p.name: p.period for p in cls.parameters}
     ratios = []
-    for name, value in canonical.items():
+    for name, value in truth.items():
         if name in cls.scan or name not in found["params_u"]:
             continue
         diff = found["params"][name] - value
@@ -246,9 +243,17 @@ def error_over_u(record: dict[str, Any], found: dict[str, Any]) -> list[float]:
     return ratios
 
 
+def canonical_truth(record: dict[str, Any]) -> dict[str, float]:
+    """The hidden effect's true parameters in the fit's own convention (amplitudes >= 0)."""
+    truth = record["truth"]
+    cls = DEFAULT_CATALOG[truth["id"]]
+    effect = cls(**{k: v for k, v in truth.items() if k in {p.name for p in cls.parameters}})
+    return effect.from_coefficients(effect.coefficients())
+
+
 def parameters_within_u(record: dict[str, Any], found: dict[str, Any]) -> list[bool]:
     """Per fitted parameter, whether the truth is within the fit +- U (error_over_u <= 1)."""
-    return [ratio <= 1.0 for ratio in error_over_u(record, found)]
+    return [ratio <= 1.0 for ratio in error_over_u(record["truth"]["id"], canonical_truth(record), found)]
 
 
 def exact_finds(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
@@ -256,11 +261,6 @@ def exact_finds(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dic
     judged (at another period its phases are another's)."""
     right = [(r, right_effect(r)) for r in records if r["verdict"] != "error"]
     return [(r, f) for r, f in right if f is not None and f["effect"] == r["truth"]["id"] and f["settings"] == true_settings(r)]
-
-
-def covered(record: dict[str, Any], found: dict[str, Any]) -> bool:
-    """Every true parameter within the fit +- U (parameters_within_u)."""
-    return all(parameters_within_u(record, found))
 
 
 def baseline_fails(seed: int) -> dict[str, Any]:
@@ -291,12 +291,12 @@ def u_calibration(quick: bool, workers: int) -> dict[str, Any]:
     parameters within U, over heads with one catalog effect of seeds of their own."""
     count = QUICK_U_CALIBRATION_HEADS if quick else U_CALIBRATION_HEADS
     todo = [{"group": "catalog_effect", "seed": U_CALIBRATION_SEED + i} for i in range(count)]
-    records = run_jobs(todo, workers)
-    ratios = np.array([x for r, f in exact_finds(records) for x in error_over_u(r, f)])
+    exact = exact_finds(run_jobs(todo, workers))
+    ratios = np.array([x for r, f in exact for x in error_over_u(r["truth"]["id"], canonical_truth(r), f)])
     q95 = float(np.quantile(ratios, 0.95)) if ratios.size else float("nan")
     return {
         "seeds": [U_CALIBRATION_SEED, U_CALIBRATION_SEED + count - 1],
-        "heads_with_the_effect_found_exactly": len(exact_finds(records)),
+        "heads_with_the_effect_found_exactly": len(exact),
         "parameters": int(ratios.size),
         "within_u": rate(int(np.sum(ratios <= 1.0)), int(ratios.size)),
         "q95_error_over_u": round(q95, 3),
@@ -347,15 +347,13 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     out["stability"] = rate(sum(first.get(r["seed"]) == r["verdict"] for r in again), len(again))
     effect = [r for r in by_group.get("catalog_effect", []) if r["verdict"] != "error"]
     right = [(r, right_effect(r)) for r in effect]
-    exact = exact_finds(effect)
+    within = [parameters_within_u(r, f) for r, f in exact_finds(effect)]  # per found effect, per parameter
     out["catalog_effect"] = {
         "found": rate(sum(f is not None and r["verdict"] in ("missing", "partial") for r, f in right), len(effect)),
         # judged per parameter, as a k = 2 expanded uncertainty is stated; jointly over all of an
         # effect's 2-4 parameters the share is lower by construction (0.95^4 = 0.81)
-        "truth_within_u": rate(
-            sum(sum(parameters_within_u(r, f)) for r, f in exact), sum(len(parameters_within_u(r, f)) for r, f in exact)
-        ),
-        "truth_within_u_every_parameter": rate(sum(covered(r, f) for r, f in exact), len(exact)),
+        "truth_within_u": rate(sum(map(sum, within)), sum(map(len, within))),
+        "truth_within_u_every_parameter": rate(sum(map(all, within)), len(within)),
         "verdicts": dict(Counter(r["verdict"] for r in effect)),
         "by_effect": {
             e: rate(sum(f is not None for r, f in right if r["truth"]["id"] == e), sum(r["truth"]["id"] == e for r in effect))
@@ -422,19 +420,6 @@ def verdict_speed(repeats: int = SPEED_REPEATS, quick: bool = False) -> dict[str
         "targets": SPEED_TARGETS,
         "holds": statistics.median(verdict) <= SPEED_TARGETS["verdict_median_s"] and statistics.median(nested) <= SPEED_TARGETS["nested_s"],
     }
-
-
-def commit() -> str:
-    """The checkout's short commit, with "+changes" when the package or the benchmarks differ from it."""
-    root = Path(__file__).resolve().parent.parent
-    try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, check=True).stdout.strip()
-        changed = subprocess.run(
-            ["git", "status", "--porcelain", "--", "ph_explorer", "benchmarks/*.py"], cwd=root, capture_output=True, text=True, check=True
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-    return head + ("+changes" if changed else "")
 
 
 def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = WORKERS) -> dict[str, Any]:

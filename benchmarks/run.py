@@ -226,11 +226,11 @@ def main(argv: list[str] | None = None) -> int:
         # A partial run updates its sections in the results of the last run, each stamped.
         results: dict[str, Any] = json.loads((out / "results.json").read_text())
         for name in sections:
-            results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version(), "commit": population.commit()}
+            results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version(), "commit": calibration.commit()}
     else:
         results = {
             **stamp,
-            "commit": population.commit(),
+            "commit": calibration.commit(),
             "machine": {
                 "cpu_count": os.cpu_count(),
                 "python": platform.python_version(),

@@ -71,6 +71,12 @@ def pct_interval(pair: Any) -> str:
     return f"{100 * pair[0]:.1f}-{100 * pair[1]:.1f} %"
 
 
+def share_of(x: Any) -> str:
+    """A rate of results.json ({"count", "of", "share", "ci95"}) as 'k of n: p % (interval)'."""
+    x = x or {}
+    return f"{num(x.get('count'))} of {num(x.get('of'))}: {pct(x.get('share'))} ({pct_interval(x.get('ci95'))})"
+
+
 def holds(value: Any) -> str:
     if value is None:
         return "-"
@@ -1090,11 +1096,6 @@ and a bump within two widths of the defect. Intervals are 95 % Clopper-Pearson.
 
 def population(results: Mapping[str, Any]) -> str:
     pop = results.get("population", {})
-
-    def share_of(x: Any) -> str:
-        x = x or {}
-        return f"{num(x.get('count'))} of {num(x.get('of'))}: {pct(x.get('share'))} ({pct_interval(x.get('ci95'))})"
-
     healthy = pop.get("healthy") or {}
     rows = [
         [
@@ -1143,7 +1144,7 @@ def population(results: Mapping[str, Any]) -> str:
     tail = (
         f"\nSeconds per diagnosis ({seconds.get('what', '')}): median {num(seconds.get('median'), 's')}, max "
         f"{num(seconds.get('max'), 's')}. Claims on healthy heads: {joined([f'{k} {v}' for k, v in (healthy.get('claims') or {}).items()]) or 'none'}. "
-        f"Measured on code {pop.get('code_sha256')} ({pop.get('mode')} run, {num(pop.get('run_seconds'), 's')}).\n"
+        f"Measured on code {pop.get('code_sha256')}, commit {pop.get('commit', '-')} ({pop.get('mode')} run, {num(pop.get('run_seconds'), 's')}).\n"
     )
     speed = pop.get("verdict_speed") or {}
     if speed:
@@ -1269,17 +1270,13 @@ def verdict_rates(results: Mapping[str, Any]) -> str:
         k, n = counts[group].get(verdict, 0), totals[group]
         return f"{k} of {n} ({pct(k / n if n else None)})"
 
-    def share(x: Any) -> str:
-        x = x or {}
-        return f"{num(x.get('count'))} of {num(x.get('of'))}: {pct(x.get('share'))} ({pct_interval(x.get('ci95'))})"
-
     own = {
-        "none": f"false alarms on healthy heads {share(get(pop, 'healthy', 'false_alarm'))}; same verdict on another noise draw {share(pop.get('stability'))}",
-        "missing": f"the hidden catalog effect found {share(get(pop, 'catalog_effect', 'found'))}; its parameters within U "
-        f"{share(get(pop, 'catalog_effect', 'truth_within_u'))}; an effect in no catalog called missing {share(get(pop, 'outside_catalog', 'missing'))}",
+        "none": f"false alarms on healthy heads {share_of(get(pop, 'healthy', 'false_alarm'))}; same verdict on another noise draw {share_of(pop.get('stability'))}",
+        "missing": f"the hidden catalog effect found {share_of(get(pop, 'catalog_effect', 'found'))}; its parameters within U "
+        f"{share_of(get(pop, 'catalog_effect', 'truth_within_u'))}; an effect in no catalog called missing {share_of(get(pop, 'outside_catalog', 'missing'))}",
         "suggested": "no claim; `design --decide` proposes the rings that would confirm or refute it",
         "partial": "its found effect counts as found in the row above; what is left is read in the signature",
-        "unexplained": f"the signature's first variable of the right joint {share(get(pop, 'outside_catalog', 'signature_right_first'))}",
+        "unexplained": f"the signature's first variable of the right joint {share_of(get(pop, 'outside_catalog', 'signature_right_first'))}",
     }
     rows = [[f"`{v}`", *(cell(g, v) for g in groups), own[v]] for v in ("none", "missing", "suggested", "partial", "unexplained")]
     note = (
