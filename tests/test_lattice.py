@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.app.background import LatestFirst
+from ph_explorer.app.background import FOREGROUND, LatestFirst
 from ph_explorer.app.dataset import Dataset, default_dataset
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations
 from ph_explorer.models.lattice import TOLERANCE_UM, BuildStopped, PredictionLattice, build_cpu_s
@@ -112,6 +112,21 @@ def test_prepared_dataset_draws_a_slider_move_without_calling_a_model(dataset: D
             np.testing.assert_allclose(after.curves[name], before[o].curves[name], atol=1e-12)
     # A copy with the same models keeps their lattices (a refit adds a model, the others stay).
     assert ds.with_figures({}).lattices["network"] is ds.lattices["network"]
+
+
+def test_a_preparation_waits_while_a_clicked_job_runs(dataset: Dataset, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A diagnosis clicked right after the page loads does not share the cores with the lattices:
+    the background preparation waits between its pieces while a clicked job runs, then goes on."""
+    ds = dataset.with_figures({})
+    assert not ds.lattices and not ds.prepared.is_set()
+    calls: list[str] = []
+    for name, model in ds.models.items():
+        monkeypatch.setattr(model, "predict", lambda *a, _name=name, _predict=model.predict, **k: calls.append(_name) or _predict(*a, **k))
+    with FOREGROUND.running():
+        ds.prepare_in_background()
+        threading.Event().wait(0.5)
+        assert calls == [] and not ds.prepared.is_set()
+    assert ds.prepared.wait(60.0) and set(ds.lattices) == set(ds.model_names) and calls
 
 
 def test_latest_first_runs_the_latest_and_skips_the_dropped() -> None:

@@ -6,7 +6,10 @@
 * `LatestFirst`, one per kind of background preparation (datasets' lattices): a job per object on
   one daemon thread, the latest asked first, skipping an object nobody holds any more; `stop`
   ends it before the process exits (a daemon thread inside torch when the interpreter finalises
-  aborts the process: "terminate called without an active exception").
+  aborts the process: "terminate called without an active exception");
+* `Foreground`, one for every app: work a user clicked for (a diagnosis, a refit) runs inside
+  `running()`, and background work (lattices, the task's RONt) waits in `wait_idle()` between
+  its pieces, so that a click is not shared with it on two cores and one GIL.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ import threading
 import time
 import traceback
 import weakref
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 
@@ -102,6 +106,34 @@ class Later(_Worker):
 
 
 LATER = Later("ph-explorer-later")  # the delayed calls of every app (throttled cameras)
+
+
+class Foreground:
+    """How many clicked jobs run now; background work waits between its pieces while any does."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._running = 0
+
+    @contextmanager
+    def running(self) -> Iterator[None]:
+        with self._cond:
+            self._running += 1
+        try:
+            yield
+        finally:
+            with self._cond:
+                self._running -= 1
+                self._cond.notify_all()
+
+    def wait_idle(self, give_up: Callable[[], bool] = lambda: False, poll_s: float = 0.25) -> None:
+        """Return once no clicked job runs (or as soon as `give_up()` says True, asked every poll_s)."""
+        with self._cond:
+            while self._running and not give_up():
+                self._cond.wait(poll_s)
+
+
+FOREGROUND = Foreground()  # the clicked jobs of every app (sessions' diagnoses, refits, loads)
 
 
 class LatestFirst(_Worker):

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
-from ph_explorer.app.background import LatestFirst
+from ph_explorer.app.background import FOREGROUND, LatestFirst
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
 from ph_explorer.figures.orientation_map import MapFigure, ranked_rings
@@ -189,9 +189,15 @@ class Dataset:
         afterwards no slider move predicts. A model whose lattice would take more than
         LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand.
         Returns early (unprepared) once the process is stopping."""
-        stopping = _PREPARER.stopping.is_set
+
+        def stopping() -> bool:  # asked between pieces: a clicked job runs first, alone
+            FOREGROUND.wait_idle(give_up=_PREPARER.stopping.is_set)
+            return _PREPARER.stopping.is_set()
+
         try:
             for name in self.model_names:
+                if stopping():
+                    return
                 if name not in self.lattices and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
                     lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range, stop=stopping)
                     with self._lock:

@@ -19,7 +19,7 @@ import numpy as np
 import viser
 
 from ph_explorer.app.accessibility import name_inputs
-from ph_explorer.app.background import Throttle
+from ph_explorer.app.background import FOREGROUND, Throttle
 from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
@@ -268,8 +268,11 @@ class Session:
             return  # gone elsewhere: that orientation asks for itself
         ds = self.dataset
         try:
-            with self.shared.heavy:
-                for model in ds.model_names:
+            for model in ds.model_names:
+                FOREGROUND.wait_idle()  # a clicked job first, alone; then a model at a time
+                if self.orientation != (a, b):
+                    return
+                with self.shared.heavy:
                     ds.task(model, a, b)
         except Exception as error:  # the tables say it; the server log keeps the rest
             self.data_panel.show_info(f"**Error** — RONt of one measurement: {type(error).__name__}: {' '.join(str(error).split())}")
@@ -390,7 +393,7 @@ class Session:
         return future
 
     def _guarded(self, job: Callable[..., None], *args: object) -> None:
-        with self.shared.heavy:
+        with self.shared.heavy, FOREGROUND.running():
             try:
                 job(*args)
             except Exception as error:  # the browser shows one line; the server log keeps the rest
