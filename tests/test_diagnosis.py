@@ -62,7 +62,7 @@ def diagnoses(tmp_path_factory) -> dict[tuple[str, bool], object]:
     folder = tmp_path_factory.mktemp("foreign")
     for name in ("paper", *TEACHING):
         campaign = simulate(load_scenario(name))
-        out[(name, True)] = diagnose(campaign)
+        out[(name, True)] = diagnose(campaign, nested=name in ("paper", "head_3"))  # the nested figures tested below
         foreign = read_campaign(write_like_another_program(campaign, folder / f"{name}.csv"))
         assert foreign.check_orientations is None
         out[(name, False)] = diagnose(foreign, nested=False)  # the nested figures: from the sidecar runs

@@ -158,6 +158,11 @@ class LatestFirst(_Worker):
             self._waiting.append(weakref.ref(obj))
             self._wake()
 
+    def should_stop(self) -> bool:
+        """Asked by a job between its pieces: waits while a clicked job runs, then says whether to stop."""
+        FOREGROUND.wait_idle(give_up=self.stopping.is_set)
+        return self.stopping.is_set()
+
     def stop(self, timeout_s: float) -> bool:
         """Take no more jobs, drop the waiting ones and wait (at most timeout_s) for the running
         one to return; whether none runs any more. For the end of the process: nothing is taken after."""

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
-from ph_explorer.app.background import FOREGROUND, LatestFirst
+from ph_explorer.app.background import LatestFirst
 from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
 from ph_explorer.figures.orientation_map import MapFigure, ranked_rings
@@ -189,16 +189,10 @@ class Dataset:
         afterwards no slider move predicts. A model whose lattice would take more than
         LATTICE_BUDGET_S of CPU (a hybrid's physics, ~13 s) keeps being predicted on demand.
         Returns early (unprepared) once the process is stopping."""
-
-        def stopping() -> bool:  # asked between pieces: a clicked job runs first, alone
-            FOREGROUND.wait_idle(give_up=_PREPARER.stopping.is_set)
-            return _PREPARER.stopping.is_set()
-
+        stopping = _PREPARER.should_stop  # between pieces: waits while a clicked job runs, alone
         try:
-            for name in self.model_names:
-                if stopping():
-                    return
-                if name not in self.lattices and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
+            for name in [n for n in self.model_names if n not in self.lattices]:
+                if not stopping() and build_cpu_s(self.models[name], self.campaign.n_points, self.a_range) <= LATTICE_BUDGET_S:
                     lattice = PredictionLattice.build(self.models[name], self.campaign.n_points, self.a_range, stop=stopping)
                     with self._lock:
                         self.lattices.setdefault(name, lattice)
@@ -336,7 +330,7 @@ class Dataset:
             if model not in self.models:
                 raise KeyError(name)
             # Only the check rings are out of sample for a model fitted on the others (its training rings are not shown).
-            held_out = ~np.asarray(self.train_mask, dtype=bool)
+            held_out = self.held_out_mask
             mae = np.full(c.n_orientations, np.nan)
             mae[held_out] = held_out_ring_mae(self.models[model], c, held_out)["mean"]
             floor = self.noise_floor_um.get("mean", np.nan)
