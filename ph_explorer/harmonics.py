@@ -23,18 +23,24 @@ def fourier_basis(n_points: int, k_max: int) -> NDArray[np.float64]:
     return cols
 
 
-def remove_size_and_centre(radial_um: ArrayLike) -> NDArray[np.float64]:
+def remove_size_and_centre(radial_um: ArrayLike, axis: int = -1) -> NDArray[np.float64]:
     """What the least-squares circle fit leaves of radial deviations of equally spaced points.
 
     For radial deviations that are small against the radius (um against mm), the LS circle fit is
     linear in them and removes exactly harmonics 0 (size) and 1 (centre): this projects them out
-    along the last axis.
+    along the points' axis, the last (-1) or the one before (-2: basis columns last, as effects give them).
     """
     r = np.asarray(radial_um, dtype=float)
-    basis = fourier_basis(r.shape[-1], 1)
-    # Columns are orthogonal with norms N, N/2, N/2 for equally spaced points.
-    coef = r @ basis / np.array([r.shape[-1], r.shape[-1] / 2, r.shape[-1] / 2])
-    return r - coef @ basis.T
+    n = r.shape[axis]
+    basis = fourier_basis(n, 1)
+    norms = np.array([n, n / 2, n / 2])  # the columns are orthogonal for equally spaced points
+    if axis in (-1, r.ndim - 1):
+        out = r @ basis / norms @ basis.T
+    elif axis in (-2, r.ndim - 2):  # no transposed copy of a large stack of columns
+        out = basis @ (np.matmul(basis.T, r) / norms[:, None])
+    else:
+        raise ValueError(f"the points' axis must be the last or the one before, got {axis}")
+    return np.subtract(r, out, out=out)
 
 
 # -- least-squares circles -------------------------------------------------------------------

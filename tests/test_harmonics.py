@@ -145,3 +145,13 @@ def test_ron_of_a_sinusoid() -> None:
     assert ron_q(curve) == pytest.approx(1.5 / np.sqrt(2), abs=1e-12)
     both = ron_t(np.stack([curve, 2 * curve]))
     np.testing.assert_allclose(both, [3.0, 6.0], atol=1e-12)
+
+
+def test_the_circle_fit_acts_along_the_points_axis_before_the_columns() -> None:
+    # Basis columns come (..., points, columns): the same projection as along the last axis, moved.
+    columns = np.random.default_rng(4).normal(size=(3, 2, 64, 5))
+    along_last = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
+    np.testing.assert_allclose(remove_size_and_centre(columns, axis=-2), along_last, atol=1e-14)
+    np.testing.assert_allclose(harmonic_spectrum(np.moveaxis(remove_size_and_centre(columns, axis=-2), -1, -2))[..., :2], 0.0, atol=1e-12)
+    with pytest.raises(ValueError, match="points' axis"):
+        remove_size_and_centre(columns, axis=0)

@@ -159,7 +159,8 @@ class CandidateSearch:
         columns[..., 0] = self.residual
         columns[..., 1:] = np.moveaxis(noise, 2, -1)  # (n_o, n_rep, n_pt, draws)
         del noise
-        self.targets = Design(columns, None)
+        self.targets = Design(columns, None, owned=True)
+        del columns
         self.targets_total = self.targets.total()  # every scan's starting sums of squares
 
     def design(self, effects: Sequence[Effect]) -> Design:

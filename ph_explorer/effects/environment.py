@@ -90,12 +90,14 @@ class Drift(Effect):
             raise InputError("drift: tau_s and cycle_period_s must be positive", column="tau_s")
         t = touches.times_s
         # Growth histories per unit coefficient: ramp (per hour), warm-up, and the two quadratures of the cycle.
-        histories = np.stack(
-            [t / SECONDS_PER_HOUR, 1.0 - np.exp(-t / tau), np.sin(2 * np.pi * t / period), np.cos(2 * np.pi * t / period)],
-            axis=-1,
-        )
+        histories = np.empty(t.shape + (4,))
+        histories[..., 0] = t / SECONDS_PER_HOUR
+        histories[..., 1] = 1.0 - np.exp(-t / tau)
+        histories[..., 2] = np.sin(2 * np.pi * t / period)
+        histories[..., 3] = np.cos(2 * np.pi * t / period)
         levers = touches.memo("drift_levers", lambda: _drift_levers(touches))  # the same at every scanned setting
-        cols = np.concatenate([histories * levers[..., :1], histories * levers[..., 1:]], axis=-1)
+        # Each lever (stylus, head) times each history, in one array: the columns are as large as the campaign.
+        cols = (levers[..., :, None] * histories[..., None, :]).reshape(t.shape + (8,))
         names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
         return full_shape(cols, touches), names
 

@@ -46,16 +46,19 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     """
     columns, names = effect.basis(touches)
     columns = np.asarray(columns, dtype=float)
-    # A view broadcast over the repetitions (full_shape) is the same in every one by construction.
-    if columns.shape[1] != 1 and (columns.strides[1] == 0 or np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape))):
+    # A view broadcast over the repetitions (full_shape) is the same in every one by construction;
+    # columns that change with time (drift) differ already between the first two.
+    if columns.shape[1] != 1 and (
+        columns.strides[1] == 0
+        or (np.array_equal(columns[:, 1], columns[:, 0]) and np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape)))
+    ):
         columns = columns[:, :1]
-    # The circle fit acts along the points: move the column axis out of the way and back.
-    fitted = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
+    fitted = remove_size_and_centre(columns, axis=-2)  # the circle fit acts along the points
     # A column the fit removes entirely (harmonics 0 and 1 at every ring: a stylus's sag, a
     # constant offset) leaves rounding noise ~1e-16 of its size; a least squares would fit that
     # noise with absurd coefficients. It is zero in the deviations: make it exactly zero.
-    before = np.sqrt((columns**2).sum(axis=(0, 1, 2)))
-    after = np.sqrt((fitted**2).sum(axis=(0, 1, 2)))
+    before = np.sqrt(np.einsum("orpc,orpc->c", columns, columns))
+    after = np.sqrt(np.einsum("orpc,orpc->c", fitted, fitted))
     absorbed = after <= ABSORBED_RTOL * before
     if absorbed.any():  # else no copy: most effects keep every column
         fitted = np.where(absorbed, 0.0, fitted)

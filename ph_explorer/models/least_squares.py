@@ -20,16 +20,23 @@ from ph_explorer.models.crossval import OutOfSampleSmoother
 class Design:
     """Columns (n_o, n_rep, n_pt, c) put through the smoother, split into mean and within parts."""
 
-    def __init__(self, columns: NDArray[np.float64], smoother: OutOfSampleSmoother | None) -> None:
+    def __init__(self, columns: NDArray[np.float64], smoother: OutOfSampleSmoother | None, owned: bool = False) -> None:
+        """owned: the caller gives up `columns`, which become the within part in place (no copy as large)."""
         columns = np.asarray(columns, dtype=float)
         self.n_rep = columns.shape[1]
         # Columns broadcast over the repetitions (fitted_basis) are the same in every one: no within part.
         broadcast = self.n_rep == 1 or columns.strides[1] == 0
         mean = columns[:, 0] if broadcast else columns.mean(axis=1)
         self.mean = mean - smoother.predict(mean) if smoother is not None else mean  # (n_o, n_pt, c)
-        self.scale = float(np.abs(mean if broadcast else columns).max()) if columns.size else 0.0
-        within = None if broadcast else columns - mean[:, None]  # a new array: columns may be the caller's
-        changes = within is not None and np.abs(within).max(initial=0.0) > 1e-9 * max(self.scale, 1e-300)
+        self.scale = _largest_magnitude(mean if broadcast else columns)
+        if broadcast:
+            within = None
+        elif owned:
+            within = columns
+            within -= mean[:, None]
+        else:
+            within = columns - mean[:, None]  # a new array: columns are the caller's
+        changes = within is not None and _largest_magnitude(within) > 1e-9 * max(self.scale, 1e-300)
         self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
         self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
 
@@ -103,6 +110,11 @@ class Design:
             ]
             out.within = np.concatenate(parts, axis=-1)
         return out
+
+
+def _largest_magnitude(x: NDArray[np.float64]) -> float:
+    """max |x| (0 when empty) without an |x| array as large as x."""
+    return float(max(x.max(), -x.min())) if x.size else 0.0
 
 
 def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int, ridge: float = 0.0) -> tuple[NDArray, NDArray]:
