@@ -152,6 +152,8 @@ def test_the_circle_fit_acts_along_the_points_axis_before_the_columns() -> None:
     columns = np.random.default_rng(4).normal(size=(3, 2, 64, 5))
     along_last = np.moveaxis(remove_size_and_centre(np.moveaxis(columns, -1, -2)), -2, -1)
     np.testing.assert_allclose(remove_size_and_centre(columns, axis=-2), along_last, atol=1e-14)
-    np.testing.assert_allclose(harmonic_spectrum(np.moveaxis(remove_size_and_centre(columns, axis=-2), -1, -2))[0][..., :2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(
+        harmonic_spectrum(np.moveaxis(remove_size_and_centre(columns, axis=-2), -1, -2))[0][..., :2], 0.0, atol=1e-12
+    )
     with pytest.raises(ValueError, match="points' axis"):
         remove_size_and_centre(columns, axis=0)
