@@ -381,7 +381,7 @@ def readable_scene(page, session) -> None:
     head put the ring's centre in the middle of the canvas between the docked panels."""
     for view in ("whole field", "along the axis", "ring + head"):  # ring + head last: the screenshot's view
         page.get_by_role("button", name=view, exact=True).click()
-        assert wait_for(lambda: session._camera_view == view, timeout=30)
+        assert wait_for(lambda: session._camera_view == view, timeout=30), (view, session._camera_view, page.viewport_size)
         time.sleep(1.0)
         canvas = scene_canvas(page)
         boxes = scene_label_boxes(session, canvas)
