@@ -23,6 +23,8 @@ from __future__ import annotations
 import io
 import os
 import re
+import shutil
+import tempfile
 import time
 from pathlib import Path
 
@@ -397,7 +399,8 @@ def readable_scene(page, session) -> None:
 def walk_in_chromium(walk, prefix: str) -> Path:
     """Serve the default data, open it in chromium at 1440x900 and run walk(page, session, shots);
     the page as it stood goes to PH_EXPLORER_LOOP_FAILED (default /tmp) when it fails. The walk's
-    screenshots, `prefix`*.png, go to docs/ (PH_EXPLORER_LOOP_SHOTS: elsewhere), older ones gone."""
+    screenshots, `prefix`*.png, replace the older ones in docs/ (PH_EXPLORER_LOOP_SHOTS: elsewhere)
+    once the whole walk has passed; a failed walk leaves them as they were."""
     from playwright.sync_api import sync_playwright
 
     from ph_explorer.app.server import build_server
@@ -405,8 +408,7 @@ def walk_in_chromium(walk, prefix: str) -> Path:
     app = build_server(port=0)  # the default data: the shipped paper campaign and assets/models/paper
     shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
     shots.mkdir(parents=True, exist_ok=True)
-    for stale in shots.glob(f"{prefix}*.png"):  # the screenshots of this walk only, never an older layout's
-        stale.unlink()
+    taken = Path(tempfile.mkdtemp(prefix=f"ph_explorer_{prefix}"))
     try:
         with sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
@@ -417,7 +419,7 @@ def walk_in_chromium(walk, prefix: str) -> Path:
             session = app.session(timeout=60)
             assert wait_for(lambda: session.render_count >= 1)
             try:
-                walk(page, session, shots)
+                walk(page, session, taken)
             except Exception:  # the page as it stood, for whoever reads the failure
                 page.screenshot(path=str(Path(os.environ.get("PH_EXPLORER_LOOP_FAILED", "/tmp")) / f"ph_explorer_{prefix}failed.png"))
                 raise
@@ -425,6 +427,11 @@ def walk_in_chromium(walk, prefix: str) -> Path:
             browser.close()
     finally:
         app.stop()
+    for stale in shots.glob(f"{prefix}*.png"):  # the screenshots of this walk only, never an older layout's
+        stale.unlink()
+    for shot in taken.glob(f"{prefix}*.png"):
+        shutil.move(shot, shots / shot.name)
+    shutil.rmtree(taken)
     return shots
 
 

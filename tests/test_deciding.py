@@ -60,6 +60,19 @@ def test_an_angular_error_and_the_radial_motion_that_mimics_it_are_decided_by_a_
     assert rings == [] and power < DECIDING_POWER
 
 
+def test_rings_equal_to_rounding_are_chosen_the_same_whatever_the_last_digits(paper):
+    """An A-axis pair does not see a turn of B: rings at one A tie, and the choice among them must
+    not hang on the BLAS's last digits (it did: another numpy wheel proposed other rings)."""
+    campaign, pool, weights = paper
+    evidence = Evidence(Question(ANGULAR, RADIAL), campaign, pool, weights)
+    exact = evidence.per_ring
+    chosen = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)[0]
+    for seed in range(3):
+        jitter = np.random.default_rng(seed)
+        evidence.per_ring = lambda rings, extra: exact(rings, extra) * (1.0 + 1e-12 * jitter.standard_normal((len(extra), 1)))
+        assert rings_for(evidence, np.ones(len(pool), dtype=bool), 8)[0] == chosen
+
+
 def test_the_power_is_the_diagnosis_test_over_rings_on_the_expected_gains():
     check = np.array([True] * 6 + [False] * 6)
     assert decision_power(np.zeros(12), check) == 0.0  # nothing to see: never passes

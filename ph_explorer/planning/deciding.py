@@ -129,6 +129,7 @@ DECIDING_POWER = 0.95  # the level expanded uncertainties are stated at (k = 2)
 POWER_DRAWS = 100
 SEES_NOTHING = 1e-6  # a ring whose evidence is below this share of the largest (or of one noise variance) sees nothing
 DECIDING_RINGS = 3
+TIE = 1e-6  # relative: evidence closer than this to the best ring's is a tie (rings_for)
 
 
 class Evidence:
@@ -224,7 +225,10 @@ def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple
         each = evidence.per_ring(rings, candidates)  # (n_candidates, len(rings) + 1)
         # The ring whose set leaves most without its strongest ring: no single ring decides.
         robust = each.sum(axis=1) - each.max(axis=1)
-        pick = int(np.argmax(robust + 1e-9 * each.sum(axis=1)))
+        score = robust + 1e-9 * each.sum(axis=1)
+        # Rings equal to rounding (turns of B an A-axis term does not see) go to the first in the
+        # pool's order, so the choice does not hang on the BLAS's last digits.
+        pick = int(np.flatnonzero(score >= score.max() - TIE * abs(score.max()))[0])
         rings.append(int(candidates[pick]))
         free = free.copy()
         free[rings[-1]] = False
