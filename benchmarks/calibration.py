@@ -59,7 +59,7 @@ POWER_SEEDS = tuple(range(4001, 4011))
 POWER_AMPLITUDES = (0.1, 0.3, 0.4, 0.5, 0.7, 0.9, 1.1, 1.3)  # arcsec
 POWER_CYCLES = 22
 QUICK = {
-    "false_alarm": 3,
+    "false_alarm": 2,
     "designs": 1,
     "effect": 2,
     "power_seeds": 1,

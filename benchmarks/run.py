@@ -83,7 +83,7 @@ def run_data_efficiency(quick: bool, network_config: NetworkConfig, results: dic
     columns = (18, 3) if quick else data_efficiency.B_COLUMNS
     budgets = (12,) if quick else data_efficiency.DESIGN_BUDGETS
     results["data_efficiency"], results["data_efficiency_details"] = {}, {}
-    for name in SCENARIOS:
+    for name in SCENARIOS[:1] if quick else SCENARIOS:  # quick: the paper's, every path of the section
         run = data_efficiency.run_scenario(name, network_config, columns, log=log, budgets=budgets)
         results["data_efficiency"][name] = run["curves"]
         details = run["details"]
@@ -130,7 +130,7 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
     log(f"  diagnosis {s['diagnosis']}")
     s["predict_one_orientation_us"] = speed.prediction_speed(models, 30 if quick else 200)
     s["monte_carlo_touches_per_s"] = speed.monte_carlo_speed(models, campaign.orientations, 10, 1 if quick else 3)
-    s["serve_startup"] = speed.serve_startup(2 if quick else 5)
+    s["serve_startup"] = speed.serve_startup(1 if quick else 5)
     log(f"  serve start-up {s['serve_startup']}")
 
     # Server time per slider update, one browser; then 3. scale, N browsers.
@@ -182,6 +182,9 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
         app.stop()
 
 
+# The quick run's few diagnoses in this process: a pool's start (its imports) would cost more than it
+# saves, and the test suite runs the quick run beside its other tests on the same cores.
+QUICK_WORKERS = 1
 LATENCY_TARGET_MS = 50.0
 SERVER_TARGET_MS = 2.0
 
@@ -248,11 +251,13 @@ def main(argv: list[str] | None = None) -> int:
     if "diagnosis_calibration" in sections:
         # false alarms, stability, coverage, power (issue 13)
         with section("diagnosis calibration", "diagnosis_calibration", results):
-            results["diagnosis_calibration"] = calibration.run(quick=quick, log=log)
+            results["diagnosis_calibration"] = calibration.run(
+                quick=quick, log=log, workers=QUICK_WORKERS if quick else calibration.WORKERS
+            )
     if "population" in sections:
         # the verdicts over a population of random heads (issue 28)
         with section("population", "population", results):
-            results["population"] = population.run(quick=quick, log=log)
+            results["population"] = population.run(quick=quick, log=log, workers=QUICK_WORKERS if quick else population.WORKERS)
     if "deciding" in sections:
         # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
         with section("deciding", "deciding", results):

@@ -18,6 +18,7 @@ from ph_explorer.models.network import NetworkConfig
 from ph_explorer.uncertainty.model_error import FILE_NAME, load_errors
 
 QUICK = NetworkConfig(max_epochs=8, early_stopping_patience=8)
+N_POINTS = 16  # the bands' Monte Carlo costs in proportion to the points: the JSON and text need no more
 BAND_KEYS = {
     "A_deg",
     "B_deg",
@@ -35,7 +36,7 @@ BAND_KEYS = {
 @pytest.fixture(scope="module")
 def folder(tmp_path_factory) -> Path:
     base = tmp_path_factory.mktemp("uncertainty")
-    data = write_campaign(lobing_campaign(seed=3, n_repetitions=6, n_points=32, check_orientations=[(43.0, 91.0)]), base / "c.csv")
+    data = write_campaign(lobing_campaign(seed=3, n_repetitions=6, n_points=N_POINTS, check_orientations=[(43.0, 91.0)]), base / "c.csv")
     out = base / "model"
     assert train_command(data, out, network_config=QUICK, quiet=True) == 0
     return out
@@ -63,7 +64,7 @@ def test_json_has_a_band_per_orientation_and_model(folder: Path) -> None:
         assert set(band) == BAND_KEYS
         lo_t, hi_t = np.array(band["touch_lower_um"]), np.array(band["touch_upper_um"])
         lo_m, hi_m = np.array(band["mean_lower_um"]), np.array(band["mean_upper_um"])
-        assert lo_t.shape == hi_t.shape == lo_m.shape == hi_m.shape == (32,)
+        assert lo_t.shape == hi_t.shape == lo_m.shape == hi_m.shape == (N_POINTS,)
         assert np.all(lo_t < lo_m) and np.all(lo_m < hi_m) and np.all(hi_m < hi_t)
         assert band["mean_of_repetitions"] == 6
         budget = band["budget_um"]
