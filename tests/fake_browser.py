@@ -117,11 +117,12 @@ class FakeBrowser:
 
     def download(self, filename: str, timeout: float = CONNECT_TIMEOUT_S) -> bytes:
         """The bytes of the latest file of that name the server sent this browser to download
-        (send_file_download), once whole."""
+        (send_file_download), once whole: never an earlier one while the latest is still arriving."""
 
         def whole() -> bytes | None:
-            for transfer in reversed(self._downloads.values()):
-                if transfer["filename"] == filename and len(transfer["parts"]) == transfer["part_count"]:
+            latest = [t for t in self._downloads.values() if t["filename"] == filename][-1:]
+            for transfer in latest:
+                if len(transfer["parts"]) == transfer["part_count"]:
                     return b"".join(transfer["parts"][k] for k in range(transfer["part_count"]))
             return None
 
