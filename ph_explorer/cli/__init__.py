@@ -24,6 +24,7 @@ from ph_explorer.cli import (
     diagnose_command as diagnose,
     effects_command as effects,
     evaluate_command as evaluate,
+    fleet_command as fleet,
     inspect_command as inspect,
     merge_command as merge,
     report_command as report,
@@ -33,6 +34,7 @@ from ph_explorer.cli import (
     uncertainty_command as uncertainty,
 )
 from ph_explorer.errors import InputError
+from ph_explorer.io import names_many
 
 app = typer.Typer(
     name="ph-explorer",
@@ -205,7 +207,12 @@ def _evaluate(
 @app.command("diagnose")
 @with_geometry
 def _diagnose(
-    data: Annotated[Path, typer.Option(help="The campaign CSV to diagnose.")],
+    data: Annotated[
+        list[Path],
+        typer.Option(
+            help="The campaign CSV to diagnose; several (repeat --data), a folder or a quoted glob ('heads/*.csv') diagnose a fleet."
+        ),
+    ],
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder to start from.")] = None,
     add: Annotated[Optional[str], typer.Option(help="Effects to add, 'ID[,ID]' (default: the best candidate, if any).")] = None,
     effects: Annotated[Optional[Path], typer.Option(help="A Python file defining your own effects.")] = None,
@@ -225,19 +232,20 @@ def _diagnose(
         ),
     ] = None,
     json_output: JsonOpt = False,
+    scheduler: Annotated[
+        Optional[str],
+        typer.Option(help="A fleet on this Dask scheduler (tcp://HOST:PORT) instead of a local cluster of this machine's cores."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
-    options = {
-        "model": model,
-        "add": add,
-        "effects": effects,
-        "data_part": data_part,
-        "json_output": json_output,
-        "save": save,
-        "resume": resume,
-    }
-    _run("diagnose", diagnose.diagnose_command, data=data, geometry=geometry, **options)
+    options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output}
+    if len(data) > 1 or scheduler is not None or names_many(data[0]):
+        if save is not None or resume is not None:
+            typer.echo(f"option {'--save' if save is not None else '--resume'}: a study is of one campaign; diagnose it alone", err=True)
+            raise typer.Exit(2)
+        _run("diagnose", fleet.fleet_command, specs=data, scheduler=scheduler, geometry=geometry, **options)
+    _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, save=save, resume=resume, **options)
 
 
 @app.command("effects")

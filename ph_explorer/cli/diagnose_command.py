@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -12,12 +11,9 @@ from rich.progress import Progress
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign, read_json_object, write_json_object
-from ph_explorer.models.deviation_model import DeviationModel
 
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
     from ph_explorer.diagnosis import Candidate, Diagnosis
-
-DATA_PARTS = ("trilinear", "network")
 
 
 def diagnose_command(
@@ -33,48 +29,34 @@ def diagnose_command(
 ) -> int:
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
     with --save or --resume, write the study."""
-    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
     from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record
-    from ph_explorer.models.folder import baseline_of, load_models
 
     previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
-    data_part = data_part or (previous["data_part"] if previous else "trilinear")
-    if data_part not in DATA_PARTS:
-        raise InputError(f"unknown data-driven part {data_part!r} (trilinear or network)", option="--data-part")
+    data_part = check_data_part(data_part or (previous["data_part"] if previous else "trilinear"))
     if save is not None and save.is_dir():
         raise InputError("is a folder: give the study's file name (e.g. study.json)", option="--save")
-    catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+    catalog = catalog_of(effects)
     ids = parse_add(add, catalog)
     start = study_chain(previous, catalog, str(resume)) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
     campaign = read_campaign(Path(data), geometry or {})
     rings_added = check_campaign(previous, sha256, str(resume), str(data), campaign.scenario.get("merges", [])) if previous else []
-    baseline = None
-    if model is not None:
-        baseline = baseline_of(load_models(Path(model)))
     with Progress(transient=True, disable=json_output) as bar:
         task = bar.add_task("scanning candidate effects", total=None)
-        data_model: str | Callable[[], DeviationModel] = data_part
-        if data_part == "network":
-            from ph_explorer.models.network import FourierNetwork  # torch: only when the network is asked for
-
-            def data_model() -> DeviationModel:
-                # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
-                network_task = bar.add_task("network on the residual", total=None)
-                return FourierNetwork(
-                    progress=lambda epoch, loss, mae, lr: bar.update(
-                        network_task, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
-                    )
-                )
-
-        result = diagnose(
+        network_task = bar.add_task("network on the residual", total=None, visible=False)
+        result = diagnose_campaign(
             campaign,
-            add=ids,
-            baseline=baseline,
-            data_model=data_model,
-            catalog=catalog,
+            catalog,
+            ids,
+            model,
+            data_part,
+            start,
             progress=lambda effect_id: bar.update(task, description=f"scanning {effect_id}"),
-            start=start,
+            # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
+            network_progress=lambda epoch, loss, mae, lr: bar.update(
+                network_task, visible=True, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
+            ),
         )
     target = save if save is not None else resume
     if target is not None:
@@ -88,24 +70,6 @@ def diagnose_command(
     else:
         print(format_diagnosis(result, catalog), end="")
     return 0
-
-
-def parse_add(text: str | None, catalog: Catalog) -> list[str] | None:
-    """The effect ids of --add 'ID[,ID]' (None when the option is not given); each must be a candidate."""
-    if text is None:
-        return None
-    ids = [a.strip() for a in text.split(",") if a.strip()]
-    if not ids:
-        raise InputError("names no effect (expected 'ID[,ID]', e.g. b_axis_cyclic)", option="--add")
-    candidates = catalog.candidates()
-    for effect_id in ids:
-        if effect_id not in catalog:
-            raise InputError(catalog.unknown(effect_id, column=None).message, option="--add")
-        if effect_id not in candidates:
-            raise InputError(
-                f"effect {effect_id!r} cannot be added to a model: {catalog[effect_id].name} is not systematic", option="--add"
-            )
-    return ids
 
 
 def format_diagnosis(result: Diagnosis, catalog: Catalog = DEFAULT_CATALOG) -> str:

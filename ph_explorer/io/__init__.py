@@ -7,7 +7,16 @@ reads and writes JSON documents (a diagnosis's study) atomically, merge.py appen
 campaign after checking that they belong to it.
 """
 
-from ph_explorer.io.files import campaign_sha256, file_sha256, json_object_text, parse_json_object, read_json_object, write_json_object
+from ph_explorer.io.files import (
+    campaign_files,
+    campaign_sha256,
+    file_sha256,
+    json_object_text,
+    names_many,
+    parse_json_object,
+    read_json_object,
+    write_json_object,
+)
 from ph_explorer.io.reader import KNOWN_COLUMNS, REQUIRED_COLUMNS, read_campaign
 from ph_explorer.io.sidecar import sidecar_path
 from ph_explorer.io.summary import campaign_summary
@@ -16,9 +25,11 @@ from ph_explorer.io.writer import write_campaign
 __all__ = [
     "KNOWN_COLUMNS",
     "REQUIRED_COLUMNS",
+    "campaign_files",
     "campaign_sha256",
     "campaign_summary",
     "file_sha256",
+    "names_many",
     "json_object_text",
     "parse_json_object",
     "read_campaign",

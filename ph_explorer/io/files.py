@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,3 +59,31 @@ def json_object_text(document: dict[str, Any]) -> str:
 def write_json_object(path: Path, document: dict[str, Any]) -> None:
     """Write a JSON object atomically: the old file stays whole until the new one is complete."""
     atomic_write([(Path(path), json_object_text(document))])
+
+
+PATTERN = set("*?[")  # a --data value holding one of these is a glob pattern
+
+
+def names_many(spec: str | Path) -> bool:
+    """Whether a --data value names many campaigns: a glob pattern or a folder."""
+    return bool(PATTERN & set(str(spec))) or Path(spec).is_dir()
+
+
+def campaign_files(specs: Sequence[str | Path]) -> list[Path]:
+    """The campaign CSVs that `specs` name (files, folders' *.csv, glob patterns), in the order
+    given, each once; a pattern or folder that names no file is one line naming it."""
+    found: list[Path] = []
+    for spec in specs:
+        text = str(spec)
+        if PATTERN & set(text):
+            matches = sorted(Path(p) for p in glob.glob(text) if Path(p).is_file())
+            if not matches:
+                raise InputError(f"{text}: no file matches the pattern", option="--data")
+        elif Path(text).is_dir():
+            matches = sorted(p for p in Path(text).glob("*.csv") if p.is_file())
+            if not matches:
+                raise InputError(f"{text}: the folder holds no .csv file", option="--data")
+        else:
+            matches = [Path(text)]
+        found += [m for m in matches if m not in found]
+    return found

@@ -1,0 +1,73 @@
+"""A campaign diagnosed as `ph-explorer diagnose` does from its options, shared by the command and
+by every task of a fleet (diagnosis.fleet), so that both give the same result to the last digit."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ph_explorer.campaign import Campaign
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.errors import InputError
+from ph_explorer.models.deviation_model import DeviationModel
+
+if TYPE_CHECKING:  # torch-bound: imported for real only when a diagnosis runs
+    from ph_explorer.diagnosis.results import Diagnosis
+
+DATA_PARTS = ("trilinear", "network")
+
+
+def catalog_of(effects: Path | None) -> Catalog:
+    """The catalog, with the user's effects file read in when one is given (--effects)."""
+    return DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
+
+
+def parse_add(text: str | None, catalog: Catalog) -> list[str] | None:
+    """The effect ids of --add 'ID[,ID]' (None when the option is not given); each must be a candidate."""
+    if text is None:
+        return None
+    ids = [a.strip() for a in text.split(",") if a.strip()]
+    candidates = catalog.candidates()
+    if not ids:
+        raise InputError(f"names no effect (expected 'ID[,ID]', e.g. {next(iter(candidates))})", option="--add")
+    for effect_id in ids:
+        if effect_id not in catalog:
+            raise InputError(catalog.unknown(effect_id, column=None).message, option="--add")
+        if effect_id not in candidates:
+            raise InputError(
+                f"effect {effect_id!r} cannot be added to a model: {catalog[effect_id].name} is not systematic", option="--add"
+            )
+    return ids
+
+
+def check_data_part(data_part: str) -> str:
+    if data_part not in DATA_PARTS:
+        raise InputError(f"unknown data-driven part {data_part!r} (trilinear or network)", option="--data-part")
+    return data_part
+
+
+def diagnose_campaign(
+    campaign: Campaign,
+    catalog: Catalog,
+    add: list[str] | None = None,
+    model: Path | None = None,
+    data_part: str = "trilinear",
+    start: Sequence[Effect] = (),
+    progress: Callable[[str], None] | None = None,
+    network_progress: Callable[[int, float, float, float], None] | None = None,
+) -> Diagnosis:
+    """diagnose() with the command's options: a trained model folder's baseline, the data part by
+    name (the network retrained on what the physical terms leave, reporting each epoch)."""
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.models.folder import baseline_of, load_models
+
+    baseline = baseline_of(load_models(Path(model))) if model is not None else None
+    data_model: str | Callable[[], DeviationModel] = check_data_part(data_part)
+    if data_part == "network":
+        from ph_explorer.models.network import FourierNetwork  # torch: only when the network is asked for
+
+        def data_model() -> DeviationModel:
+            return FourierNetwork(progress=network_progress)
+
+    return diagnose(campaign, add=add, baseline=baseline, data_model=data_model, catalog=catalog, progress=progress, start=start)
