@@ -4,8 +4,11 @@ exactly as the single command diagnoses it alone, one row each; a file that fail
 from __future__ import annotations
 
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -15,7 +18,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.io import campaign_files, write_campaign
 from ph_explorer.twin.random_heads import random_campaign
 
-SEEDS = (11, 12, 13)
+SEEDS = (11, 12, 13, 14)
 # The single command in a fresh interpreter: its JSON, and whether it loaded Dask (it must not).
 ALONE = """
 import json, sys
@@ -29,7 +32,7 @@ print(json.dumps({"status": result.exit_code, "report": json.loads(result.stdout
 
 @pytest.fixture(scope="module")
 def heads(tmp_path_factory) -> Path:
-    """Three small random heads (the coarse design) and a file no program could read as a campaign."""
+    """Four small random heads (the coarse design) and a file no program could read as a campaign."""
     folder = tmp_path_factory.mktemp("heads")
     for seed in SEEDS:
         write_campaign(random_campaign(seed, "coarse"), folder / f"head_{seed}.csv")
@@ -37,10 +40,30 @@ def heads(tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.fixture(scope="module")
+def alone(heads: Path) -> dict[str, dict]:
+    """Each head diagnosed by the single command in a fresh interpreter: its --json report."""
+    reports = {}
+    for seed in SEEDS:
+        path = heads / f"head_{seed}.csv"
+        done = json.loads(subprocess.run([sys.executable, "-c", ALONE, str(path)], capture_output=True, text=True, check=True).stdout)
+        assert done["status"] == 0 and done["dask"] == []  # one campaign never loads Dask
+        reports[path.name] = done["report"]
+    return reports
+
+
+def same_as_alone(fleet: dict, alone: dict[str, dict]) -> None:
+    """Every head's row holds exactly what the single command printed for it alone."""
+    rows = {Path(r["campaign"]).name: r for r in fleet["campaigns"]}
+    for name, report in alone.items():
+        assert rows[name]["diagnosis"] == report, name  # the same result, to the last digit
+        assert rows[name]["verdict"] == report["verdict"] and len(rows[name]["sha256"]) == 64 and rows[name]["seconds"] > 0
+
+
 def test_files_patterns_and_folders_name_the_campaigns_once_each(heads: Path) -> None:
     first = heads / "head_11.csv"
     assert campaign_files([heads]) == sorted(heads.glob("*.csv"))
-    assert campaign_files([first, str(heads / "head_1*.csv")]) == [first, heads / "head_12.csv", heads / "head_13.csv"]
+    assert campaign_files([first, str(heads / "head_1*.csv")]) == [first, *(heads / f"head_{s}.csv" for s in SEEDS[1:])]
     with pytest.raises(InputError, match="no file matches"):
         campaign_files([str(heads / "nothing_*.csv")])
     (heads / "empty").mkdir()
@@ -48,7 +71,7 @@ def test_files_patterns_and_folders_name_the_campaigns_once_each(heads: Path) ->
         campaign_files([heads / "empty"])
 
 
-def test_each_campaign_of_a_fleet_is_diagnosed_as_alone_and_a_broken_file_is_its_row(heads: Path) -> None:
+def test_each_campaign_of_a_fleet_is_diagnosed_as_alone_and_a_broken_file_is_its_row(heads: Path, alone: dict[str, dict]) -> None:
     done = run_cli("diagnose", "--data", heads, "--json")
     assert done.returncode == 2, done.stderr  # one file failed: exit 2, after all the others
     fleet = json.loads(done.stdout)
@@ -56,15 +79,10 @@ def test_each_campaign_of_a_fleet_is_diagnosed_as_alone_and_a_broken_file_is_its
     assert list(rows) == ["broken.csv", *(f"head_{s}.csv" for s in SEEDS)] and fleet["failed"] == 1
     assert "error" in rows["broken.csv"] and len(rows["broken.csv"]["error"].splitlines()) == 1
     assert "diagnosis" not in rows["broken.csv"]
-    for seed in SEEDS:
-        path = heads / f"head_{seed}.csv"
-        alone = json.loads(subprocess.run([sys.executable, "-c", ALONE, str(path)], capture_output=True, text=True, check=True).stdout)
-        assert alone["status"] == 0 and alone["dask"] == []  # one campaign never loads Dask
-        row = rows[path.name]
-        assert row["diagnosis"] == alone["report"]  # the same result, to the last digit
-        assert row["verdict"] == alone["report"]["verdict"] and len(row["sha256"]) == 64 and row["seconds"] > 0
+    same_as_alone(fleet, alone)
+    assert fleet["workers"] == (os.cpu_count() or 1) and fleet["workers_lost"] == 0  # a LocalCluster of the cores
     # Progress on stderr: done/total, elapsed, the slowest.
-    assert "4/4 diagnosed" in done.stderr and "slowest" in done.stderr
+    assert f"{len(SEEDS) + 1}/{len(SEEDS) + 1} diagnosed" in done.stderr and "slowest" in done.stderr
 
 
 def test_the_fleet_table_names_each_campaign_its_verdict_and_its_error(heads: Path) -> None:
@@ -87,3 +105,68 @@ def test_a_bad_fleet_option_is_one_line_and_no_worker_starts(heads: Path, args: 
     done = run_cli("diagnose", *[a.format(heads=heads) for a in args])
     assert done.returncode == 2 and words in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not (heads / "study.json").exists()
+
+
+DASK = str(Path(sys.executable).with_name("dask"))
+
+
+@pytest.fixture
+def cluster(tmp_path: Path):
+    """A Dask scheduler and two workers, each its own process on the loopback, the scheduler's port
+    chosen free by the system (its address read from its scheduler file): (address, workers)."""
+    from dask.distributed import Client
+
+    file = tmp_path / "scheduler.json"
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "start_new_session": True}
+    command = [DASK, "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file", str(file)]
+    processes = [subprocess.Popen(command, **quiet)]
+    try:
+        deadline = time.monotonic() + 60
+        while not (file.exists() and file.read_text().strip()) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        address = json.loads(file.read_text())["address"]
+        for name in ("w1", "w2"):
+            worker = [DASK, "worker", address, "--nthreads", "1", "--no-dashboard", "--host", "127.0.0.1", "--name", name]
+            processes.append(subprocess.Popen(worker, **quiet))
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address, processes[1:]
+    finally:
+        for process in processes:  # each with its nanny's children: the whole group
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGTERM)
+        for process in processes:
+            try:
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait(timeout=30)
+        assert all(p.poll() is not None for p in processes)  # nothing left running
+
+
+def test_a_fleet_on_a_given_scheduler_gives_each_campaign_as_alone(heads: Path, alone: dict[str, dict], cluster) -> None:
+    address, _ = cluster
+    specs = [a for seed in SEEDS for a in ("--data", heads / f"head_{seed}.csv")]
+    done = run_cli("diagnose", *specs, "--scheduler", address, "--json")
+    assert done.returncode == 0, done.stderr
+    fleet = json.loads(done.stdout)
+    assert fleet["workers"] == 2 and fleet["workers_lost"] == 0 and fleet["failed"] == 0
+    same_as_alone(fleet, alone)
+
+
+def test_a_worker_killed_mid_fleet_loses_no_campaign_and_is_reported(heads: Path, alone: dict[str, dict], cluster) -> None:
+    address, workers = cluster
+    command = [sys.executable, "-m", "ph_explorer", "diagnose", "--data", str(heads / "head_*.csv"), "--scheduler", address, "--json"]
+    fleet = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert fleet.stderr is not None
+    for line in fleet.stderr:  # until the first campaign is done: the others are running or queued
+        if "diagnosed" in line:
+            break
+    else:
+        raise AssertionError(f"the fleet ended before a campaign was done: {fleet.communicate()}")
+    os.killpg(workers[0].pid, signal.SIGKILL)  # the worker and its nanny: a machine lost
+    out, err = fleet.communicate(timeout=300)
+    assert fleet.returncode == 0, err
+    result = json.loads(out)
+    assert result["workers"] == 2 and result["workers_lost"] == 1 and "1 of 2 workers lost" in err
+    same_as_alone(result, alone)

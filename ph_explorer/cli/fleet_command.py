@@ -40,13 +40,19 @@ def fleet_command(specs: list[Path], scheduler: str | None = None, json_output: 
             highlight=False,
         )
 
-    rows = run_fleet(paths, options, scheduler, on_row=progress)
+    run = run_fleet(paths, options, scheduler, on_row=progress)
+    rows = run["campaigns"]
     failed = sum("error" in row for row in rows)
     seconds = round(time.perf_counter() - started, 2)
+    lost = run["workers_lost"]
+    said = f"{lost} of {run['workers']} workers lost during the fleet: Dask ran what they held again on the others" if lost else ""
+    if said:
+        errors.print(said, highlight=False)
     if json_output:
-        print(json.dumps({"campaigns": rows, "failed": failed, "seconds": seconds}))
+        print(json.dumps({**run, "failed": failed, "seconds": seconds}))
     else:
-        Console(width=200).print(fleet_table(rows), f"{len(rows)} campaigns in {seconds:.1f} s, {failed} failed", highlight=False)
+        last = f"{len(rows)} campaigns in {seconds:.1f} s, {failed} failed" + (f"; {said}" if said else "")
+        Console(width=200).print(fleet_table(rows), last, highlight=False)
     return 2 if failed else 0
 
 

@@ -61,8 +61,10 @@ def run_fleet(
     options: dict[str, Any],
     scheduler: str | None = None,
     on_row: Callable[[dict[str, Any]], None] | None = None,
-) -> list[dict[str, Any]]:
-    """Every campaign's row (fleet_row), in the order of `paths`; on_row(row) as each one ends.
+) -> dict[str, Any]:
+    """{"campaigns": every campaign's row (fleet_row) in the order of `paths`, "workers": how many
+    there were at the start, "workers_lost": how many of them were gone at the end (Dask ran what
+    they held again on the others)}; on_row(row) as each campaign ends.
 
     scheduler: a Dask scheduler's address (tcp://HOST:PORT); None starts a LocalCluster of the
     machine's cores, one thread per worker (the diagnosis holds its BLAS to one thread)."""
@@ -73,6 +75,8 @@ def run_fleet(
         cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
     try:
         with Client(cluster if cluster is not None else scheduler) as client:
+            client.wait_for_workers(1)
+            workers = set(client.scheduler_info()["workers"])
             futures = client.map(fleet_row, [str(p) for p in paths], options=options, pure=False)
             index = {future.key: i for i, future in enumerate(futures)}
             rows: list[dict[str, Any]] = [{} for _ in paths]
@@ -81,7 +85,8 @@ def run_fleet(
                 rows[index[future.key]] = row
                 if on_row is not None:
                     on_row(row)
+            lost = workers - set(client.scheduler_info()["workers"])
     finally:
         if cluster is not None:
             cluster.close()
-    return rows
+    return {"campaigns": rows, "workers": len(workers), "workers_lost": len(lost)}
