@@ -28,6 +28,7 @@ from benchmarks import (
     calibration,
     data_efficiency,
     deciding,
+    fleet,
     hidden_effects,
     large_campaign,
     plots,
@@ -71,6 +72,7 @@ SECTIONS = (
     "hidden_effects",
     "uncertainty_coverage",
     "large_campaign",
+    "fleet",
 )
 
 
@@ -274,6 +276,11 @@ def main(argv: list[str] | None = None) -> int:
         # every command at the paper's size and at 16x its touches (issue 16)
         with section("large campaign", "large_campaign", results), tempfile.TemporaryDirectory() as folder:
             results["large_campaign"] = large_campaign.run(Path(folder), quick=quick, log=log)
+
+    if "fleet" in sections:
+        # many campaigns on a LocalCluster of 1 and of 2 workers, and the scaling from it (issue 33)
+        with section("fleet", "fleet", results):
+            results["fleet"] = fleet.run(quick=quick, log=log)
 
     seconds = round(time.perf_counter() - started, 1)
     if only:

@@ -254,6 +254,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         }
         assert not failed, (size, failed)  # the failing commands only, each with its exit status and last lines
     assert set(large["growth_exponent"]) == set(large["paper"]) and isinstance(large["diagnosis_holds"], bool)
+    fleet = results["fleet"]
+    assert fleet["campaigns"] == 4 and fleet["rows_equal"] and fleet["seconds"]["one_worker"] > 0 and fleet["ratio"] > 0
+    assert fleet["bytes_per_task"]["sent"] > 0 and set(fleet["population_calibration"]["expected_wall_s"]) == {"8", "32", "128"}
 
     # --only: one section run again and updated in place, stamped; every other section kept as it was.
     again = subprocess.run(
