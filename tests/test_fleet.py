@@ -99,6 +99,7 @@ def test_the_fleet_table_names_each_campaign_its_verdict_and_its_error(heads: Pa
         (["--data", "{heads}", "--save", "{heads}/study.json"], "option --save: a study is of one campaign"),
         (["--data", "{heads}", "--add", "gremlins"], "--add"),
         (["--data", "{heads}", "--data-part", "oracle"], "--data-part"),
+        (["--data", "{heads}", "--model", "{heads}/no_model"], "model folder not found"),
     ],
 )
 def test_a_bad_fleet_option_is_one_line_and_no_worker_starts(heads: Path, args: list[str], words: str) -> None:

@@ -11,7 +11,6 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
-from ph_explorer.errors import InputError
 from ph_explorer.io import campaign_files
 
 
@@ -20,13 +19,14 @@ def fleet_command(specs: list[Path], scheduler: str | None = None, json_output: 
     command's `options` (model, add, effects, geometry, data_part); exit 2 when any failed, after all."""
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, parse_add
     from ph_explorer.diagnosis.fleet import run_fleet
+    from ph_explorer.models.folder import check_model_folder
 
     paths = campaign_files(specs)
     # The options are checked here once, so that a bad one is one line before any worker starts.
     parse_add(options.get("add"), catalog_of(options.get("effects")))
     options["data_part"] = check_data_part(options.get("data_part") or "trilinear")
-    if options.get("model") is not None and not Path(options["model"]).is_dir():
-        raise InputError(f"{options['model']}: no such model folder", option="--model")
+    if options.get("model") is not None:
+        check_model_folder(options["model"])
     errors = Console(stderr=True)
     started, done, slowest = time.perf_counter(), 0, ("", 0.0)
 

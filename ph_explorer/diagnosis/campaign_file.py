@@ -5,15 +5,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.loop import diagnose
+from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.deviation_model import DeviationModel
-
-if TYPE_CHECKING:  # torch-bound: imported for real only when a diagnosis runs
-    from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.models.folder import baseline_of, load_models
 
 DATA_PARTS = ("trilinear", "network")
 
@@ -59,9 +58,6 @@ def diagnose_campaign(
 ) -> Diagnosis:
     """diagnose() with the command's options: a trained model folder's baseline, the data part by
     name (the network retrained on what the physical terms leave, reporting each epoch)."""
-    from ph_explorer.diagnosis import diagnose
-    from ph_explorer.models.folder import baseline_of, load_models
-
     baseline = baseline_of(load_models(Path(model))) if model is not None else None
     data_model: str | Callable[[], DeviationModel] = check_data_part(data_part)
     if data_part == "network":

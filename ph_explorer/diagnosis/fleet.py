@@ -17,11 +17,12 @@ from typing import Any
 
 from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import orientation_label
+from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign
 
 
-def summary(result: Any) -> dict[str, Any]:
+def summary(result: Diagnosis) -> dict[str, Any]:
     """A diagnosis in a fleet table's words: verdict, found effects with U (k = 2), suggested ones, failing rings."""
     return {
         "verdict": result.verdict,

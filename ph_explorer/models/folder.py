@@ -83,11 +83,17 @@ def baseline_of(models: Mapping[str, DeviationModel]) -> DeviationModel | None:
     return next((models[name] for name in MODEL_TYPES if name in models), None)
 
 
-def load_models(directory: Path) -> dict[str, DeviationModel]:
-    """The models of a folder written by train (name -> model), in MODEL_TYPES order."""
+def check_model_folder(directory: Path) -> Path:
+    """The folder, or one line when there is none (before anything is loaded from it)."""
     directory = Path(directory)
     if not directory.is_dir():
         raise InputError("model folder not found", file=str(directory))
+    return directory
+
+
+def load_models(directory: Path) -> dict[str, DeviationModel]:
+    """The models of a folder written by train (name -> model), in MODEL_TYPES order."""
+    directory = check_model_folder(directory)
     models = {}
     for name, (_, _, file_name) in MODEL_TYPES.items():
         if (directory / file_name).is_file():
