@@ -3,8 +3,10 @@ exactly as the single command diagnoses it alone, one row each; a file that fail
 
 from __future__ import annotations
 
+import html
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -15,6 +17,7 @@ import pytest
 from command_line import run_cli
 
 from ph_explorer.errors import InputError
+from ph_explorer.figures.fleet_page import report_names
 from ph_explorer.io import campaign_files, write_campaign
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -100,12 +103,39 @@ def test_the_fleet_table_names_each_campaign_its_verdict_and_its_error(heads: Pa
         (["--data", "{heads}", "--add", "gremlins"], "--add"),
         (["--data", "{heads}", "--data-part", "oracle"], "--data-part"),
         (["--data", "{heads}", "--model", "{heads}/no_model"], "model folder not found"),
+        (["--data", "{heads}", "--report", "{heads}"], "option --report: is a folder"),
+        (["--data", "{heads}", "--report", "{heads}/no_folder/fleet.html"], "no such folder for the fleet's page"),
     ],
 )
 def test_a_bad_fleet_option_is_one_line_and_no_worker_starts(heads: Path, args: list[str], words: str) -> None:
     done = run_cli("diagnose", *[a.format(heads=heads) for a in args])
     assert done.returncode == 2 and words in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert not (heads / "study.json").exists()
+
+
+# A report's own dates (its making, the study's run): all that differs between two makings of it.
+DATES = re.compile(r"\d{4}-\d\d-\d\d[T ]\d\d:\d\d(:\d\d)?( UTC)?")
+
+
+def test_the_fleet_page_links_each_campaign_to_its_own_report_as_the_report_command_writes_it(heads: Path, tmp_path: Path) -> None:
+    page = tmp_path / "fleet.html"
+    done = run_cli("diagnose", "--data", heads / "head_11.csv", "--data", heads / "broken.csv", "--report", page, "--json")
+    assert done.returncode == 2, done.stderr
+    rows = {Path(r["campaign"]).name: r for r in json.loads(done.stdout)["campaigns"]}
+    assert rows["head_11.csv"]["report"] == "head_11.html" and "report" not in rows["broken.csv"]
+    text = page.read_text()
+    assert '<a href="head_11.html">' in text and html.escape(rows["broken.csv"]["error"]) in text
+    assert "2 campaigns in" in text and "1 failed" in text and sorted(p.name for p in tmp_path.iterdir()) == ["fleet.html", "head_11.html"]
+    alone = tmp_path / "alone" / "head_11.html"
+    alone.parent.mkdir()
+    assert run_cli("report", "--data", heads / "head_11.csv", "--out", alone).returncode == 0
+    written = (tmp_path / "head_11.html").read_text()
+    assert DATES.sub("DATE", written) == DATES.sub("DATE", alone.read_text()) and DATES.search(written)
+
+
+def test_reports_of_campaigns_that_share_a_name_do_not_overwrite_each_other() -> None:
+    paths = [Path("a/head.csv"), Path("b/head.csv"), Path("c/fleet.csv"), Path("d/other.csv")]
+    assert report_names(paths, Path("out/fleet.html")) == ["head-1.html", "head-2.html", "fleet-3.html", "other.html"]
 
 
 DASK = str(Path(sys.executable).with_name("dask"))

@@ -9,7 +9,6 @@ rather than allowed to drop another browser's run.
 
 from __future__ import annotations
 
-import os
 import threading
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_steps
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
-from ph_explorer.io import file_sha256, read_json_object, write_json_object
+from ph_explorer.io import checked_output_file, file_sha256, read_json_object, write_json_object
 
 # The data-driven part every refit and diagnosis of the app uses (physics.py calls the core's defaults).
 APP_DATA_PART = "trilinear"
@@ -59,14 +58,7 @@ class StudyFile:
 def open_study(path: Path, data_file: Path, campaign: Campaign, catalog: Catalog) -> StudyFile:
     """The study at `path` if it is one of this campaign's (same bytes as data_file), else an
     InputError line; a path that does not exist yet is a new study, written on the first save."""
-    path = Path(path)
-    if path.is_dir():
-        raise InputError("is a folder: give the study's file name (e.g. study.json)", option="--study")
-    folder = path.parent
-    if not folder.is_dir():
-        raise InputError("no such folder for the study file", file=str(folder), option="--study")
-    if not os.access(folder, os.W_OK):
-        raise InputError("the study's folder is not writable", file=str(folder), option="--study")
+    path = checked_output_file(path, "--study", "the study", "study.json")
     sha256 = file_sha256(Path(data_file))
     described = study_campaign(Path(data_file).name, sha256, campaign)
     study = None

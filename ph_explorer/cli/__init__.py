@@ -236,15 +236,19 @@ def _diagnose(
         Optional[str],
         typer.Option(help="A fleet on this Dask scheduler (tcp://HOST:PORT) instead of a local cluster of this machine's cores."),
     ] = None,
+    report: Annotated[
+        Optional[Path],
+        typer.Option(help="A fleet's page: this HTML file with the fleet's table, each campaign's own report written beside it."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
     options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output}
-    if len(data) > 1 or scheduler is not None or names_many(data[0]):
+    if len(data) > 1 or scheduler is not None or report is not None or names_many(data[0]):
         if save is not None or resume is not None:
             typer.echo(f"option {'--save' if save is not None else '--resume'}: a study is of one campaign; diagnose it alone", err=True)
             raise typer.Exit(2)
-        _run("diagnose", fleet.fleet_command, specs=data, scheduler=scheduler, geometry=geometry, **options)
+        _run("diagnose", fleet.fleet_command, specs=data, scheduler=scheduler, report=report, geometry=geometry, **options)
     _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, save=save, resume=resume, **options)
 
 

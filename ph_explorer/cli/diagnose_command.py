@@ -9,8 +9,7 @@ from typing import TYPE_CHECKING
 from rich.progress import Progress
 
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
-from ph_explorer.errors import InputError
-from ph_explorer.io import file_sha256, read_campaign, read_json_object, write_json_object
+from ph_explorer.io import checked_output_file, file_sha256, read_campaign, read_json_object, write_json_object
 
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
     from ph_explorer.diagnosis import Candidate, Diagnosis
@@ -34,8 +33,8 @@ def diagnose_command(
 
     previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
     data_part = check_data_part(data_part or (previous["data_part"] if previous else "trilinear"))
-    if save is not None and save.is_dir():
-        raise InputError("is a folder: give the study's file name (e.g. study.json)", option="--save")
+    if save is not None:
+        checked_output_file(save, "--save", "the study", "study.json")
     catalog = catalog_of(effects)
     ids = parse_add(add, catalog)
     start = study_chain(previous, catalog, str(resume)) if previous else []

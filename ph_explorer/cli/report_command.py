@@ -15,7 +15,7 @@ from rich.progress import Progress
 from ph_explorer.cli.uncertainty_command import checked_orientations
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
-from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, read_json_object
+from ph_explorer.io import campaign_sha256, checked_output_file, file_sha256, read_campaign, read_json_object
 from ph_explorer.io.writer import atomic_write
 
 
@@ -32,10 +32,10 @@ def report_command(
     """Write the report of --data or --scenario to --out; diagnose first when no --study is given."""
     # torch-bound (the diagnosis, the models): imported when the command runs, as diagnose does.
     from ph_explorer import twin
-    from ph_explorer.diagnosis import diagnose
-    from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
-    from ph_explorer.figures.html_report import report_html
-    from ph_explorer.models.folder import baseline_of, campaign_models
+    from ph_explorer.diagnosis.campaign_file import diagnose_campaign
+    from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain, study_steps
+    from ph_explorer.figures.html_report import diagnosed_report_html, report_html
+    from ph_explorer.models.folder import campaign_models
 
     if (data is None) == (scenario is None):
         raise InputError("give one campaign: --data FILE.csv or --scenario NAME", option="--data")
@@ -44,11 +44,7 @@ def report_command(
         raise InputError(
             "applies to a campaign file (--data); a scenario has its own geometry", option="--" + sorted(geometry)[0].replace("_", "-")
         )
-    out = Path(out)
-    if out.is_dir():
-        raise InputError("is a folder: give the report's file name (e.g. report.html)", file=str(out), option="--out")
-    if not out.parent.is_dir():
-        raise InputError("no such folder for the report", file=str(out.parent), option="--out")
+    out = checked_output_file(out, "--out", "the report", "report.html")
     chosen = checked_orientations(orientations) if orientations is not None else None
     if data is not None:
         campaign = read_campaign(Path(data), geometry or {})
@@ -66,28 +62,21 @@ def report_command(
         check_campaign(previous, sha256, source, name)
         study_chain(previous, DEFAULT_CATALOG, source)  # every effect it names is one the report can describe
         study_steps(previous, source)  # and its history reads back
-    models, train, _ = campaign_models(campaign, model)
-    result = None
-    if previous is None:
+    created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
+    if previous is not None:
+        models, train, _ = campaign_models(campaign, model)
+        text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, reveal=reveal, created=created)
+    else:
         # As `ph-explorer diagnose` runs it: the loaded model is the baseline, the trilinear data part.
         with Progress(transient=True) as bar:
             task = bar.add_task("diagnosing: scanning candidate effects", total=None)
-            result = diagnose(
+            result = diagnose_campaign(
                 campaign,
-                baseline=baseline_of(models) if model is not None else None,
-                catalog=DEFAULT_CATALOG,
+                DEFAULT_CATALOG,
+                model=model,
                 progress=lambda effect_id: bar.update(task, description=f"diagnosing: scanning {effect_id}"),
             )
-        previous = study_record(result, result.chain, study_campaign(name, sha256, campaign), "trilinear")
-    created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    decision = None
-    if result is not None:
-        from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
-
-        decision = rings_that_decide(campaign, result, DEFAULT_CATALOG, DECIDE_BUDGET).as_dict()
-    text = report_html(
-        campaign, models, train, DEFAULT_CATALOG, chosen, previous, result, reveal=reveal, created=created, decision=decision
-    )
+        text = diagnosed_report_html(campaign, result, name, sha256, model, orientations=chosen, reveal=reveal, created=created)
     try:
         atomic_write([(out, text)])
     except OSError as error:

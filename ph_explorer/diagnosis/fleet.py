@@ -3,20 +3,19 @@
 Each task gets a file's path and the command's options, reads the file on its worker and diagnoses
 it as `ph-explorer diagnose` does (diagnosis.campaign_file); it sends back plain JSON-ready data,
 never a pickled model. Without a scheduler address the fleet runs on a LocalCluster of one
-single-threaded worker process per core. Dask is imported here only, so that the single-campaign
-commands never load it.
+single-threaded worker process per core (ph_explorer.cluster, the runner the benchmarks use too).
 """
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from ph_explorer.blas import one_blas_thread
-from ph_explorer.campaign import orientation_label
+from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.cluster import dask_client, run_tasks
+from ph_explorer.diagnosis.campaign_file import catalog_of, diagnose_campaign, parse_add
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign
@@ -32,13 +31,18 @@ def summary(result: Diagnosis) -> dict[str, Any]:
     }
 
 
-@one_blas_thread
 def fleet_row(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """One campaign's row, made on a worker: its summary and its whole diagnosis (as the single
     command's --json prints it), or the one line that says why it could not be read."""
-    from ph_explorer.diagnosis.campaign_file import catalog_of, diagnose_campaign, parse_add
-
     started = time.perf_counter()
+    row, _, _ = diagnosed_file(path, options)
+    row["seconds"] = round(time.perf_counter() - started, 2)
+    return row
+
+
+def diagnosed_file(path: str, options: dict[str, Any]) -> tuple[dict[str, Any], Campaign | None, Diagnosis | None]:
+    """A campaign file diagnosed with the command's options: its row (fleet_row's, without the
+    seconds), the campaign and the diagnosis; the row says the error, and both are None, when it failed."""
     row: dict[str, Any] = {"campaign": path}
     try:
         row["sha256"] = file_sha256(Path(path))
@@ -53,8 +57,8 @@ def fleet_row(path: str, options: dict[str, Any]) -> dict[str, Any]:
     else:
         row.update(summary(result))
         row["diagnosis"] = result.as_dict()
-    row["seconds"] = round(time.perf_counter() - started, 2)
-    return row
+        return row, campaign, result
+    return row, None, None
 
 
 def run_fleet(
@@ -62,32 +66,33 @@ def run_fleet(
     options: dict[str, Any],
     scheduler: str | None = None,
     on_row: Callable[[dict[str, Any]], None] | None = None,
+    row: Callable[[str, dict[str, Any]], dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """{"campaigns": every campaign's row (fleet_row) in the order of `paths`, "workers": how many
-    there were at the start, "workers_lost": how many of them were gone at the end (Dask ran what
-    they held again on the others)}; on_row(row) as each campaign ends.
+    """{"campaigns": every campaign's row in the order of `paths`, "workers": how many there were
+    at the start, "workers_lost": how many of them were gone at the end (Dask ran what they held
+    again on the others)}; on_row(row) as each campaign ends.
 
     scheduler: a Dask scheduler's address (tcp://HOST:PORT); None starts a LocalCluster of the
-    machine's cores, one thread per worker (the diagnosis holds its BLAS to one thread)."""
-    from dask.distributed import Client, LocalCluster, as_completed
+    machine's cores (cluster.dask_client). row: what a task makes of a file (default fleet_row)."""
+    with dask_client(scheduler) as client:
+        run = run_tasks(client, row or fleet_row, [str(p) for p in paths], on_result=on_row, options=options)
+    return {"campaigns": run.results, "workers": run.workers, "workers_lost": run.workers_lost}
 
-    cluster = None
-    if scheduler is None:
-        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
-    try:
-        with Client(cluster if cluster is not None else scheduler) as client:
-            client.wait_for_workers(1)
-            workers = set(client.scheduler_info()["workers"])
-            futures = client.map(fleet_row, [str(p) for p in paths], options=options, pure=False)
-            index = {future.key: i for i, future in enumerate(futures)}
-            rows: list[dict[str, Any]] = [{} for _ in paths]
-            for future in as_completed(futures):
-                row = future.result()
-                rows[index[future.key]] = row
-                if on_row is not None:
-                    on_row(row)
-            lost = workers - set(client.scheduler_info()["workers"])
-    finally:
-        if cluster is not None:
-            cluster.close()
-    return {"campaigns": rows, "workers": len(workers), "workers_lost": len(lost)}
+
+def found_text(row: dict[str, Any]) -> str:
+    """A row's found effects as one text: each with its period and its parameters +- U (k = 2)."""
+    return "; ".join(
+        effect_text(f)
+        + ": "
+        + ", ".join(f"{k} {v:.3g} +- {f['params_u'][k]:.2g}" for k, v in f["params"].items() if k not in f["settings"])
+        for f in row["found"]
+    )
+
+
+def suggested_text(row: dict[str, Any]) -> str:
+    return ", ".join(effect_text(s) for s in row["suggested"])
+
+
+def effect_text(entry: dict[str, Any]) -> str:
+    period = entry["settings"].get("cycles_per_rev")
+    return entry["effect"] + (f" {period:g}/rev" if period is not None else "")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import html
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,14 +22,17 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_label
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.effects import Catalog
+from ph_explorer.diagnosis.study import study_campaign, study_record
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.figures.diagnosis_report import EffectNames, decision_section, diagnosis_figures, diagnosis_section, reveal_section
 from ph_explorer.figures.orientation_map import MapFigure, map_svg
 from ph_explorer.figures.polar import curves_svg, polar_scale
 from ph_explorer.harmonics import ron_t
 from ph_explorer.metrics import noise_floor
 from ph_explorer.models.deviation_model import DeviationModel
+from ph_explorer.models.folder import campaign_models
 from ph_explorer.paper.tables import tables_at, tables_markdown
+from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
 
 # The explorer's starting magnification; the chart's base radius still keeps every profile off the centre.
 MAGNIFICATION = 10000.0
@@ -223,3 +227,24 @@ def _orientation_sections(
         )
     parts.append("</section>")
     return parts
+
+
+def diagnosed_report_html(
+    campaign: Campaign,
+    result: Diagnosis,
+    name: str,
+    sha256: str,
+    model_dir: Path | None = None,
+    catalog: Catalog = DEFAULT_CATALOG,
+    data_part: str = "trilinear",
+    orientations: Sequence[tuple[float, float]] | None = None,
+    reveal: bool = False,
+    created: str = "",
+) -> str:
+    """The report of a campaign just diagnosed (`ph-explorer report` without --study, and each
+    campaign of a fleet's --report): the models of `model_dir` (else the trilinear tables fitted
+    now), the diagnosis as a study records it, and the rings that would decide what it leaves open."""
+    models, train, _ = campaign_models(campaign, model_dir)
+    study = study_record(result, result.chain, study_campaign(name, sha256, campaign), data_part)
+    decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET).as_dict()
+    return report_html(campaign, models, train, catalog, orientations, study, result, reveal=reveal, created=created, decision=decision)

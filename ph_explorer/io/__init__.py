@@ -10,6 +10,7 @@ campaign after checking that they belong to it.
 from ph_explorer.io.files import (
     campaign_files,
     campaign_sha256,
+    checked_output_file,
     file_sha256,
     json_object_text,
     names_many,
@@ -27,6 +28,7 @@ __all__ = [
     "REQUIRED_COLUMNS",
     "campaign_files",
     "campaign_sha256",
+    "checked_output_file",
     "campaign_summary",
     "file_sha256",
     "names_many",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import glob
 import hashlib
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -87,3 +88,16 @@ def campaign_files(specs: Sequence[str | Path]) -> list[Path]:
             matches = [Path(text)]
         found += [m for m in matches if m not in found]
     return found
+
+
+def checked_output_file(path: Path, option: str, what: str, example: str) -> Path:
+    """The file an option names to write, checked before any work: not a folder, in a folder that
+    exists and is writable; else the one line that says which (what: "the report", example: "report.html")."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"is a folder: give {what}'s file name (e.g. {example})", file=str(path), option=option)
+    if not path.parent.is_dir():
+        raise InputError(f"no such folder for {what}", file=str(path.parent), option=option)
+    if not os.access(path.parent, os.W_OK):
+        raise InputError(f"{what}'s folder is not writable", file=str(path.parent), option=option)
+    return path
