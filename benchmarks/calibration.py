@@ -16,15 +16,16 @@ catalog, Monte Carlo seed 0):
    effects found), and the share with any verdict other than "none".
 5. seconds_per_diagnosis: the median over the paper campaigns of part 1.
 
-The diagnoses run in WORKERS processes (one BLAS thread each); the results do not depend on the
-order they finish in. `run(quick=True)` is the smoke mode: a few diagnoses, the same keys.
+The diagnoses run as tasks of ph_explorer.cluster on the client the run gives (a LocalCluster of the
+cores, or `python -m benchmarks --scheduler ADDRESS`'s cluster; one BLAS thread each), each
+simulated on its worker from its scenario and seed; the results do not depend on the order they
+finish in. `run(quick=True)` is the smoke mode: a few diagnoses, the same keys.
 """
 
 from __future__ import annotations
 
 import copy
 import hashlib
-import multiprocessing
 import os
 import subprocess
 import time
@@ -33,19 +34,21 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.stats import binomtest
-from threadpoolctl import threadpool_limits
 
 import ph_explorer
+from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import VERDICTS, diagnose
 from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL
 from ph_explorer.paths import scenarios_dir
 from ph_explorer.twin import scenario_from_dict, simulate
 
-WORKERS = max(1, min(2, os.cpu_count() or 1))
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
 TARGET_FALSE_ALARM = 0.05
 TARGET_STABILITY = 0.95
 TARGET_SECONDS = 30.0
@@ -363,16 +366,6 @@ def power_point(amplitude: float, records: list[dict[str, Any]]) -> dict[str, An
     }
 
 
-_LIMITS: list[Any] = []
-
-
-def one_thread_each() -> None:
-    """A worker process's BLAS and OpenMP pools at one thread (Pool initializer): the workers share
-    the cores. Set in the workers only, so that the rest of a benchmark run (training, serving)
-    keeps its threads."""
-    _LIMITS.append(threadpool_limits(1))  # kept: the limits hold while the object lives
-
-
 def commit() -> str:
     """The checkout's short commit, with "+changes" when the package or the benchmarks differ from it:
     which checkout the figures were measured on."""
@@ -428,13 +421,14 @@ def jobs(quick: bool) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     return out, plan
 
 
-def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = WORKERS) -> dict[str, Any]:
-    """All five parts; the results["diagnosis_calibration"] object."""
+def run(client: Client, quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """All five parts, their diagnoses as tasks on the client's workers; the results["diagnosis_calibration"] object."""
     started = time.perf_counter()
     code = code_version()
     todo, plan = jobs(quick)
     total = len(todo)
-    log(f"  {total} diagnoses in {workers} processes")
+    workers = len(client.scheduler_info()["workers"])
+    log(f"  {total} diagnoses on {workers} workers")
     remaining = Counter((j["group"], j["key"]) for j in todo)
     records: dict[tuple[str, Any], list[dict[str, Any]]] = {k: [] for k in remaining}
     done = 0
@@ -469,13 +463,7 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         if done % 25 == 0 and done < total:
             log(f"  {done}/{total} diagnoses ({time.perf_counter() - started:.0f} s)")
 
-    if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
-            for record in pool.imap_unordered(diagnose_one, todo, chunksize=1):
-                take(record)
-    else:
-        for job in todo:
-            take(diagnose_one(job))
+    run_tasks(client, diagnose_one, todo, on_result=take)
 
     null_test = {
         "ring_level": RING_LEVEL,
@@ -527,7 +515,8 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
         "n": len(seconds),
         "target_s": TARGET_SECONDS,
         "holds": bool(np.median(seconds) < TARGET_SECONDS),
-        "note": f"diagnose(campaign) alone (simulation excluded), {workers} diagnoses at a time on {os.cpu_count()} cores, one BLAS thread each",
+        "note": f"diagnose(campaign) alone (simulation excluded), {workers} workers (a diagnosis at a time each, one BLAS thread), "
+        f"{os.cpu_count()} cores here",
     }
     with_effect = [r["seconds"] for r in records[("effect", "head_3")]]
     out["seconds_per_diagnosis"]["head_3"] = {

@@ -23,7 +23,8 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.population import CALIBRATION_HEADS, COUNTS, FIRST_SEED, U_CALIBRATION_HEADS
-from ph_explorer.diagnosis.fleet import fleet_row, run_fleet
+from ph_explorer.cluster import dask_client, run_tasks
+from ph_explorer.diagnosis.fleet import fleet_row
 from ph_explorer.io import write_campaign
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -37,14 +38,12 @@ def peak_mib() -> float:
 
 
 def on_cluster(paths: list[Path], workers: int) -> tuple[float, list[dict[str, Any]], float]:
-    """(wall seconds, rows, the workers' largest peak MiB) of the fleet on a LocalCluster of `workers`."""
-    from dask.distributed import Client, LocalCluster
-
+    """(wall seconds, rows, the workers' largest peak MiB) of the fleet on a LocalCluster of `workers`
+    (run_fleet's tasks on run_fleet's cluster)."""
     started = time.perf_counter()
-    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        rows = run_fleet(paths, {}, cluster.scheduler_address)["campaigns"]
-        with Client(cluster) as client:
-            peak = max(client.run(peak_mib).values())
+    with dask_client(workers=workers) as client:
+        rows = run_tasks(client, fleet_row, [str(p) for p in paths], options={}).results
+        peak = max(client.run(peak_mib).values())
     return time.perf_counter() - started, rows, peak
 
 

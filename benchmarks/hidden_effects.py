@@ -7,7 +7,8 @@ default catalog). Recorded: the verdict, the effects found with their parameters
 uncertainties, whether the hidden effect is named first at its true period with every true
 amplitude and phase inside fit +- U, the candidates the top one is confounded with, the check-ring
 MAE (against the mean of the repetitions) before and after with the floor, the nested "after",
-and the seconds. `run(quick=True)` runs the first case only.
+and the seconds. Each case is a task of ph_explorer.cluster on the client the run gives (simulated
+and diagnosed on its worker). `run(quick=True)` runs the first case only.
 """
 
 from __future__ import annotations
@@ -16,13 +17,17 @@ import copy
 import time
 import tomllib
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from benchmarks.population import error_over_u
+from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.paths import scenarios_dir
 from ph_explorer.twin import scenario_from_dict, simulate
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
 
 CASES: dict[str, dict[str, float]] = {
     "b_axis_radial_motion": {"x_amplitude_um": 0.5, "x_phase_deg": 30.0, "y_amplitude_um": 0.3, "y_phase_deg": 120.0, "cycles_per_rev": 17},
@@ -101,18 +106,26 @@ def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[
     }
 
 
-def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+def one_case(case: tuple[str, str, dict[str, float]]) -> dict[str, Any]:
+    """one() of a (design, effect id, truth) case: a task's input is one value."""
+    design, effect_id, truth = case
+    return one(effect_id, truth, design)
+
+
+def run(client: Client, quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every case as a task on the client's workers; the results["hidden_effects"] object."""
     cases = {name: ("paper", name, truth) for name, truth in CASES.items()}
     cases |= {name: ("near_vertical", effect_id, truth) for name, (effect_id, truth) in NEAR_VERTICAL_CASES.items()}
     if quick:
         cases = dict(list(cases.items())[:1])
-    out = {}
-    for name, (design, effect_id, truth) in cases.items():
-        out[name] = r = one(effect_id, truth, design)
+
+    def said(r: dict[str, Any]) -> None:
         log(
-            f"  {name}: {r['verdict']}, found {[f['effect'] for f in r['found']]}, named first {r['named_first_at_its_period']}, "
+            f"  {r['hidden']['effect']}: {r['verdict']}, found {[f['effect'] for f in r['found']]}, named first {r['named_first_at_its_period']}, "
             f"truth within U {r['truth_within_u']}, check MAE {r['check_rings_mae_mean_um']} (floor {r['noise_floor_mean_um']}), {r['seconds']} s"
         )
+
+    out = dict(zip(cases, run_tasks(client, one_case, list(cases.values()), on_result=said).results))
     paper = [r for name, r in out.items() if name in CASES]
     return {
         "mode": "quick" if quick else "full",

@@ -24,7 +24,8 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    "none") the share whose signature's first variable is of the defect's own joint (b_joint_deg
    or b0_deg for a B defect: outside_catalog.py), the exact variable, and a bump located at it.
 
-Each share has its 95 % Clopper-Pearson interval. The diagnoses run in WORKERS processes.
+Each share has its 95 % Clopper-Pearson interval. The diagnoses run as tasks of ph_explorer.cluster on
+the client the run gives, each head simulated on its worker from its seed.
 0. tolerance: how MEAN_TOLERANCE was chosen. On CALIBRATION_HEADS other healthy heads (seeds of
    their own, never the parts above), the share whose baseline fails the within-noise test at
    each of TOLERANCES: the smooth interpolation error a lattice model leaves of a healthy
@@ -41,8 +42,6 @@ Each share has its 95 % Clopper-Pearson interval. The diagnoses run in WORKERS p
 from __future__ import annotations
 
 import json
-import multiprocessing
-import os
 import statistics
 import subprocess
 import sys
@@ -51,12 +50,13 @@ import time
 from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchmarks.calibration import clopper_pearson, code_version, commit, one_thread_each, share
+from benchmarks.calibration import clopper_pearson, code_version, commit, share
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
+from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.detection import hidden_effect_of
 from ph_explorer.diagnosis.loop import honest_after
@@ -68,13 +68,15 @@ from ph_explorer.io import write_campaign
 from ph_explorer.twin import load_scenario, simulate
 from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
 
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
 SPEED_REPEATS = 3
 # Every diagnosis's record of a full run, beside results.json: what each head was and what was said.
 RECORDS = Path(__file__).with_name("population_records.json")
 REPLACEMENTS, REPLACEMENT_STRIDE = 8, 1_000_000  # heads tried per seed, and how far apart their seeds are
 SPEED_TARGETS = {"verdict_median_s": 3.0, "verdict_max_s": 10.0, "nested_s": 10.0}
 
-WORKERS = max(1, min(2, os.cpu_count() or 1))
 COUNTS = {"healthy": 300, "stability": 100, "catalog_effect": 200, "outside_catalog": 100}
 QUICK_COUNTS = {"healthy": 2, "stability": 1, "catalog_effect": 1, "outside_catalog": 1}
 FIRST_SEED = {"healthy": 100_000, "catalog_effect": 200_000, "outside_catalog": 300_000}
@@ -271,14 +273,10 @@ def baseline_fails(seed: int) -> dict[str, Any]:
     return {"seed": seed, "fails": {str(t): bool(test is not None and test.fails) for t, test in tests.items()}}
 
 
-def tolerance_curve(quick: bool, workers: int) -> dict[str, Any]:
+def tolerance_curve(quick: bool, client: Client) -> dict[str, Any]:
     """Part 0 (module docstring): the baseline's failing share over calibration heads at each tolerance."""
     seeds = range(CALIBRATION_SEED, CALIBRATION_SEED + (QUICK_CALIBRATION_HEADS if quick else CALIBRATION_HEADS))
-    if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
-            heads = pool.map(baseline_fails, seeds, chunksize=4)
-    else:
-        heads = [baseline_fails(seed) for seed in seeds]
+    heads = run_tasks(client, baseline_fails, list(seeds)).results
     return {
         "seeds": [seeds[0], seeds[-1]],
         "used": MEAN_TOLERANCE,
@@ -286,12 +284,12 @@ def tolerance_curve(quick: bool, workers: int) -> dict[str, Any]:
     }
 
 
-def u_calibration(quick: bool, workers: int) -> dict[str, Any]:
+def u_calibration(quick: bool, client: Client) -> dict[str, Any]:
     """Part 0b (module docstring): the factor on the jackknife's U that brings 95 % of fitted
     parameters within U, over heads with one catalog effect of seeds of their own."""
     count = QUICK_U_CALIBRATION_HEADS if quick else U_CALIBRATION_HEADS
     todo = [{"group": "catalog_effect", "seed": U_CALIBRATION_SEED + i} for i in range(count)]
-    exact = exact_finds(run_jobs(todo, workers))
+    exact = exact_finds(run_jobs(todo, client))
     ratios = np.array([x for r, f in exact for x in error_over_u(r["truth"]["id"], canonical_truth(r), f)])
     q95 = float(np.quantile(ratios, 0.95)) if ratios.size else float("nan")
     return {
@@ -306,17 +304,17 @@ def u_calibration(quick: bool, workers: int) -> dict[str, Any]:
     }
 
 
-def run_jobs(todo: list[dict[str, Any]], workers: int, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
-    """diagnose_one over todo in `workers` processes; the records sorted by group and seed."""
-    started, records = time.perf_counter(), []
-    if workers > 1:
-        with multiprocessing.get_context("spawn").Pool(workers, initializer=one_thread_each) as pool:
-            for record in pool.imap_unordered(diagnose_one, todo, chunksize=1):
-                records.append(record)
-                if log is not None and len(records) % 50 == 0:
-                    log(f"  {len(records)}/{len(todo)} ({time.perf_counter() - started:.0f} s)")
-    else:
-        records = [diagnose_one(job) for job in todo]
+def run_jobs(todo: list[dict[str, Any]], client: Client, log: Callable[[str], None] | None = None) -> list[dict[str, Any]]:
+    """diagnose_one over todo as tasks on the client's workers; the records sorted by group and seed."""
+    started, done = time.perf_counter(), 0
+
+    def progress(_: dict[str, Any]) -> None:
+        nonlocal done
+        done += 1
+        if log is not None and done % 50 == 0:
+            log(f"  {done}/{len(todo)} ({time.perf_counter() - started:.0f} s)")
+
+    records = run_tasks(client, diagnose_one, todo, on_result=progress).results
     return sorted(records, key=lambda r: (r["group"], r["seed"]))
 
 
@@ -422,13 +420,13 @@ def verdict_speed(repeats: int = SPEED_REPEATS, quick: bool = False) -> dict[str
     }
 
 
-def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = WORKERS) -> dict[str, Any]:
-    """Every part; the results["population"] object."""
+def run(client: Client, quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every part, its diagnoses as tasks on the client's workers; the results["population"] object."""
     started = time.perf_counter()
     code, checkout = code_version(), commit()  # what the diagnoses run on, read before they start
     todo = jobs(quick)
-    log(f"  {len(todo)} diagnoses of random heads in {workers} processes")
-    records = run_jobs(todo, workers, log)
+    log(f"  {len(todo)} diagnoses of random heads on {len(client.scheduler_info()['workers'])} workers")
+    records = run_jobs(todo, client, log)
     if not quick:
         RECORDS.write_text(json.dumps({"code_sha256": code, "records": records}, separators=(",", ":")) + "\n")
     out = {
@@ -440,9 +438,9 @@ def run(quick: bool = False, log: Callable[[str], None] = print, workers: int = 
     }
     out.update(figures(records))
     log("  the within-noise tolerance over calibration heads")
-    out["tolerance"] = tolerance_curve(quick, workers)
+    out["tolerance"] = tolerance_curve(quick, client)
     log("  the jackknife's U over calibration heads with one catalog effect")
-    out["u_calibration"] = u_calibration(quick, workers)
+    out["u_calibration"] = u_calibration(quick, client)
     log("  verdict speed on head_3, one diagnosis at a time")
     out["verdict_speed"] = verdict_speed(1 if quick else SPEED_REPEATS, quick)
     out["run_seconds"] = round(time.perf_counter() - started, 1)

@@ -1,11 +1,13 @@
-"""`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS]`: every benchmark, one JSON and PNG plots.
+"""`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS] [--scheduler ADDRESS]`: every benchmark, one JSON and PNG plots.
 
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
 DIR/calibration.png. The full run takes about 45 minutes on 2 cores (the diagnosis
 calibration about 22 of them); --quick is a smoke-test mode (two subsets, a
 short network, 2 browsers for 2 s, a few diagnoses) that keeps every key. --only runs some
 sections and updates them in the last run's results.json, each stamped under "updated" with its
-date and the code it was measured on.
+date and the code it was measured on. The many diagnoses of the calibration, the population, the
+hidden effects and the coverage are tasks of ph_explorer.cluster: on a LocalCluster of this
+machine's cores (quick: one worker thread in this process), or on the cluster of --scheduler.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from benchmarks import (
 )
 from ph_explorer.app.server import build_server
 from ph_explorer.campaign import Campaign
+from ph_explorer.cluster import dask_client
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import load_scenario, simulate
@@ -184,11 +187,33 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
         app.stop()
 
 
-# The quick run's few diagnoses in this process: a pool's start (its imports) would cost more than it
-# saves, and the test suite runs the quick run beside its other tests on the same cores.
+# The quick run's few diagnoses on one worker thread in this process: worker processes' start (their
+# imports) would cost more than they save, and the test suite runs the quick run beside its other
+# tests on the same cores.
 QUICK_WORKERS = 1
+TASK_SECTIONS = ("diagnosis_calibration", "population", "hidden_effects", "uncertainty_coverage")
 LATENCY_TARGET_MS = 50.0
 SERVER_TARGET_MS = 2.0
+
+
+def run_task_sections(client: Any, sections: list[str], quick: bool, results: dict[str, Any], stamp: dict[str, str]) -> None:
+    """The sections whose diagnoses are tasks on the client's workers."""
+    if "diagnosis_calibration" in sections:
+        # false alarms, stability, coverage, power (issue 13)
+        with section("diagnosis calibration", "diagnosis_calibration", results):
+            results["diagnosis_calibration"] = calibration.run(client, quick=quick, log=log)
+    if "population" in sections:
+        # the verdicts over a population of random heads (issue 28)
+        with section("population", "population", results):
+            results["population"] = population.run(client, quick=quick, log=log)
+    if "hidden_effects" in sections:
+        # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
+        with section("hidden effects", "hidden_effects", results):
+            results["hidden_effects"] = hidden_effects.run(client, quick=quick, log=log)
+    if "uncertainty_coverage" in sections:
+        # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
+        with section("uncertainty coverage", "uncertainty_coverage", results):
+            results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(client, quick=quick, log=log)}
 
 
 def write_plots(results: dict[str, Any], out: Path) -> None:
@@ -210,6 +235,7 @@ def main(argv: list[str] | None = None) -> int:
         default="",
         help=f"run only these sections (comma-separated: {', '.join(SECTIONS)}) and update them in OUT/results.json",
     )
+    parser.add_argument("--scheduler", default=None, help="run the sections' many diagnoses on this Dask scheduler (tcp://HOST:PORT)")
     args = parser.parse_args(argv)
     out: Path = args.out
     if args.replot:
@@ -250,28 +276,17 @@ def main(argv: list[str] | None = None) -> int:
     if "speed" in sections or "scale" in sections:
         with section("speed", "speed_and_scale", results):
             run_speed(quick, network_config, results, with_scale="scale" in sections)
-    if "diagnosis_calibration" in sections:
-        # false alarms, stability, coverage, power (issue 13)
-        with section("diagnosis calibration", "diagnosis_calibration", results):
-            results["diagnosis_calibration"] = calibration.run(
-                quick=quick, log=log, workers=QUICK_WORKERS if quick else calibration.WORKERS
-            )
-    if "population" in sections:
-        # the verdicts over a population of random heads (issue 28)
-        with section("population", "population", results):
-            results["population"] = population.run(quick=quick, log=log, workers=QUICK_WORKERS if quick else population.WORKERS)
+    with contextlib.ExitStack() as stack:
+        client = None
+        if set(sections) & set(TASK_SECTIONS):
+            in_process = quick and args.scheduler is None
+            client = stack.enter_context(dask_client(args.scheduler, QUICK_WORKERS if quick else None, in_process))
+        run_task_sections(client, sections, quick, results, stamp)
+
     if "deciding" in sections:
         # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
         with section("deciding", "deciding", results):
             results["deciding"] = deciding.run(quick=quick, log=log)
-    if "hidden_effects" in sections:
-        # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
-        with section("hidden effects", "hidden_effects", results):
-            results["hidden_effects"] = hidden_effects.run(quick=quick, log=log)
-    if "uncertainty_coverage" in sections:
-        # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
-        with section("uncertainty coverage", "uncertainty_coverage", results):
-            results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(quick=quick, log=log)}
     if "large_campaign" in sections:
         # every command at the paper's size and at 16x its touches (issue 16)
         with section("large campaign", "large_campaign", results), tempfile.TemporaryDirectory() as folder:

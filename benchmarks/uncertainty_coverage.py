@@ -12,6 +12,8 @@ the noise-only band of today (its repeatability component alone), and the budget
 the check rings. On the paper campaign, the task of every check ring (one measurement, 64
 touches): simulated RONt and harmonics 2..15 with U (k = 2) against the measured repetitions,
 E_n and its count <= 1, and how many single measured RONt fall in the simulated 95 % interval.
+Each campaign is a task of ph_explorer.cluster on the client the run gives (simulated, trained and
+sampled on its worker; its Monte Carlo seeded by its place in the run).
 """
 
 from __future__ import annotations
@@ -19,12 +21,13 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from functools import partial
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from benchmarks.large_campaign import QUICK_EPOCHS
 from ph_explorer.campaign import Campaign
+from ph_explorer.cluster import run_tasks
 from ph_explorer.io import read_campaign
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_card, load_models
@@ -38,6 +41,9 @@ from ph_explorer.uncertainty.model_error import out_of_sample_error
 from ph_explorer.uncertainty.parameter_spread import parameter_spread
 from ph_explorer.uncertainty.task import measured_task, normalised_error, task_uncertainty
 
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
 TARGET = (0.93, 0.97)
 QUICK_CHECK_RINGS = 2
 NDIG = 1  # numerical tolerance: one significant digit of u (JCGM 101 7.9.2); >= 2 batches of 10^4
@@ -48,15 +54,21 @@ def known_effects(scenario: Scenario) -> list:
     return [e for e in scenario.starting_effects if e.candidate]
 
 
-def campaigns(quick: bool) -> list[tuple[str, Campaign, Scenario, dict[str, DeviationModel] | None]]:
-    """(name, campaign, scenario, shipped models or None): the shipped paper data first, then each scenario."""
-    paper = read_campaign(assets_dir() / "data" / "paper.csv")
-    out = [("paper (shipped data and model)", paper, load_scenario("paper"), load_models(default_model_dir()))]
-    names = ["head_3"] if quick else [s.name for s in list_scenarios() if s.name != "paper"]
-    for name in names:
-        scenario = load_scenario(name)
-        out.append((name, simulate(scenario, scenario.seed), scenario, None))
-    return out
+SHIPPED = "paper (shipped data and model)"
+
+
+def campaign_names(quick: bool) -> list[str]:
+    """The shipped paper data first, then each scenario (head_3 alone when quick)."""
+    return [SHIPPED, *(["head_3"] if quick else [s.name for s in list_scenarios() if s.name != "paper"])]
+
+
+def campaign_of(name: str) -> tuple[Campaign, Scenario, dict[str, DeviationModel] | None]:
+    """(campaign, scenario, shipped models or None): the shipped data and models for SHIPPED, else
+    the scenario simulated with its own seed."""
+    if name == SHIPPED:
+        return read_campaign(assets_dir() / "data" / "paper.csv"), load_scenario("paper"), load_models(default_model_dir())
+    scenario = load_scenario(name)
+    return simulate(scenario, scenario.seed), scenario, None
 
 
 def factories(scenario: Scenario, config: NetworkConfig) -> dict[str, Callable[[], DeviationModel]]:
@@ -165,39 +177,49 @@ def task_check(
     return out
 
 
-def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
-    rng = np.random.default_rng(17)
-    started = time.perf_counter()
-    results: dict[str, Any] = {}
+def coverage_of(item: tuple[int, str], quick: bool) -> dict[str, Any]:
+    """A task: one campaign (item: its place in the run, which seeds its Monte Carlo, and its name),
+    every model's coverage, and on the shipped campaign the task's E_n; with the lines to log."""
+    index, name = item
+    rng = np.random.default_rng([17, index])
+    campaign, scenario, shipped = campaign_of(name)
+    config = NetworkConfig(max_epochs=QUICK_EPOCHS, early_stopping_patience=10) if quick else NetworkConfig()
+    if shipped is not None and not quick:
+        config = NetworkConfig.from_dict(load_card(default_model_dir())["network"]["hyperparameters"])
+    check = campaign.holdout_mask()
+    if quick:  # a smoke test: the first two check rings
+        check = check & (np.cumsum(check) <= QUICK_CHECK_RINGS)
+    entry: dict[str, Any] = {}
+    lines = []
+    for model_name, make in factories(scenario, config).items():
+        if model_name == "hybrid" and not known_effects(scenario):
+            continue
+        own = None if shipped is None or quick else shipped.get(model_name)
+        entry[model_name] = r = one_model(make, campaign, check, own, rng)
+        lines.append(
+            f"  {name} {model_name}: full {r['full_band']} cross-validation only {r['cross_validation_only_band']} "
+            f"noise-only {r['noise_only_band']} scale {r['model_error_scale']} ({r['seconds']})"
+        )
     task: dict[str, Any] = {}
-    for name, campaign, scenario, shipped in campaigns(quick):
-        config = NetworkConfig(max_epochs=QUICK_EPOCHS, early_stopping_patience=10) if quick else NetworkConfig()
-        if shipped is not None and not quick:
-            config = NetworkConfig.from_dict(load_card(default_model_dir())["network"]["hyperparameters"])
-        check = campaign.holdout_mask()
-        if quick:  # a smoke test: the first two check rings
-            check = check & (np.cumsum(check) <= QUICK_CHECK_RINGS)
-        entry: dict[str, Any] = {}
-        for model_name, make in factories(scenario, config).items():
-            if model_name == "hybrid" and not known_effects(scenario):
-                continue
-            own = None if shipped is None or quick else shipped.get(model_name)
-            entry[model_name] = one_model(make, campaign, check, own, rng)
-            r = entry[model_name]
-            log(
-                f"  {name} {model_name}: full {r['full_band']} cross-validation only {r['cross_validation_only_band']} "
-                f"noise-only {r['noise_only_band']} scale {r['model_error_scale']} ({r['seconds']})"
-            )
-        if shipped is not None:
-            task = task_check({m: e["_sources"] for m, e in entry.items()}, campaign, check, rng)
-            for m, t in task.items():
-                log(
-                    f"  task {m}: E_n<=1 RONt {t['ront_E_n_at_most_1']}/{t['of_rings']}, harmonics "
-                    f"{t['harmonics_E_n_at_most_1']}/{t['harmonics_compared']}, single RONt in interval {t['single_ront_inside_95_interval']}"
-                )
-        for e in entry.values():
-            e.pop("_sources")
-        results[name] = entry
+    if shipped is not None:
+        task = task_check({m: e["_sources"] for m, e in entry.items()}, campaign, check, rng)
+        lines += [
+            f"  task {m}: E_n<=1 RONt {t['ront_E_n_at_most_1']}/{t['of_rings']}, harmonics "
+            f"{t['harmonics_E_n_at_most_1']}/{t['harmonics_compared']}, single RONt in interval {t['single_ront_inside_95_interval']}"
+            for m, t in task.items()
+        ]
+    for e in entry.values():
+        e.pop("_sources")  # the models stay on the worker: the task returns figures
+    return {"name": name, "models": entry, "task": task, "lines": lines}
+
+
+def run(client: Client, quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every campaign as a task on the client's workers; the results["uncertainty_coverage"] object."""
+    started = time.perf_counter()
+    items = list(enumerate(campaign_names(quick)))
+    done = run_tasks(client, coverage_of, items, on_result=lambda r: [log(line) for line in r["lines"]], quick=quick).results
+    results = {r["name"]: r["models"] for r in done}
+    task = next(r["task"] for r in done if r["name"] == SHIPPED)
     in_target = {f"{c}/{m}": r["in_target"] for c, models in results.items() for m, r in models.items()}
     return {
         "mode": "quick" if quick else "full",

@@ -136,12 +136,16 @@ def overview(results: Mapping[str, Any]) -> str:
         ".venv/bin/python -m benchmarks --quick --out /tmp/bench                # smoke mode, same keys (CI)",
         ".venv/bin/python -m benchmarks --only speed,hidden_effects             # some sections, updated in results.json",
         ".venv/bin/python -m benchmarks --replot                                # redraw the PNGs from the JSON",
+        ".venv/bin/python -m benchmarks --scheduler tcp://HOST:8786              # the many diagnoses on a Dask cluster",
         "```",
         "",
         "A run writes `benchmarks/results.json` and the plots `benchmarks/data_efficiency.png`, "
         "`benchmarks/speed.png` and `benchmarks/calibration.png`. A run with `--only` keeps every other "
         "section of the last `results.json` as it was and stamps the ones it ran under `updated` (date, mode, "
         "a sha256 of the package's sources): each section below says which run it comes from. "
+        "The many diagnoses of the calibration, the population, the hidden effects and the coverage are tasks "
+        "of one runner ([`ph_explorer.cluster`](fleet.md#where-it-runs), the fleet's): on a LocalCluster of the "
+        "machine's cores, or with `--scheduler` on a Dask cluster, each random head simulated on its worker from its seed. "
         "Robustness is in the test suite, not here: `tests/test_robustness.py` (any generated file through "
         "`ph-explorer inspect` ends in exit 0 or one line and exit 2, never a traceback; bad uploads over the "
         "websocket leave every connected browser served) and `tests/test_io_properties.py` (the reader).",

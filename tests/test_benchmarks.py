@@ -259,13 +259,18 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert fleet["bytes_per_task"]["sent"] > 0 and set(fleet["population_calibration"]["expected_wall_s"]) == {"8", "32", "128"}
 
     # --only: one section run again and updated in place, stamped; every other section kept as it was.
-    again = subprocess.run(
-        [sys.executable, "-m", "benchmarks", "--quick", "--only", "hidden_effects", "--out", str(tmp_path)],
-        cwd=REPOSITORY,
-        capture_output=True,
-        text=True,
-        timeout=1500,  # a hang guard, not a speed target: the quick run has grown with its sections
-    )
+    # Run on a given scheduler (--scheduler): its case is a task on a worker process of that cluster.
+    from dask.distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+        again = subprocess.run(
+            [sys.executable, "-m", "benchmarks", "--quick", "--only", "hidden_effects", "--out", str(tmp_path)]
+            + ["--scheduler", cluster.scheduler_address],
+            cwd=REPOSITORY,
+            capture_output=True,
+            text=True,
+            timeout=1500,  # a hang guard, not a speed target: the quick run has grown with its sections
+        )
     assert again.returncode == 0, again.stderr[-3000:]
     updated = json.loads((tmp_path / "results.json").read_text())
     assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated", "section_seconds")} == {
@@ -278,6 +283,10 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert set(updated["updated"]) == {"hidden_effects"} and updated["updated"]["hidden_effects"]["code_sha256"]
     assert updated["updated"]["hidden_effects"]["commit"] == results["commit"]
     assert updated["hidden_effects"]["cases"].keys() == hidden["cases"].keys()
+    for name, case in hidden["cases"].items():  # on the cluster's worker as in this process, to the last digit
+        assert {k: v for k, v in updated["hidden_effects"]["cases"][name].items() if k != "seconds"} == {
+            k: v for k, v in case.items() if k != "seconds"
+        }
     for png in ("data_efficiency.png", "speed.png", "calibration.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
