@@ -49,8 +49,11 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, in_pro
             yield client
         return
     count = workers or os.cpu_count() or 1
+    # No dashboard; the scheduler's own HTTP server (health routes) on a free port, not 8787, which
+    # another cluster on this machine may hold.
+    options = {"dashboard_address": None, "scheduler_kwargs": {"dashboard_address": ":0"}}
     with (
-        LocalCluster(n_workers=count, threads_per_worker=1, processes=not in_process, dashboard_address=None) as cluster,
+        LocalCluster(n_workers=count, threads_per_worker=1, processes=not in_process, **options) as cluster,
         Client(cluster) as client,
     ):
         yield client

@@ -125,7 +125,12 @@ def test_the_fleet_page_links_each_campaign_to_its_own_report_as_the_report_comm
     assert rows["head_11.csv"]["report"] == "head_11.html" and "report" not in rows["broken.csv"]
     text = page.read_text()
     assert '<a href="head_11.html">' in text and html.escape(rows["broken.csv"]["error"]) in text
-    assert "2 campaigns in" in text and "1 failed" in text and sorted(p.name for p in tmp_path.iterdir()) == ["fleet.html", "head_11.html"]
+    assert (
+        "2 campaigns in" in text
+        and "1 failed" in text
+        and f"Verdicts: {rows['head_11.csv']['verdict']} 1, error 1." in text
+        and sorted(p.name for p in tmp_path.iterdir()) == ["fleet.html", "head_11.html"]
+    )
     alone = tmp_path / "alone" / "head_11.html"
     alone.parent.mkdir()
     assert run_cli("report", "--data", heads / "head_11.csv", "--out", alone).returncode == 0
