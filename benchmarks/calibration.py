@@ -64,7 +64,7 @@ POWER_CYCLES = 22
 QUICK = {
     "false_alarm": 2,
     "designs": 1,
-    "effect": 2,
+    "effect": 1,
     "power_seeds": 1,
     "power_amplitudes": (1.1,),
 }  # the smoke run: every key, few diagnoses

@@ -19,11 +19,12 @@ import statistics
 import tempfile
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 from benchmarks.population import CALIBRATION_HEADS, COUNTS, FIRST_SEED, U_CALIBRATION_HEADS
-from ph_explorer.cluster import dask_client, run_tasks
+from ph_explorer.cluster import dask_client, one_thread_task, run_tasks
 from ph_explorer.diagnosis.fleet import fleet_row
 from ph_explorer.io import write_campaign
 from ph_explorer.twin.random_heads import random_campaign
@@ -60,7 +61,7 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
             runs[workers] = on_cluster(paths, workers)
             log(f"  {count} campaigns on {workers} worker(s): {runs[workers][0]:.1f} s")
         row = runs[1][1][0]
-        sent = len(pickle.dumps((fleet_row, str(paths[0]), {})))
+        sent = len(pickle.dumps((partial(one_thread_task, fleet_row, {"options": {}}), str(paths[0]))))  # run_tasks's task
     one, two = runs[1][0], runs[2][0]
     seconds = [r["seconds"] for r in runs[1][1]]
     same = [{k: v for k, v in a.items() if k != "seconds"} for a in runs[1][1]] == [
