@@ -144,3 +144,30 @@ def calibration_plot(results: dict[str, Any], path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def peers_plot(results: dict[str, Any], path: Path) -> Path:
+    """Check-ring MAE over the noise floor (mean reference) of each model and peer, per campaign."""
+    rows = results["peers"]["campaigns"]
+    names = ["network", "trilinear", "mean_curve", "hybrid_before", "hybrid_after", "rbf", "gp"]
+    fig, ax = plt.subplots(figsize=(13, 1.2 + 0.7 * len(rows)))
+    height = 0.8 / len(names)
+    for j, name in enumerate(names):
+        values = [r["models"][name]["over_floor"]["mean"] for r in rows]
+        positions = [i + (j - len(names) / 2 + 0.5) * height for i in range(len(rows))]
+        hatch = "//" if name in ("rbf", "gp") else None
+        ax.barh(positions, values, height=height, label=name.replace("_", " "), hatch=hatch)
+    after = [r["diagnosis_after"]["over_floor"]["mean"] for r in rows]
+    ax.plot(after, range(len(rows)), "D", color="black", ms=5, label="the diagnosis's after (check rings left out one at a time)")
+    ax.axvline(1.0, color="black", lw=1, label="noise floor")
+    ax.axvline(1.25, color="red", ls="--", lw=1, label="1.25 x floor")
+    ax.set_yticks(range(len(rows)), [r["campaign"] for r in rows], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("check-ring MAE against the repetitions' mean / its noise floor")
+    ax.set_title("the project's models (plain) and the peers (hatched): scipy RBF, scikit-learn GP")
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the bars, never over them
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

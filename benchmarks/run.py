@@ -33,6 +33,7 @@ from benchmarks import (
     fleet,
     hidden_effects,
     large_campaign,
+    peers,
     plots,
     population,
     scale,
@@ -76,6 +77,7 @@ SECTIONS = (
     "uncertainty_coverage",
     "large_campaign",
     "fleet",
+    "peers",
 )
 
 
@@ -191,7 +193,7 @@ def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any
 # imports) would cost more than they save, and the test suite runs the quick run beside its other
 # tests on the same cores.
 QUICK_WORKERS = 1
-TASK_SECTIONS = ("diagnosis_calibration", "population", "hidden_effects", "uncertainty_coverage")
+TASK_SECTIONS = ("diagnosis_calibration", "population", "hidden_effects", "uncertainty_coverage", "peers")
 LATENCY_TARGET_MS = 50.0
 SERVER_TARGET_MS = 2.0
 
@@ -214,6 +216,10 @@ def run_task_sections(client: Any, sections: list[str], quick: bool, results: di
         # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
         with section("uncertainty coverage", "uncertainty_coverage", results):
             results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(client, quick=quick, log=log)}
+    if "peers" in sections:
+        # scipy's RBF and scikit-learn's GP beside the project's models, same split (issue 32)
+        with section("peers", "peers", results):
+            results["peers"] = peers.run(client, quick=quick, log=log)
 
 
 def write_plots(results: dict[str, Any], out: Path) -> None:
@@ -223,6 +229,8 @@ def write_plots(results: dict[str, Any], out: Path) -> None:
         plots.speed_plot(results, out / "speed.png")
     if "diagnosis_calibration" in results:
         plots.calibration_plot(results, out / "calibration.png")
+    if "peers" in results:
+        plots.peers_plot(results, out / "peers.png")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -124,6 +124,10 @@ def one_model(
             "kernel_width_deg": sorted({"inf" if not np.isfinite(w) else round(w, 1) for w in widths}, key=str),
         },
         "in_target": all(TARGET[0] <= v <= TARGET[1] for v in full.values()),
+        "half_width_um": {
+            key: round(float(np.mean([(b.upper[band] - b.lower[band]).mean() / 2 for b in bands])), 4)
+            for key, band in (("single", "touch"), ("mean", "mean"))
+        },
         "budget_um_mean_over_check_rings": budget,
         "touches": int(measured.size),
         "mean_points": int(measured.shape[0] * measured.shape[2]),

@@ -15,7 +15,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results.json"
-PLOTS = ("data_efficiency.png", "speed.png", "calibration.png")
+PLOTS = ("data_efficiency.png", "speed.png", "calibration.png", "peers.png")
 METADATA = (
     "date",
     "mode",
@@ -140,7 +140,7 @@ def overview(results: Mapping[str, Any]) -> str:
         "```",
         "",
         "A run writes `benchmarks/results.json` and the plots `benchmarks/data_efficiency.png`, "
-        "`benchmarks/speed.png` and `benchmarks/calibration.png`. A run with `--only` keeps every other "
+        "`benchmarks/speed.png`, `benchmarks/calibration.png` and `benchmarks/peers.png`. A run with `--only` keeps every other "
         "section of the last `results.json` as it was and stamps the ones it ran under `updated` (date, mode, "
         "a sha256 of the package's sources): each section below says which run it comes from. "
         "The many diagnoses of the calibration, the population, the hidden effects and the coverage are tasks "
@@ -1262,6 +1262,85 @@ def fleet(results: Mapping[str, Any]) -> str:
     return FLEET_INTRO + "\n" + table(["figure", "value"], rows) + "\n"
 
 
+PEERS_INTRO = """\
+## Peers
+
+`peers`: what a data scientist would try first, beside the project's models, on the same split
+(every model learns from the training rings and predicts the check rings it never saw):
+scipy's `RBFInterpolator` (thin-plate spline, no smoothing) and scikit-learn's
+`GaussianProcessRegressor` (constant x Matern 5/2 with a length scale per feature + white noise,
+hyperparameters by the log marginal likelihood), both fitted on the feature map ({feature_map}) to
+{targets}. The hybrid "before" starts from the scenario's known effects (none on a random head);
+"after" adds the effects the diagnosis chose, fitted on the training rings only as the peers are
+(an effect that only the check rings identify, because the lattice interpolates it, then gets no
+weight). Beside it, the diagnosis's own "after" (each check ring predicted with that ring left out
+of the physical fit but the other check rings in: what the loop shows) and its nested
+cross-validation's "after" (each fold choosing its effects without its rings). Each
+figure is the check-ring MAE against the repetitions' mean over its noise floor; the ratio is the
+best of the project's models over the best peer (goal: at most 1.00). The GP's own 95 % band
+(coefficients' predictive variance through the Fourier basis, plus the repetition variance for
+single touches) stands beside the project's calibrated Monte Carlo band of the trilinear model.
+"""
+
+
+def peers(results: Mapping[str, Any], plots: Plots) -> str:
+    p = results.get("peers", {})
+    names = ["network", "trilinear", "mean_curve", "hybrid_before", "hybrid_after", "rbf", "gp"]
+    rows = []
+    for r in p.get("campaigns", []):
+        models = r.get("models", {})
+        ratio = r.get("ratio_best_project_to_best_peer")
+        rows.append(
+            [r.get("campaign"), *(num(get(models, m, "over_floor", "mean")) for m in names)]
+            + [
+                f"{num(ratio)}: {holds(ratio is not None and ratio <= 1.0)}",
+                num(get(r, "diagnosis_after", "over_floor", "mean")),
+                num(get(r, "nested_after_mae_um", "mean"), "um"),
+            ]
+        )
+    bands = [
+        [
+            r.get("campaign"),
+            f"{pct(get(r, 'gp_band', 'coverage', 'mean'))} / {pct(get(r, 'gp_band', 'coverage', 'single'))}",
+            f"{num(get(r, 'gp_band', 'mean_half_width_um', 'mean'))} / {num(get(r, 'gp_band', 'mean_half_width_um', 'single'))}",
+            f"{pct(get(r, 'monte_carlo_band', 'coverage', 'mean'))} / {pct(get(r, 'monte_carlo_band', 'coverage', 'single'))}",
+            f"{num(get(r, 'monte_carlo_band', 'mean_half_width_um', 'mean'))} / "
+            f"{num(get(r, 'monte_carlo_band', 'mean_half_width_um', 'single'))}",
+        ]
+        for r in p.get("campaigns", [])
+    ]
+    timing = [
+        [
+            m,
+            *(
+                f"{num(get(r, 'models', m, 'fit_s'), 's')} / {num(get(r, 'models', m, 'predict_s'), 's')}"
+                for r in p.get("campaigns", [])[:1]
+            ),
+        ]
+        for m in names
+    ]
+    goals = [
+        [name.replace("_", " "), f"{g.get('holds')} of {g.get('of')}", joined(g.get("missed"))]
+        for name, g in (p.get("goals") or {}).items()
+    ]
+    return (
+        PEERS_INTRO.format(feature_map=p.get("feature_map"), targets=p.get("targets_fitted"))
+        + "\n"
+        + image(plots, "peers.png", "check-ring MAE over the floor, each model and peer, per campaign")
+        + "\n"
+        + table(["goal", "holds", "missed on"], goals)
+        + "\n"
+        + table(
+            ["campaign", *(n.replace("_", " ") for n in names), "ratio best project / best peer", "diagnosis's after", "nested after"], rows
+        )
+        + "\n**95 % bands on the check rings** (mean curves / single touches):\n\n"
+        + table(["campaign", "GP coverage", "GP mean half-width (um)", "Monte Carlo coverage", "Monte Carlo mean half-width (um)"], bands)
+        + "\n**Fit / predict seconds** (first campaign):\n\n"
+        + table(["model", "fit / predict"], timing)
+        + "\n"
+    )
+
+
 SECTIONS: dict[str, Callable[[Mapping[str, Any], Plots], str]] = {
     "data_efficiency": data_efficiency,
     "speed": speed,
@@ -1273,6 +1352,7 @@ SECTIONS: dict[str, Callable[[Mapping[str, Any], Plots], str]] = {
     "uncertainty_coverage": lambda r, p: coverage(r),
     "large_campaign": lambda r, p: large_campaign(r),
     "fleet": lambda r, p: fleet(r),
+    "peers": peers,
 }
 
 

@@ -18,6 +18,7 @@ REPOSITORY = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPOSITORY))
 
 from benchmarks.data_efficiency import design_target, designed_subsets, hybrid_effects, lattice_subsets, target  # noqa: E402
+from ph_explorer.campaign import Campaign  # noqa: E402
 from ph_explorer.models.trilinear import TrilinearModel  # noqa: E402
 from ph_explorer.twin import load_scenario, simulate  # noqa: E402
 
@@ -258,6 +259,22 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert fleet["campaigns"] == 4 and fleet["rows_equal"] and fleet["seconds"]["one_worker"] > 0 and fleet["ratio"] > 0
     assert fleet["bytes_per_task"]["sent"] > 0 and set(fleet["population_calibration"]["expected_wall_s"]) == {"8", "32", "128"}
 
+    peers = results["peers"]
+    assert peers["mode"] == "quick" and [r["campaign"] for r in peers["campaigns"]] == ["head_3"]
+    row = peers["campaigns"][0]
+    assert set(row["models"]) == {"network", "trilinear", "mean_curve", "hybrid_before", "hybrid_after", "rbf", "gp"}
+    for scores in row["models"].values():
+        assert scores["over_floor"]["mean"] > 0.5 and scores["mae_um"]["single"] > scores["mae_um"]["mean"] and scores["fit_s"] >= 0
+    for band in (row["gp_band"], row["monte_carlo_band"]):
+        assert 0 < band["coverage"]["mean"] <= 1 and 0 < band["mean_half_width_um"]["mean"] < band["mean_half_width_um"]["single"]
+    assert row["hidden"]["id"] == "b_axis_cyclic" and row["ratio_best_project_to_best_peer"] > 0
+    assert row["diagnosis_after"]["over_floor"]["mean"] > 0.5
+    assert set(peers["goals"]) == {
+        "best_project_at_or_below_best_peer",
+        "diagnosis_after_within_1_25_floor_where_the_hidden_effect_is_found",
+        "gp_band_coverage_in_target",
+    }
+
     # --only: one section run again and updated in place, stamped; every other section kept as it was.
     # Run on a given scheduler (--scheduler): its case is a task on a worker process of that cluster.
     from dask.distributed import LocalCluster
@@ -287,7 +304,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         assert {k: v for k, v in updated["hidden_effects"]["cases"][name].items() if k != "seconds"} == {
             k: v for k, v in case.items() if k != "seconds"
         }
-    for png in ("data_efficiency.png", "speed.png", "calibration.png"):
+    for png in ("data_efficiency.png", "speed.png", "calibration.png", "peers.png"):
         assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
@@ -300,3 +317,26 @@ def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
     )
     assert bad.returncode == 2 and "--only: unknown section 'nonsense'" in bad.stderr
     assert json.loads((tmp_path / "results.json").read_text()) == previous
+
+
+def test_the_peers_fit_harmonics_2_to_20_and_reproduce_a_field_linear_in_their_features() -> None:
+    """benchmarks/peers.py: a mean curve whose 3/rev and 20/rev parts are linear in (A rad, cos B, sin B)
+    is reproduced at the check rings by the thin-plate RBF (exact on linear fields) and closely by
+    the GP; harmonics 0, 1 and 21 are not fitted (what the circle fit removes, what lies beyond)."""
+    from benchmarks.peers import fit_peer, peer_curves
+
+    a, b = np.meshgrid([0.0, 15, 30, 45, 60, 75, 90], np.arange(-180.0, 180.0, 30.0), indexing="ij")
+    lattice = np.column_stack([a.ravel(), b.ravel()])
+    orientations = np.vstack([lattice, [[22.5, 15.0], [52.5, -75.0], [67.5, 105.0]]])
+    theta = np.radians(np.arange(64) * 360.0 / 64)
+    x = np.column_stack([np.radians(orientations[:, 0]), np.cos(np.radians(orientations[:, 1])), np.sin(np.radians(orientations[:, 1]))])
+    wanted = (0.2 + x @ [0.1, -0.05, 0.03])[:, None] * np.cos(3 * theta) + (x @ [0.02, 0.01, -0.04])[:, None] * np.sin(20 * theta)
+    extra = 0.05 * np.cos(theta) + 0.03 * np.cos(21 * theta)  # harmonics the peers do not fit
+    deviations = np.repeat((wanted + extra)[:, None, :], 2, axis=1)
+    campaign = Campaign(orientations, deviations, check_orientations=orientations[-3:])
+    train = ~campaign.holdout_mask()
+    assert train.sum() == len(lattice)
+    rbf, _ = peer_curves("rbf", fit_peer("rbf", campaign, train), orientations[-3:], 64)
+    np.testing.assert_allclose(rbf, wanted[-3:], atol=1e-8)
+    gp, variance = peer_curves("gp", fit_peer("gp", campaign, train), orientations[-3:], 64)
+    assert np.abs(gp - wanted[-3:]).max() < 0.01 * np.abs(wanted).max() and variance.shape == (3, 64) and (variance > 0).all()

@@ -82,7 +82,7 @@ def fleet_page_html(rows: Sequence[dict[str, Any]], summary: str, created: str =
         [
             "<!DOCTYPE html>",
             '<html lang="en"><head><meta charset="utf-8">',
-            f"<title>Fleet: {len(rows)} campaigns</title><style>{STYLE}</style></head><body>",
+            f"<title>Fleet: {len(rows)} campaigns</title><style>{STYLE}th.t{{text-align:left}}</style></head><body>",
             f"<h1>Fleet: {len(rows)} campaigns</h1>",
             f'<p class="note">Made by ph-explorer{", " + _e(created) if created else ""}. {_e(summary)}. '
             "Each campaign's name links to its own report, written beside this page.</p>",
