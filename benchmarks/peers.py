@@ -240,7 +240,12 @@ def run(client: Client, quick: bool = False, log: Callable[[str], None] = print)
                 "of": len(hidden_found),
                 "missed": [r["campaign"] for r in hidden_found if r["diagnosis_after"]["over_floor"]["mean"] > 1.25],
             },
-            "gp_band_coverage_in_target": {"target": list(GP_TARGET), "holds": len(covered), "of": len(rows)},
+            "gp_band_coverage_in_target": {
+                "target": list(GP_TARGET),
+                "holds": len(covered),
+                "of": len(rows),
+                "missed": [r["campaign"] for r in rows if r not in covered],
+            },
         },
         "seconds": round(time.perf_counter() - started, 1),
     }

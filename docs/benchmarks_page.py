@@ -1320,7 +1320,11 @@ def peers(results: Mapping[str, Any], plots: Plots) -> str:
         for m in names
     ]
     goals = [
-        [name.replace("_", " "), f"{g.get('holds')} of {g.get('of')}", joined(g.get("missed"))]
+        [
+            name.replace("1_25", "1.25").replace("_", " "),
+            f"{g.get('holds')} of {g.get('of')}",
+            joined(g["missed"]) if "missed" in g else "-",
+        ]
         for name, g in (p.get("goals") or {}).items()
     ]
     return (
