@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from threadpoolctl import threadpool_limits
+from ph_explorer.blas import one_blas_thread
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -84,5 +84,4 @@ def run_tasks(
 
 
 def one_thread_task(function: Callable[..., Any], options: dict[str, Any], item: Any) -> Any:
-    with threadpool_limits(limits=1, user_api="blas"):
-        return function(item, **options)
+    return one_blas_thread(function)(item, **options)
