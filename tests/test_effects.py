@@ -227,6 +227,29 @@ def test_drift_of_the_stylus_is_seen_through_rho_over_l():
     assert np.ptp(d) == pytest.approx(rho_over_l * (n_pt - 1) / n_pt, rel=1e-9)
 
 
+def test_a_scan_library_holds_every_settings_basis_columns():
+    """An effect's scan_library is its basis at every scan_grid() setting, gathered from distinct
+    columns (the diagnosis's scan makes each once): checked for every catalog effect that has one."""
+    o = grid([0.0, 45.0, 90.0])
+    n_rep, n_pt = 2, DEFAULT_GEOMETRY.points_per_circle
+    times = np.arange(len(o) * n_rep * n_pt, dtype=float).reshape(len(o), n_rep, n_pt) * 7.0
+    touches = touches_at(o, n_rep, times)
+    with_library = 0
+    for cls in BUILTIN_EFFECTS:
+        effect = cls()
+        library = effect.scan_library(touches)
+        if library is None:
+            continue
+        with_library += 1
+        columns, indices = library
+        grid_settings = effect.scan_grid()
+        assert len(indices) == len(grid_settings) and columns.shape[-1] < sum(len(i) for i in indices)
+        for settings, index in zip(grid_settings, indices):
+            own = effect.with_settings(**settings).basis(touches)[0]
+            assert np.array_equal(columns[..., index], own), (cls.id, settings)
+    assert with_library >= 1  # drift's 36 settings share a ramp, a warm-up per tau and a cycle per period
+
+
 # -- ring form ------------------------------------------------------------------------------------
 def test_ring_form_is_identical_at_every_orientation():
     form = DEFAULT_CATALOG["ring_form"](form_um=0.2, shape_seed=3)

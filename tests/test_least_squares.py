@@ -31,3 +31,21 @@ def test_every_scanned_design_explains_at_once_what_each_explains_beyond_the_fix
     assert np.allclose(together[-1], 0.0, atol=1e-8 * base.max())
     alone = least_squares.explained_beyond(None, designs[:3], targets)
     assert np.allclose(alone, [least_squares.fit(d, targets)[1] for d in designs[:3]])
+
+
+@pytest.mark.parametrize("within", [False, True])
+@pytest.mark.parametrize("with_fixed", [False, True])
+def test_designs_gathered_from_one_library_explain_what_each_design_explains(within, with_fixed):
+    """explained_by_library (each column made once, Effect.scan_library) gives explained_beyond's
+    figures for the designs that are column subsets of the library."""
+    rng = np.random.default_rng(5)
+    n_o, n_rep, n_pt = 10, 3, 12
+    shape = (n_o, n_rep, n_pt, 7)
+    library = rng.normal(size=shape) if within else np.broadcast_to(rng.normal(size=(n_o, 1, n_pt, 7)), shape)
+    targets = Design(rng.normal(size=(n_o, n_rep, n_pt, 4)), None)
+    fixed = Design(rng.normal(size=(n_o, n_rep, n_pt, 2)), None) if with_fixed else None
+    indices = [np.array([0, 1, 4]), np.array([0, 2, 5]), np.array([3, 6, 1])]
+    gathered = least_squares.explained_by_library(fixed, Design(library, None), indices, targets)
+    each = least_squares.explained_beyond(fixed, [Design(library[..., index], None) for index in indices], targets)
+    assert gathered.shape == (3, 4)
+    assert np.allclose(gathered, each, rtol=1e-10, atol=1e-12 * np.abs(each).max())

@@ -11,7 +11,8 @@ import pytest
 from synthetic import lobing_campaign, systematic_curves
 
 from ph_explorer.harmonics import fourier_basis
-from ph_explorer.models.trilinear import TrilinearModel, periodic_weights
+from ph_explorer.models.crossval import OutOfSampleSmoother, weights_operator
+from ph_explorer.models.trilinear import TrilinearModel, _node_sums, periodic_weights
 
 
 @pytest.fixture(scope="module")
@@ -95,6 +96,27 @@ def test_trilinear_monte_carlo_has_the_measured_mean_and_spread(campaign):
     assert spread.mean() == pytest.approx(sigma.mean(), rel=0.02)
     assert 0.15 < sigma.mean() < 0.19  # the campaign's 0.175 um touch noise, after the circle fit
     assert low_harmonics(simulated).max() < 1e-12
+
+
+def test_a_node_measured_twice_pools_both_rings_as_np_add_at_would():
+    """The tables' node sums (sorted, then each node's repeats added in order) equal np.add.at's
+    bit for bit, with nodes measured once, twice and three times."""
+    rng = np.random.default_rng(4)
+    node = np.array([5, 0, 5, 3, 5, 0, 7])
+    values = rng.normal(size=(node.size, 6))
+    expected = np.zeros((2 * 4, 6))
+    np.add.at(expected, node, values)
+    assert np.array_equal(_node_sums(node, values, (2, 4)), expected.reshape(2, 4, 6))
+
+
+def test_the_smoother_applies_a_sparse_w_as_the_dense_one(campaign):
+    """An interpolator's out-of-sample W is applied as a sparse matrix: the same predictions."""
+    smoother = OutOfSampleSmoother(campaign.orientations, np.ones(campaign.n_orientations, dtype=bool))
+    values = np.random.default_rng(1).normal(size=(campaign.n_orientations, 3, 5))
+    assert not isinstance(weights_operator(smoother.weights), np.ndarray)  # a few neighbours a ring
+    assert np.allclose(smoother.predict(values), np.tensordot(smoother.weights, values, axes=(1, 0)), rtol=0, atol=1e-12)
+    dense = np.full((4, 4), 0.25)  # the mean curve's W: every ring from all: applied dense
+    assert isinstance(weights_operator(dense), np.ndarray)
 
 
 def test_trilinear_save_load_round_trip(campaign, tmp_path):

@@ -28,7 +28,7 @@ from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.deviation_model import draw_repetitions
-from ph_explorer.models.hybrid import fitted_basis
+from ph_explorer.models.hybrid import fitted_basis, fitted_columns
 from ph_explorer.models.least_squares import Design
 from ph_explorer.uncertainty.jackknife import COVERAGE_FACTOR, jackknife_parameters
 
@@ -72,6 +72,9 @@ class Scan:
 # head_3's drift scan is 36 settings x 5.5 MB; a dense campaign's would not fit, and is made again.
 WITHIN_BUDGET_BYTES = 256 * 2**20
 FOLD_DESIGN_BUDGET_BYTES = 128 * 2**20  # a nested fold's designs kept (head_3's: about 100 MB)
+# Beyond this many bytes of a search's designs (a dense campaign's: about 900 MB), a scan keeps only
+# the settings judge() tries; the next step of a chain makes the others again (head_3's: about 60 MB).
+KEPT_DESIGN_BYTES = 384 * 2**20
 
 
 def settings_key(effect: Effect) -> tuple[str, tuple]:
@@ -121,6 +124,17 @@ class FittedBases:
         # Broadcast over the repetitions again (a view: Design sees that it has no within part).
         return np.broadcast_to(columns, columns.shape[:1] + self.touches.shape[1:2] + columns.shape[2:])
 
+    def library(self, effect: Effect) -> tuple[NDArray[np.float64], list[NDArray[np.intp]]] | None:
+        """The effect's scan library (Effect.scan_library) fitted as __call__ fits columns, at
+        these rings; not kept (a dense campaign's drift library is hundreds of MB). None: it has none."""
+        library = effect.scan_library(self.touches)
+        if library is None:
+            return None
+        columns = fitted_columns(library[0], self.touches)
+        if self._rings is not None:
+            columns = columns[self._rings]
+        return columns, library[1]
+
 
 def _rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2)))
@@ -144,6 +158,8 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
+        self._design_sizes: dict[tuple[str, tuple], int] = {}
+        self._within_keys: set[tuple[str, tuple]] = set()
         self._design_bytes = self._within_design_bytes = 0
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
@@ -187,16 +203,25 @@ class CandidateSearch:
             keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
         else:
             keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
-            self._within_design_bytes += size if keep and design.within is not None else 0
+            if keep and design.within is not None:
+                self._within_design_bytes += size
+                self._within_keys.add(key)
         if keep:
             self._design_bytes += size
             self._designs[key] = design
+            self._design_sizes[key] = size
         return design
 
-    def forget_designs(self) -> None:
-        """Let the designs made so far go (their memory), e.g. before the nested folds' searches."""
-        self._designs.clear()
-        self._design_bytes = self._within_design_bytes = 0
+    def forget_designs(self, effect: Effect | None = None, settings: Sequence[dict[str, Any]] = ()) -> None:
+        """Let designs made so far go (their memory): every one (e.g. before the nested folds'
+        searches), or the effect's at the given settings."""
+        keys = list(self._designs) if effect is None else [settings_key(effect.with_settings(**each)) for each in settings]
+        for key in keys:
+            if self._designs.pop(key, None) is not None:
+                size = self._design_sizes.pop(key)
+                self._design_bytes -= size
+                self._within_design_bytes -= size if key in self._within_keys else 0
+                self._within_keys.discard(key)
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,
@@ -209,6 +234,16 @@ class CandidateSearch:
         every = effect.scan_grid()
         if not every:
             return Candidate.untested(effect.id, effect.name, effect.teaching)
+        library = self.bases.library(effect)
+        if library is not None:  # every setting's columns gathered from one library, each column made once
+            columns, indices = library
+            del library
+            # The columns are this scan's own: one that changes between repetitions becomes the design's within part in place.
+            design = Design(columns, self.smoother, owned=columns.flags.writeable)
+            del columns
+            explained = least_squares.explained_by_library(fixed, design, indices, self.targets)
+            del design
+            return self._scanned(effect, fixed, every, explained, total_all, base)
         # Every scanned value at once (least_squares.explained_beyond), grouped by column count; a
         # few at a time where the columns change between repetitions (n_rep times larger), each
         # few made only when scored, so that a dense campaign never holds every scan value's.
@@ -231,9 +266,22 @@ class CandidateSearch:
             del part
         if not grid:
             return Candidate.untested(effect.id, effect.name, effect.teaching)
-        explained = np.concatenate(parts)
+        return self._scanned(effect, fixed, grid, np.concatenate(parts), total_all, base)
+
+    def _scanned(
+        self,
+        effect: Effect,
+        fixed: Design | None,
+        grid: list[dict[str, Any]],
+        explained: NDArray[np.float64],
+        total_all: NDArray[np.float64],
+        base: NDArray[np.float64],
+    ) -> Scan:
+        """The Scan of what each setting of grid explains (explained: (settings, 1 + NULL_DRAWS))."""
         null_best = np.maximum(0.0, explained[:, 1:].max(axis=0))
         scanned = sorted(((float(e), settings) for e, settings in zip(explained[:, 0], grid)), key=lambda item: item[0], reverse=True)
+        if self._design_bytes > KEPT_DESIGN_BYTES:  # a large campaign: keep only what judge() asks for again
+            self.forget_designs(effect, [settings for _, settings in scanned[MAX_MATERIAL_TRIALS:]])
         return Scan(effect, fixed, float(total_all[0] - base[0]), scanned, null_best)
 
     def score(self, effect: Effect, fixed: Design | None = None) -> Candidate:

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import special
 
+from ph_explorer.models.crossval import weighted, weights_operator
 from ph_explorer.models.deviation_model import draw_repetitions
 
 # Pure-noise draws of every ring's mean residual (the campaign-level null) ...
@@ -141,9 +142,10 @@ def noise_null(
     # mean: each ring's repetition-mean noise through the circle fit and the smoother.
     draws = draw_repetitions(np.zeros((n_o, n_pt)), (sigma / math.sqrt(n_rep))[:, None], MEAN_DRAWS, rng)
     null_stat = np.empty((n_o, MEAN_DRAWS))  # (n_o, draws)
+    operator = weights_operator(weights)
     for start in range(0, MEAN_DRAWS, NULL_CHUNK):  # a few draws at a time: a large campaign's draws are big
         part = draws[:, start : start + NULL_CHUNK]
-        null_stat[:, start : start + NULL_CHUNK] = ((part - np.tensordot(weights, part, axes=(1, 0))) ** 2).mean(axis=-1)
+        null_stat[:, start : start + NULL_CHUNK] = ((part - weighted(operator, part)) ** 2).mean(axis=-1)
     del draws
     # The campaign-level null, from the same draws: each mean draw judged against the others (the
     # count includes the draw itself, which stands in for the +1 of a p-value); each ring's within

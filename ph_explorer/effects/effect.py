@@ -187,6 +187,13 @@ class Effect:
         """Columns (n_o, n_rep, n_pt, n_cols) in um per unit coefficient at this instance's settings, and their names."""
         raise NotImplementedError
 
+    def scan_library(self, touches: Touches) -> tuple[NDArray[np.float64], list[NDArray[np.intp]]] | None:
+        """Every scan_grid() setting's basis columns at once, when settings share columns (a drift's
+        ramp is the same at every time constant): the distinct columns (n_o, n_rep, n_pt, L) and each
+        setting's indices into them, in basis() order. None (the default): each setting on its own.
+        A scan then makes each distinct column once (docs/diagnosis.md)."""
+        return None
+
     def coefficients(self) -> NDArray[np.float64]:
         """The basis coefficients of this effect's own parameters (default: the unscanned parameters in order)."""
         return np.array([self.params[p.name] for p in self.parameters if p.name not in self.scan])

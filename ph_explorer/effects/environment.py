@@ -83,23 +83,42 @@ class Drift(Effect):
     needs = frozenset({"touch_times"})
 
     def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
+        cols = self._columns(touches, [self.params["tau_s"]], [self.params["cycle_period_s"]])
+        names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
+        return cols, names
+
+    def scan_library(self, touches: Touches) -> tuple[NDArray[np.float64], list[NDArray[np.intp]]]:
+        # One ramp, a warm-up per time constant, a cycle per period: 38 columns for the 36 settings' 288.
+        grid = self.scan_grid()
+        taus = sorted({s["tau_s"] for s in grid})
+        periods = sorted({s["cycle_period_s"] for s in grid})
+        n = 1 + len(taus) + 2 * len(periods)  # histories per lever
+        indices = []
+        for setting in grid:
+            i, j = taus.index(setting["tau_s"]), periods.index(setting["cycle_period_s"])
+            own = [0, 1 + i, 1 + len(taus) + 2 * j, 2 + len(taus) + 2 * j]  # rate, step, cycle_sin, cycle_cos
+            indices.append(np.array([lever * n + k for lever in range(2) for k in own], dtype=np.intp))
+        return self._columns(touches, taus, periods), indices
+
+    def _columns(self, touches: Touches, taus: list[float], periods: list[float]) -> NDArray[np.float64]:
+        """Each lever (stylus, head) times each growth history per unit coefficient: the ramp (per
+        hour), a warm-up per time constant, the two quadratures of a cycle per period."""
         if touches.times_s is None:
             raise InputError("the drift effect needs touch times (a t_s column)", column="t_s")
-        tau, period = self.params["tau_s"], self.params["cycle_period_s"]
-        if not (tau > 0 and period > 0):
+        if not all(value > 0 for value in [*taus, *periods]):
             raise InputError("drift: tau_s and cycle_period_s must be positive", column="tau_s")
         t = touches.times_s
-        # Growth histories per unit coefficient: ramp (per hour), warm-up, and the two quadratures of the cycle.
-        histories = np.empty(t.shape + (4,))
+        histories = np.empty(t.shape + (1 + len(taus) + 2 * len(periods),))
         histories[..., 0] = t / SECONDS_PER_HOUR
-        histories[..., 1] = 1.0 - np.exp(-t / tau)
-        histories[..., 2] = np.sin(2 * np.pi * t / period)
-        histories[..., 3] = np.cos(2 * np.pi * t / period)
+        for i, tau in enumerate(taus):
+            histories[..., 1 + i] = 1.0 - np.exp(-t / tau)
+        for j, period in enumerate(periods):
+            histories[..., 1 + len(taus) + 2 * j] = np.sin(2 * np.pi * t / period)
+            histories[..., 2 + len(taus) + 2 * j] = np.cos(2 * np.pi * t / period)
         levers = touches.memo("drift_levers", lambda: _drift_levers(touches))  # the same at every scanned setting
-        # Each lever (stylus, head) times each history, in one array: the columns are as large as the campaign.
-        cols = (levers[..., :, None] * histories[..., None, :]).reshape(t.shape + (8,))
-        names = [f"drift_{part}_{kind}" for part in ("stylus", "head") for kind in ("rate", "step", "cycle_sin", "cycle_cos")]
-        return full_shape(cols, touches), names
+        # In one array: the columns are as large as the campaign.
+        cols = (levers[..., :, None] * histories[..., None, :]).reshape(t.shape + (2 * histories.shape[-1],))
+        return full_shape(cols, touches)
 
     def coefficients(self) -> NDArray[np.float64]:
         p = self.params

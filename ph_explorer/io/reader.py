@@ -40,11 +40,13 @@ def read_campaign(path: str | os.PathLike[str], geometry_overrides: dict[str, An
     path = Path(path)
     name = str(path)
     text = _decode(_read_bytes(path), name)
-    header, header_line, rows, lines = _parse_rows(text, name)
-    _check_header(header, name, header_line)
-    if not rows:
-        raise InputError("empty file: a header but no rows", file=name, row=header_line + 1)
-    table = _Table(name, lines, _numeric_columns(header, rows, lines, name))
+    table = _plain_table(text, name)
+    if table is None:  # quotes, blank lines or a cell numpy does not read: row by row, naming the first problem
+        header, header_line, rows, lines = _parse_rows(text, name)
+        _check_header(header, name, header_line)
+        if not rows:
+            raise InputError("empty file: a header but no rows", file=name, row=header_line + 1)
+        table = _Table(name, lines, _numeric_columns(header, rows, lines, name))
     table.check_angle_ranges()
     layout = _layout(table)
     deviations = _deviations(table, layout)
@@ -93,6 +95,36 @@ def _decode(raw: bytes, name: str) -> str:
     except UnicodeDecodeError as error:
         line = raw[: error.start].count(b"\n") + 1
         raise InputError(f"not a UTF-8 CSV text file (undecodable byte 0x{raw[error.start]:02x})", file=name, row=line) from None
+
+
+def _plain_table(text: str, name: str) -> _Table | None:
+    """The numeric columns of a plain file (a header on line 1, then one row of numbers per line,
+    no quotes, no blank line) through numpy's C reader, several times faster than row by row on a
+    million touches; None for any other file, which the row-by-row path reads or names the problem of."""
+    first_end = text.find("\n")
+    if '"' in text or first_end <= 0:
+        return None
+    header = [cell.strip() for cell in text[:first_end].split(",")]
+    body = text[first_end + 1 :]
+    n_rows = body.count("\n") + (0 if body.endswith("\n") else 1)
+    if not body.strip() or any(not cell for cell in header):
+        return None
+    _check_header(header, name)
+    try:  # numpy reads only what float() reads too; what it refuses goes the row-by-row way
+        values = np.loadtxt(_io.StringIO(body), delimiter=",", comments=None, dtype=float, ndmin=2)
+    except ValueError:
+        return None
+    if values.shape != (n_rows, len(header)):  # a blank line numpy skipped: line numbers would shift
+        return None
+    lines = np.arange(2, n_rows + 2, dtype=np.int64)
+    table = _Table(name, lines, {column: np.ascontiguousarray(values[:, j]) for j, column in enumerate(header)})
+    bad = ~np.isfinite(values)
+    if bad.any():  # the first column's first, as the row-by-row path names it
+        j = int(np.argmax(bad.any(axis=0)))
+        i = int(np.argmax(bad[:, j]))
+        cell = body.split("\n")[i].split(",")[j].strip()
+        raise table.error(f"value {cell!r} is not finite", i, header[j])
+    return table
 
 
 def _is_blank(record: list[str]) -> bool:

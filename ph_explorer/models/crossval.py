@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy import sparse
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
@@ -111,6 +112,7 @@ def unit_campaign(orientations: ArrayLike) -> Campaign:
 # within-noise tests and its hybrid fits; each is n_o^2 floats (146 kB for 135 rings).
 _WEIGHTS: dict[tuple, NDArray[np.float64]] = {}
 WEIGHTS_KEPT = 16
+SPARSE_SHARE = 0.1  # a W with at most this share of nonzero weights is applied as a sparse matrix
 _WEIGHTS_LOCK = threading.Lock()  # the explorer's sessions diagnose in threads
 
 
@@ -132,6 +134,20 @@ def out_of_sample_weights(
     return weights
 
 
+def weights_operator(weights: NDArray[np.float64]) -> NDArray[np.float64] | sparse.csr_array:
+    """W as weighted() applies it: an interpolator's W has a few neighbours a row (2-8 of hundreds
+    of rings), and as a sparse matrix its product costs that many multiplications a value, not n_o."""
+    return sparse.csr_array(weights) if np.count_nonzero(weights) <= SPARSE_SHARE * weights.size else weights
+
+
+def weighted(operator: NDArray[np.float64] | sparse.csr_array, values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """W @ values over the first axis of values (n_o, ...), W from weights_operator."""
+    values = np.asarray(values)
+    if isinstance(operator, np.ndarray):
+        return np.tensordot(operator, values, axes=(1, 0))
+    return (operator @ values.reshape(values.shape[0], -1)).reshape((operator.shape[0],) + values.shape[1:])
+
+
 class OutOfSampleSmoother:
     """W (n_o x n_o) and what it does to arrays over orientations (see out_of_sample_weights)."""
 
@@ -139,10 +155,11 @@ class OutOfSampleSmoother:
         self.train = np.asarray(train, dtype=bool)
         self.model_name = model_type.name  # the model whose out-of-sample predictions W makes
         self.weights = out_of_sample_weights(orientations, self.train, model_type)
+        self._operator = weights_operator(self.weights)
 
     def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """Out-of-sample prediction of values shaped (n_o, ...)."""
-        return np.tensordot(self.weights, values, axes=(1, 0))
+        return weighted(self._operator, values)
 
     def noise_floor(self, sigma_um: float, n_repetitions: int) -> dict[str, NDArray[np.float64]]:
         """Each ring's floor of its out-of-sample MAE: its own noise and that of the rings predicting it."""

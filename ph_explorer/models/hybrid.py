@@ -45,6 +45,11 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     read-only view broadcast over the repetitions: the circle fit is made once per ring.
     """
     columns, names = effect.basis(touches)
+    return fitted_columns(columns, touches), list(names)
+
+
+def fitted_columns(columns: NDArray[np.float64], touches: Touches) -> NDArray[np.float64]:
+    """Basis columns (n_o, n_rep, n_pt, n_cols) after each repetition's circle fit (fitted_basis)."""
     columns = np.asarray(columns, dtype=float)
     # A view broadcast over the repetitions (full_shape) is the same in every one by construction;
     # columns that change with time (drift) differ already between the first two.
@@ -60,9 +65,9 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     before = np.sqrt(np.einsum("orpc,orpc->c", columns, columns))
     after = np.sqrt(np.einsum("orpc,orpc->c", fitted, fitted))
     absorbed = after <= ABSORBED_RTOL * before
-    if absorbed.any():  # else no copy: most effects keep every column
-        fitted = np.where(absorbed, 0.0, fitted)
-    return np.broadcast_to(fitted, touches.shape + fitted.shape[3:]), list(names)
+    fitted[..., absorbed] = 0.0  # in place: fitted is remove_size_and_centre's new array
+    shape = touches.shape + fitted.shape[3:]
+    return fitted if fitted.shape == shape else np.broadcast_to(fitted, shape)  # a new array, or a view of one
 
 
 SUBFOLDER = "hybrid"

@@ -178,13 +178,37 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
         if t_within is not None:
             u = u + w_all @ t_within
         gram = gram + w_all @ np.swapaxes(w_all, 1, 2)
-    scale = max(d.scale for d in designs)
-    rows = _rows(designs[0])
+    cross = None
     if fixed is not None and fixed.n_columns:
         f_mean, f_within = fixed.flat()
         cross = n_rep * (means @ f_mean)  # (S, c, f): X_s' F
         if f_within is not None and changing:
             cross = cross + w_all @ f_within
+    return _explained(u, gram, cross, fixed, targets, max(d.scale for d in designs), _rows(designs[0]))
+
+
+def explained_by_library(fixed: Design | None, library: Design, indices: list[NDArray[np.intp]], targets: Design) -> NDArray[np.float64]:
+    """explained_beyond for designs that are column subsets of one library (indices: each design's
+    columns in it, one count for all): the library's products are made once and each design's are
+    gathered from them (Effect.scan_library)."""
+    index = np.stack(indices)  # (S, c)
+    gram = library.gram()[index[:, :, None], index[:, None, :]]
+    u = library.dot(targets)[index]
+    cross = library.dot(fixed)[index] if fixed is not None and fixed.n_columns else None
+    return _explained(u, gram, cross, fixed, targets, library.scale, _rows(library))
+
+
+def _explained(
+    u: NDArray[np.float64],
+    gram: NDArray[np.float64],
+    cross: NDArray[np.float64] | None,
+    fixed: Design | None,
+    targets: Design,
+    scale: float,
+    rows: int,
+) -> NDArray[np.float64]:
+    """(S, k) from each design's products X'y (S, c, k), X'X (S, c, c) and X'F (S, c, f)."""
+    if cross is not None and fixed is not None:
         a_inverse = _pseudo_inverse(fixed.gram(), fixed.scale, rows)
         v = fixed.dot(targets)  # (f, k)
         u = u - cross @ (a_inverse @ v)

@@ -108,14 +108,13 @@ class TrilinearModel(DeviationModel):
         if not on.any():
             raise ValueError("no training orientation lies on the campaign's lattice")
         n_pt = campaign.n_points
-        total = np.zeros((a_axis.size, b_axis.size, n_pt))
-        total_sq = np.zeros_like(total)
-        count = np.zeros((a_axis.size, b_axis.size))
         deviations = campaign.deviations[mask][on]  # (n_on, n_rep, n_pt)
         # Pool the repetitions of every orientation on each node (a node measured twice pools both).
-        np.add.at(total, (ia[on], ib[on]), deviations.sum(axis=1))
-        np.add.at(total_sq, (ia[on], ib[on]), (deviations**2).sum(axis=1))
-        np.add.at(count, (ia[on], ib[on]), deviations.shape[1])
+        shape = (a_axis.size, b_axis.size)
+        node = np.ravel_multi_index((ia[on], ib[on]), shape)
+        total = _node_sums(node, deviations.sum(axis=1), shape)
+        total_sq = _node_sums(node, (deviations**2).sum(axis=1), shape)
+        count = _node_sums(node, np.full(node.size, float(deviations.shape[1])), shape)
         measured = count > 0
         c = np.where(measured, count, 1.0)[..., None]
         mean = total / c
@@ -221,6 +220,20 @@ class MeanCurveModel(TrilinearModel):
         self.sigma_table = np.sqrt(variance)[None, None]
         self.n_points = campaign.n_points
         return self
+
+
+def _node_sums(node: NDArray[np.intp], values: NDArray[np.float64], shape: tuple[int, int]) -> NDArray[np.float64]:
+    """Sums of values (n, ...) over rows with the same flat node index, on the lattice shape: each
+    node's first row assigned, the few repeats then added in order (np.add.at's sums bit for bit;
+    np.add.at alone scatters slowly, and most nodes are measured once)."""
+    order = np.argsort(node, kind="stable")
+    nodes = node[order]
+    first = np.r_[True, nodes[1:] != nodes[:-1]]
+    out = np.zeros((shape[0] * shape[1],) + values.shape[1:])
+    out[nodes[first]] = values[order[first]]
+    if not first.all():
+        np.add.at(out, nodes[~first], values[order[~first]])
+    return out.reshape(shape + values.shape[1:])
 
 
 def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArray[np.int64]:
