@@ -1152,13 +1152,22 @@ def population(results: Mapping[str, Any]) -> str:
     )
     speed = pop.get("verdict_speed") or {}
     if speed:
+        command, click = speed.get("command") or {}, speed.get("explorer_click") or {}
+        clicked = (
+            f"The explorer (a fresh `serve` on the shipped data, chromium, the page settled first) showed the verdict "
+            f"{joined([num(x, 's') for x in click.get('seconds') or []])} after the click on Diagnose (target {num(click.get('target_s'), 's')} "
+            f"each). "
+            if click.get("seconds")
+            else f"The explorer's click: {click.get('skipped', 'not measured')}. "
+        )
         tail += (
-            f"\nOne diagnosis of {speed.get('campaign')}, nothing else running: the command `diagnose --json` "
-            f"{num(speed.get('command_s'), 's')} end to end (imports and the nested cross-validation included); in one process "
-            f"the verdict {num(get(speed, 'verdict_s', 'median'), 's')} (median; max {num(get(speed, 'verdict_s', 'max'), 's')}), "
-            f"then the nested cross-validation {num(speed.get('nested_after_s'), 's')}. Targets: verdict median "
-            f"{num(get(speed, 'targets', 'verdict_median_s'), 's')}, nested {num(get(speed, 'targets', 'nested_s'), 's')}: "
-            f"{holds(speed.get('holds'))}.\n"
+            f"\nOne diagnosis of {speed.get('campaign')}, nothing else running, {num(speed.get('repeats'))} runs: the command "
+            f"`diagnose` prints its verdict {num(get(command, 'verdict_s', 'median'), 's')} after launch (median, imports included; "
+            f"max {num(get(command, 'verdict_s', 'max'), 's')}) and the nested figures {num(get(command, 'nested_s', 'median'), 's')} "
+            f"after it (median); in one process the verdict takes {num(get(speed, 'in_process', 'verdict_s', 'median'), 's')}, the "
+            f"nested cross-validation {num(get(speed, 'in_process', 'nested_after_s'), 's')}. {clicked}Targets: verdict median "
+            f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} and max {num(get(speed, 'targets', 'verdict_max_s'), 's')}, "
+            f"nested {num(get(speed, 'targets', 'nested_s'), 's')}: {holds(speed.get('holds'))}.\n"
         )
     tolerance = pop.get("tolerance") or {}
     if tolerance:

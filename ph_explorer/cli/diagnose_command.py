@@ -6,13 +6,17 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rich.console import Console
 from rich.progress import Progress
 
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.io import checked_output_file, file_sha256, read_campaign, read_json_object, write_json_object
 
+PROGRESS_CONSOLE = Console(stderr=True)  # the bars on stderr: stdout holds the report alone, streamed
+
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
     from ph_explorer.diagnosis import Candidate, Diagnosis
+    from ph_explorer.diagnosis.results import NestedAfter
 
 
 def diagnose_command(
@@ -29,6 +33,7 @@ def diagnose_command(
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
     with --save or --resume, write the study."""
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
+    from ph_explorer.diagnosis.loop import honest_after
     from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record
 
     previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
@@ -41,7 +46,7 @@ def diagnose_command(
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
     campaign = read_campaign(Path(data), geometry or {})
     rings_added = check_campaign(previous, sha256, str(resume), str(data), campaign.scenario.get("merges", [])) if previous else []
-    with Progress(transient=True, disable=json_output) as bar:
+    with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
         task = bar.add_task("scanning candidate effects", total=None)
         network_task = bar.add_task("network on the residual", total=None, visible=False)
         result = diagnose_campaign(
@@ -56,7 +61,15 @@ def diagnose_command(
             network_progress=lambda epoch, loss, mae, lr: bar.update(
                 network_task, visible=True, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
             ),
+            nested=False,
         )
+    # The report up to the error history as soon as the verdict stands; the nested figures, its last
+    # lines, when they are measured (the same text as one print at the end).
+    if not json_output:
+        print(format_diagnosis(result, catalog), end="", flush=True)
+    with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
+        bar.add_task("measuring the chosen effects on rings that took no part in choosing them", total=None)
+        result.nested = honest_after(campaign, result, catalog)
     target = save if save is not None else resume
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
@@ -66,8 +79,8 @@ def diagnose_command(
         write_json_object(target, study)
     if json_output:
         print(json.dumps(result.as_dict()))
-    else:
-        print(format_diagnosis(result, catalog), end="")
+    elif result.nested is not None:
+        print("\n".join(_nested_lines(result.nested)))
     return 0
 
 
@@ -160,20 +173,23 @@ def _history(result: Diagnosis) -> list[str]:
     for step in result.steps:
         name = f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
         lines.append(f"  {name:50s} " + _mae_text(step.mae_um, step.noise_floor_um))
-    nested = result.nested
-    if nested is not None:
-        lines += [
-            f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
-            f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):",
-            f"  {'before':50s} " + _mae_text(nested.before_um, nested.noise_floor_um),
-            f"  {'after':50s} " + _mae_text(nested.after_um, nested.noise_floor_um),
-        ]
-        counts: dict[str, int] = {}
-        for fold in nested.chosen:
-            for label in fold:
-                counts[label] = counts.get(label, 0) + 1
-        chosen = ", ".join(f"{label} ({n} of {nested.folds})" for label, n in counts.items()) or "nothing"
-        lines.append(f"  chosen in the folds: {chosen}")
+    return lines + (_nested_lines(result.nested) if result.nested is not None else [])
+
+
+def _nested_lines(nested: NestedAfter) -> list[str]:
+    """The nested cross-validation's lines: the error history's last."""
+    lines = [
+        f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
+        f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):",
+        f"  {'before':50s} " + _mae_text(nested.before_um, nested.noise_floor_um),
+        f"  {'after':50s} " + _mae_text(nested.after_um, nested.noise_floor_um),
+    ]
+    counts: dict[str, int] = {}
+    for fold in nested.chosen:
+        for label in fold:
+            counts[label] = counts.get(label, 0) + 1
+    chosen = ", ".join(f"{label} ({n} of {nested.folds})" for label, n in counts.items()) or "nothing"
+    lines.append(f"  chosen in the folds: {chosen}")
     return lines
 
 

@@ -55,9 +55,11 @@ def diagnose_campaign(
     start: Sequence[Effect] = (),
     progress: Callable[[str], None] | None = None,
     network_progress: Callable[[int, float, float, float], None] | None = None,
+    nested: bool = True,
 ) -> Diagnosis:
     """diagnose() with the command's options: a trained model folder's baseline, the data part by
-    name (the network retrained on what the physical terms leave, reporting each epoch)."""
+    name (the network retrained on what the physical terms leave, reporting each epoch); without
+    `nested`, the verdict first (honest_after adds the nested figures)."""
     baseline = baseline_of(load_models(Path(model))) if model is not None else None
     data_model: str | Callable[[], DeviationModel] = check_data_part(data_part)
     if data_part == "network":
@@ -66,4 +68,6 @@ def diagnose_campaign(
         def data_model() -> DeviationModel:
             return FourierNetwork(progress=network_progress)
 
-    return diagnose(campaign, add=add, baseline=baseline, data_model=data_model, catalog=catalog, progress=progress, start=start)
+    return diagnose(
+        campaign, add=add, baseline=baseline, data_model=data_model, catalog=catalog, progress=progress, start=start, nested=nested
+    )

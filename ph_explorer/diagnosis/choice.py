@@ -14,9 +14,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
 from ph_explorer.diagnosis.results import Candidate
-from ph_explorer.diagnosis.search import CandidateSearch, FittedBases, rank_candidates
+from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares

@@ -21,8 +21,8 @@ import numpy as np
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
+from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.results import NestedAfter
-from ph_explorer.diagnosis.search import FittedBases
 from ph_explorer.effects import Effect, effect_label
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel

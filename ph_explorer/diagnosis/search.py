@@ -21,14 +21,15 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
+from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.separation import orthonormal_span, separating_measurements, span_share
 from ph_explorer.effects import Effect
-from ph_explorer.kinematics import Touches, campaign_touches
+from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.deviation_model import draw_repetitions
-from ph_explorer.models.hybrid import fitted_basis, fitted_columns
+from ph_explorer.models.hybrid import fitted_basis
 from ph_explorer.models.least_squares import Design
 from ph_explorer.uncertainty.jackknife import COVERAGE_FACTOR, jackknife_parameters
 
@@ -68,72 +69,10 @@ class Scan:
     null_best: NDArray[np.float64]  # (NULL_DRAWS,)
 
 
-# The columns that change between repetitions a shared FittedBases keeps (the nested folds'):
-# head_3's drift scan is 36 settings x 5.5 MB; a dense campaign's would not fit, and is made again.
-WITHIN_BUDGET_BYTES = 256 * 2**20
 FOLD_DESIGN_BUDGET_BYTES = 128 * 2**20  # a nested fold's designs kept (head_3's: about 100 MB)
 # Beyond this many bytes of a search's designs (a dense campaign's: about 900 MB), a scan keeps only
 # the settings judge() tries; the next step of a chain makes the others again (head_3's: about 60 MB).
 KEPT_DESIGN_BYTES = 384 * 2**20
-
-
-def settings_key(effect: Effect) -> tuple[str, tuple]:
-    """An effect at its settings, as a dictionary key (the same columns for the same key)."""
-    return effect.id, tuple(sorted(effect.settings().items()))
-
-
-class FittedBases:
-    """Effects' fitted basis columns (fitted_basis) over one campaign's touches, each made once.
-
-    The nested folds' searches run on the campaign without some rings: their columns are the
-    whole campaign's, sliced (`subset`). That is also the touches as they were measured: the
-    approach of a fold's first touch at a ring comes from the touch before it in the campaign.
-    Columns that change between repetitions (drift) are n_rep times larger: kept while they fit in
-    WITHIN_BUDGET_BYTES (every fold asks for each again), made again when asked beyond it.
-    """
-
-    def __init__(self, touches: Touches, keep: bool = True) -> None:
-        self.touches = touches
-        # keep: False for a search of its own, whose designs are kept instead (CandidateSearch).
-        self.keep = keep
-        self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
-        self._rings: NDArray[np.intp] | None = None
-        self._within_bytes = [0]  # shared with the subsets: one budget for the whole campaign
-
-    def subset(self, rings: NDArray[np.intp]) -> FittedBases:
-        """The same columns at some rings only (indices into the campaign's orientations)."""
-        out = object.__new__(FittedBases)
-        out.touches, out.keep, out._columns, out._rings = self.touches, self.keep, self._columns, np.asarray(rings)
-        out._within_bytes = self._within_bytes
-        return out
-
-    def __call__(self, effect: Effect) -> NDArray[np.float64]:
-        key = settings_key(effect)
-        columns = self._columns.get(key)
-        if columns is None:
-            columns = fitted_basis(effect, self.touches)[0]
-            if columns.strides[1] == 0:  # the same in every repetition: kept once, (n_o, 1, n_pt, c)
-                columns = columns[:, :1]
-                if self.keep:
-                    self._columns[key] = columns
-            elif self.keep and self._within_bytes[0] + columns.nbytes <= WITHIN_BUDGET_BYTES:
-                self._within_bytes[0] += columns.nbytes
-                self._columns[key] = columns
-        if self._rings is not None:
-            columns = columns[self._rings]
-        # Broadcast over the repetitions again (a view: Design sees that it has no within part).
-        return np.broadcast_to(columns, columns.shape[:1] + self.touches.shape[1:2] + columns.shape[2:])
-
-    def library(self, effect: Effect) -> tuple[NDArray[np.float64], list[NDArray[np.intp]]] | None:
-        """The effect's scan library (Effect.scan_library) fitted as __call__ fits columns, at
-        these rings; not kept (a dense campaign's drift library is hundreds of MB). None: it has none."""
-        library = effect.scan_library(self.touches)
-        if library is None:
-            return None
-        columns = fitted_columns(library[0], self.touches)
-        if self._rings is not None:
-            columns = columns[self._rings]
-        return columns, library[1]
 
 
 def _rms(x: NDArray[np.float64]) -> float:

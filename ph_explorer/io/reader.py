@@ -11,7 +11,6 @@ Method: docs/methods/campaign_csv.md.
 
 from __future__ import annotations
 
-import csv
 import io as _io
 import os
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ from ph_explorer.campaign import Campaign, orientation_keys
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import A_LIMIT_DEG, B_LIMIT_DEG
 from ph_explorer.harmonics import circle_deviations_um
+from ph_explorer.io.csv_text import decoded_text, numeric_columns, parse_rows, read_bytes
 from ph_explorer.io.sidecar import read_sidecar, sidecar_geometry, sidecar_path, sidecar_scenario
 
 REQUIRED_COLUMNS = ("A_deg", "B_deg", "rep", "point", "dev_um")
@@ -39,14 +39,14 @@ def read_campaign(path: str | os.PathLike[str], geometry_overrides: dict[str, An
     """
     path = Path(path)
     name = str(path)
-    text = _decode(_read_bytes(path), name)
+    text = decoded_text(read_bytes(path), name)
     table = _plain_table(text, name)
     if table is None:  # quotes, blank lines or a cell numpy does not read: row by row, naming the first problem
-        header, header_line, rows, lines = _parse_rows(text, name)
+        header, header_line, rows, lines = parse_rows(text, name)
         _check_header(header, name, header_line)
         if not rows:
             raise InputError("empty file: a header but no rows", file=name, row=header_line + 1)
-        table = _Table(name, lines, _numeric_columns(header, rows, lines, name))
+        table = _Table(name, lines, numeric_columns(header, rows, lines, name))
     table.check_angle_ranges()
     layout = _layout(table)
     deviations = _deviations(table, layout)
@@ -68,35 +68,6 @@ def read_campaign(path: str | os.PathLike[str], geometry_overrides: dict[str, An
 
 
 # -- bytes -> text -> rows --------------------------------------------------------------------------
-def _read_bytes(path: Path) -> bytes:
-    name = str(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise InputError("no such file", file=name) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a CSV file", file=name) from None
-    except OSError as error:
-        raise InputError(f"cannot read the file ({error.strerror})", file=name) from None
-    if not raw.strip():
-        raise InputError("empty file: no header and no rows", file=name, row=1)
-    return raw
-
-
-def _decode(raw: bytes, name: str) -> str:
-    """The file's text, or an InputError when it is not UTF-8 CSV text."""
-    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
-        raise InputError("not a UTF-8 CSV text file (UTF-16 text: save it as UTF-8 CSV)", file=name, row=1)
-    if b"\x00" in raw:
-        line = raw[: raw.index(b"\x00")].count(b"\n") + 1
-        raise InputError("not a CSV text file (binary data: NUL byte)", file=name, row=line)
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as error:
-        line = raw[: error.start].count(b"\n") + 1
-        raise InputError(f"not a UTF-8 CSV text file (undecodable byte 0x{raw[error.start]:02x})", file=name, row=line) from None
-
-
 def _plain_table(text: str, name: str) -> _Table | None:
     """The numeric columns of a plain file (a header on line 1, then one row of numbers per line,
     no quotes, no blank line) through numpy's C reader, several times faster than row by row on a
@@ -125,53 +96,6 @@ def _plain_table(text: str, name: str) -> _Table | None:
         cell = body.split("\n")[i].split(",")[j].strip()
         raise table.error(f"value {cell!r} is not finite", i, header[j])
     return table
-
-
-def _is_blank(record: list[str]) -> bool:
-    return len(record) <= 1 and not (record and record[0].strip())
-
-
-def _parse_rows(text: str, name: str) -> tuple[list[str], int, list[list[str]], NDArray[np.int64]]:
-    """Header, its line, the data rows and their 1-based line numbers; blank lines are skipped."""
-    reader = csv.reader(_io.StringIO(text, newline=""), strict=True)
-    if '"' not in text:
-        # Fast path: without quotes every record is one physical line, so record i is line i + 1.
-        try:
-            records = list(reader)
-        except csv.Error as error:
-            raise InputError(f"not valid CSV text ({error})", file=name, row=reader.line_num) from None
-        filled = [i for i, r in enumerate(records) if not _is_blank(r)]
-        if not filled:
-            raise InputError("empty file: no header and no rows", file=name, row=1)
-        header_index = filled[0]
-        return (
-            [cell.strip() for cell in records[header_index]],
-            header_index + 1,
-            [records[i] for i in filled[1:]],
-            np.asarray(filled[1:], dtype=np.int64) + 1,
-        )
-    # Quoted fields may span lines: ask the reader where each record ends.
-    header: list[str] | None = None
-    header_line = 1
-    rows: list[list[str]] = []
-    lines: list[int] = []
-    last_end = 0  # line where the previous record ended: a broken record starts on the next one
-    try:
-        for record in reader:
-            last_end = reader.line_num
-            if _is_blank(record):
-                continue
-            if header is None:
-                header = [cell.strip() for cell in record]
-                header_line = reader.line_num
-                continue
-            rows.append(record)
-            lines.append(reader.line_num)
-    except csv.Error as error:
-        raise InputError(f"not valid CSV text ({error})", file=name, row=last_end + 1) from None
-    if header is None:
-        raise InputError("empty file: no header and no rows", file=name, row=1)
-    return header, header_line, rows, np.asarray(lines, dtype=np.int64)
 
 
 def _check_header(header: list[str], name: str, header_line: int = 1) -> None:
@@ -207,39 +131,6 @@ def _unknown_column_hint(column: str) -> str:
 
 def _shown(column: str) -> str:
     return column if column.isprintable() else repr(column)  # the error stays one line
-
-
-# -- rows -> numeric columns ------------------------------------------------------------------------
-def _numeric_columns(header: list[str], rows: list[list[str]], lines: NDArray[np.int64], name: str) -> dict[str, NDArray[np.float64]]:
-    """Every column as floats, after checking that each row has as many fields as the header."""
-    width = len(header)
-    lengths = np.fromiter((len(r) for r in rows), dtype=np.int64, count=len(rows))
-    ragged = lengths != width
-    if ragged.any():
-        i = int(np.argmax(ragged))
-        column = header[lengths[i]] if lengths[i] < width else None
-        raise InputError(f"{lengths[i]} fields where the header has {width}", file=name, row=int(lines[i]), column=column)
-    return {col: _numeric_column([r[j] for r in rows], col, lines, name) for j, col in enumerate(header)}
-
-
-def _numeric_column(cells: list[str], column: str, lines: NDArray[np.int64], name: str) -> NDArray[np.float64]:
-    """The column as floats; an InputError at the first non-numeric, NaN or infinite value."""
-    try:
-        values = np.fromiter(map(float, cells), dtype=float, count=len(cells))
-    except ValueError:
-        # Only on the error path: find the offending cell.
-        for cell, line in zip(cells, lines):
-            try:
-                float(cell)
-            except ValueError:
-                shown = cell if len(cell) <= 40 else cell[:37] + "..."
-                raise InputError(f"not a number: {shown!r}", file=name, row=int(line), column=column) from None
-        raise InputError("not a number", file=name, column=column) from None  # pragma: no cover
-    bad = ~np.isfinite(values)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise InputError(f"value {cells[i].strip()!r} is not finite", file=name, row=int(lines[i]), column=column)
-    return values
 
 
 @dataclass

@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import orientation_label, orientation_match
 from ph_explorer.errors import InputError
-from ph_explorer.io.reader import _decode, _numeric_column, _parse_rows, _read_bytes
+from ph_explorer.io.csv_text import decoded_text, numeric_column, parse_rows, read_bytes
 
 RING_COLUMNS = ("A_deg", "B_deg")
 
@@ -24,7 +24,7 @@ RING_COLUMNS = ("A_deg", "B_deg")
 def read_rings(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     """(n, 2) orientations in the file's order; InputError naming the file, row and column."""
     name = str(path)
-    header, header_line, rows, lines = _parse_rows(_decode(_read_bytes(Path(path)), name), name)
+    header, header_line, rows, lines = parse_rows(decoded_text(read_bytes(Path(path)), name), name)
     for column in RING_COLUMNS:
         if column not in header:
             raise InputError(f"no {column} column (a rings file has A_deg and B_deg)", file=name, row=header_line)
@@ -34,7 +34,7 @@ def read_rings(path: str | os.PathLike[str]) -> NDArray[np.float64]:
     for record, line in zip(rows, lines):
         if len(record) <= max(index):
             raise InputError(f"{len(record)} fields where the header has {len(header)}", file=name, row=int(line))
-    rings = np.stack([_numeric_column([r[j] for r in rows], c, lines, name) for j, c in zip(index, RING_COLUMNS)], axis=1)
+    rings = np.stack([numeric_column([r[j] for r in rows], c, lines, name) for j, c in zip(index, RING_COLUMNS)], axis=1)
     same = np.triu(orientation_match(rings, rings), k=1)
     if same.any():
         i, j = np.argwhere(same)[0]
