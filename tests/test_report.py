@@ -31,7 +31,8 @@ from ph_explorer.diagnosis.study import check_study, study_campaign, study_recor
 from ph_explorer.effects import DEFAULT_CATALOG, effect_label
 from ph_explorer.figures.html_report import report_html
 from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, write_campaign, write_json_object
-from ph_explorer.models.folder import campaign_models
+from ph_explorer.models.folder import CARD_FORMAT, CARD_NAME, campaign_models
+from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import scenario_from_dict, simulate
 
 CHROMIUM = "/usr/bin/chromium"
@@ -146,6 +147,20 @@ def test_the_command_diagnoses_and_writes_one_file(small_csv: Path, tmp_path: Pa
     assert "A12 B34 — not measured: model <strong>predictions</strong> only" in page
     assert "Where it fails" in page and "exceed their noise under the baseline, worst first" in page
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.html"]
+
+
+def test_with_a_model_folder_the_command_loads_it_once(small_csv: Path, tmp_path: Path, monkeypatch) -> None:
+    """--model: the folder's models are the diagnosis's baseline and the report's curves, read once."""
+    folder = tmp_path / "model"
+    campaign = read_campaign(small_csv)
+    TrilinearModel().fit(campaign, ~campaign.holdout_mask()).save(folder)
+    (folder / CARD_NAME).write_text(json.dumps({"format": CARD_FORMAT, "holdout": []}), encoding="utf-8")
+    loads = []
+    original = TrilinearModel.load.__func__
+    monkeypatch.setattr(TrilinearModel, "load", classmethod(lambda cls, directory: loads.append(directory) or original(cls, directory)))
+    result = run("--data", str(small_csv), "--model", str(folder), "--out", str(tmp_path / "report.html"))
+    assert result.returncode == 0, result.stderr
+    assert loads == [folder] and "Verdict: missing" in (tmp_path / "report.html").read_text(encoding="utf-8")
 
 
 def test_the_command_reports_a_study_of_a_scenario_without_diagnosing(diagnosed, tmp_path: Path) -> None:

@@ -35,7 +35,7 @@ def report_command(
     from ph_explorer.diagnosis.campaign_file import diagnose_campaign
     from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain, study_steps
     from ph_explorer.figures.html_report import diagnosed_report_html, report_html
-    from ph_explorer.models.folder import campaign_models
+    from ph_explorer.models.folder import campaign_models, load_models
 
     if (data is None) == (scenario is None):
         raise InputError("give one campaign: --data FILE.csv or --scenario NAME", option="--data")
@@ -67,16 +67,20 @@ def report_command(
         models, train, _ = campaign_models(campaign, model)
         text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, reveal=reveal, created=created)
     else:
-        # As `ph-explorer diagnose` runs it: the loaded model is the baseline, the trilinear data part.
+        # As `ph-explorer diagnose` runs it: the loaded model is the baseline, the trilinear data part;
+        # the folder is loaded once, for the diagnosis and the report's figures.
+        loaded = load_models(Path(model)) if model is not None else None
         with Progress(transient=True) as bar:
             task = bar.add_task("diagnosing: scanning candidate effects", total=None)
             result = diagnose_campaign(
                 campaign,
                 DEFAULT_CATALOG,
-                model=model,
+                model=loaded,
                 progress=lambda effect_id: bar.update(task, description=f"diagnosing: scanning {effect_id}"),
             )
-        text = diagnosed_report_html(campaign, result, name, sha256, model, orientations=chosen, reveal=reveal, created=created)
+        text = diagnosed_report_html(
+            campaign, result, name, sha256, model, orientations=chosen, reveal=reveal, created=created, loaded=loaded
+        )
     try:
         atomic_write([(out, text)])
     except OSError as error:

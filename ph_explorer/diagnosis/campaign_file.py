@@ -3,7 +3,7 @@ by every task of a fleet (diagnosis.fleet), so that both give the same result to
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from ph_explorer.campaign import Campaign
@@ -50,17 +50,19 @@ def diagnose_campaign(
     campaign: Campaign,
     catalog: Catalog,
     add: list[str] | None = None,
-    model: Path | None = None,
+    model: Path | Mapping[str, DeviationModel] | None = None,
     data_part: str = "trilinear",
     start: Sequence[Effect] = (),
     progress: Callable[[str], None] | None = None,
     network_progress: Callable[[int, float, float, float], None] | None = None,
     nested: bool = True,
 ) -> Diagnosis:
-    """diagnose() with the command's options: a trained model folder's baseline, the data part by
+    """diagnose() with the command's options: a trained model folder's baseline (the folder, or its
+    models already loaded by the caller, who shows them too), the data part by
     name (the network retrained on what the physical terms leave, reporting each epoch); without
     `nested`, the verdict first (honest_after adds the nested figures)."""
-    baseline = baseline_of(load_models(Path(model))) if model is not None else None
+    models = load_models(Path(model)) if isinstance(model, (str, Path)) else model
+    baseline = baseline_of(models) if models is not None else None
     data_model: str | Callable[[], DeviationModel] = check_data_part(data_part)
     if data_part == "network":
         from ph_explorer.models.network import FourierNetwork  # torch: only when the network is asked for

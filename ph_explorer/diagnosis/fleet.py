@@ -19,6 +19,8 @@ from ph_explorer.diagnosis.campaign_file import catalog_of, diagnose_campaign, p
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign
+from ph_explorer.models.deviation_model import DeviationModel
+from ph_explorer.models.folder import load_models
 
 
 def summary(result: Diagnosis) -> dict[str, Any]:
@@ -35,21 +37,25 @@ def fleet_row(path: str, options: dict[str, Any]) -> dict[str, Any]:
     """One campaign's row, made on a worker: its summary and its whole diagnosis (as the single
     command's --json prints it), or the one line that says why it could not be read."""
     started = time.perf_counter()
-    row, _, _ = diagnosed_file(path, options)
+    row, _, _, _ = diagnosed_file(path, options)
     row["seconds"] = round(time.perf_counter() - started, 2)
     return row
 
 
-def diagnosed_file(path: str, options: dict[str, Any]) -> tuple[dict[str, Any], Campaign | None, Diagnosis | None]:
+def diagnosed_file(
+    path: str, options: dict[str, Any]
+) -> tuple[dict[str, Any], Campaign | None, Diagnosis | None, dict[str, DeviationModel] | None]:
     """A campaign file diagnosed with the command's options: its row (fleet_row's, without the
-    seconds), the campaign and the diagnosis; the row says the error, and both are None, when it failed."""
+    seconds), the campaign, the diagnosis and the --model folder's models (loaded once, None
+    without one); the row says the error, and the others are None, when it failed."""
     row: dict[str, Any] = {"campaign": path}
     try:
         row["sha256"] = file_sha256(Path(path))
         catalog = catalog_of(options.get("effects"))
         ids = parse_add(options.get("add"), catalog)
         campaign = read_campaign(Path(path), options.get("geometry") or {})
-        result = diagnose_campaign(campaign, catalog, ids, options.get("model"), options.get("data_part") or "trilinear")
+        loaded = load_models(Path(options["model"])) if options.get("model") else None
+        result = diagnose_campaign(campaign, catalog, ids, loaded, options.get("data_part") or "trilinear")
     except (InputError, OSError) as error:
         row["error"] = error.line() if isinstance(error, InputError) else f"{path}: {' '.join(str(error).split())}"
     except Exception as error:  # noqa: BLE001 - a fleet answers for every file: the error is the file's row
@@ -57,8 +63,8 @@ def diagnosed_file(path: str, options: dict[str, Any]) -> tuple[dict[str, Any], 
     else:
         row.update(summary(result))
         row["diagnosis"] = result.as_dict()
-        return row, campaign, result
-    return row, None, None
+        return row, campaign, result, loaded
+    return row, None, None, None
 
 
 def run_fleet(

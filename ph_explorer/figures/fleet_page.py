@@ -24,7 +24,7 @@ from ph_explorer.figures.html_report import STYLE, diagnosed_report_html
 def reported_fleet_row(path: str, options: dict[str, Any], created: str = "") -> dict[str, Any]:
     """fleet_row with the campaign's own report as HTML text ("report_html"), made on the worker."""
     started = time.perf_counter()
-    row, campaign, result = diagnosed_file(path, options)
+    row, campaign, result, loaded = diagnosed_file(path, options)
     if campaign is not None and result is not None:
         name = Path(path).name
         campaign.source = name
@@ -38,6 +38,7 @@ def reported_fleet_row(path: str, options: dict[str, Any], created: str = "") ->
                 catalog_of(options.get("effects")),
                 options.get("data_part") or "trilinear",
                 created=created,
+                loaded=loaded,
             )
         except Exception as error:  # noqa: BLE001 - a fleet answers for every file: the error is the file's row
             row["error"] = f"{path}: the report: {type(error).__name__}: {' '.join(str(error).split())}"

@@ -240,11 +240,13 @@ def diagnosed_report_html(
     orientations: Sequence[tuple[float, float]] | None = None,
     reveal: bool = False,
     created: str = "",
+    loaded: Mapping[str, DeviationModel] | None = None,
 ) -> str:
     """The report of a campaign just diagnosed (`ph-explorer report` without --study, and each
     campaign of a fleet's --report): the models of `model_dir` (else the trilinear tables fitted
-    now), the diagnosis as a study records it, and the rings that would decide what it leaves open."""
-    models, train, _ = campaign_models(campaign, model_dir)
+    now; loaded: those models, when the diagnosis loaded them already), the diagnosis as a study
+    records it, and the rings that would decide what it leaves open."""
+    models, train, _ = campaign_models(campaign, model_dir, loaded)
     study = study_record(result, result.chain, study_campaign(name, sha256, campaign), data_part)
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET).as_dict()
     return report_html(campaign, models, train, catalog, orientations, study, result, reveal=reveal, created=created, decision=decision)

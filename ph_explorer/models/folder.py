@@ -106,8 +106,11 @@ def load_models(directory: Path) -> dict[str, DeviationModel]:
     return models
 
 
-def campaign_models(campaign: Campaign, model_dir: Path | None) -> tuple[dict[str, DeviationModel], NDArray[np.bool_], list[str]]:
-    """The models to show a campaign with, its training rings, and notes saying where they came from.
+def campaign_models(
+    campaign: Campaign, model_dir: Path | None, loaded: Mapping[str, DeviationModel] | None = None
+) -> tuple[dict[str, DeviationModel], NDArray[np.bool_], list[str]]:
+    """The models to show a campaign with, its training rings, and notes saying where they came from
+    (loaded: model_dir's models when the caller has loaded them already).
 
     The models of model_dir when given, with the card's held-out rings (what the models never saw),
     else the campaign's own check orientations; the trilinear tables are fitted now on the training
@@ -117,7 +120,7 @@ def campaign_models(campaign: Campaign, model_dir: Path | None) -> tuple[dict[st
     models: dict[str, DeviationModel] = {}
     train = ~campaign.holdout_mask()
     if model_dir is not None:
-        models = dict(load_models(Path(model_dir)))
+        models = dict(loaded if loaded is not None else load_models(Path(model_dir)))
         card = load_card(Path(model_dir))
         train = ~np.asarray(holdout_from_card(campaign, card), dtype=bool)
         notes.append(f"models from {model_dir}")
