@@ -279,6 +279,18 @@ def target_rows(results: Mapping[str, Any]) -> Iterable[list[Any]]:
                 f"{'at least' if above else 'at most'} {pct(target)}",
                 f"{pct(x.get('share'))} ({pct_interval(x.get('ci95'))}): {holds(ok)}",
             ]
+        speed = pop.get("verdict_speed") or {}
+        if speed.get("command"):
+            command, click, st = speed["command"], speed.get("explorer_click") or {}, speed.get("targets") or {}
+            yield [
+                f"verdict speed ({speed.get('campaign', '').split(':')[0]})",
+                f"the command's verdict within {num(st.get('verdict_median_s'), 's')} median and {num(st.get('verdict_max_s'), 's')} max "
+                f"(imports included), the nested figures within {num(st.get('nested_s'), 's')} after it, the explorer's verdict "
+                f"within {num(click.get('target_s'), 's')} of the click",
+                f"{num(get(command, 'verdict_s', 'median'), 's')} (max {num(get(command, 'verdict_s', 'max'), 's')}), nested "
+                f"{num(get(command, 'nested_s', 'median'), 's')}, click {joined([num(x, 's') for x in click.get('seconds') or []]) or '-'}: "
+                f"{holds(speed.get('holds'))}",
+            ]
     hidden = results.get("hidden_effects", {})
     if hidden:
         yield [
