@@ -33,7 +33,8 @@ the client the run gives, each head simulated on its worker from its seed.
 0b. u_calibration: JACKKNIFE_INFLATION (diagnosis/search.py) measured: on U_CALIBRATION_HEADS
    heads with one catalog effect (seeds of their own), the factor on U that puts 95 % of the
    fitted parameters within U.
-5. verdict_speed: the teaching scenario head_3 (135 rings), one diagnosis at a time, nothing else
+5. verdict_speed (its own section of the run, `--only verdict_speed`, after the workers have
+   stopped): the teaching scenario head_3 (135 rings), one diagnosis at a time, nothing else
    running: the command `ph-explorer diagnose --data head_3.csv` from launch (imports included)
    until its Verdict line, and from there until the nested figures it streams after it; in one
    process the verdict (diagnose(nested=False)) and the nested cross-validation after it
@@ -478,8 +479,6 @@ def run(client: Client, quick: bool = False, log: Callable[[str], None] = print)
     out["tolerance"] = tolerance_curve(quick, client)
     log("  the jackknife's U over calibration heads with one catalog effect")
     out["u_calibration"] = u_calibration(quick, client)
-    log("  verdict speed on head_3, one diagnosis at a time")
-    out["verdict_speed"] = verdict_speed(1 if quick else SPEED_REPEATS, quick)
     out["run_seconds"] = round(time.perf_counter() - started, 1)
     log(
         f"  healthy false alarms {out['healthy']['false_alarm']['count']}/{out['healthy']['false_alarm']['of']}, "

@@ -72,6 +72,7 @@ SECTIONS = (
     "scale",
     "diagnosis_calibration",
     "population",
+    "verdict_speed",
     "deciding",
     "hidden_effects",
     "uncertainty_coverage",
@@ -291,6 +292,10 @@ def main(argv: list[str] | None = None) -> int:
             client = stack.enter_context(dask_client(args.scheduler, QUICK_WORKERS if quick else None, in_process))
         run_task_sections(client, sections, quick, results, stamp)
 
+    if "verdict_speed" in sections:
+        # one diagnosis at a time with nothing else running: the command and the explorer's click (issue 28, item 5)
+        with section("verdict speed", "verdict_speed", results):
+            results["verdict_speed"] = population.verdict_speed(1 if quick else population.SPEED_REPEATS, quick)
     if "deciding" in sections:
         # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
         with section("deciding", "deciding", results):

@@ -279,7 +279,7 @@ def target_rows(results: Mapping[str, Any]) -> Iterable[list[Any]]:
                 f"{'at least' if above else 'at most'} {pct(target)}",
                 f"{pct(x.get('share'))} ({pct_interval(x.get('ci95'))}): {holds(ok)}",
             ]
-        speed = pop.get("verdict_speed") or {}
+        speed = results.get("verdict_speed") or {}
         if speed.get("command"):
             command, click, st = speed["command"], speed.get("explorer_click") or {}, speed.get("targets") or {}
             yield [
@@ -1162,7 +1162,7 @@ def population(results: Mapping[str, Any]) -> str:
         f"{num(seconds.get('max'), 's')}. Claims on healthy heads: {joined([f'{k} {v}' for k, v in (healthy.get('claims') or {}).items()]) or 'none'}. "
         f"Measured on code {pop.get('code_sha256')}, commit {pop.get('commit', '-')} ({pop.get('mode')} run, {num(pop.get('run_seconds'), 's')}).\n"
     )
-    speed = pop.get("verdict_speed") or {}
+    speed = results.get("verdict_speed") or {}
     if speed:
         command, click = speed.get("command") or {}, speed.get("explorer_click") or {}
         clicked = (

@@ -212,7 +212,7 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         population["outside_catalog"]["missing"],
     ):
         assert figure["of"] >= 1 and 0 <= figure["ci95"][0] <= figure["share"] <= figure["ci95"][1] <= 1
-    speed = population["verdict_speed"]
+    speed = results["verdict_speed"]
     command = speed["command"]
     assert command["end_s"]["median"] > command["verdict_s"]["median"] > 0 and command["nested_s"]["median"] >= 0
     assert speed["in_process"]["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
