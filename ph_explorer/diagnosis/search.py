@@ -75,6 +75,11 @@ FOLD_DESIGN_BUDGET_BYTES = 128 * 2**20  # a nested fold's designs kept (head_3's
 KEPT_DESIGN_BYTES = 384 * 2**20
 
 
+def _size(design: Design) -> int:
+    """A design's bytes: its mean part and its within part."""
+    return design.mean.nbytes + (0 if design.within is None else design.within.nbytes)
+
+
 def _rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2)))
 
@@ -97,8 +102,6 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
-        self._design_sizes: dict[tuple[str, tuple], int] = {}
-        self._within_keys: set[tuple[str, tuple]] = set()
         self._design_bytes = self._within_design_bytes = 0
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
@@ -137,18 +140,15 @@ class CandidateSearch:
         # and two at a time, within FOLD_DESIGN_BUDGET_BYTES); one that changes between
         # repetitions, n_rep times larger, within WITHIN_BUDGET_BYTES of the search's own (a nested
         # fold's shared bases keep its columns instead).
-        size = design.mean.nbytes + (0 if design.within is None else design.within.nbytes)
+        size = _size(design)
         if self.bases.keep:
             keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
         else:
             keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
-            if keep and design.within is not None:
-                self._within_design_bytes += size
-                self._within_keys.add(key)
+            self._within_design_bytes += size if keep and design.within is not None else 0
         if keep:
             self._design_bytes += size
             self._designs[key] = design
-            self._design_sizes[key] = size
         return design
 
     def forget_designs(self, effect: Effect | None = None, settings: Sequence[dict[str, Any]] = ()) -> None:
@@ -156,11 +156,11 @@ class CandidateSearch:
         searches), or the effect's at the given settings."""
         keys = list(self._designs) if effect is None else [settings_key(effect.with_settings(**each)) for each in settings]
         for key in keys:
-            if self._designs.pop(key, None) is not None:
-                size = self._design_sizes.pop(key)
+            design = self._designs.pop(key, None)
+            if design is not None:  # kept with the bytes _design counted: its size, and its within part's
+                size = _size(design)
                 self._design_bytes -= size
-                self._within_design_bytes -= size if key in self._within_keys else 0
-                self._within_keys.discard(key)
+                self._within_design_bytes -= size if design.within is not None else 0
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,
