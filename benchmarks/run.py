@@ -22,30 +22,18 @@ import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import torch
-
-from benchmarks import (
-    calibration,
-    data_efficiency,
-    deciding,
-    fleet,
-    hidden_effects,
-    large_campaign,
-    peers,
-    plots,
-    population,
-    scale,
-    speed,
-    uncertainty_coverage,
-)
-from ph_explorer.app.server import build_server
+from benchmarks import calibration, large_campaign
 from ph_explorer.campaign import Campaign
 from ph_explorer.cluster import dask_client
-from ph_explorer.models.network import FourierNetwork, NetworkConfig
-from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.twin import load_scenario, simulate
+
+if TYPE_CHECKING:
+    from ph_explorer.models.network import NetworkConfig
+
+# Each section's module (and what it imports: torch, viser, scikit-learn) is imported when the
+# section runs: a run of a few sections (--only) starts in a second instead of five.
 
 HERE = Path(__file__).resolve().parent
 SCENARIOS = ("paper", "head_3")
@@ -87,12 +75,21 @@ def paper_campaign() -> Campaign:
     return simulate(scenario, scenario.seed)
 
 
-def run_data_efficiency(quick: bool, network_config: NetworkConfig, results: dict[str, Any]) -> None:
+def network_config(quick: bool) -> NetworkConfig:
+    """The network's training: the paper's, or (quick) a few epochs."""
+    from ph_explorer.models.network import NetworkConfig
+
+    return NetworkConfig(max_epochs=large_campaign.QUICK_EPOCHS, early_stopping_patience=10) if quick else NetworkConfig()
+
+
+def run_data_efficiency(quick: bool, results: dict[str, Any]) -> None:
+    from benchmarks import data_efficiency
+
     columns = (18, 3) if quick else data_efficiency.B_COLUMNS
     budgets = (12,) if quick else data_efficiency.DESIGN_BUDGETS
     results["data_efficiency"], results["data_efficiency_details"] = {}, {}
     for name in SCENARIOS[:1] if quick else SCENARIOS:  # quick: the paper's, every path of the section
-        run = data_efficiency.run_scenario(name, network_config, columns, log=log, budgets=budgets)
+        run = data_efficiency.run_scenario(name, network_config(quick), columns, log=log, budgets=budgets)
         results["data_efficiency"][name] = run["curves"]
         details = run["details"]
         details["target"] = data_efficiency.target(run["curves"])
@@ -114,14 +111,21 @@ def run_data_efficiency(quick: bool, network_config: NetworkConfig, results: dic
     }
 
 
-def run_speed(quick: bool, network_config: NetworkConfig, results: dict[str, Any], with_scale: bool) -> None:
+def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
     """Speed figures; the one-browser slider figure and (with_scale) N browsers share one server."""
+    import torch
+
+    from benchmarks import scale, speed
+    from ph_explorer.app.server import build_server
+    from ph_explorer.models.network import FourierNetwork
+    from ph_explorer.models.trilinear import TrilinearModel
+
     campaign = paper_campaign()
     check = campaign.holdout_mask()
     s: dict[str, Any] = {"cpu_count": os.cpu_count(), "torch_threads": torch.get_num_threads()}
     s["simulate"] = speed.simulate_speed(2 if quick else 5)
     start = time.perf_counter()
-    network = FourierNetwork(network_config).fit(campaign, ~check)
+    network = FourierNetwork(network_config(quick)).fit(campaign, ~check)
     s["network_training"] = {
         "seconds": round(time.perf_counter() - start, 2),
         "epochs": network.log.epochs,
@@ -207,23 +211,33 @@ def run_task_sections(client: Any, sections: list[str], quick: bool, results: di
             results["diagnosis_calibration"] = calibration.run(client, quick=quick, log=log)
     if "population" in sections:
         # the verdicts over a population of random heads (issue 28)
+        from benchmarks import population
+
         with section("population", "population", results):
             results["population"] = population.run(client, quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
+        from benchmarks import hidden_effects
+
         with section("hidden effects", "hidden_effects", results):
             results["hidden_effects"] = hidden_effects.run(client, quick=quick, log=log)
     if "uncertainty_coverage" in sections:
         # the 95 % bands with every component against held-out rings, and the task's E_n (issue 17)
+        from benchmarks import uncertainty_coverage
+
         with section("uncertainty coverage", "uncertainty_coverage", results):
             results["uncertainty_coverage"] = {"date": stamp["date"], **uncertainty_coverage.run(client, quick=quick, log=log)}
     if "peers" in sections:
         # scipy's RBF and scikit-learn's GP beside the project's models, same split (issue 32)
+        from benchmarks import peers
+
         with section("peers", "peers", results):
             results["peers"] = peers.run(client, quick=quick, log=log)
 
 
 def write_plots(results: dict[str, Any], out: Path) -> None:
+    from benchmarks import plots
+
     if "data_efficiency" in results:
         plots.data_efficiency_plot(results, out / "data_efficiency.png")
     if "speed" in results:
@@ -232,6 +246,12 @@ def write_plots(results: dict[str, Any], out: Path) -> None:
         plots.calibration_plot(results, out / "calibration.png")
     if "peers" in results:
         plots.peers_plot(results, out / "peers.png")
+
+
+def torch_threads() -> int:
+    import torch
+
+    return torch.get_num_threads()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -260,7 +280,6 @@ def main(argv: list[str] | None = None) -> int:
     quick: bool = args.quick
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
-    network_config = NetworkConfig(max_epochs=large_campaign.QUICK_EPOCHS, early_stopping_patience=10) if quick else NetworkConfig()
     stamp = {"date": datetime.date.today().isoformat(), "mode": "quick" if quick else "full"}
     if only:
         # A partial run updates its sections in the results of the last run, each stamped.
@@ -274,17 +293,17 @@ def main(argv: list[str] | None = None) -> int:
             "machine": {
                 "cpu_count": os.cpu_count(),
                 "python": platform.python_version(),
-                "torch_threads": torch.get_num_threads(),
+                "torch_threads": torch_threads(),
                 "platform": platform.platform(),
             },
         }
 
     if "data_efficiency" in sections:
         with section("data efficiency", "data_efficiency", results):
-            run_data_efficiency(quick, network_config, results)
+            run_data_efficiency(quick, results)
     if "speed" in sections or "scale" in sections:
         with section("speed", "speed_and_scale", results):
-            run_speed(quick, network_config, results, with_scale="scale" in sections)
+            run_speed(quick, results, with_scale="scale" in sections)
     with contextlib.ExitStack() as stack:
         client = None
         if set(sections) & set(TASK_SECTIONS):
@@ -295,10 +314,14 @@ def main(argv: list[str] | None = None) -> int:
     if "verdict_speed" in sections:
         # one diagnosis at a time with nothing else running: the command and the explorer's click (issue 28, item 5)
         with section("verdict speed", "verdict_speed", results):
+            from benchmarks import population
+
             results["verdict_speed"] = population.verdict_speed(1 if quick else population.SPEED_REPEATS, quick)
     if "deciding" in sections:
         # the rings that decide, measured by the twin, merged, diagnosed again (issue 29)
         with section("deciding", "deciding", results):
+            from benchmarks import deciding
+
             results["deciding"] = deciding.run(quick=quick, log=log)
     if "large_campaign" in sections:
         # every command at the paper's size and at 16x its touches (issue 16)
@@ -307,6 +330,8 @@ def main(argv: list[str] | None = None) -> int:
 
     if "fleet" in sections:
         # many campaigns on a LocalCluster of 1 and of 2 workers, and the scaling from it (issue 33)
+        from benchmarks import fleet
+
         with section("fleet", "fleet", results):
             results["fleet"] = fleet.run(quick=quick, log=log)
 

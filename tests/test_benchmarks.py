@@ -109,17 +109,37 @@ def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> No
     assert alarm(record("partial", [("b_axis_cyclic", 4.0)]))
 
 
-def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
+# The quick run, section by section: each group is one `--quick --only` run in a folder of its own,
+# a test of its own, so that pytest-xdist spreads the groups over the workers (conftest.py) instead
+# of one test holding a worker for the whole run. Together the groups cover every section, and
+# test_a_run_without_only_runs_every_section checks that a plain run calls each of them.
+QUICK_GROUPS = {
+    "data_efficiency": ("data_efficiency", "peers", "deciding", "verdict_speed"),
+    "speed": ("speed", "scale"),
+    "diagnoses": ("diagnosis_calibration", "population"),
+    "hidden_effects": ("hidden_effects", "uncertainty_coverage"),
+    "large_campaign": ("large_campaign",),
+    "fleet": ("fleet",),
+}
+PLOTS = {"data_efficiency": "data_efficiency.png", "speed": "speed.png", "diagnosis_calibration": "calibration.png", "peers": "peers.png"}
+
+
+def quick_run(out: Path, sections: tuple[str, ...], *options: str) -> dict:
+    """`python -m benchmarks --quick --only SECTIONS` into `out` (its results.json made empty first if missing)."""
+    if not (out / "results.json").exists():
+        (out / "results.json").write_text("{}")
     result = subprocess.run(
-        [sys.executable, "-m", "benchmarks", "--quick", "--out", str(tmp_path)],
+        [sys.executable, "-m", "benchmarks", "--quick", "--only", ",".join(sections), "--out", str(out), *options],
         cwd=REPOSITORY,
         capture_output=True,
         text=True,
-        timeout=1500,  # a hang guard, not a speed target: the quick run has grown with its sections
+        timeout=1500,  # a hang guard, not a speed target
     )
     assert result.returncode == 0, result.stderr[-3000:]
-    results = json.loads((tmp_path / "results.json").read_text())
-    assert results["mode"] == "quick"
+    return json.loads((out / "results.json").read_text())
+
+
+def check_data_efficiency(results: dict) -> None:
     assert set(results["data_efficiency"]) == {"paper"}  # quick: one scenario, every path of the section
     for scenario in ("paper",):
         curves = results["data_efficiency"][scenario]
@@ -141,6 +161,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         assert 0 < row["full_data_trilinear"] < 1 and all(r > 0 for r in (row["ratio"], row["trilinear_ratio"]))
     assert seeds["within_tolerance"] == sum(r["ratio"] <= seeds["tolerance"] for r in seeds["per_seed"])
     assert isinstance(results["target"]["holds"], bool) and results["target"]["detail"]
+
+
+def check_speed(results: dict) -> None:
     speed = results["speed"]
     for key in (
         "simulate",
@@ -159,6 +182,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     for name in ("paper", "head_3"):
         assert speed["diagnosis"][name]["seconds_median"] > 0
     assert speed["diagnosis"]["head_3"]["nested"] and speed["diagnosis"]["target_s"] == 30
+
+
+def check_scale(results: dict) -> None:
     scale = results["scale"]
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
@@ -169,6 +195,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert room["browsers"] == 3 and room["rate_hz"] == 5.0 and room["errors"] == 0 and room["latency_ms"]["p95"] > 0
     for key in ("p50", "p95"):
         assert scale["server_update_ms"][key] > 0
+
+
+def check_diagnosis_calibration(results: dict) -> None:
     calibration = results["diagnosis_calibration"]
     assert calibration["mode"] == "quick"
     verdicts = {"none", "missing", "partial", "unexplained"}
@@ -198,6 +227,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert seconds["head_3"]["max"] > 0
     assert seconds["median"] > 0 and seconds["target_s"] == 30 and isinstance(seconds["holds"], bool)
     assert calibration["errors"] == []
+
+
+def check_population(results: dict) -> None:
     population = results["population"]
     assert population["mode"] == "quick" and population["counts"] == {
         "healthy": 2,
@@ -212,10 +244,6 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         population["outside_catalog"]["missing"],
     ):
         assert figure["of"] >= 1 and 0 <= figure["ci95"][0] <= figure["share"] <= figure["ci95"][1] <= 1
-    speed = results["verdict_speed"]
-    command = speed["command"]
-    assert command["end_s"]["median"] > command["verdict_s"]["median"] > 0 and command["nested_s"]["median"] >= 0
-    assert speed["in_process"]["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
     assert sum(population["healthy"]["verdicts"].values()) == 2 and population["errors"] == []
     assert population["seconds_per_diagnosis"]["median"] > 0
     tolerance = population["tolerance"]
@@ -223,6 +251,16 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     u_calibration = population["u_calibration"]
     assert u_calibration["seeds"] == [950_000, 950_000] and u_calibration["inflation_used"] > 0
     assert population["commit"] and "truth_within_u_every_parameter" in population["catalog_effect"]
+
+
+def check_verdict_speed(results: dict) -> None:
+    speed = results["verdict_speed"]
+    command = speed["command"]
+    assert command["end_s"]["median"] > command["verdict_s"]["median"] > 0 and command["nested_s"]["median"] >= 0
+    assert speed["in_process"]["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
+
+
+def check_deciding(results: dict) -> None:
     deciding = results["deciding"]
     assert [len(deciding["records"][k]) for k in ("a_axis_angular", "b_axis_tilt", "false_suggestions")] == [1, 0, 0]
     (loop,) = deciding["records"]["a_axis_angular"]
@@ -231,10 +269,16 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
     assert loop["questions"] == ["a_axis_cyclic vs a_axis_radial_motion"] or loop["questions"] == []
     assert len(loop["rings"]) == 0 or 3 <= len(loop["rings"]) <= deciding["budget"]
     assert loop["after"]["verdict"] in ("missing", "partial") and deciding["a_axis_angular"]["named_and_told_apart_after"]["of"] == 1
+
+
+def check_hidden_effects(results: dict) -> None:
     hidden = results["hidden_effects"]
     assert hidden["of"] == 1 and set(hidden["cases"]) == {"b_axis_radial_motion"}
     case = hidden["cases"]["b_axis_radial_motion"]
     assert {"verdict", "named_first_at_its_period", "truth_within_u", "after_over_floor", "seconds"} <= set(case)
+
+
+def check_uncertainty_coverage(results: dict) -> None:
     coverage = results["uncertainty_coverage"]
     assert coverage["mode"] == "quick" and coverage["target"] == [0.93, 0.97]
     assert set(coverage["campaigns"]) == {"paper (shipped data and model)", "head_3"}
@@ -246,6 +290,9 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
                 assert set(figures[band]) == {"touch", "mean"} and all(0.0 <= v <= 1.0 for v in figures[band].values())
     task = coverage["task_paper_check_rings"]["trilinear"]
     assert task["of_rings"] == 2 and 0 <= task["ront_E_n_at_most_1"] <= 2 and len(task["rings"]) == 2
+
+
+def check_large_campaign(results: dict) -> None:
     large = results["large_campaign"]
     assert large["touches"]["dense"] > large["touches"]["paper"] > 0
     for size in ("paper", "dense"):
@@ -257,10 +304,15 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         }
         assert not failed, (size, failed)  # the failing commands only, each with its exit status and last lines
     assert set(large["growth_exponent"]) == set(large["paper"]) and isinstance(large["diagnosis_holds"], bool)
+
+
+def check_fleet(results: dict) -> None:
     fleet = results["fleet"]
     assert fleet["campaigns"] == 4 and fleet["rows_equal"] and fleet["seconds"]["one_worker"] > 0 and fleet["ratio"] > 0
     assert fleet["bytes_per_task"]["sent"] > 0 and set(fleet["population_calibration"]["expected_wall_s"]) == {"8", "32", "128"}
 
+
+def check_peers(results: dict) -> None:
     peers = results["peers"]
     assert peers["mode"] == "quick" and [r["campaign"] for r in peers["campaigns"]] == ["head_3"]
     row = peers["campaigns"][0]
@@ -277,37 +329,107 @@ def test_quick_run_writes_every_key_and_the_plots(tmp_path: Path) -> None:
         "gp_band_coverage_in_target",
     }
 
+
+CHECKS = {
+    "data_efficiency": check_data_efficiency,
+    "speed": check_speed,
+    "scale": check_scale,
+    "diagnosis_calibration": check_diagnosis_calibration,
+    "population": check_population,
+    "verdict_speed": check_verdict_speed,
+    "deciding": check_deciding,
+    "hidden_effects": check_hidden_effects,
+    "uncertainty_coverage": check_uncertainty_coverage,
+    "large_campaign": check_large_campaign,
+    "fleet": check_fleet,
+    "peers": check_peers,
+}
+
+
+def test_the_quick_groups_cover_every_section_once() -> None:
+    from benchmarks.run import SECTIONS
+
+    grouped = [name for sections in QUICK_GROUPS.values() for name in sections]
+    assert sorted(grouped) == sorted(SECTIONS) == sorted(CHECKS)
+
+
+def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain `--quick` run calls every section once, in quick mode, and stamps the whole file (date,
+    mode, commit, machine, total seconds); the sections' work is replaced here by a record of the call,
+    since each section's own quick run is test_a_quick_run_writes_its_sections_keys_and_plots."""
+    import contextlib
+
+    from benchmarks import calibration, deciding, fleet, hidden_effects, large_campaign, peers, population, run, uncertainty_coverage
+
+    called: list[tuple[str, bool]] = []
+
+    def section(name: str):
+        def ran(*args, quick: bool = False, **kwargs):
+            called.append((name, quick))
+            return {"ran": name}
+
+        return ran
+
+    for module, name in [
+        (calibration, "diagnosis_calibration"),
+        (population, "population"),
+        (hidden_effects, "hidden_effects"),
+        (uncertainty_coverage, "uncertainty_coverage"),
+        (peers, "peers"),
+        (deciding, "deciding"),
+        (large_campaign, "large_campaign"),
+        (fleet, "fleet"),
+    ]:
+        monkeypatch.setattr(module, "run", section(name))
+    monkeypatch.setattr(
+        population, "verdict_speed", lambda repeats, quick: called.append(("verdict_speed", quick)) or {"ran": "verdict_speed"}
+    )
+    monkeypatch.setattr(run, "run_data_efficiency", lambda quick, results: called.append(("data_efficiency", quick)))
+    monkeypatch.setattr(run, "run_speed", lambda quick, results, with_scale: called.extend([("speed", quick), ("scale", with_scale)]))
+    monkeypatch.setattr(run, "dask_client", lambda *args: contextlib.nullcontext(None))
+    monkeypatch.setattr(run, "write_plots", lambda results, out: None)
+    assert run.main(["--quick", "--out", str(tmp_path)]) == 0
+    assert sorted(called) == sorted((name, True) for name in run.SECTIONS)
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["mode"] == "quick" and results["commit"] and results["machine"]["cpu_count"] and results["total_seconds"] >= 0
+    assert "updated" not in results and set(results["section_seconds"]) >= {"data_efficiency", "fleet", "peers"}
+
+
+@pytest.mark.parametrize("group", [pytest.param(name, marks=pytest.mark.xdist_group(f"quick_{name}")) for name in QUICK_GROUPS])
+def test_a_quick_run_writes_its_sections_keys_and_plots(group: str, tmp_path: Path) -> None:
+    sections = QUICK_GROUPS[group]
+    results = quick_run(tmp_path, sections)
+    for name in sections:
+        CHECKS[name](results)
+        stamp = results["updated"][name]
+        assert stamp["mode"] == "quick" and stamp["code_sha256"] and stamp["commit"] and stamp["run_seconds"] > 0
+        if name in PLOTS:
+            assert (tmp_path / PLOTS[name]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    if group != "hidden_effects":
+        return
     # --only: one section run again and updated in place, stamped; every other section kept as it was.
     # Run on a given scheduler (--scheduler): its case is a task on a worker process of that cluster.
     from dask.distributed import LocalCluster
 
     with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
-        again = subprocess.run(
-            [sys.executable, "-m", "benchmarks", "--quick", "--only", "hidden_effects", "--out", str(tmp_path)]
-            + ["--scheduler", cluster.scheduler_address],
-            cwd=REPOSITORY,
-            capture_output=True,
-            text=True,
-            timeout=1500,  # a hang guard, not a speed target: the quick run has grown with its sections
-        )
-    assert again.returncode == 0, again.stderr[-3000:]
-    updated = json.loads((tmp_path / "results.json").read_text())
-    assert {k: v for k, v in updated.items() if k not in ("hidden_effects", "updated", "section_seconds")} == {
-        k: v for k, v in results.items() if k not in ("hidden_effects", "section_seconds")
-    }
+        updated = quick_run(tmp_path, ("hidden_effects",), "--scheduler", cluster.scheduler_address)
+    again = ("hidden_effects", "updated", "section_seconds")
+    assert {k: v for k, v in updated.items() if k not in again} == {k: v for k, v in results.items() if k not in again}
+    assert updated["updated"]["uncertainty_coverage"] == results["updated"]["uncertainty_coverage"]
     before, after = results["section_seconds"], updated["section_seconds"]  # only the section run again has new seconds
     assert set(after) == set(before) and {k: after[k] for k in after if k != "hidden_effects"} == {
         k: before[k] for k in before if k != "hidden_effects"
     }
-    assert set(updated["updated"]) == {"hidden_effects"} and updated["updated"]["hidden_effects"]["code_sha256"]
-    assert updated["updated"]["hidden_effects"]["commit"] == results["commit"]
+    assert (
+        updated["updated"]["hidden_effects"]["code_sha256"]
+        and updated["updated"]["hidden_effects"]["commit"] == results["updated"]["hidden_effects"]["commit"]
+    )
+    hidden = results["hidden_effects"]
     assert updated["hidden_effects"]["cases"].keys() == hidden["cases"].keys()
     for name, case in hidden["cases"].items():  # on the cluster's worker as in this process, to the last digit
         assert {k: v for k, v in updated["hidden_effects"]["cases"][name].items() if k != "seconds"} == {
             k: v for k, v in case.items() if k != "seconds"
         }
-    for png in ("data_efficiency.png", "speed.png", "calibration.png", "peers.png"):
-        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
