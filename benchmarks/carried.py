@@ -138,7 +138,7 @@ class Identification:
         self.campaign = campaign
         self.touches = campaign_touches(campaign)
         every = np.ones(campaign.n_orientations, dtype=bool)
-        linear = smoother_type(make_data_model(data_model))  # the data part the terms sit beside
+        linear = smoother_type(make_data_model(data_model), campaign, every)  # the data part the terms sit beside
         self.smoother = OutOfSampleSmoother(campaign.orientations, every, linear)
         self.targets = Design(self.smoother.residual(campaign.deviations)[..., None], None)
         self.domain = prediction_domain(campaign)

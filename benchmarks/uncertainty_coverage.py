@@ -37,7 +37,7 @@ from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, default_model_dir
 from ph_explorer.twin import Scenario, list_scenarios, load_scenario, simulate
 from ph_explorer.uncertainty.bands import COMPONENTS, Sources, band_coverage, calibrate_model_error, model_bands
-from ph_explorer.uncertainty.model_error import out_of_sample_error
+from ph_explorer.uncertainty.model_error import own_error
 from ph_explorer.uncertainty.parameter_spread import parameter_spread
 from ph_explorer.uncertainty.task import measured_task, normalised_error, task_uncertainty
 
@@ -93,7 +93,7 @@ def one_model(
     start = time.perf_counter()
     model = shipped if shipped is not None else make().fit(campaign.subset(train))
     fit_s = time.perf_counter() - start
-    error = out_of_sample_error(make, campaign, train)
+    error = own_error(make, model, campaign, train)  # a GP's posterior, else the cross-validation's
     cv_s = time.perf_counter() - start - fit_s
     spread = parameter_spread(model, campaign.subset(train)) if isinstance(model, HybridModel) else None
     sources = Sources(model, campaign.n_repetitions, error, spread)

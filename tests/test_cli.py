@@ -158,7 +158,9 @@ def test_a_bad_add_option_is_one_line_naming_the_option(tmp_path: Path, value: s
 def test_other_option_errors_name_the_option(tmp_path: Path) -> None:
     path = _campaign(tmp_path)
     part = run("diagnose", "--data", str(path), "--data-part", "forest")
-    assert part.returncode == 2 and part.stderr.strip() == ("option --data-part: unknown data-driven part 'forest' (trilinear or network)")
+    assert part.returncode == 2 and part.stderr.strip() == (
+        "option --data-part: unknown data-driven part 'forest' (trilinear, network, gp)"
+    )
     missing = run("simulate", "--out", str(tmp_path / "x.csv"))
     assert missing.returncode == 2 and missing.stderr.strip().startswith("option --scenario: ")
     holdout = run("train", "--data", str(path), "--out", str(tmp_path / "m"), "--holdout", "1:2")

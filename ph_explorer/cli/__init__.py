@@ -219,7 +219,10 @@ def _diagnose(
     data_part: Annotated[
         Optional[str],
         typer.Option(
-            help="Data-driven part of the hybrid: trilinear (refits in seconds) or network (retrained). Default: trilinear, or the study's."
+            help=(
+                "Data-driven part of the hybrid: trilinear (refits in seconds), network (retrained) or gp (a Gaussian process,"
+                " scikit-learn's). Default: trilinear, or the study's."
+            )
         ),
     ] = None,
     save: Annotated[

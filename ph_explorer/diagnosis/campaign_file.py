@@ -14,7 +14,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import baseline_of, load_models
 
-DATA_PARTS = ("trilinear", "network")
+DATA_PARTS = ("trilinear", "network", "gp")
 
 
 def catalog_of(effects: Path | None) -> Catalog:
@@ -42,7 +42,7 @@ def parse_add(text: str | None, catalog: Catalog) -> list[str] | None:
 
 def check_data_part(data_part: str) -> str:
     if data_part not in DATA_PARTS:
-        raise InputError(f"unknown data-driven part {data_part!r} (trilinear or network)", option="--data-part")
+        raise InputError(f"unknown data-driven part {data_part!r} ({', '.join(DATA_PARTS)})", option="--data-part")
     return data_part
 
 

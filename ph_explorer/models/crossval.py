@@ -116,11 +116,10 @@ SPARSE_SHARE = 0.1  # a W with at most this share of nonzero weights is applied 
 _WEIGHTS_LOCK = threading.Lock()  # the explorer's sessions diagnose in threads
 
 
-def out_of_sample_weights(
-    orientations: ArrayLike, train: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel
-) -> NDArray[np.float64]:
+def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel) -> NDArray[np.float64]:
     """W (n_o x n_o) of a model linear in its data: row i predicts orientation i out of sample
-    (its interpolation of unit vectors, before any circle fit: unit_campaign). Read-only."""
+    (its interpolation of unit vectors, before any circle fit: unit_campaign). Read-only.
+    model_type: a model class, or a hashable factory (a GP with its kernel fixed)."""
     o, mask = as_orientations(orientations), np.asarray(train, dtype=bool)
     key = (model_type, o.shape, o.tobytes(), mask.tobytes())
     weights = _WEIGHTS.get(key)
@@ -151,7 +150,7 @@ def weighted(operator: NDArray[np.float64] | sparse.csr_array, values: NDArray[n
 class OutOfSampleSmoother:
     """W (n_o x n_o) and what it does to arrays over orientations (see out_of_sample_weights)."""
 
-    def __init__(self, orientations: ArrayLike, train: ArrayLike, model_type: type[TrilinearModel] = TrilinearModel) -> None:
+    def __init__(self, orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel) -> None:
         self.train = np.asarray(train, dtype=bool)
         self.model_name = model_type.name  # the model whose out-of-sample predictions W makes
         self.weights = out_of_sample_weights(orientations, self.train, model_type)

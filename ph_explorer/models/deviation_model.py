@@ -43,6 +43,15 @@ def training_mask(campaign: Campaign, train: ArrayLike | None) -> NDArray[np.boo
     return mask
 
 
+def save_arrays(directory: str | Path, file_name: str, **arrays: NDArray) -> Path:
+    """Write named arrays to directory/file_name (compressed .npz, no pickle); return the path."""
+    path = Path(directory) / file_name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as handle:
+        np.savez_compressed(handle, **arrays)
+    return path
+
+
 DRAW_CHUNK_VALUES = 2**21  # values drawn per block by draw_repetitions (16 MiB)
 
 

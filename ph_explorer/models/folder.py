@@ -32,6 +32,7 @@ MODEL_TYPES: dict[str, tuple[str, str, str]] = {
     "network": ("ph_explorer.models.network", "FourierNetwork", "network.safetensors"),
     "trilinear": ("ph_explorer.models.trilinear", "TrilinearModel", trilinear.FILE_NAME),
     "mean_curve": ("ph_explorer.models.trilinear", "MeanCurveModel", trilinear.MeanCurveModel.file_name),  # a hybrid's data part
+    "gp": ("ph_explorer.models.gaussian_process", "GaussianProcessModel", "gp.npz"),  # scikit-learn's
 }
 
 

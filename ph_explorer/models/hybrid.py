@@ -27,7 +27,7 @@ from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
-from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.crossval import ModelFactory, OutOfSampleSmoother
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
 from ph_explorer.models.folder import MODEL_TYPES, model_class
 from ph_explorer.models.least_squares import Design
@@ -141,7 +141,7 @@ class HybridModel(DeviationModel):
         self.geometry = campaign.geometry
         self.n_points = campaign.n_points
         touches = campaign_touches(campaign)
-        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_model))
+        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_model, campaign, mask))
         self.fit_targets_ = Design(self.smoother_.residual(campaign.deviations)[..., None], None)
         if self.effects:
             self._report("physical terms", 0.0)
@@ -237,11 +237,15 @@ class HybridModel(DeviationModel):
         return model
 
 
-def smoother_type(data_model: DeviationModel) -> type[TrilinearModel]:
+def smoother_type(data_model: DeviationModel, campaign: Campaign, train: NDArray[np.bool_]) -> ModelFactory:
     """The linear model whose out-of-sample weights stand for the data part in the physical fit: the
-    data part itself when it is linear in its data (trilinear, mean curve), else the trilinear
-    model (for the network, its nearest linear stand-in)."""
-    return type(data_model) if isinstance(data_model, TrilinearModel) else TrilinearModel
+    data part itself when it is linear in its data (trilinear, mean curve), or its linear smoother
+    when it has one (a Gaussian process with its kernel fixed, learnt now on the campaign), else the
+    trilinear model (for the network, its nearest linear stand-in)."""
+    if isinstance(data_model, TrilinearModel):
+        return type(data_model)
+    linear = getattr(data_model, "linear_smoother", None)
+    return linear(campaign, train) if linear is not None else TrilinearModel
 
 
 def make_data_model(data_model: DataModel) -> DeviationModel:

@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_keys
 from ph_explorer.geometry import point_angles_deg, wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, save_arrays, training_mask
 
 FILE_NAME = "trilinear.npz"
 
@@ -166,19 +166,16 @@ class TrilinearModel(DeviationModel):
     def save(self, directory: str | Path) -> Path:
         if self.mean_table is None:
             raise RuntimeError("the trilinear model is not fitted")
-        path = Path(directory) / self.file_name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "wb") as handle:
-            np.savez_compressed(
-                handle,
-                a_axis=self.a_axis,
-                b_axis=self.b_axis,
-                mean_table=self.mean_table,
-                sigma_table=self.sigma_table,
-                measured=self.measured,
-                n_points=np.array(self.n_points),
-            )
-        return path
+        return save_arrays(
+            directory,
+            self.file_name,
+            a_axis=self.a_axis,
+            b_axis=self.b_axis,
+            mean_table=self.mean_table,
+            sigma_table=self.sigma_table,
+            measured=self.measured,
+            n_points=np.array(self.n_points),
+        )
 
     @classmethod
     def load(cls, directory: str | Path) -> Self:

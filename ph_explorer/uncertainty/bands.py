@@ -26,7 +26,7 @@ from ph_explorer.uncertainty.model_error import (
     MIN_CALIBRATION_RINGS,
     OutOfSampleError,
     harmonic_power,
-    out_of_sample_error,
+    own_error,
     random_phase_curves,
 )
 from ph_explorer.uncertainty.montecarlo import MAX_TRIALS, adaptive_monte_carlo
@@ -231,7 +231,7 @@ def _variance_parts(
     if sources.error is None or "model" not in components:
         return fixed, None, None
     harmonics = slice(2, n_points // 2 + 1)
-    power = np.maximum(sources.error.weights(o) @ sources.error.power, 0.0)[:, harmonics]
+    power = sources.error.base_power(o)[:, harmonics]
     q = None if roots is None else harmonic_power(np.swapaxes(roots, 1, 2)).sum(axis=1)[:, harmonics]
     return fixed, power, q
 
@@ -299,11 +299,11 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
 def calibrated_model_error(
     make_model: Callable[[], DeviationModel], model: DeviationModel, campaign: Campaign, train: ArrayLike, level: float = 0.95
 ) -> OutOfSampleError:
-    """A model's own error out of sample (`models.model_error.out_of_sample_error` on the training
+    """A model's own error (`model_error.own_error`: its posterior's, or out of sample on the training
     rings), its size calibrated on the campaign's rings left out of training (`calibrate_model_error`;
-    with fewer than MIN_CALIBRATION_RINGS of them, the cross-validation's size). `model` is the one
+    with fewer than MIN_CALIBRATION_RINGS of them, the size before calibration). `model` is the one
     fitted on `train`, `make_model` makes an unfitted one for the cross-validation."""
-    error = out_of_sample_error(make_model, campaign, train)
+    error = own_error(make_model, model, campaign, train)
     held = ~np.asarray(train, dtype=bool)
     sources = Sources(model, campaign.n_repetitions, error)
     return calibrate_model_error(sources, campaign.orientations[held], campaign.mean_curves()[held], level).error  # type: ignore[return-value]

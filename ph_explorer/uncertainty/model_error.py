@@ -97,9 +97,13 @@ class OutOfSampleError:
         """(m, n_rings) kernel weights in A, rows summing to 1."""
         return a_kernel(as_orientations(orientations)[:, 0], self.orientations[:, 0], self.width_deg)
 
+    def base_power(self, orientations: ArrayLike) -> NDArray[np.float64]:
+        """(m, N//2 + 1) the error power per harmonic at each orientation before calibration, um^2, >= 0."""
+        return np.maximum(self.weights(orientations) @ self.power, 0.0)
+
     def variance(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, N//2 + 1) the model's error power per harmonic at each orientation, um^2, >= 0."""
-        return self.scale_at(orientations)[:, None] * np.maximum(self.weights(orientations) @ self.power, 0.0)
+        return self.scale_at(orientations)[:, None] * self.base_power(orientations)
 
     def scale_at(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m,) the variance's calibration scale at each orientation: local where check rings scored it."""
@@ -146,6 +150,38 @@ class OutOfSampleError:
                 f"{prefix}.calibration_scores": self.calibration_scores,
             }
         )
+
+
+@dataclass(frozen=True)
+class PosteriorError(OutOfSampleError):
+    """A model's own error from its posterior (a Gaussian process: `model.variance`), not from a
+    cross-validation: at any orientation, the posterior's per-point variance spread over harmonics
+    2..N/2 as white noise spreads it. Calibrated on held-out rings as the cross-validation's is;
+    `power` holds it at the training rings (what `weights` and a saved file would read)."""
+
+    model: DeviationModel | None = None  # with variance(orientations, n_points) -> (m, N) um^2
+
+    def base_power(self, orientations: ArrayLike) -> NDArray[np.float64]:
+        o = as_orientations(orientations)
+        return white_power(self.model.variance(o, self.n_points).mean(axis=1), self.n_points)  # type: ignore[union-attr]
+
+
+def white_power(variance: ArrayLike, n_points: int) -> NDArray[np.float64]:
+    """(..., N//2 + 1): a per-point variance (...,) after the circle fit, spread over harmonics 2..N/2
+    in the shares white noise has there (harmonics 0 and 1 hold nothing)."""
+    share = white_noise_power(1.0, n_points)
+    share[:2] = 0.0
+    return np.asarray(variance, dtype=float)[..., None] * share / share.sum()
+
+
+def own_error(make_model: Callable[[], DeviationModel], model: DeviationModel, campaign: Campaign, train: ArrayLike) -> OutOfSampleError:
+    """A model's own error before calibration: its posterior's when it has one (PosteriorError), else
+    the cross-validation's (out_of_sample_error, with `make_model` for its refits)."""
+    mask = np.asarray(train, dtype=bool)
+    if not callable(getattr(model, "variance", None)):
+        return out_of_sample_error(make_model, campaign, mask)
+    o = campaign.orientations[mask]
+    return PosteriorError(o, white_power(model.variance(o, campaign.n_points).mean(axis=1), campaign.n_points), a_step(o), model=model)
 
 
 def a_kernel(a_deg: ArrayLike, centres_a_deg: ArrayLike, width_deg: float) -> NDArray[np.float64]:
