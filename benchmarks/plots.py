@@ -149,7 +149,7 @@ def calibration_plot(results: dict[str, Any], path: Path) -> Path:
 def peers_plot(results: dict[str, Any], path: Path) -> Path:
     """Check-ring MAE over the noise floor (mean reference) of each model and peer, per campaign."""
     rows = results["peers"]["campaigns"]
-    names = ["network", "trilinear", "mean_curve", "hybrid_before", "hybrid_after", "rbf", "gp"]
+    names = list(rows[0]["models"]) if rows else []  # the project's models, then the peers, as the run stored them
     fig, ax = plt.subplots(figsize=(13, 1.2 + 0.7 * len(rows)))
     height = 0.8 / len(names)
     for j, name in enumerate(names):

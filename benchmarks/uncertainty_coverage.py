@@ -31,6 +31,7 @@ from ph_explorer.cluster import run_tasks
 from ph_explorer.io import read_campaign
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_card, load_models
+from ph_explorer.models.gaussian_process import GaussianProcessModel
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
@@ -76,6 +77,7 @@ def factories(scenario: Scenario, config: NetworkConfig) -> dict[str, Callable[[
         "trilinear": TrilinearModel,
         "network": partial(FourierNetwork, config),
         "hybrid": partial(HybridModel, known_effects(scenario), "trilinear"),
+        "gp": GaussianProcessModel,  # its model error from its posterior, not the cross-validation
     }
 
 
@@ -230,6 +232,7 @@ def run(client: Client, quick: bool = False, log: Callable[[str], None] = print)
         "method": "model error from the cross-validation in 5 folds and along A per harmonic, kernel in A (one lattice step), "
         "its variance scaled (localized split-conformal: the 95 % quantile of the scales the mean-curve points of the OTHER "
         "held-out rings need, weighted in A with the width those rings choose by leaving one ring out) (leave one ring out); "
+        "the Gaussian process's from its posterior variance, spread over harmonics 2..N/2 as white noise and scaled the same way; "
         "hybrid parameters by the ring jackknife; adaptive Monte Carlo JCGM 101 7.9 (ndig 1, batches of 10^4)",
         "components": list(COMPONENTS),
         "target": list(TARGET),

@@ -283,7 +283,7 @@ def check_uncertainty_coverage(results: dict) -> None:
     assert coverage["mode"] == "quick" and coverage["target"] == [0.93, 0.97]
     assert set(coverage["campaigns"]) == {"paper (shipped data and model)", "head_3"}
     for models in coverage["campaigns"].values():
-        assert set(models) == {"trilinear", "network", "hybrid"}
+        assert set(models) == {"trilinear", "network", "hybrid", "gp"}
         for figures in models.values():
             assert figures["model_error_scale"]["calibration_rings"] >= 1 and figures["model_error_scale"]["min"] >= 0
             for band in ("full_band", "noise_only_band", "cross_validation_only_band"):
@@ -316,10 +316,20 @@ def check_peers(results: dict) -> None:
     peers = results["peers"]
     assert peers["mode"] == "quick" and [r["campaign"] for r in peers["campaigns"]] == ["head_3"]
     row = peers["campaigns"][0]
-    assert set(row["models"]) == {"network", "trilinear", "mean_curve", "hybrid_before", "hybrid_after", "rbf", "gp"}
+    assert set(row["models"]) == {
+        "network",
+        "trilinear",
+        "mean_curve",
+        "gaussian_process",
+        "hybrid_before",
+        "hybrid_after",
+        "hybrid_after_gp",
+        "rbf",
+        "gp",
+    }
     for scores in row["models"].values():
         assert scores["over_floor"]["mean"] > 0.5 and scores["mae_um"]["single"] > scores["mae_um"]["mean"] and scores["fit_s"] >= 0
-    for band in (row["gp_band"], row["monte_carlo_band"]):
+    for band in (row["gp_band"], row["monte_carlo_band"], row["gaussian_process_band"]):
         assert 0 < band["coverage"]["mean"] <= 1 and 0 < band["mean_half_width_um"]["mean"] < band["mean_half_width_um"]["single"]
     assert row["hidden"]["id"] == "b_axis_cyclic" and row["ratio_best_project_to_best_peer"] > 0
     assert row["diagnosis_after"]["over_floor"]["mean"] > 0.5
