@@ -116,7 +116,8 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
     import torch
 
     from benchmarks import scale, speed
-    from ph_explorer.app.server import build_server
+    from ph_explorer.app.server import ExplorerApp, build_server
+    from ph_explorer.models.gaussian_process import GaussianProcessModel
     from ph_explorer.models.network import FourierNetwork
     from ph_explorer.models.trilinear import TrilinearModel
 
@@ -181,6 +182,21 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
             room["clients"] = load["clients"]
             results["scale_100"] = room
             log(f"  {json.dumps(room)}")
+            # The same browsers with the Gaussian process shown beside the models (issue 32): its
+            # curves, too, read from a lattice built when it loads.
+            dataset = app.dataset
+            gp = GaussianProcessModel().fit(dataset.campaign, dataset.train_mask)
+            gp_app = ExplorerApp(dataset.with_model("gp", gp), port=0)
+            try:
+                shown = scale.drive(gp_app, n_browsers, 20.0, seconds)
+            finally:
+                gp_app.stop()
+            load["with_gp"] = {
+                "models": gp_app.dataset.model_names,
+                **{k: shown[k] for k in ("lattice", "latency_ms", "server_update_ms", "renders_per_update", "errors")},
+                "holds": bool(shown["errors"] == 0 and (shown["latency_ms"]["p95"] or 1e9) <= LATENCY_TARGET_MS),
+            }
+            log(f"  with the GP shown {json.dumps(load['with_gp'])}")
             # The previous design in the same run: the same app with its lattices dropped, so every
             # slider move predicts its models on demand (as before the lattice cache).
             app.dataset.drop_lattices()

@@ -751,3 +751,28 @@ def test_serve_refuses_a_bad_effect_file_in_one_line_before_serving(tmp_path) ->
     )
     assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, (done.stdout, done.stderr)
     assert "effects file not found" in done.stderr and "serving" not in done.stdout
+
+
+def test_a_gaussian_process_in_the_data_is_drawn_with_its_band_from_its_posterior(dataset: Dataset) -> None:
+    """A model folder with a GP (`train --data-part gp`): its checkbox and curve appear, its band's
+    model component comes from its posterior (no cross-validation), and the map offers its check-ring
+    MAE over the floor."""
+    from ph_explorer.models.gaussian_process import GaussianProcessModel
+    from ph_explorer.uncertainty.model_error import PosteriorError
+
+    gp = GaussianProcessModel().fit(dataset.campaign, dataset.train_mask)
+    explorer = ExplorerApp(dataset.with_model("gp", gp), host="127.0.0.1", port=0)
+    try:
+        fake, s = open_session(explorer)
+        assert s.dataset.model_names == ["trilinear", "gp"]
+        assert [name for name, box in s.controls.show.items() if box.visible] == ["measured", "trilinear", "gp"]
+        s.go_to(43.0, 90.0)
+        assert s.ring.curves["gp"].visible
+        assert isinstance(s.dataset.model_error("gp"), PosteriorError)
+        lower, upper = s.dataset.band("gp", 43.0, 90.0)
+        bare = s.dataset.band("gp", 43.0, 90.0, with_model_error=False)
+        assert (upper - lower > bare[1] - bare[0]).all()
+        assert "gp MAE / noise floor, check rings" in s.dataset.figure_names()
+        fake.close()
+    finally:
+        explorer.stop()

@@ -189,6 +189,9 @@ def check_scale(results: dict) -> None:
     assert scale["browsers"] == 2 and scale["sessions_connected"] == 2 and scale["browsers_completed"] == 2
     assert scale["errors"] == 0 and scale["renders"] > 0
     assert scale["p95_target_ms"] == 50 and scale["server_p95_target_ms"] == 2 and isinstance(scale["holds"], bool)
+    with_gp = scale["with_gp"]  # the same browsers with the Gaussian process shown, its curves from a lattice too
+    assert with_gp["models"][-1] == "gp" and "gp" in with_gp["lattice"]["models"] and with_gp["errors"] == 0
+    assert with_gp["latency_ms"]["p95"] > 0 and isinstance(with_gp["holds"], bool)
     previous = scale["previous_design"]  # the same browsers without the lattice cache, in the same run
     assert previous["errors"] == 0 and previous["latency_ms"]["p95"] > 0 and previous["design"].startswith("on-demand")
     room = results["scale_100"]

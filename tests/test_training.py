@@ -31,12 +31,12 @@ def data(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def trained(data, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("models") / "lobing"
-    assert train_command(data, out, network_config=QUICK, quiet=True) == 0
+    assert train_command(data, out, network_config=QUICK, quiet=True, data_part="gp") == 0  # the GP beside them
     return out
 
 
 def test_train_writes_the_model_folder_and_card(data, trained):
-    assert sorted(p.name for p in trained.iterdir()) == ["card.json", "network.safetensors", "trilinear.npz", "uncertainty.npz"]
+    assert sorted(p.name for p in trained.iterdir()) == ["card.json", "gp.npz", "network.safetensors", "trilinear.npz", "uncertainty.npz"]
     card = load_card(trained)
     import hashlib
 
@@ -45,7 +45,7 @@ def test_train_writes_the_model_folder_and_card(data, trained):
     assert card["network"]["K"] == 8 and card["network"]["epochs"] == 8
     assert card["network"]["hyperparameters"]["hidden"] == [256, 256, 128]
     assert card["training_seconds"]["total"] > 0 and card["geometry"]["pivot_to_ball_mm"] == 80.0
-    assert set(load_models(trained)) == {"network", "trilinear"}
+    assert set(load_models(trained)) == {"network", "trilinear", "gp"}
     # No held-out ring was seen by either model.
     held = np.array(CHECKS)
     assert not np.isin(card["network"]["validation_orientations"], held).all(axis=1).any()
@@ -60,7 +60,7 @@ def test_card_agrees_with_evaluate_json(data, trained, capsys):
     assert report["orientations"] == card["metrics"]["orientations"]
     row = report["orientations"][0]
     assert set(row) == {"A_deg", "B_deg", "range_um", "max_abs_um", "mae_um"}
-    assert set(row["range_um"]) == {"measured", "network", "trilinear"}
+    assert set(row["range_um"]) == {"measured", "network", "trilinear", "gp"}  # the folder holds the GP too
     assert set(row["mae_um"]["network"]) == {"mean", "single"}
 
 
@@ -208,3 +208,24 @@ def test_max_epochs_caps_the_networks_training(data, tmp_path):
     assert load_card(out)["network"]["epochs"] == 3
     bad = CliRunner().invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "none"), "--max-epochs", "0"])
     assert bad.exit_code == 2 and "--max-epochs" in bad.output and not (tmp_path / "none").exists()
+
+
+def test_train_with_the_gp_data_part_writes_it_and_its_own_error(data, trained, tmp_path):
+    """`train --data-part gp` (the `trained` folder): the Gaussian process beside the two models, its
+    kernel on the card, its error from its posterior (read back with its model), in evaluate's tables
+    and in `uncertainty`; an unknown part is one line and nothing is written."""
+    from ph_explorer.uncertainty.model_error import PosteriorError, load_errors
+
+    assert "Matern" in load_card(trained)["gp"]["kernel"]
+    models = load_models(trained)
+    errors, _ = load_errors(trained, models)
+    assert isinstance(errors["gp"], PosteriorError) and errors["gp"].model is models["gp"]
+    assert "gp" not in load_errors(trained)[0]  # without its model a posterior's error cannot be read
+    runner = CliRunner()
+    report = json.loads(runner.invoke(app, ["evaluate", "--model", str(trained), "--data", str(data), "--json"]).stdout)
+    assert set(report["orientations"][0]["mae_um"]) == {"network", "trilinear", "gp"}
+    bands = runner.invoke(app, ["uncertainty", "--model", str(trained), "--orientations", "43:91", "--json", "--seed", "1"])
+    assert bands.exit_code == 0, bands.output
+    assert [b["model"] for b in json.loads(bands.stdout)["bands"]] == ["network", "trilinear", "gp"]
+    bad = runner.invoke(app, ["train", "--data", str(data), "--out", str(tmp_path / "other"), "--data-part", "forest"])
+    assert bad.exit_code == 2 and "--data-part" in bad.output and not (tmp_path / "other").exists()

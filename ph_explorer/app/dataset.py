@@ -36,10 +36,10 @@ from ph_explorer.models.lattice import BuildStopped, PredictionLattice, build_cp
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paper.tables import tables_at
 from ph_explorer.uncertainty.bands import Sources, calibrated_model_error, gaussian_band
-from ph_explorer.uncertainty.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, load_errors
+from ph_explorer.uncertainty.model_error import FILE_NAME as ERRORS_FILE, FOLDS, OutOfSampleError, has_posterior, load_errors
 from ph_explorer.uncertainty.task import COVERAGE_FACTOR, measured_task, task_uncertainty
 
-MODEL_ORDER = ("network", "trilinear", "hybrid")
+MODEL_ORDER = ("network", "trilinear", "gp", "hybrid")
 # The map's own figures (a model's are named after it); the first is where the map starts.
 LOO_FIGURE = "trilinear MAE, leave-one-out"
 LOO_RATIO_FIGURE = "trilinear MAE / noise floor, leave-one-out"
@@ -229,14 +229,15 @@ class Dataset:
         return tables_at(self.campaign, {n: self.models[n] for n in self.model_names}, idx, curves)
 
     def model_error(self, model: str) -> OutOfSampleError | None:
-        """The model's out-of-sample error: from its folder, or (trilinear) by the cross-validation of
-        the training rings calibrated on the held-out ones, made on first use; else None."""
+        """The model's own error: from its folder, or (trilinear) by the cross-validation of the
+        training rings, (a GP) from its posterior, calibrated on the held-out ones, made on first use; else None."""
         with self._lock:
             if model in self.errors:
                 return self.errors[model]
-        if model != "trilinear" or int(self.train_mask.sum()) < 2 * FOLDS:
+        own = self.models[model]
+        if not (model == "trilinear" or has_posterior(own)) or int(self.train_mask.sum()) < 2 * FOLDS:
             return None
-        error = calibrated_model_error(TrilinearModel, self.models[model], self.campaign, self.train_mask)
+        error = calibrated_model_error(type(own), own, self.campaign, self.train_mask)
         with self._lock:
             return self.errors.setdefault(model, error)
 
@@ -368,7 +369,7 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     notes = [*(notes or []), *found]
     errors: dict[str, OutOfSampleError] = {}
     if model_dir is not None and (Path(model_dir) / ERRORS_FILE).is_file():
-        errors = {name: error for name, error in load_errors(Path(model_dir))[0].items() if name in models}
+        errors = {name: error for name, error in load_errors(Path(model_dir), models)[0].items() if name in models}
     return Dataset(campaign, models, label, notes, train, errors)
 
 

@@ -54,6 +54,7 @@ class ControlsPanel:
                     ("measured", "Measured mean"),
                     ("network", "Network"),
                     ("trilinear", "Trilinear"),
+                    ("gp", "Gaussian process"),
                     ("hybrid", "Hybrid"),
                 )
             }

@@ -56,7 +56,7 @@ def theta_arrow(radius_mm: float) -> NDArray[np.float64]:
 class RingScene:
     """The ring gauge with its axis along the stylus, and the polar chart of the curves in its plane."""
 
-    CURVES = ("measured", "network", "trilinear", "hybrid")
+    CURVES = ("measured", "network", "trilinear", "gp", "hybrid")
 
     def __init__(self, scene: viser.SceneApi, geometry: Geometry) -> None:
         self.scene = scene

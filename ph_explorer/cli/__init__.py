@@ -183,10 +183,24 @@ def _train(
         Optional[int],
         typer.Option(min=1, help="Stop the network's training after this many epochs (default: the paper's early stopping, at most 2000)."),
     ] = None,
+    data_part: Annotated[
+        Optional[str],
+        typer.Option(help="Also fit this data-driven part beside them, for the explorer and evaluate: gp (a Gaussian process, gp.npz)."),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Train the paper's network and the trilinear + Monte Carlo model on a campaign."""
-    _run("train", train.train_command, data=data, out=out, holdout=holdout, seed=seed, geometry=geometry, max_epochs=max_epochs)
+    _run(
+        "train",
+        train.train_command,
+        data=data,
+        out=out,
+        holdout=holdout,
+        seed=seed,
+        geometry=geometry,
+        max_epochs=max_epochs,
+        data_part=data_part,
+    )
 
 
 @app.command("evaluate")

@@ -32,12 +32,16 @@ def train_command(
     network_config: NetworkConfig | None = None,
     quiet: bool = False,
     max_epochs: int | None = None,
+    data_part: str | None = None,
 ) -> int:
-    """Train on every orientation but the holdout, write the folder (models + card), print the tables."""
+    """Train on every orientation but the holdout, write the folder (models + card), print the tables;
+    with data_part gp, the Gaussian process beside them (trilinear and network are always trained)."""
     # torch: imported when the command runs, so that the CLI (and inspect) works without it.
+    from ph_explorer.diagnosis.campaign_file import check_data_part
     from ph_explorer.models.network import NetworkConfig
     from ph_explorer.paper.training import build_card, model_errors, save_models, train_models
 
+    parts = tuple(p for p in [check_data_part(data_part)] if p not in ("trilinear", "network")) if data_part else ()
     if Path(out).exists() and not Path(out).is_dir():
         raise InputError("must be a folder (it exists as a file)", file=str(out), option="--out")
     campaign = read_campaign(Path(data), geometry or {})
@@ -52,7 +56,7 @@ def train_command(
         config = replace(config, max_epochs=max_epochs)
 
     with progress_bar(config.max_epochs, quiet) as progress:
-        models, seconds = train_models(campaign, ~mask, seed, progress, config)
+        models, seconds = train_models(campaign, ~mask, seed, progress, config, parts)
     card = build_card(campaign, Path(data), mask, source, seed, models, seconds)
     if not quiet:
         print(

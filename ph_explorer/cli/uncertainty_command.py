@@ -47,7 +47,7 @@ def uncertainty_report(model: Path, orientations: str, level: float = 0.95, seed
             file=str(directory),
             option="--model",
         )
-    errors, repetitions = load_errors(directory)
+    errors, repetitions = load_errors(directory, models)
     if (directory / SUBFOLDER / "hybrid.json").is_file() and "hybrid" in errors:
         models["hybrid"] = HybridModel.load(directory)
     rng = np.random.default_rng(seed)

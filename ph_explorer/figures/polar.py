@@ -38,19 +38,21 @@ CURVE_COLORS: dict[str, tuple[int, int, int]] = {
     "network": (31, 119, 180),
     "trilinear": (230, 120, 20),
     "hybrid": (40, 160, 60),
+    "gp": (148, 103, 189),
     "reference": (120, 120, 120),
 }
 BAND_COLORS: dict[str, tuple[int, int, int]] = {
     "network": (150, 190, 235),
     "trilinear": (250, 200, 150),
     "hybrid": (160, 220, 160),
+    "gp": (215, 195, 235),
 }
 LEGEND_LABELS = {
     "measured": "measured mean",
     "repetitions": "each repetition",
     "reference": "LS reference circle (dashed: scale circles, um)",
 }
-CURVE_ORDER = ("measured", "network", "trilinear", "hybrid")
+CURVE_ORDER = ("measured", "network", "trilinear", "gp", "hybrid")
 
 
 def curve_color(name: str) -> tuple[int, int, int]:

@@ -13,12 +13,14 @@ Method: docs/methods/gaussian_process.md.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import ClassVar, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Matern, WhiteKernel
 
@@ -54,7 +56,10 @@ def standardised(curves: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDAr
 def learnt_theta(x: NDArray[np.float64], curves: NDArray[np.float64]) -> NDArray[np.float64]:
     """The kernel's log hyperparameters by the marginal likelihood of the standardised curves."""
     learner = GaussianProcessRegressor(default_kernel(), n_restarts_optimizer=RESTARTS, random_state=0)
-    return learner.fit(x, standardised(curves)[0]).kernel_.theta
+    with warnings.catch_warnings():
+        # A length scale at its upper bound says that feature does not matter: an answer, not a failure.
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        return learner.fit(x, standardised(curves)[0]).kernel_.theta
 
 
 @dataclass(frozen=True)

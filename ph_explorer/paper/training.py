@@ -24,7 +24,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.io.files import file_sha256
 from ph_explorer.models import network as network_module
 from ph_explorer.models.deviation_model import DeviationModel
-from ph_explorer.models.folder import CARD_FORMAT, CARD_NAME, load_models
+from ph_explorer.models.folder import CARD_FORMAT, CARD_NAME, load_models, model_class
 from ph_explorer.models.network import FourierNetwork, NetworkConfig, ProgressCallback
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paper.tables import evaluation_report, mean_mae
@@ -38,8 +38,10 @@ def train_models(
     seed: int = 0,
     progress: ProgressCallback | None = None,
     network_config: NetworkConfig | None = None,
+    data_parts: tuple[str, ...] = (),
 ) -> tuple[dict[str, DeviationModel], dict[str, float]]:
-    """Fit both models on the training orientations; return them and their training times (s)."""
+    """Fit both models on the training orientations, and the data parts asked for beside them (gp:
+    the Gaussian process); return them and their training times (s)."""
     config = network_config or NetworkConfig()
     config = NetworkConfig.from_dict({**config.as_dict(), "seed": seed})
     seconds = {}
@@ -49,7 +51,12 @@ def train_models(
     start = time.perf_counter()
     network = FourierNetwork(config, progress=progress).fit(campaign, train)
     seconds["network"] = time.perf_counter() - start
-    return {"network": network, "trilinear": trilinear}, seconds
+    models: dict[str, DeviationModel] = {"network": network, "trilinear": trilinear}
+    for name in data_parts:
+        start = time.perf_counter()
+        models[name] = model_class(name)().fit(campaign, train)
+        seconds[name] = time.perf_counter() - start
+    return models, seconds
 
 
 def model_errors(
@@ -66,6 +73,7 @@ def model_errors(
     `models` fitted on `train`; with none left out it stays the cross-validation's."""
     config = NetworkConfig.from_dict({**(network_config or NetworkConfig()).as_dict(), "seed": seed})
     makers = {"network": partial(FourierNetwork, config), "trilinear": TrilinearModel}
+    makers |= {name: model_class(name) for name in models if name not in makers}  # a GP's error is its posterior's
     return {name: calibrated_model_error(make, models[name], campaign, train) for name, make in makers.items()}
 
 
@@ -126,6 +134,7 @@ def build_card(
             "b_axis_deg": trilinear.b_axis.tolist(),
             "filled_nodes": int((~trilinear.measured).sum()),
         },
+        **({"gp": {"kernel": str(models["gp"].regressor_.kernel_)}} if "gp" in models else {}),  # type: ignore[attr-defined]
         "metrics": {**report, "average_mae_um": mean_mae(report)},
     }
 

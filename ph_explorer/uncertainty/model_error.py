@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import Campaign, lattice_axes
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.models.crossval import cross_val_predict
-from ph_explorer.models.deviation_model import DeviationModel, as_orientations
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, save_arrays
 
 FILE_NAME = "uncertainty.npz"
 # Groups of the cross-validation: every FOLDS-th training ring in measuring order left out together
@@ -165,6 +165,9 @@ class PosteriorError(OutOfSampleError):
         o = as_orientations(orientations)
         return white_power(self.model.variance(o, self.n_points).mean(axis=1), self.n_points)  # type: ignore[union-attr]
 
+    def arrays(self, prefix: str) -> dict[str, NDArray[np.float64]]:
+        return {**super().arrays(prefix), f"{prefix}.posterior": np.array(True)}  # read back with its model (load_errors)
+
 
 def white_power(variance: ArrayLike, n_points: int) -> NDArray[np.float64]:
     """(..., N//2 + 1): a per-point variance (...,) after the circle fit, spread over harmonics 2..N/2
@@ -174,11 +177,16 @@ def white_power(variance: ArrayLike, n_points: int) -> NDArray[np.float64]:
     return np.asarray(variance, dtype=float)[..., None] * share / share.sum()
 
 
+def has_posterior(model: DeviationModel) -> bool:
+    """Whether the model knows its own error at any orientation (a posterior variance: a GP)."""
+    return callable(getattr(model, "variance", None))
+
+
 def own_error(make_model: Callable[[], DeviationModel], model: DeviationModel, campaign: Campaign, train: ArrayLike) -> OutOfSampleError:
     """A model's own error before calibration: its posterior's when it has one (PosteriorError), else
     the cross-validation's (out_of_sample_error, with `make_model` for its refits)."""
     mask = np.asarray(train, dtype=bool)
-    if not callable(getattr(model, "variance", None)):
+    if not has_posterior(model):
         return out_of_sample_error(make_model, campaign, mask)
     o = campaign.orientations[mask]
     return PosteriorError(o, white_power(model.variance(o, campaign.n_points).mean(axis=1), campaign.n_points), a_step(o), model=model)
@@ -306,21 +314,23 @@ def out_of_sample_error(
 
 def save_errors(errors: Mapping[str, OutOfSampleError], directory: str | Path, n_repetitions: int) -> Path:
     """Write every model's error (name -> OutOfSampleError) into directory/uncertainty.npz (no pickle)."""
-    path = Path(directory) / FILE_NAME
     arrays: dict[str, NDArray] = {"n_repetitions": np.array(int(n_repetitions)), "models": np.array(sorted(errors))}
     for name, error in errors.items():
         arrays.update(error.arrays(name))
-    with open(path, "wb") as handle:
-        np.savez_compressed(handle, **arrays)
-    return path
+    return save_arrays(directory, FILE_NAME, **arrays)
 
 
-def load_errors(directory: str | Path) -> tuple[dict[str, OutOfSampleError], int]:
-    """(name -> OutOfSampleError, repetitions of the training campaign) from directory/uncertainty.npz."""
+def load_errors(directory: str | Path, models: Mapping[str, DeviationModel] | None = None) -> tuple[dict[str, OutOfSampleError], int]:
+    """(name -> OutOfSampleError, repetitions of the training campaign) from directory/uncertainty.npz.
+    A model's error from its posterior (PosteriorError) needs the model (`models`), else it is left out."""
     with np.load(Path(directory) / FILE_NAME, allow_pickle=False) as data:
-        # Files written before the calibration off the lattice have no scale: 1, not calibrated.
-        errors = {
-            str(name): OutOfSampleError(
+        errors = {}
+        for name in (str(n) for n in data["models"]):
+            posterior = bool(data[f"{name}.posterior"]) if f"{name}.posterior" in data else False
+            if posterior and (models is None or name not in models):
+                continue
+            # Files written before the calibration off the lattice have no scale: 1, not calibrated.
+            error = OutOfSampleError(
                 data[f"{name}.orientations"],
                 data[f"{name}.power"],
                 float(data[f"{name}.width_deg"]),
@@ -332,6 +342,5 @@ def load_errors(directory: str | Path) -> tuple[dict[str, OutOfSampleError], int
                 float(data[f"{name}.calibration_level"]) if f"{name}.calibration_level" in data else 0.95,
                 float(data[f"{name}.calibration_width_deg"]) if f"{name}.calibration_width_deg" in data else float("inf"),
             )
-            for name in data["models"]
-        }
+            errors[name] = PosteriorError(**vars(error), model=models[name]) if posterior else error  # type: ignore[index]
         return errors, int(data["n_repetitions"])
