@@ -78,6 +78,29 @@ def test_it_learns_a_lobing_that_turns_with_the_probe_at_a_zero() -> None:
     assert (error < 0.1 * 0.4 * 2 / np.pi).all(), error  # within a tenth of the pattern's mean size
 
 
+def test_the_same_data_learns_its_kernel_once(campaign, fitted, monkeypatch) -> None:
+    """A diagnosis fits its baseline and every step on the same rings: the likelihood is maximised
+    once for them, and other data gets a kernel of its own."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    from ph_explorer.models import gaussian_process
+
+    learnt = []
+    fit = GaussianProcessRegressor.fit
+
+    def counted(self, x, y):
+        learnt.append(self.optimizer is not None)
+        return fit(self, x, y)
+
+    monkeypatch.setattr(GaussianProcessRegressor, "fit", counted)
+    train = ~campaign.holdout_mask()
+    again = GaussianProcessModel().fit(campaign, train)
+    assert not any(learnt) and np.array_equal(again.theta, fitted.theta)  # read back, not learnt
+    other = dataclasses.replace(campaign, deviations=campaign.deviations * 1.5)
+    GaussianProcessModel().fit(other, train)
+    assert learnt.count(True) == 1 and len(gaussian_process._THETAS) <= gaussian_process.THETAS_KEPT
+
+
 def test_its_files_hold_no_pickle_and_give_the_same_curves_and_variance(fitted, tmp_path) -> None:
     path = fitted.save(tmp_path)
     with zipfile.ZipFile(path) as archive:

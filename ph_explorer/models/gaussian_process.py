@@ -13,6 +13,8 @@ Method: docs/methods/gaussian_process.md.
 
 from __future__ import annotations
 
+import hashlib
+import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,13 +55,30 @@ def standardised(curves: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDAr
     return (curves - mean) / scale, mean, scale
 
 
+# The last few kernels learnt, by their data: a diagnosis fits its baseline and each step's hybrid
+# on the same training rings, and the likelihood's restarts take a second or more each time.
+_THETAS: dict[bytes, NDArray[np.float64]] = {}
+THETAS_KEPT = 16
+_THETAS_LOCK = threading.Lock()  # the explorer's sessions fit in threads
+
+
 def learnt_theta(x: NDArray[np.float64], curves: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The kernel's log hyperparameters by the marginal likelihood of the standardised curves."""
+    """The kernel's log hyperparameters by the marginal likelihood of the standardised curves
+    (the same data gives the same hyperparameters: learnt once, then read back)."""
+    key = hashlib.sha256(np.ascontiguousarray(x).tobytes() + np.ascontiguousarray(curves).tobytes()).digest()
+    with _THETAS_LOCK:
+        if key in _THETAS:
+            return _THETAS[key].copy()
     learner = GaussianProcessRegressor(default_kernel(), n_restarts_optimizer=RESTARTS, random_state=0)
     with warnings.catch_warnings():
         # A length scale at its upper bound says that feature does not matter: an answer, not a failure.
         warnings.simplefilter("ignore", ConvergenceWarning)
-        return learner.fit(x, standardised(curves)[0]).kernel_.theta
+        theta = learner.fit(x, standardised(curves)[0]).kernel_.theta
+    with _THETAS_LOCK:
+        while len(_THETAS) >= THETAS_KEPT:
+            _THETAS.pop(next(iter(_THETAS)))  # the oldest first
+        _THETAS[key] = theta.copy()
+    return theta
 
 
 @dataclass(frozen=True)
