@@ -41,7 +41,8 @@ def train_command(
     from ph_explorer.models.network import NetworkConfig
     from ph_explorer.paper.training import build_card, model_errors, save_models, train_models
 
-    parts = tuple(p for p in [check_data_part(data_part)] if p not in ("trilinear", "network")) if data_part else ()
+    part = check_data_part(data_part) if data_part else None
+    parts = (part,) if part not in (None, "trilinear", "network") else ()  # the two are always trained
     if Path(out).exists() and not Path(out).is_dir():
         raise InputError("must be a folder (it exists as a file)", file=str(out), option="--out")
     campaign = read_campaign(Path(data), geometry or {})

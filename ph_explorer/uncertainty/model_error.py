@@ -162,11 +162,15 @@ class PosteriorError(OutOfSampleError):
     model: DeviationModel | None = None  # with variance(orientations, n_points) -> (m, N) um^2
 
     def base_power(self, orientations: ArrayLike) -> NDArray[np.float64]:
-        o = as_orientations(orientations)
-        return white_power(self.model.variance(o, self.n_points).mean(axis=1), self.n_points)  # type: ignore[union-attr]
+        return posterior_power(self.model, as_orientations(orientations), self.n_points)  # type: ignore[arg-type]
 
     def arrays(self, prefix: str) -> dict[str, NDArray[np.float64]]:
         return {**super().arrays(prefix), f"{prefix}.posterior": np.array(True)}  # read back with its model (load_errors)
+
+
+def posterior_power(model: DeviationModel, orientations: NDArray[np.float64], n_points: int) -> NDArray[np.float64]:
+    """(m, N//2 + 1): a model's posterior variance at the orientations, per point averaged, as harmonic power (white_power)."""
+    return white_power(model.variance(orientations, n_points).mean(axis=1), n_points)  # type: ignore[attr-defined]
 
 
 def white_power(variance: ArrayLike, n_points: int) -> NDArray[np.float64]:
@@ -189,7 +193,7 @@ def own_error(make_model: Callable[[], DeviationModel], model: DeviationModel, c
     if not has_posterior(model):
         return out_of_sample_error(make_model, campaign, mask)
     o = campaign.orientations[mask]
-    return PosteriorError(o, white_power(model.variance(o, campaign.n_points).mean(axis=1), campaign.n_points), a_step(o), model=model)
+    return PosteriorError(o, posterior_power(model, o, campaign.n_points), a_step(o), model=model)
 
 
 def a_kernel(a_deg: ArrayLike, centres_a_deg: ArrayLike, width_deg: float) -> NDArray[np.float64]:
