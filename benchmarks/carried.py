@@ -60,7 +60,7 @@ from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, unit_campaign
 from ph_explorer.models.deviation_model import training_mask
-from ph_explorer.models.hybrid import HybridModel, fitted_basis, make_data_model, smoother_type
+from ph_explorer.models.hybrid import DataModel, HybridModel, fitted_basis, make_data_model, smoother_type
 from ph_explorer.models.least_squares import Design
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations
@@ -72,7 +72,7 @@ CARRIED_FOLDS = 10
 
 
 def cross_validated_curves(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
 ) -> NDArray[np.float64]:
     """Each training ring's out-of-sample curve (n_train, n_pt) um of a hybrid with these effects:
     every ring predicted by the hybrid fitted without it (crossval.cross_val_predict, strict:
@@ -84,14 +84,16 @@ def cross_validated_curves(
 
 
 def cross_validated_errors(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear"
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
 ) -> NDArray[np.float64]:
     """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with
     these effects (cross_validated_curves)."""
     return metrics.ring_mae(cross_validated_curves(effects, campaign, train, data_model), campaign.deviations[train])["mean"]
 
 
-def cross_validated_mae(effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: str = "trilinear") -> float:
+def cross_validated_mae(
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
+) -> float:
     """The mean of cross_validated_errors over the training rings."""
     return float(cross_validated_errors(effects, campaign, train, data_model).mean())
 
@@ -134,7 +136,7 @@ def _same(a: Effect, b: Effect) -> bool:
 class Identification:
     """What a campaign's touches identify of candidate terms (see the module docstring)."""
 
-    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None, data_model: str = "trilinear") -> None:
+    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None, data_model: DataModel = "trilinear") -> None:
         self.campaign = campaign
         self.touches = campaign_touches(campaign)
         every = np.ones(campaign.n_orientations, dtype=bool)
@@ -326,7 +328,7 @@ def _connected(effects: list[Effect], links: list[tuple[int, int]]) -> list[list
     return sorted(groups.values(), key=lambda g: effects.index(g[0]))
 
 
-def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_model: str = "trilinear") -> bool:
+def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_model: DataModel = "trilinear") -> bool:
     """Every fitted parameter of the hybrid with these effects within its plausible range."""
     if not effects:
         return True
@@ -334,10 +336,19 @@ def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_model: str
     return not any(e.implausible(p["params"]) for e, p in zip(model.effects, model.effect_parameters()))
 
 
+def fixed_data_part(data_model: DataModel, campaign: Campaign, train: NDArray[np.bool_]) -> DataModel:
+    """A data part with hyperparameters (the GP's kernel) as the factory of it with them learnt once
+    on the training rings, else the data part as given: every fold and every set of terms is then
+    cross-validated beside the same smoother, its kernel not re-learnt per fold (as the GP's
+    closed-form leave-one-out does: Rasmussen and Williams 2006, section 5.4.2)."""
+    linear = getattr(make_data_model(data_model), "linear_smoother", None)
+    return linear(campaign, train) if linear is not None else data_model
+
+
 def carried_effects(
     campaign: Campaign,
     effects: Sequence[Effect],
-    data_model: str = "trilinear",
+    data_model: DataModel = "trilinear",
     train: ArrayLike | None = None,
     identification: Identification | None = None,
 ) -> tuple[list[Effect], list[dict[str, Any]], list[dict[str, Any]], NDArray[np.float64]]:
@@ -354,6 +365,7 @@ def carried_effects(
     out-of-sample curves of the hybrid with the effects kept (cross_validated_curves).
     """
     mask = training_mask(campaign, train)
+    data_model = fixed_data_part(data_model, campaign, mask)
     fitted = campaign.subset(mask)
     check = identification if identification is not None else Identification(fitted, data_model=data_model)
     groups, report = check.groups(effects) if effects else ([], [])

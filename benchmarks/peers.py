@@ -19,6 +19,10 @@ training rings and predicts the curves of its check rings, which it never saw:
   physical fit but the other check rings in: what the loop shows a user; the goal "within 1.25x
   the floor where the hidden effect is found" is judged on it), and its nested cross-validation's
   "after" (each fold chose its effects without its rings);
+- hybrid stacked: the effects the diagnosis chose, kept per data part by the training rings'
+  own cross-validation, and the data part chosen among the trilinear tables, the mean curve and
+  the GP by the same cross-validation (benchmarks.stacking.carried_hybrid, the data-efficiency
+  benchmark's hybrid), its fit time including that choice;
 - rbf: scipy.interpolate.RBFInterpolator (thin-plate spline, no smoothing) and gp:
   sklearn.gaussian_process.GaussianProcessRegressor (constant x Matern 5/2 with one length scale
   per feature + white noise, normalised targets, hyperparameters by the log marginal likelihood,
@@ -46,6 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from benchmarks.large_campaign import QUICK_EPOCHS
+from benchmarks.stacking import carried_hybrid
 from benchmarks.uncertainty_coverage import QUICK_CHECK_RINGS, one_model
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
@@ -65,7 +70,7 @@ HEADS, QUICK_HEADS = 10, 0
 HEAD_SEED = 960_000  # seeds of their own: never the population's nor the calibration's
 HARMONICS = (2, 20)
 Z95 = 1.959964
-PROJECT = ("network", "trilinear", "mean_curve", "gaussian_process", "hybrid_before", "hybrid_after", "hybrid_after_gp")
+PROJECT = ("network", "trilinear", "mean_curve", "gaussian_process", "hybrid_before", "hybrid_after", "hybrid_after_gp", "hybrid_stacked")
 PEERS = ("rbf", "gp")
 GP_TARGET = (0.93, 0.97)
 
@@ -150,6 +155,7 @@ def peers_of(item: dict[str, Any], quick: bool) -> dict[str, Any]:
         "hybrid_before": lambda: HybridModel(known, "trilinear"),
         "hybrid_after": lambda: HybridModel(result.chain, "trilinear"),
         "hybrid_after_gp": lambda: HybridModel(result.chain, "gp"),
+        "hybrid_stacked": lambda: carried_hybrid(subset, result.chain)[0],  # its choice counted in its fit time
     }
     rows: dict[str, Any] = {}
     for name, make in makers.items():

@@ -1,25 +1,25 @@
 """The hybrid's data part by stacking: a weighted average of the hybrid with each linear data part,
-the weight chosen by the hybrid's own cross-validation.
+the weights chosen by the hybrid's own cross-validation.
 
 Beside physical terms, the data part learns what they leave. Two linear data parts stand at the
 ends of what a few rings can carry: the trilinear interpolation, which learns an orientation
 dependence no catalog term holds but carries the noise of the few rings around each prediction,
 and the mean curve of the training rings (models.trilinear.MeanCurveModel), which averages every
-ring's noise but learns nothing between them. On a dozen designed rings the rings' own
-cross-validation often cannot tell them apart (the paper scenario's 12 designed rings over 10
-noise draws: the mean curve's gain within one standard error in 7, -1.0 and -1.6 in two), while
-on the check rings one is 3-10 % worse than the other; which one depends on what the head does
-between the rings (there the interpolation; beside an uncatalogued error the mean curve, 17-19 %).
+ring's noise but learns nothing between them. Between them the Gaussian process with its kernel
+learnt once on the campaign and then fixed (models.gaussian_process.FixedKernel), a linear smoother
+whose length scales say how far apart two rings still tell each other something. On a dozen
+designed rings the rings' own cross-validation often cannot tell them apart (the paper scenario's
+12 designed rings over 10 noise draws: the mean curve's gain within one standard error in 7, -1.0
+and -1.6 in two), while on the check rings one is 3-10 % worse than another; which one depends on
+what the head does between the rings.
 
-So neither is chosen: the hybrid is the weighted average w * (hybrid with the trilinear) + (1 - w)
-* (hybrid with the mean curve), each with the terms it carries (models.carried.carried_effects),
-and w is the one that minimises the average of the two's out-of-sample predictions' MAE over the
-training rings (stacked generalisation: Wolpert 1992, Breiman 1996), on a grid of WEIGHT_STEP.
-The out-of-sample predictions are those the terms were chosen with: the weight costs no fit. A
-campaign that decides gets an end (w = 1 where only an interpolation learns the error; w = 0 where
-the terms carry the orientation dependence), an undecided one a blend. The MAE is convex, so the
-blend's error is at most the same average of the ends' errors, and it is below both where they err
-in different ways (the paper scenario's 12 designed rings: below both at 10 of 10 noise draws).
+So none is chosen: the hybrid is the weighted average of the hybrids with each data part, each with
+the terms it carries (benchmarks.carried.carried_effects), and the weights (tenths, on the simplex
+of three) are those that minimise the average of their out-of-sample predictions' MAE over the
+training rings (stacked generalisation: Wolpert 1992, Breiman 1996). The out-of-sample predictions
+are those the terms were chosen with: the weights cost no fit. A tie goes to the interpolation, then
+to the mean curve. The MAE is convex, so the blend's error is at most the same average of the ends'
+errors, and it is below them where they err in different ways.
 """
 
 from __future__ import annotations
@@ -32,8 +32,7 @@ from typing import Any, Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from benchmarks.carried import carried_effects, gain_beyond_noise
-from ph_explorer import metrics
+from benchmarks.carried import carried_effects, fixed_data_part, gain_beyond_noise
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect, effect_label
 from ph_explorer.kinematics import Touches
@@ -41,8 +40,8 @@ from ph_explorer.models.deviation_model import DeviationModel, training_mask
 from ph_explorer.models.hybrid import HybridModel
 
 # The data parts linear in their data (out-of-sample weights), the default first: the interpolation
-# learns what no catalog term holds.
-LINEAR_DATA_PARTS = ("trilinear", "mean_curve")
+# learns what no catalog term holds; the GP's kernel is fixed once learnt, so it is linear too.
+LINEAR_DATA_PARTS = ("trilinear", "mean_curve", "gp")
 # The weight grid: a tenth, finer than a dozen rings' cross-validation resolves.
 WEIGHT_STEP = 0.1
 SUBFOLDER = "stacked"
@@ -104,37 +103,53 @@ class StackedHybrid(DeviationModel):
         return cls([HybridModel.load(directory / str(i), catalog) for i in range(len(weights))], weights)
 
 
+def simplex_grid(parts: int, step: float = WEIGHT_STEP) -> NDArray[np.float64]:
+    """Every weight vector of `parts` non-negative multiples of `step` that sum to one, (g, parts)."""
+    n = round(1.0 / step)
+    free = np.indices((n + 1,) * (parts - 1)).reshape(parts - 1, -1).T
+    free = free[free.sum(axis=1) <= n]
+    return np.column_stack([free, n - free.sum(axis=1)]) / n
+
+
 def carried_hybrid(campaign: Campaign, effects: Sequence[Effect], train: ArrayLike | None = None) -> tuple[StackedHybrid, dict[str, Any]]:
     """The hybrid a campaign can carry, fitted on its training rings: per linear data part the terms
-    kept beside it (carried_effects), averaged with the weight its own cross-validation chooses
+    kept beside it (carried_effects), averaged with the weights its own cross-validation chooses
     (module docstring). Returns the model and, per data part, the effects kept, the path of sets
     tried, the identifiability report and the cross-validated MAE (um); the weights and the
-    cross-validated MAE at each weight; and how far the mean curve alone predicts the rings left
-    out better than the interpolation alone, in standard errors of their paired differences."""
+    cross-validated MAE at each point of the grid; and how far the mean curve alone and the GP
+    alone predict the rings left out better than the interpolation alone, in standard errors of
+    their paired differences."""
     mask = training_mask(campaign, train)
     measured = campaign.deviations[mask]
-    ends = {"trilinear": 1.0, "mean_curve": 0.0}  # each data part alone: its weight on the trilinear
     kept: dict[str, list[Effect]] = {}
-    curves: dict[str, NDArray[np.float64]] = {}
+    means = []
     details: dict[str, Any] = {}
+    parts = {p: fixed_data_part(p, campaign, mask) for p in LINEAR_DATA_PARTS}  # the GP's kernel learnt once
     for data_model in LINEAR_DATA_PARTS:
-        kept[data_model], path, report, curves[data_model] = carried_effects(campaign, effects, data_model, mask)
+        kept[data_model], path, report, curves = carried_effects(campaign, effects, parts[data_model], mask)
+        means.append(curves.mean(axis=1) if curves.ndim == 3 else curves)  # the MAE against the mean is linear in the curves
         details[data_model] = {
             "kept": [effect_label(e) for e in kept[data_model]],
             "cross_validation": path,
             "identifiability": report,
         }
-    grid = np.round(np.arange(0.0, 1.0 + WEIGHT_STEP / 2, WEIGHT_STEP), 6)
-    ring_errors = {float(w): metrics.ring_mae(w * curves["trilinear"] + (1 - w) * curves["mean_curve"], measured)["mean"] for w in grid}
-    cv_mae = {w: float(e.mean()) for w, e in ring_errors.items()}
-    weight = min(cv_mae, key=lambda w: (cv_mae[w], -w))  # a tie goes to the interpolation
+    grid = simplex_grid(len(LINEAR_DATA_PARTS))
+    blended = np.einsum("gp,pon->gon", grid, np.stack(means))
+    ring_errors = np.abs(blended - measured.mean(axis=1)).mean(axis=2)  # (grid, rings): metrics.ring_mae's "mean"
+    cv_mae = ring_errors.mean(axis=1)
+    # A tie goes to the interpolation, then to the mean curve: the GP weighs only where it predicts better.
+    best = int(np.lexsort((*(-grid[:, i] for i in reversed(range(grid.shape[1]))), cv_mae))[0])
+    ends = {p: int(np.flatnonzero(grid[:, i] == 1.0)[0]) for i, p in enumerate(LINEAR_DATA_PARTS)}
     for data_model, end in ends.items():
-        details[data_model]["cv_mae_um"] = round(cv_mae[end], 5)
-    members = [HybridModel(kept[p], p).fit(campaign.subset(mask)) for p in LINEAR_DATA_PARTS]
-    model = StackedHybrid(members, [weight, 1.0 - weight])
+        details[data_model]["cv_mae_um"] = round(float(cv_mae[end]), 5)
+    weights = grid[best]
+    members = [HybridModel(kept[p], parts[p]).fit(campaign.subset(mask)) for p in LINEAR_DATA_PARTS]
+    model = StackedHybrid(members, weights)
+    interpolation = ring_errors[ends["trilinear"]]
     details |= {
-        "weights": {"trilinear": weight, "mean_curve": round(1.0 - weight, 6)},
-        "cv_mae_um_by_trilinear_weight": {f"{w:g}": round(v, 5) for w, v in cv_mae.items()},
-        "mean_curve_gain_in_standard_errors": round(gain_beyond_noise(ring_errors[ends["trilinear"]], ring_errors[ends["mean_curve"]]), 2),
+        "weights": {p: round(float(w), 6) for p, w in zip(LINEAR_DATA_PARTS, weights)},
+        "cv_mae_um_by_weights": {"/".join(f"{w:g}" for w in g): round(float(v), 5) for g, v in zip(grid, cv_mae)},
+        "mean_curve_gain_in_standard_errors": round(gain_beyond_noise(interpolation, ring_errors[ends["mean_curve"]]), 2),
+        "gp_gain_in_standard_errors": round(gain_beyond_noise(interpolation, ring_errors[ends["gp"]]), 2),
     }
     return model, details
