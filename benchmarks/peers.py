@@ -23,12 +23,12 @@ training rings and predicts the curves of its check rings, which it never saw:
   own cross-validation, and the data part chosen among the trilinear tables, the mean curve and
   the GP by the same cross-validation (benchmarks.stacking.carried_hybrid, the data-efficiency
   benchmark's hybrid), its fit time including that choice;
-- rbf: scipy.interpolate.RBFInterpolator (thin-plate spline, no smoothing) and gp:
-  sklearn.gaussian_process.GaussianProcessRegressor (constant x Matern 5/2 with one length scale
-  per feature + white noise, normalised targets, hyperparameters by the log marginal likelihood,
-  3 restarts, random_state 0), each fitted on the feature map (A in radians, cos B, sin B) to the
-  mean curve's Fourier coefficients of harmonics 2..20 (cos and sin; harmonics 0 and 1 are what
-  the circle fit removes), and predicting the curve those coefficients draw.
+- rbf and peer_gp (models.off_the_shelf): scipy.interpolate.RBFInterpolator (thin-plate spline,
+  no smoothing) and sklearn.gaussian_process.GaussianProcessRegressor (constant x Matern 5/2 with
+  one length scale per feature + white noise, normalised targets, hyperparameters by the log
+  marginal likelihood, 3 restarts, random_state 0), each fitted on the feature map (A in radians,
+  cos B, sin B) to the mean curve's Fourier coefficients of harmonics 2..20 (cos and sin; harmonics
+  0 and 1 are what the circle fit removes), and predicting the curve those coefficients draw.
 
 Recorded per campaign and model: the check-ring MAE against the repetitions' mean and against
 single repetitions, each over its noise floor (metrics.noise_floor of the training rings' pooled
@@ -56,10 +56,10 @@ from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.harmonics import fourier_basis, paper_fourier_fit
 from ph_explorer.models.gaussian_process import GaussianProcessModel
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
+from ph_explorer.models.off_the_shelf import HARMONICS, PEER_MODELS, CoefficientGPPeer
 from ph_explorer.models.trilinear import MeanCurveModel, TrilinearModel
 from ph_explorer.twin import list_scenarios, load_scenario, simulate
 
@@ -68,49 +68,10 @@ if TYPE_CHECKING:
 
 HEADS, QUICK_HEADS = 10, 0
 HEAD_SEED = 960_000  # seeds of their own: never the population's nor the calibration's
-HARMONICS = (2, 20)
 Z95 = 1.959964
 PROJECT = ("network", "trilinear", "mean_curve", "gaussian_process", "hybrid_before", "hybrid_after", "hybrid_after_gp", "hybrid_stacked")
-PEERS = ("rbf", "gp")
+PEERS = tuple(PEER_MODELS)  # rbf, peer_gp
 GP_TARGET = (0.93, 0.97)
-
-
-def features(orientations: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The peers' feature map: (A in radians, cos B, sin B)."""
-    a, b = np.radians(orientations[:, 0]), np.radians(orientations[:, 1])
-    return np.column_stack([a, np.cos(b), np.sin(b)])
-
-
-def coefficient_basis(n_points: int) -> NDArray[np.float64]:
-    """(n_points, 2 (K - 1)): the Fourier basis columns of harmonics 2..K (cos, sin)."""
-    return fourier_basis(n_points, HARMONICS[1])[:, 1 + 2 * (HARMONICS[0] - 1) :]
-
-
-def targets(campaign: Campaign, train: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """The training rings' mean-curve coefficients of harmonics 2..K."""
-    return paper_fourier_fit(campaign.deviations[train].mean(axis=1), HARMONICS[1])[:, 1 + 2 * (HARMONICS[0] - 1) :]
-
-
-def fit_peer(name: str, campaign: Campaign, train: NDArray[np.bool_]) -> Any:
-    x, y = features(campaign.orientations[train]), targets(campaign, train)
-    if name == "rbf":
-        from scipy.interpolate import RBFInterpolator
-
-        return RBFInterpolator(x, y, kernel="thin_plate_spline")
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
-
-    kernel = ConstantKernel() * Matern(length_scale=np.ones(3), nu=2.5) + WhiteKernel()
-    return GaussianProcessRegressor(kernel, normalize_y=True, n_restarts_optimizer=3, random_state=0).fit(x, y)
-
-
-def peer_curves(name: str, peer: Any, orientations: NDArray[np.float64], n_points: int) -> tuple[NDArray, NDArray | None]:
-    """The peer's curves (m, n_points) and, for the GP, each point's predictive variance."""
-    basis = coefficient_basis(n_points)
-    if name == "rbf":
-        return peer(features(orientations)) @ basis.T, None
-    mean, std = peer.predict(features(orientations), return_std=True)
-    return mean @ basis.T, (std**2) @ (basis**2).T
 
 
 def scored(predicted: NDArray, measured: NDArray, floor: dict[str, float], fit_s: float, predict_s: float) -> dict[str, Any]:
@@ -164,16 +125,15 @@ def peers_of(item: dict[str, Any], quick: bool) -> dict[str, Any]:
         fitted = time.perf_counter()
         predicted = model.predict(orientations, n_points=campaign.n_points)
         rows[name] = scored(predicted, measured, floor, fitted - started, time.perf_counter() - fitted)
-    variance = None
     for name in PEERS:
         started = time.perf_counter()
-        peer = fit_peer(name, campaign, train)
+        peer = PEER_MODELS[name]().fit(subset)
         fitted = time.perf_counter()
-        predicted, spread = peer_curves(name, peer, orientations, campaign.n_points)
+        predicted = peer.predict(orientations, n_points=campaign.n_points)
         rows[name] = scored(predicted, measured, floor, fitted - started, time.perf_counter() - fitted)
-        if spread is not None:
-            variance, gp_curves = spread, predicted
-            rows[name]["kernel"] = str(peer.kernel_)
+        if isinstance(peer, CoefficientGPPeer):
+            variance, gp_curves = peer.curve_variance(orientations, campaign.n_points), predicted
+            rows[name]["kernel"] = str(peer.regressor_.kernel_)
     sigma = metrics.pooled_sigma(campaign.deviations[train])
     half = {"mean": Z95 * np.sqrt(variance), "single": Z95 * np.sqrt(variance + sigma**2)}
     mean = measured.mean(axis=1)

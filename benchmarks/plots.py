@@ -11,6 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import matplotlib.ticker  # noqa: E402
 
+from ph_explorer.models.off_the_shelf import PEER_MODELS  # noqa: E402
+
 COLORS = {"network": "tab:blue", "trilinear": "tab:orange", "hybrid": "tab:green"}
 
 
@@ -155,7 +157,7 @@ def peers_plot(results: dict[str, Any], path: Path) -> Path:
     for j, name in enumerate(names):
         values = [r["models"][name]["over_floor"]["mean"] for r in rows]
         positions = [i + (j - len(names) / 2 + 0.5) * height for i in range(len(rows))]
-        hatch = "//" if name in ("rbf", "gp") else None
+        hatch = "//" if name in PEER_MODELS else None
         ax.barh(positions, values, height=height, label=name.replace("_", " "), hatch=hatch)
     after = [r["diagnosis_after"]["over_floor"]["mean"] for r in rows]
     ax.plot(after, range(len(rows)), "D", color="black", ms=5, label="the diagnosis's after (check rings left out one at a time)")

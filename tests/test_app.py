@@ -281,6 +281,10 @@ def test_error_map_shows_the_chosen_figure_and_goes_to_a_chosen_ring(opened, dat
     # The 3D field on request.
     fake.click("3D field around the head")
     assert wait_for(lambda: s.field.markers.visible)
+    # An off-the-shelf peer beside the models, fitted when first shown: values on the check rings only.
+    fake.click("Map of", "rbf MAE / noise floor, check rings")
+    assert wait_for(lambda: "rbf MAE / noise floor" in s.map_panel.plot.content)
+    assert np.isfinite(s.field.values[dataset.held_out_mask]).all() and np.isnan(s.field.values[~dataset.held_out_mask]).all()
 
 
 def test_monte_carlo_band_and_repetitions_on_request(browser) -> None:

@@ -18,7 +18,6 @@ REPOSITORY = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPOSITORY))
 
 from benchmarks.data_efficiency import design_target, designed_subsets, hybrid_effects, lattice_subsets, target  # noqa: E402
-from ph_explorer.campaign import Campaign  # noqa: E402
 from ph_explorer.models.trilinear import TrilinearModel  # noqa: E402
 from ph_explorer.twin import load_scenario, simulate  # noqa: E402
 
@@ -329,7 +328,7 @@ def check_peers(results: dict) -> None:
         "hybrid_after_gp",
         "hybrid_stacked",
         "rbf",
-        "gp",
+        "peer_gp",
     }
     for scores in row["models"].values():
         assert scores["over_floor"]["mean"] > 0.5 and scores["mae_um"]["single"] > scores["mae_um"]["mean"] and scores["fit_s"] >= 0
@@ -455,26 +454,3 @@ def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
     )
     assert bad.returncode == 2 and "--only: unknown section 'nonsense'" in bad.stderr
     assert json.loads((tmp_path / "results.json").read_text()) == previous
-
-
-def test_the_peers_fit_harmonics_2_to_20_and_reproduce_a_field_linear_in_their_features() -> None:
-    """benchmarks/peers.py: a mean curve whose 3/rev and 20/rev parts are linear in (A rad, cos B, sin B)
-    is reproduced at the check rings by the thin-plate RBF (exact on linear fields) and closely by
-    the GP; harmonics 0, 1 and 21 are not fitted (what the circle fit removes, what lies beyond)."""
-    from benchmarks.peers import fit_peer, peer_curves
-
-    a, b = np.meshgrid([0.0, 15, 30, 45, 60, 75, 90], np.arange(-180.0, 180.0, 30.0), indexing="ij")
-    lattice = np.column_stack([a.ravel(), b.ravel()])
-    orientations = np.vstack([lattice, [[22.5, 15.0], [52.5, -75.0], [67.5, 105.0]]])
-    theta = np.radians(np.arange(64) * 360.0 / 64)
-    x = np.column_stack([np.radians(orientations[:, 0]), np.cos(np.radians(orientations[:, 1])), np.sin(np.radians(orientations[:, 1]))])
-    wanted = (0.2 + x @ [0.1, -0.05, 0.03])[:, None] * np.cos(3 * theta) + (x @ [0.02, 0.01, -0.04])[:, None] * np.sin(20 * theta)
-    extra = 0.05 * np.cos(theta) + 0.03 * np.cos(21 * theta)  # harmonics the peers do not fit
-    deviations = np.repeat((wanted + extra)[:, None, :], 2, axis=1)
-    campaign = Campaign(orientations, deviations, check_orientations=orientations[-3:])
-    train = ~campaign.holdout_mask()
-    assert train.sum() == len(lattice)
-    rbf, _ = peer_curves("rbf", fit_peer("rbf", campaign, train), orientations[-3:], 64)
-    np.testing.assert_allclose(rbf, wanted[-3:], atol=1e-8)
-    gp, variance = peer_curves("gp", fit_peer("gp", campaign, train), orientations[-3:], 64)
-    assert np.abs(gp - wanted[-3:]).max() < 0.01 * np.abs(wanted).max() and variance.shape == (3, 64) and (variance > 0).all()

@@ -33,6 +33,7 @@ from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, 
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.lattice import BuildStopped, PredictionLattice, build_cpu_s
+from ph_explorer.models.off_the_shelf import PEER_MODELS
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paper.tables import tables_at
 from ph_explorer.uncertainty.bands import Sources, calibrated_model_error, gaussian_band
@@ -287,6 +288,8 @@ class Dataset:
         for m in self.model_names:
             if m != "trilinear":
                 names += [f"{m} MAE, check rings", f"{m} MAE / noise floor, check rings"]
+        if self.held_out_mask.any() and (~self.held_out_mask).sum() >= 2:  # off-the-shelf peers, fitted when shown
+            names += [f"{p} MAE / noise floor, check rings" for p in PEER_MODELS]
         return names + list(self._extra_figures)
 
     def add_figure(self, name: str, figure: MapFigure) -> None:
@@ -327,15 +330,16 @@ class Dataset:
             floor = OutOfSampleSmoother(c.orientations, self.train_mask).noise_floor(self.sigma_um, c.n_repetitions)["mean"]
             note = "out of sample at every ring: each training ring by tables refitted without it, each check ring by the training rings"
         else:
-            model = name.split(" ")[0]
-            if model not in self.models:
+            model, held_out = name.split(" ")[0], self.held_out_mask
+            peer = PEER_MODELS[model]().fit(c, ~held_out) if model in PEER_MODELS and model not in self.models else None
+            if model not in self.models and peer is None:
                 raise KeyError(name)
             # Only the check rings are out of sample for a model fitted on the others (its training rings are not shown).
-            held_out = self.held_out_mask
             mae = np.full(c.n_orientations, np.nan)
-            mae[held_out] = held_out_ring_mae(self.models[model], c, held_out)["mean"]
+            mae[held_out] = held_out_ring_mae(peer or self.models[model], c, held_out)["mean"]
             floor = self.noise_floor_um.get("mean", np.nan)
-            note = f"out of sample on the check rings only; the {model} model saw the training rings (hollow)"
+            kind = "peer (off the shelf: docs/methods/off_the_shelf.md)" if peer else "model"
+            note = f"out of sample on the check rings only; the {model} {kind} saw the training rings (hollow)"
         if ratio:
             if not np.all(np.isfinite(floor)):
                 return MapFigure(np.full(c.n_orientations, np.nan), "x floor", "noise floor unknown (a single repetition)")
@@ -360,11 +364,8 @@ atexit.register(_PREPARER.stop, STOP_WAIT_S)
 
 
 def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: list[str] | None = None) -> Dataset:
-    """A Dataset for a campaign: the models of model_dir when given, else the trilinear tables fitted now.
-
-    The held-out rings are those of the model card when the models come from a folder (what the
-    models never saw), else the campaign's own check orientations.
-    """
+    """A Dataset for a campaign: the models of model_dir when given (held out: the card's rings, which
+    they never saw), else the trilinear tables fitted now (held out: the campaign's check rings)."""
     models, train, found = campaign_models(campaign, model_dir)
     notes = [*(notes or []), *found]
     errors: dict[str, OutOfSampleError] = {}
@@ -406,8 +407,7 @@ def default_dataset(
     geometry: Mapping[str, float] | None = None,
 ) -> Dataset:
     """The session's starting data: --data, --scenario, or the shipped paper campaign with assets/models/paper."""
-    geometry = dict(geometry or {})
-    model_dir = Path(model) if model is not None else None
+    geometry, model_dir = dict(geometry or {}), (Path(model) if model is not None else None)
     if model_dir is not None and not model_dir.is_dir():
         raise InputError("no such model folder", file=str(model_dir))
     if data is not None:
