@@ -80,7 +80,7 @@ def test_json_has_a_band_per_orientation_and_model(folder: Path) -> None:
 
 
 def test_text_output_names_the_budget(folder: Path) -> None:
-    result = invoke("--model", str(folder), "--orientations", "30:0", "--seed", "2")
+    result = invoke("--model", str(folder), "--orientations", "30:0", "--seed", "2", "--digits", "1")  # a quick look
     assert result.exit_code == 0, result.output
     lines = result.stdout.strip().splitlines()
     assert len(lines) == 2 and all("budget um" in line and "RONt" in line for line in lines)
@@ -96,6 +96,7 @@ def test_text_output_names_the_budget(folder: Path) -> None:
         (["--orientations", "150:0"], "--orientations"),
         (["--orientations", "15:-20", "--level", "1.5"], "--level"),
         (["--orientations", "15:-20", "--level", "0"], "--level"),
+        (["--orientations", "15:-20", "--digits", "5"], "--digits"),
     ],
 )
 def test_bad_options_are_one_line_and_exit_2(folder: Path, args: list[str], option: str) -> None:

@@ -319,6 +319,9 @@ def _uncertainty(
     orientations: Annotated[str, typer.Option(help="Orientations 'A:B[,A:B...]' in degrees, e.g. 15:-20,43:90.")],
     level: Annotated[float, typer.Option(help="Coverage probability of the bands, in (0, 1).")] = 0.95,
     seed: Annotated[Optional[int], typer.Option(help="Random seed of the Monte Carlo (default: fresh).")] = None,
+    digits: Annotated[
+        int, typer.Option(help="Significant digits the Monte Carlo's results must be stable to (JCGM 101 7.9): 1 is a quick look.")
+    ] = 2,
     json_output: JsonOpt = False,
 ) -> None:
     """Each model's Monte Carlo band with every component (repeatability, model, parameters), its budget
@@ -331,6 +334,7 @@ def _uncertainty(
         level=level,
         json_output=json_output,
         seed=seed,
+        digits=digits,
     )
 
 

@@ -25,11 +25,14 @@ def checked_orientations(text: str) -> list[tuple[float, float]]:
     return pairs
 
 
-def uncertainty_report(model: Path, orientations: str, level: float = 0.95, seed: int | None = None) -> dict[str, Any]:
-    """The JSON object of the command: {"level", "bands": [band per orientation and model]}."""
+def uncertainty_report(model: Path, orientations: str, level: float = 0.95, seed: int | None = None, digits: int = 2) -> dict[str, Any]:
+    """The JSON object of the command: {"level", "bands": [band per orientation and model]}; the
+    Monte Carlo stops when its results are stable to `digits` significant digits (JCGM 101 7.9)."""
     pairs = checked_orientations(orientations)
     if not (math.isfinite(level) and 0.0 < level < 1.0):
         raise InputError(f"must be a probability in (0, 1), got {level:g}", option="--level")
+    if digits not in (1, 2, 3):
+        raise InputError(f"must be 1, 2 or 3 significant digits, got {digits}", option="--digits")
     # torch-bound: imported when the command runs.
     from ph_explorer.models.folder import load_models
     from ph_explorer.models.hybrid import SUBFOLDER, HybridModel
@@ -57,14 +60,16 @@ def uncertainty_report(model: Path, orientations: str, level: float = 0.95, seed
             if name not in errors:
                 continue
             sources = Sources(m, repetitions, errors[name])
-            band = orientation_band(sources, (a, b), level, rng=rng).as_dict()
-            ront = task_uncertainty(sources, (a, b), level=level, rng=rng)["ront_um"]
+            band = orientation_band(sources, (a, b), level, rng=rng, ndig=digits).as_dict()
+            ront = task_uncertainty(sources, (a, b), level=level, rng=rng, ndig=digits)["ront_um"]
             bands.append({**band, "ront_um": {"value": ront["value"], "U": ront["U"]}})
     return {"level": level, "bands": bands}
 
 
-def uncertainty_command(model: Path, orientations: str, level: float = 0.95, json_output: bool = False, seed: int | None = None) -> int:
-    report = uncertainty_report(model, orientations, level, seed)  # every check before any output
+def uncertainty_command(
+    model: Path, orientations: str, level: float = 0.95, json_output: bool = False, seed: int | None = None, digits: int = 2
+) -> int:
+    report = uncertainty_report(model, orientations, level, seed, digits)  # every check before any output
     if json_output:
         print(json.dumps(report))
         return 0
