@@ -149,7 +149,8 @@ def carried_hybrid(campaign: Campaign, effects: Sequence[Effect], train: ArrayLi
     details |= {
         "weights": {p: round(float(w), 6) for p, w in zip(LINEAR_DATA_PARTS, weights)},
         "cv_mae_um_by_weights": {"/".join(f"{w:g}" for w in g): round(float(v), 5) for g, v in zip(grid, cv_mae)},
-        "mean_curve_gain_in_standard_errors": round(gain_beyond_noise(interpolation, ring_errors[ends["mean_curve"]]), 2),
-        "gp_gain_in_standard_errors": round(gain_beyond_noise(interpolation, ring_errors[ends["gp"]]), 2),
+    }
+    details |= {
+        f"{p}_gain_in_standard_errors": round(gain_beyond_noise(interpolation, ring_errors[ends[p]]), 2) for p in LINEAR_DATA_PARTS[1:]
     }
     return model, details
