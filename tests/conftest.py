@@ -13,20 +13,21 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
 # The longest work first, so that with one worker per core (pytest-xdist) the long units overlap
-# instead of one of them trailing at the end: the quick benchmark's groups (test_benchmarks.py),
-# then the files measured longest. Each file is one unit (its module fixtures made once), except
-# tests that name a group of their own (the quick benchmark's groups, each a unit).
+# instead of one of them trailing at the end. Each file is one unit (its module fixtures made once),
+# except tests that name a group of their own (the quick benchmark's groups, each a unit). Measured
+# on 2026-11-28 (`--durations`, 2 workers): test_diagnosis.py about 150 s in all, the quick groups
+# 47-103 s, the two browser walks 67-76 s, test_training.py about 80 s.
 LONGEST = (
-    "quick_diagnoses",
+    "test_diagnosis.py",
     "quick_hidden_effects",
+    "quick_diagnoses",
+    "test_training.py",
     "quick_data_efficiency",
-    "quick_large_campaign",
-    "quick_speed",
     "test_browser_loop.py",
     "test_browser_decide.py",
+    "quick_speed",
+    "quick_large_campaign",
     "quick_fleet",
-    "test_diagnosis.py",
-    "test_training.py",
 )
 
 
