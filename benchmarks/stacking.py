@@ -46,7 +46,8 @@ from ph_explorer.models.hybrid import HybridModel
 # 1.2-1.7x above the trilinear hybrid on the check rings of 4 of 5 healthy random heads of the
 # peers benchmark (its error near the GP part's: the GP weighed most), and on the paper's 12
 # designed rings over 10 noise draws it was never better than without it (the closing note of
-# 2026-11-27). So the GP is a part only when asked (WITH_GP).
+# 2026-11-27; measured before 901ce3e mended the hybrid's effects, to measure again). So the GP
+# is a part only when asked (WITH_GP).
 LINEAR_DATA_PARTS = ("trilinear", "mean_curve")
 WITH_GP = (*LINEAR_DATA_PARTS, "gp")
 # The weight grid: a tenth, finer than a dozen rings' cross-validation resolves.
