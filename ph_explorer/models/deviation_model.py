@@ -52,6 +52,14 @@ def save_arrays(directory: str | Path, file_name: str, **arrays: NDArray) -> Pat
     return path
 
 
+def pooled_repetition_variance(deviations: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(n_pt,) the spread of single touches about their ring's mean (ddof=1), pooled over the rings
+    of deviations (n_o, n_rep, n_pt); zeros when there is a single repetition."""
+    if deviations.shape[1] < 2:
+        return np.zeros(deviations.shape[-1])
+    return deviations.var(axis=1, ddof=1).mean(axis=0)
+
+
 DRAW_CHUNK_VALUES = 2**21  # values drawn per block by draw_repetitions (16 MiB)
 
 

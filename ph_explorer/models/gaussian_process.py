@@ -28,7 +28,7 @@ from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Matern, Whi
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.deviation_model import DeviationModel, as_orientations, save_arrays, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
 
 FILE_NAME = "gp.npz"
 N_FEATURES = 5
@@ -118,7 +118,7 @@ class GaussianProcessModel(DeviationModel):
         x, curves = features(campaign.orientations[mask]), deviations.mean(axis=1)
         if self.theta is None:
             self.theta = learnt_theta(x, curves)
-        spread = deviations.var(axis=1, ddof=1).mean(axis=0) if deviations.shape[1] > 1 else np.zeros(campaign.n_points)
+        spread = pooled_repetition_variance(deviations)
         self.n_repetitions = deviations.shape[1]
         self._set(x, curves, np.sqrt(spread))
         return self

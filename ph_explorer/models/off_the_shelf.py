@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import fourier_basis, paper_fourier_fit
-from ph_explorer.models.deviation_model import DeviationModel, as_orientations, save_arrays, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
 
 HARMONICS = (2, 20)  # the coefficients learnt: harmonics 2..20, cos and sin
 RESTARTS = 3
@@ -55,7 +55,7 @@ class OffTheShelfModel(DeviationModel):
             raise ValueError(f"the {self.name} peer needs at least two training orientations")
         deviations = campaign.deviations[mask]
         coefficients = paper_fourier_fit(deviations.mean(axis=1), HARMONICS[1])[:, 1 + 2 * (HARMONICS[0] - 1) :]
-        spread = deviations.var(axis=1, ddof=1).mean(axis=0) if deviations.shape[1] > 1 else np.zeros(campaign.n_points)
+        spread = pooled_repetition_variance(deviations)
         self.n_points = campaign.n_points
         self._set(peer_features(campaign.orientations[mask]), coefficients, np.sqrt(spread))
         return self

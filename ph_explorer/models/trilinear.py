@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_keys
 from ph_explorer.geometry import point_angles_deg, wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.models.deviation_model import DeviationModel, as_orientations, save_arrays, training_mask
+from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
 
 FILE_NAME = "trilinear.npz"
 
@@ -210,7 +210,7 @@ class MeanCurveModel(TrilinearModel):
             raise ValueError("the mean curve needs at least one training orientation")
         deviations = campaign.deviations[mask]  # (n_train, n_rep, n_pt)
         # The spread of single touches about their ring's mean, pooled over the rings (ddof=1).
-        variance = deviations.var(axis=1, ddof=1).mean(axis=0) if deviations.shape[1] > 1 else np.zeros(campaign.n_points)
+        variance = pooled_repetition_variance(deviations)
         self.a_axis, self.b_axis = np.zeros(1), np.zeros(1)
         self.measured = np.ones((1, 1), dtype=bool)
         self.mean_table = deviations.mean(axis=(0, 1))[None, None]
