@@ -1306,7 +1306,7 @@ of the physical fit but the other check rings in: what the loop shows) and its n
 cross-validation's "after" (each fold choosing its effects without its rings). Each
 figure is the check-ring MAE against the repetitions' mean over its noise floor; the ratio is the
 best of the project's models over the best peer (goal: at most 1.00). The project's models include
-its own GP data part ("gaussian process": the stylus direction and the probe's turn as features,
+its own GP data part ("gaussian process": the axis angles (A, cos B, sin B) as features,
 every point of the curve; [its method](methods/gaussian_process.md)) and the hybrid after the
 diagnosis with it ("hybrid after gp"), and the "hybrid stacked": the diagnosis's effects kept per
 data part and the data part chosen among the trilinear tables, the mean curve and the GP by the

@@ -32,12 +32,12 @@ def fitted(campaign) -> GaussianProcessModel:
     return GaussianProcessModel().fit(campaign, ~campaign.holdout_mask())
 
 
-def test_the_feature_map_keeps_the_probes_turn_at_a_zero() -> None:
-    """At A = 0 the stylus points one way at every B (the direction features coincide), but the
-    probe is turned (its turn features differ), so curves turned with the probe are not forced equal."""
+def test_the_feature_map_is_the_axis_angles_and_keeps_the_probes_turn_at_a_zero() -> None:
+    """The features are (A in radians, cos B, sin B): at A = 0 the stylus points one way at every B,
+    but the probe is turned, so curves turned with the probe are not forced equal; B = -180 is B = 180."""
     x = features([[0.0, 0.0], [0.0, 90.0], [0.0, -180.0], [0.0, 180.0], [90.0, 0.0]])
-    assert np.allclose(x[0, :3], x[1, :3]) and np.allclose(x[0, :3], [0, 0, 1]) and np.allclose(x[2], x[3])
-    assert np.allclose(x[0, 3:], [1, 0]) and np.allclose(x[1, 3:], [0, 1]) and np.allclose(x[4], [1, 0, 0, 1, 0])
+    assert not np.allclose(x[0], x[1]) and np.allclose(x[2], x[3])
+    assert np.allclose(x[0], [0, 1, 0]) and np.allclose(x[1], [0, 0, 1]) and np.allclose(x[4], [np.pi / 2, 1, 0])
 
 
 def test_with_its_kernel_fixed_it_is_linear_in_the_curves_it_learns(campaign, fitted) -> None:
@@ -112,6 +112,12 @@ def test_its_files_hold_no_pickle_and_give_the_same_curves_and_variance(fitted, 
     assert np.allclose(again.variance(at), fitted.variance(at), atol=1e-15)
     assert np.allclose(again.predict(at, n_points=32), fitted.predict(at, n_points=32), atol=1e-12)
     assert "gp" in MODEL_TYPES and model_class("gp") is GaussianProcessModel
+    # A file of another feature map (the five features before 2026-11-28) is refused, by name, not misread.
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    np.savez(path, **{**arrays, "train_features": np.zeros((len(arrays["train_curves"]), 5))})
+    with pytest.raises(ValueError, match=r"gp\.npz: a GP of an earlier feature map \(5 features, not 3\)"):
+        GaussianProcessModel.load(tmp_path)
 
 
 def test_its_variance_grows_away_from_the_rings(campaign, fitted) -> None:

@@ -1,8 +1,10 @@
 """A Gaussian-process data part: scikit-learn's GaussianProcessRegressor over the head's orientations.
 
-Features: the stylus direction (sin A cos B, sin A sin B, cos A) and the probe's turn (cos B, sin B),
-which keeps the rings at A = 0 apart: the stylus points one way there, but the probe, and its
-lobing, is turned. Kernel: constant x Matern 5/2 with a length scale per feature + white noise,
+Features: the head's own axis angles, A in radians and B on the circle (cos B, sin B): the
+rotary axes' errors are functions of their angles (ISO 230-7), and the rings at A = 0 stay apart,
+since the probe, and its lobing, is turned there though the stylus points one way. (The stylus
+direction as features, as before 2026-11-28, tied rings across B near A = 0 and predicted worse:
+docs/methods/gaussian_process.md.) Kernel: constant x Matern 5/2 with a length scale per feature + white noise,
 shared by every point; its hyperparameters maximise the log marginal likelihood of the standardised
 mean curves (RESTARTS restarts, random_state 0). With them fixed the posterior mean is linear in the
 training curves (`interpolate`), so the hybrid and the diagnosis use it as they use the trilinear
@@ -31,15 +33,14 @@ from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
 
 FILE_NAME = "gp.npz"
-N_FEATURES = 5
+N_FEATURES = 3
 RESTARTS = 3
 
 
 def features(orientations: ArrayLike) -> NDArray[np.float64]:
-    """(m, 5): the stylus direction (sin A cos B, sin A sin B, cos A) and the probe's turn (cos B, sin B)."""
+    """(m, 3): the axis angles (A in radians, cos B, sin B)."""
     o = np.radians(as_orientations(orientations))
-    sin_a, cos_a, cos_b, sin_b = np.sin(o[:, 0]), np.cos(o[:, 0]), np.cos(o[:, 1]), np.sin(o[:, 1])
-    return np.column_stack([sin_a * cos_b, sin_a * sin_b, cos_a, cos_b, sin_b])
+    return np.column_stack([o[:, 0], np.cos(o[:, 1]), np.sin(o[:, 1])])
 
 
 def default_kernel() -> Kernel:
@@ -101,7 +102,7 @@ class GaussianProcessModel(DeviationModel):
 
     def __init__(self, theta: NDArray[np.float64] | None = None) -> None:
         self.theta = theta  # log hyperparameters; None: by the marginal likelihood in fit
-        self.train_features: NDArray[np.float64] | None = None  # (n, 5) features of the training rings
+        self.train_features: NDArray[np.float64] | None = None  # (n, 3) features of the training rings
         self.train_curves: NDArray[np.float64] | None = None  # (n, n_pt) the rings' mean curves
         self.sigma_curve: NDArray[np.float64] | None = None  # (n_pt,) pooled repetition spread
         self.regressor_: GaussianProcessRegressor | None = None
@@ -189,7 +190,12 @@ class GaussianProcessModel(DeviationModel):
 
     @classmethod
     def load(cls, directory: str | Path) -> Self:
-        with np.load(Path(directory) / cls.file_name, allow_pickle=False) as data:
+        path = Path(directory) / cls.file_name
+        with np.load(path, allow_pickle=False) as data:
+            if data["train_features"].shape[-1] != N_FEATURES:
+                raise ValueError(
+                    f"{path}: a GP of an earlier feature map ({data['train_features'].shape[-1]} features, not {N_FEATURES}): fit it again"
+                )
             model = cls(theta=data["theta"].astype(float))
             model.n_repetitions = int(data["n_repetitions"])
             model._set(data["train_features"].astype(float), data["train_curves"].astype(float), data["sigma_curve"].astype(float))

@@ -21,16 +21,13 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import fourier_basis, paper_fourier_fit
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
+from ph_explorer.models.gaussian_process import features
 
 HARMONICS = (2, 20)  # the coefficients learnt: harmonics 2..20, cos and sin
 RESTARTS = 3
 
 
-def peer_features(orientations: ArrayLike) -> NDArray[np.float64]:
-    """The peers' feature map: (A in radians, cos B, sin B)."""
-    o = as_orientations(orientations)
-    a, b = np.radians(o[:, 0]), np.radians(o[:, 1])
-    return np.column_stack([a, np.cos(b), np.sin(b)])
+peer_features = features  # the peers' feature map, (A in radians, cos B, sin B): the project GP's own
 
 
 def coefficient_basis(n_points: int) -> NDArray[np.float64]:
