@@ -123,14 +123,20 @@ def test_with_the_gp_as_a_part_when_the_terms_carry_the_dependence_the_interpola
     """A head whose only orientation-dependent error is a B 2/rev error, measured on 12 designed
     rings: beside the term, interpolating the residuals between the 12 rings only carries their
     noise into every prediction; the mean curve averages it away, and so does the GP, whose length
-    scales it learns from the rings. The cross-validation sees it and the check rings confirm it."""
-    campaign = b_two_head
-    subset = designed_rings(campaign, 12)
-    model, details = carried_hybrid(subset, [B_AXIS(cycles_per_rev=2)], parts=WITH_GP)
-    assert details["mean_curve_gain_in_standard_errors"] > 1.0 and details["gp_gain_in_standard_errors"] > 1.0
-    assert model.weight_of("trilinear") < 0.5
-    assert details["mean_curve"]["kept"] == ["b_axis_cyclic 2 cycles/rev"]
-    assert check_ring_mae(model, campaign) < 0.95 * check_ring_mae(ends(model)["trilinear"], campaign)
+    scales it learns from the rings. The cross-validation sees it and the check rings confirm it:
+    on each of three noise draws below the trilinear end, and by 5 % over the three."""
+    ratios = []
+    for seed in (3, 4, 5):
+        campaign = (
+            b_two_head if seed == 3 else simulate(scenario_with(B_AXIS(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), seed)
+        )
+        subset = designed_rings(campaign, 12)
+        model, details = carried_hybrid(subset, [B_AXIS(cycles_per_rev=2)], parts=WITH_GP)
+        assert details["mean_curve_gain_in_standard_errors"] > 1.0 and details["gp_gain_in_standard_errors"] > 1.0
+        assert model.weight_of("trilinear") < 0.5
+        assert details["mean_curve"]["kept"] == ["b_axis_cyclic 2 cycles/rev"]
+        ratios.append(check_ring_mae(model, campaign) / check_ring_mae(ends(model)["trilinear"], campaign))
+    assert max(ratios) < 1.0 and np.mean(ratios) < 0.95, ratios
 
 
 def test_with_the_gp_as_a_part_a_dependence_no_term_holds_is_learnt_by_the_interpolations(uncatalogued) -> None:
