@@ -24,6 +24,7 @@ from ph_explorer.models.deviation_model import DeviationModel, as_orientations, 
 from ph_explorer.models.gaussian_process import features
 
 HARMONICS = (2, 20)  # the coefficients learnt: harmonics 2..20, cos and sin
+COLUMNS = slice(1 + 2 * (HARMONICS[0] - 1), None)  # their columns in the basis (1, cos, sin, ..., cos K, sin K)
 RESTARTS = 3
 
 
@@ -32,7 +33,7 @@ peer_features = features  # the peers' feature map, (A in radians, cos B, sin B)
 
 def coefficient_basis(n_points: int) -> NDArray[np.float64]:
     """(n_points, 2 (K - 1)): the Fourier basis columns of harmonics 2..K (cos, sin)."""
-    return fourier_basis(n_points, HARMONICS[1])[:, 1 + 2 * (HARMONICS[0] - 1) :]
+    return fourier_basis(n_points, HARMONICS[1])[:, COLUMNS]
 
 
 class OffTheShelfModel(DeviationModel):
@@ -51,7 +52,7 @@ class OffTheShelfModel(DeviationModel):
         if mask.sum() < 2:
             raise ValueError(f"the {self.name} peer needs at least two training orientations")
         deviations = campaign.deviations[mask]
-        coefficients = paper_fourier_fit(deviations.mean(axis=1), HARMONICS[1])[:, 1 + 2 * (HARMONICS[0] - 1) :]
+        coefficients = paper_fourier_fit(deviations.mean(axis=1), HARMONICS[1])[:, COLUMNS]
         spread = pooled_repetition_variance(deviations)
         self.n_points = campaign.n_points
         self._set(peer_features(campaign.orientations[mask]), coefficients, np.sqrt(spread))
