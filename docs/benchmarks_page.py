@@ -1311,9 +1311,8 @@ every point of the curve; [its method](methods/gaussian_process.md)) and the hyb
 diagnosis with it ("hybrid after gp"), and the "hybrid stacked": the diagnosis's effects kept per
 data part and the data part chosen among the trilinear tables, the mean curve and the GP by the
 training rings' own cross-validation (the data-efficiency benchmark's rule with the GP as a third
-part, its fit time including that choice). Where it is far above the trilinear hybrid, the
-training rings' cross-validation chose the GP and the check rings did not confirm it: that is why
-the data-efficiency benchmark's rule keeps to the trilinear tables and the mean curve. The peer
+part, its fit time including that choice; the data-efficiency benchmark's rule keeps to the
+trilinear tables and the mean curve, `benchmarks/stacking.py` says why). The peer
 GP's own 95 % band (coefficients' predictive
 variance through the Fourier basis, plus the repetition variance for single touches) stands beside
 the project's calibrated Monte Carlo bands of the trilinear model and of the GP data part (whose
