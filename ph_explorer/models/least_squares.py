@@ -251,12 +251,16 @@ def choose_ridge(design: Design, targets: Design) -> float:
         ring_total = ring_total + (target.within[..., 0] ** 2).sum(axis=(1, 2))
     used = np.flatnonzero(np.abs(ring_gram).sum(axis=(1, 2)) > 0)
     typical = float(np.trace(gram)) / max(gram.shape[0], 1)
+    # Every ring left out at once: one eigendecomposition per ring serves every penalty (solve's).
+    values, vectors = np.linalg.eigh(gram[None] - ring_gram[used])
+    keep = values > 1e-12 * max(design.scale**2 * _rows(design), 1e-300)
+    projected = np.where(keep, np.einsum("uij,ui->uj", vectors, dot[None] - ring_dot[used]), 0.0)
     best, best_error = 0.0, np.inf
     for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
-        error = 0.0
-        for j in used:
-            coef = solve(gram - ring_gram[j], (dot - ring_dot[j])[:, None], design.scale, _rows(design), ridge)[0][:, 0]
-            error += ring_total[j] - 2.0 * coef @ ring_dot[j] + coef @ ring_gram[j] @ coef
+        shrunk = np.where(keep, projected / np.where(keep, values + ridge, 1.0), 0.0)
+        coef = np.einsum("uij,uj->ui", vectors, shrunk)
+        fitted = np.einsum("ui,uij,uj->u", coef, ring_gram[used], coef)
+        error = float(np.sum(ring_total[used] - 2.0 * np.einsum("ui,ui->u", coef, ring_dot[used]) + fitted))
         if error < best_error * (1.0 - 1e-9):
             best, best_error = ridge, error
     return best
