@@ -53,8 +53,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.search import CONFOUNDED, shared_variance
-from ph_explorer.diagnosis.separation import shared_over
+from ph_explorer.diagnosis.search import CONFOUNDED, touch_span
+from ph_explorer.diagnosis.separation import shared_over, span_share
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect, effect_label
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
@@ -147,6 +147,7 @@ class Identification:
         self.between = interpolation_weights(campaign.orientations, self.domain.orientations, linear)
         self.alternatives = catalog_alternatives() if alternatives is None else list(alternatives)
         self._designs: dict[str, Design | None] = {}
+        self._spans: dict[str, tuple[NDArray[np.float64], NDArray[np.float64] | None]] = {}
         self._crosses: dict[tuple[str, str], NDArray[np.float64]] = {}
 
     def design(self, effect: Effect) -> Design | None:
@@ -159,6 +160,14 @@ class Identification:
                 made = made if made.n_columns and np.abs(made.mean).max(initial=0.0) > 0 else None
             self._designs[key] = made
         return self._designs[key]
+
+    def shared(self, effect: Effect, other: Effect) -> float:
+        """diagnosis.search.shared_variance of the two designs, each one's span made once."""
+        keys = effect_label(effect), effect_label(other)
+        for key, e in zip(keys, (effect, other)):
+            if key not in self._spans:
+                self._spans[key] = touch_span(self.design(e))
+        return span_share(self._spans[keys[0]], self._spans[keys[1]])
 
     def learnable_between(self, effect: Effect) -> float:
         """The share of the effect's fitted term over the prediction domain that the data part's
@@ -186,7 +195,7 @@ class Identification:
             theirs = self.design(other)
             if theirs is None:
                 continue
-            shared = shared_variance(own, theirs)
+            shared = self.shared(effect, other)
             if shared > CONFOUNDED and not self._alike_between(effect, other):
                 found.append((other, shared))
         return sorted(found, key=lambda item: -item[1])
@@ -301,7 +310,7 @@ class Identification:
         mine, theirs = self.design(effect), self.design(other)
         if mine is None or theirs is None:
             return False
-        return shared_variance(mine, theirs) > CONFOUNDED and self._alike_between(effect, other)
+        return self.shared(effect, other) > CONFOUNDED and self._alike_between(effect, other)
 
     def _alike_between(self, effect: Effect, other: Effect) -> bool:
         """Whether the two share more than CONFOUNDED over the prediction domain; one that needs what
