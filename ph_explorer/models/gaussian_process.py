@@ -1,14 +1,13 @@
 """A Gaussian-process data part: scikit-learn's GaussianProcessRegressor over the head's orientations.
 
-Features: the head's own axis angles, A in radians and B on the circle (cos B, sin B): the
-rotary axes' errors are functions of their angles (ISO 230-7), and the rings at A = 0 stay apart,
-since the probe, and its lobing, is turned there though the stylus points one way. (The stylus
-direction as features, as before 2026-11-28, tied rings across B near A = 0 and predicted worse:
-docs/methods/gaussian_process.md.) Kernel: constant x Matern 5/2 with a length scale per feature + white noise,
-shared by every point; its hyperparameters maximise the log marginal likelihood of the standardised
-mean curves (RESTARTS restarts, random_state 0). With them fixed the posterior mean is linear in the
-training curves (`interpolate`), so the hybrid and the diagnosis use it as they use the trilinear
-tables; its posterior variance is the model's own error (`variance`).
+Features: the head's axis angles, A in radians and B on the circle (cos B, sin B): a rotary
+axis's errors are functions of its angle (ISO 230-7), and the rings at A = 0 stay apart, since the
+probe, and its lobing, is turned there (the stylus direction as features tied them, and predicted
+worse). Kernel: constant x Matern 5/2 with a length scale per feature + white noise, shared by
+every point; its hyperparameters maximise the log marginal likelihood of the standardised mean
+curves (RESTARTS restarts, random_state 0). With them fixed the posterior mean is linear in the
+training curves (`interpolate`), so the hybrid and the diagnosis use it as the trilinear tables;
+its posterior variance is the model's own error (`variance`).
 
 Method: docs/methods/gaussian_process.md.
 """
