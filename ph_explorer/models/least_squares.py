@@ -117,6 +117,12 @@ def _largest_magnitude(x: NDArray[np.float64]) -> float:
     return float(max(x.max(), -x.min())) if x.size else 0.0
 
 
+def _kept(values: NDArray[np.float64], scale: float, n_rows: int) -> NDArray[np.bool_]:
+    """The eigen-directions solve() keeps: eigenvalues above 1e-12 of the columns' scale squared
+    times the rows (below it the smoother already predicts them: nothing out of sample)."""
+    return values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+
+
 def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int, ridge: float = 0.0) -> tuple[NDArray, NDArray]:
     """Least squares from the normal equations: (coefficients (c, k), explained sum of squares (k,)).
 
@@ -125,7 +131,7 @@ def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_r
     ridge * |coef|^2 (see choose_ridge).
     """
     values, vectors = np.linalg.eigh(gram)
-    keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+    keep = _kept(values, scale, n_rows)
     if not keep.any():
         return np.zeros(dot.shape), np.zeros(dot.shape[1])
     projected = vectors[:, keep].T @ dot
@@ -146,7 +152,7 @@ def fit(design: Design, targets: Design, ridge: float = 0.0) -> tuple[NDArray[np
 def _pseudo_inverse(gram: NDArray[np.float64], scale: float, n_rows: int) -> NDArray[np.float64]:
     """gram's pseudo-inverse over the directions solve() keeps, for a stack (..., c, c)."""
     values, vectors = np.linalg.eigh(gram)
-    keep = values > 1e-12 * max(scale**2 * n_rows, 1e-300)
+    keep = _kept(values, scale, n_rows)
     inverse = np.where(keep, 1.0 / np.where(keep, values, 1.0), 0.0)
     return np.einsum("...ij,...j,...kj->...ik", vectors, inverse, vectors)
 
@@ -215,24 +221,31 @@ def _explained(
         gram = gram - cross @ a_inverse @ np.swapaxes(cross, 1, 2)
         scale = max(scale, fixed.scale)
     values, vectors = np.linalg.eigh(gram)  # (S, c), (S, c, c)
-    keep = values > 1e-12 * max(scale**2 * rows, 1e-300)
+    keep = _kept(values, scale, rows)
     projected = np.swapaxes(vectors, 1, 2) @ u  # (S, c, k)
     inverse = np.where(keep, 1.0 / np.where(keep, values, 1.0), 0.0)
     return np.einsum("sck,sc->sk", projected**2, inverse)
 
 
-def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
-    """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
-    target = targets.first_column()
-    rings = np.asarray(rings, dtype=np.intp)
-    # Every ring's normal equations at once, solved as solve() solves one: (m, c, c) and (m, c).
+def _without_rings(design: Design, target: Design, rings: NDArray[np.intp]) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """Every given ring's normal equations without it, at once, eigendecomposed as solve() does:
+    (eigenvalues (m, c), eigenvectors (m, c, c), projected X'y (m, c), kept directions (m, c))."""
     gram = design.gram()[None] - design.ring_gram()[rings]
     dot = design.dot(target)[None, :, 0] - design.ring_dot(target)[rings, :, 0]
     values, vectors = np.linalg.eigh(gram)
-    keep = values > 1e-12 * max(design.scale**2 * _rows(design), 1e-300)
-    projected = np.einsum("mcj,mc->mj", vectors, dot)
+    return values, vectors, np.einsum("mcj,mc->mj", vectors, dot), _kept(values, design.scale, _rows(design))
+
+
+def _ridge_coefficients(left_out: tuple[NDArray, NDArray, NDArray, NDArray], ridge: float) -> NDArray[np.float64]:
+    """(m, c): the coefficients of _without_rings's equations with the penalty ridge * |coef|^2."""
+    values, vectors, projected, keep = left_out
     shrunk = np.where(keep, projected / np.where(keep, values + ridge, 1.0), 0.0)
     return np.einsum("mcj,mj->mc", vectors, shrunk)
+
+
+def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: float = 0.0) -> NDArray[np.float64]:
+    """(len(rings), c): the coefficients fitted without each of the given rings (first target column)."""
+    return _ridge_coefficients(_without_rings(design, targets.first_column(), np.asarray(rings, dtype=np.intp)), ridge)
 
 
 def choose_ridge(design: Design, targets: Design) -> float:
@@ -244,21 +257,17 @@ def choose_ridge(design: Design, targets: Design) -> float:
     |y_j - X_j b|^2 = y_j'y_j - 2 b'X_j'y_j + b'X_j'X_j b.
     """
     target = targets.first_column()
-    gram, dot = design.gram(), design.dot(target)[:, 0]
+    gram = design.gram()
     ring_gram, ring_dot = design.ring_gram(), design.ring_dot(target)[:, :, 0]
     ring_total = target.n_rep * (target.mean[..., 0] ** 2).sum(axis=1)
     if target.within is not None:
         ring_total = ring_total + (target.within[..., 0] ** 2).sum(axis=(1, 2))
     used = np.flatnonzero(np.abs(ring_gram).sum(axis=(1, 2)) > 0)
     typical = float(np.trace(gram)) / max(gram.shape[0], 1)
-    # Every ring left out at once: one eigendecomposition per ring serves every penalty (solve's).
-    values, vectors = np.linalg.eigh(gram[None] - ring_gram[used])
-    keep = values > 1e-12 * max(design.scale**2 * _rows(design), 1e-300)
-    projected = np.where(keep, np.einsum("uij,ui->uj", vectors, dot[None] - ring_dot[used]), 0.0)
+    left_out = _without_rings(design, target, used)  # one eigendecomposition per ring serves every penalty
     best, best_error = 0.0, np.inf
     for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
-        shrunk = np.where(keep, projected / np.where(keep, values + ridge, 1.0), 0.0)
-        coef = np.einsum("uij,uj->ui", vectors, shrunk)
+        coef = _ridge_coefficients(left_out, ridge)
         fitted = np.einsum("ui,uij,uj->u", coef, ring_gram[used], coef)
         error = float(np.sum(ring_total[used] - 2.0 * np.einsum("ui,ui->u", coef, ring_dot[used]) + fitted))
         if error < best_error * (1.0 - 1e-9):

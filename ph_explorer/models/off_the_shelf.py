@@ -28,9 +28,6 @@ COLUMNS = slice(1 + 2 * (HARMONICS[0] - 1), None)  # their columns in the basis 
 RESTARTS = 3
 
 
-peer_features = features  # the peers' feature map, (A in radians, cos B, sin B): the project GP's own
-
-
 def coefficient_basis(n_points: int) -> NDArray[np.float64]:
     """(n_points, 2 (K - 1)): the Fourier basis columns of harmonics 2..K (cos, sin)."""
     return fourier_basis(n_points, HARMONICS[1])[:, COLUMNS]
@@ -55,7 +52,7 @@ class OffTheShelfModel(DeviationModel):
         coefficients = paper_fourier_fit(deviations.mean(axis=1), HARMONICS[1])[:, COLUMNS]
         spread = pooled_repetition_variance(deviations)
         self.n_points = campaign.n_points
-        self._set(peer_features(campaign.orientations[mask]), coefficients, np.sqrt(spread))
+        self._set(features(campaign.orientations[mask]), coefficients, np.sqrt(spread))
         return self
 
     def _set(self, x: NDArray[np.float64], y: NDArray[np.float64], sigma: NDArray[np.float64]) -> None:
@@ -69,7 +66,7 @@ class OffTheShelfModel(DeviationModel):
         return self.regressor_.predict(x)
 
     def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
-        return self.predicted_coefficients(peer_features(orientations)) @ coefficient_basis(n_points or self.n_points).T
+        return self.predicted_coefficients(features(orientations)) @ coefficient_basis(n_points or self.n_points).T
 
     def repetition_sigma(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
         n = n_points or self.n_points
@@ -136,7 +133,7 @@ class CoefficientGPPeer(OffTheShelfModel):
 
     def coefficient_variance(self, orientations: ArrayLike) -> NDArray[np.float64]:
         """(m, 2 (K - 1)): each predicted coefficient's posterior variance."""
-        return self.regressor_.predict(peer_features(orientations), return_std=True)[1] ** 2
+        return self.regressor_.predict(features(orientations), return_std=True)[1] ** 2
 
     def curve_variance(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
         """(m, n_points): each point's predictive variance, the coefficients' taken as independent."""
