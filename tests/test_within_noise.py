@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ph_explorer.diagnosis.within_noise import FALSE_ALARM, within_noise
+from ph_explorer.diagnosis.within_noise import FALSE_ALARM, ScaledWithinNoise, kept_null, ring_sigma, within_noise
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.crossval import OutOfSampleSmoother
 
@@ -83,3 +83,25 @@ def test_repetitions_that_differ_systematically_fail_even_when_their_mean_is_rig
 def test_one_repetition_cannot_be_tested(smoother):
     single = noise(5)[:, :1]
     assert within_noise(smoother.residual(single), smoother.weights, single) is None
+
+
+@pytest.mark.parametrize("changing", [False, True])
+def test_the_scaled_test_is_the_test_of_the_scaled_residual(smoother, changing):
+    """A detection limit's search scales an added error without redoing the Fourier transforms: the
+    same statistic, p-values and verdict as the test of the residual with the error added."""
+    deviations = noise(3)
+    residual = smoother.residual(deviations)
+    rng = np.random.default_rng(4)
+    mean = rng.normal(0.0, 0.05, (len(ORIENTATIONS), N_PT)) * np.cos(3 * THETA)
+    within = rng.normal(0.0, 0.05, (len(ORIENTATIONS), N_REP, N_PT)) * np.cos(5 * THETA) if changing else None
+    null = kept_null(smoother.weights, ring_sigma(deviations), N_REP, N_PT)
+    scaled = ScaledWithinNoise(residual, mean, within, smoother.weights, null)
+    verdicts = set()
+    for factor in (0.0, 0.3, 1.0, 3.0, 10.0):
+        added = residual + factor * mean[:, None, :] + (0.0 if within is None else factor * within)
+        direct, fast = within_noise(added, smoother.weights, deviations, null=null), scaled(factor)
+        assert fast.statistic == pytest.approx(direct.statistic, rel=1e-9, abs=1e-12) and fast.fails == direct.fails
+        np.testing.assert_allclose(fast.ring_p_value, direct.ring_p_value, rtol=1e-9)
+        np.testing.assert_allclose(fast.ring_p_within, direct.ring_p_within, rtol=1e-9)
+        verdicts.add(fast.fails)
+    assert verdicts == {False, True}  # the factors span the verdict's change

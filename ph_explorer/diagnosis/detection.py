@@ -17,7 +17,7 @@ import numpy as np
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import NULL_MARGIN
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Scan, family_levels
-from ph_explorer.diagnosis.within_noise import noise_null, ring_sigma, within_noise
+from ph_explorer.diagnosis.within_noise import ScaledWithinNoise, noise_null, ring_sigma
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.harmonics import remove_size_and_centre
@@ -45,32 +45,26 @@ class DetectionLimits:
         # The within-noise test's null is the same for every effect and factor: drawn once.
         self.null = noise_null(weights, sigma, n_rep, n_pt, seed) if sigma is not None else None
 
-    def _fails(self, factor: float, mean: np.ndarray, within: np.ndarray | None) -> bool:
-        """Whether the baseline fails the within-noise test with the effect at this factor added."""
-        changing = 0.0 if within is None else factor * within
-        residual = self.search.residual + factor * mean[:, None, :] + changing
-        # The spread only draws the test's null, which is given: the campaign's as it is.
-        test = within_noise(residual, self.search.smoother.weights, self.search.campaign.deviations, self.seed, self.null)
-        return test is not None and test.fails
-
     def gate(self, design: Design) -> float:
         """The smallest factor at which the baseline fails the within-noise test (0 when it fails
         without the effect; inf when it never does, or the campaign has no repetitions to test)."""
         if self.null is None:
             return math.inf
         mean, within = design.apply(np.ones(1))
-        if self._fails(0.0, mean, within):
+        # The spread only draws the test's null, which is given: the campaign's as it is.
+        test = ScaledWithinNoise(self.search.residual, mean, within, self.search.smoother.weights, self.null)
+        if test(0.0).fails:
             return 0.0
         low, high = 0.0, 2.0**-20
         for _ in range(GATE_STEPS):
-            if self._fails(high, mean, within):
+            if test(high).fails:
                 break
             low, high = high, high * GATE_STEP
         else:
             return math.inf
         for _ in range(GATE_BISECTIONS):
             middle = 0.5 * (low + high)
-            low, high = (low, middle) if self._fails(middle, mean, within) else (middle, high)
+            low, high = (low, middle) if test(middle).fails else (middle, high)
         return high
 
     def limit(self, effect: Effect) -> float:

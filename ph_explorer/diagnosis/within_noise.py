@@ -206,26 +206,66 @@ def within_noise(
         return None
     if null is None:
         null = kept_null(weights, ring_sigma(spread), n_rep, n_pt, seed, tolerance)
-    null_stat, tolerance = null.null_stat, null.tolerance
-    mean_stat = (residual.mean(axis=1) ** 2).mean(axis=-1)
-    p_mean = _upper_p(mean_stat, tolerance * null_stat)
-
+    mean_residual = residual.mean(axis=1)
     # within: the low-harmonic share of each ring's scatter, against its exact null.
-    share = low_harmonic_share(residual - residual.mean(axis=1, keepdims=True))
-    p_within = within_p_value(share, n_rep, n_pt)
+    share = low_harmonic_share(residual - mean_residual[:, None])
+    return _judged(mean_residual, within_p_value(share, n_rep, n_pt), weights, null)
 
+
+def _judged(mean_residual: NDArray[np.float64], p_within: NDArray[np.float64], weights: NDArray[np.float64], null: NoiseNull) -> NoiseTest:
+    """The test from each ring's repetition-mean residual (n_o, n_pt) and scatter p-value (n_o,)."""
+    null_stat, tolerance = null.null_stat, null.tolerance
+    tolerated = tolerance * null_stat
+    mean_stat = (mean_residual**2).mean(axis=-1)
+    p_mean = _upper_p(mean_stat, tolerated)
     ring_p = _combined(p_mean, p_within)
     failing = int((ring_p < RING_LEVEL).sum())
     # No single ring decides: the worst ring is left out, and the share of its error that it put
     # into the predictions of the neighbours it is interpolated into (its residual times its
     # weight there) is undone; what the other rings exceed by is the campaign's statistic.
     worst = int(np.lexsort((-mean_stat / null_stat.mean(axis=1), ring_p))[0])
-    mean_residual = residual.mean(axis=1)
     undone = mean_residual + weights[:, worst, None] * mean_residual[worst]
-    p_undone = _upper_p((undone**2).mean(axis=-1), tolerance * null_stat)
+    p_undone = _upper_p((undone**2).mean(axis=-1), tolerated)
     statistic = float(np.delete(_excess(_combined(p_undone, p_within)), worst).sum())
     p_value = float((1.0 + (null.null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
     return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance, p_mean, p_within)
+
+
+class ScaledWithinNoise:
+    """within_noise of residual + factor * added (n_o, n_rep, n_pt) at any factor, each without a
+    Fourier transform: a ring's band powers are quadratic in the factor, their three terms made once
+    (a detection limit's search for the factor at which a model starts to fail)."""
+
+    def __init__(
+        self,
+        residual: NDArray[np.float64],
+        added_mean: NDArray[np.float64],
+        added_within: NDArray[np.float64] | None,
+        weights: NDArray[np.float64],
+        null: NoiseNull,
+    ) -> None:
+        """added_mean (n_o, n_pt): the part the same in every repetition; added_within (n_o, n_rep, n_pt) or None: the part that changes."""
+        n_o, self.n_rep, self.n_pt = residual.shape
+        self.weights, self.null = weights, null
+        self.mean_residual = residual.mean(axis=1)
+        self.added_mean = added_mean if added_within is None else added_mean + added_within.mean(axis=1)
+        scatter = residual - self.mean_residual[:, None]
+        # What is added the same in every repetition leaves the scatter, and its p-values, as they are.
+        self.p_within = within_p_value(low_harmonic_share(scatter), self.n_rep, self.n_pt) if added_within is None else None
+        if added_within is not None:  # |FR + f FW|^2 = |FR|^2 + 2 f Re(FR conj FW) + f^2 |FW|^2, summed over each band
+            low, high, top = _harmonics(self.n_pt)
+            spectra = np.fft.rfft(scatter, axis=-1), np.fft.rfft(added_within - added_within.mean(axis=1, keepdims=True), axis=-1)
+            terms = np.stack([np.abs(spectra[0]) ** 2, 2.0 * (spectra[0] * spectra[1].conj()).real, np.abs(spectra[1]) ** 2])
+            self.low_power = terms[..., low : high + 1].sum(axis=(-1, -2))  # (3, n_o)
+            self.all_power = terms[..., 2 : top + 1].sum(axis=(-1, -2))
+
+    def __call__(self, factor: float) -> NoiseTest:
+        p_within = self.p_within
+        if p_within is None:
+            powers = np.array([1.0, factor, factor**2])
+            share = (powers @ self.low_power) / np.maximum(powers @ self.all_power, 1e-300)
+            p_within = within_p_value(share, self.n_rep, self.n_pt)
+        return _judged(self.mean_residual + factor * self.added_mean, p_within, self.weights, self.null)
 
 
 def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:
