@@ -67,6 +67,25 @@ def is_stable(batch_results: NDArray[np.float64], tolerance: NDArray[np.float64]
     return bool(np.all(2.0 * s[:, active] <= tolerance[active]))
 
 
+def tail_quantiles(values: NDArray[np.float64], tail: float) -> NDArray[np.float64]:
+    """np.quantile(values, [tail, 1 - tail], axis=0) (its default, linear interpolation), (2, q), from
+    one sort of each quantity's trials: numpy's vectorised sort takes under half the time of the
+    partition np.quantile makes, and the two order statistics and their interpolation are numpy's."""
+    ordered = np.ascontiguousarray(np.asarray(values, dtype=float).T)  # (q, n): each quantity's trials in a row
+    ordered.sort(axis=1)
+    n = ordered.shape[1]
+    if n < 2 or np.isnan(ordered[:, -1]).any():  # NaN sorts last; np.quantile gives NaN there
+        return np.quantile(values, [tail, 1.0 - tail], axis=0)
+    virtual = (n - 1) * np.array([tail, 1.0 - tail])  # numpy's virtual index for the linear method
+    below = np.floor(virtual)
+    gamma = virtual - below
+    low = below.astype(np.intp)
+    a, b = ordered[:, low], ordered[:, np.minimum(low + 1, n - 1)]
+    difference = b - a
+    # numpy's _lerp: from below, or from above where the weight is at least a half (fewer rounding errors).
+    return np.where(gamma >= 0.5, b - difference * (1 - gamma), a + difference * gamma).T
+
+
 def adaptive_monte_carlo(
     draw: Draw,
     level: float = 0.95,
@@ -85,7 +104,7 @@ def adaptive_monte_carlo(
     tolerance = np.zeros(0)
     while True:
         values = np.asarray(draw(m, rng), dtype=float)
-        low, high = np.quantile(values, [tail, 1.0 - tail], axis=0)
+        low, high = tail_quantiles(values, tail)
         results.append(np.stack([values.mean(axis=0), values.std(axis=0, ddof=1), low, high]))
         stack = np.stack(results)
         tolerance = numerical_tolerance(stack[:, 1].mean(axis=0), ndig)
