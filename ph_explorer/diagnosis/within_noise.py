@@ -94,10 +94,15 @@ def _harmonics(n_points: int) -> tuple[int, int, int]:
 
 def low_harmonic_share(within: NDArray[np.float64]) -> NDArray[np.float64]:
     """Share of the scatter (..., n_rep, n_pt) in the low harmonics of all harmonics 2..top, (...,)."""
-    low, high, top = _harmonics(within.shape[-1])
-    power = np.abs(np.fft.rfft(within, axis=-1)) ** 2
-    total = power[..., 2 : top + 1].sum(axis=(-1, -2))
-    return power[..., low : high + 1].sum(axis=(-1, -2)) / np.maximum(total, 1e-300)
+    low, total = _band_powers(np.abs(np.fft.rfft(within, axis=-1)) ** 2, within.shape[-1])
+    return low / np.maximum(total, 1e-300)
+
+
+def _band_powers(power: NDArray[np.float64], n_points: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(low band, all of harmonics 2..top): powers (..., n_rep, harmonics) summed over the
+    repetitions and each band's harmonics."""
+    low, high, top = _harmonics(n_points)
+    return power[..., low : high + 1].sum(axis=(-1, -2)), power[..., 2 : top + 1].sum(axis=(-1, -2))
 
 
 def within_p_value(share: NDArray[np.float64], n_repetitions: int, n_points: int) -> NDArray[np.float64]:
@@ -245,7 +250,7 @@ class ScaledWithinNoise:
         null: NoiseNull,
     ) -> None:
         """added_mean (n_o, n_pt): the part the same in every repetition; added_within (n_o, n_rep, n_pt) or None: the part that changes."""
-        n_o, self.n_rep, self.n_pt = residual.shape
+        _, self.n_rep, self.n_pt = residual.shape
         self.weights, self.null = weights, null
         self.mean_residual = residual.mean(axis=1)
         self.added_mean = added_mean if added_within is None else added_mean + added_within.mean(axis=1)
@@ -253,11 +258,9 @@ class ScaledWithinNoise:
         # What is added the same in every repetition leaves the scatter, and its p-values, as they are.
         self.p_within = within_p_value(low_harmonic_share(scatter), self.n_rep, self.n_pt) if added_within is None else None
         if added_within is not None:  # |FR + f FW|^2 = |FR|^2 + 2 f Re(FR conj FW) + f^2 |FW|^2, summed over each band
-            low, high, top = _harmonics(self.n_pt)
             spectra = np.fft.rfft(scatter, axis=-1), np.fft.rfft(added_within - added_within.mean(axis=1, keepdims=True), axis=-1)
             terms = np.stack([np.abs(spectra[0]) ** 2, 2.0 * (spectra[0] * spectra[1].conj()).real, np.abs(spectra[1]) ** 2])
-            self.low_power = terms[..., low : high + 1].sum(axis=(-1, -2))  # (3, n_o)
-            self.all_power = terms[..., 2 : top + 1].sum(axis=(-1, -2))
+            self.low_power, self.all_power = _band_powers(terms, self.n_pt)  # each (3, n_o)
 
     def __call__(self, factor: float) -> NoiseTest:
         p_within = self.p_within
