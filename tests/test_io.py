@@ -5,12 +5,11 @@ from __future__ import annotations
 import csv
 import json
 import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from command_line import run_cli  # in this process: the real process's start is tests/test_cli.py's
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
@@ -26,10 +25,6 @@ def small_campaign(times: bool = True, seed: int = 0) -> Campaign:
     deviations = rng.normal(0.0, 0.2, (len(orientations), 3, 16))
     t = np.arange(deviations.size, dtype=float).reshape(deviations.shape) * 0.7 if times else None
     return Campaign(orientations, deviations, t)
-
-
-def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "ph_explorer", *args], capture_output=True, text=True, cwd=cwd, timeout=120)
 
 
 # -- round trip -----------------------------------------------------------------------------

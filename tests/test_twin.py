@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
+from command_line import run_cli  # in this process: the real process's start is tests/test_cli.py's
 
 from ph_explorer.campaign import orientation_match
 from ph_explorer.cli.simulate_command import simulate_command
@@ -189,10 +187,6 @@ def test_simulate_command_writes_campaign_and_sidecar(tmp_path, capsys):
     with pytest.raises(InputError) as info:
         simulate_command(scenario=None, out=out)
     assert info.value.option == "--scenario" and "option --scenario" in info.value.line()
-
-
-def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "ph_explorer.cli", *args], capture_output=True, text=True, timeout=120)
 
 
 def test_simulate_cli_is_byte_identical_and_lists(tmp_path):
