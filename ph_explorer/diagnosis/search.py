@@ -23,7 +23,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
 from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
-from ph_explorer.diagnosis.separation import orthonormal_span, separating_measurements, span_share
+from ph_explorer.diagnosis.separation import Separations, orthonormal_span, span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -374,6 +374,7 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
     at = {c.effect: by_id[c.effect].with_settings(**c.settings) for c in candidates if c.evidence.get("x")}
     designs = {effect_id: search.design([effect]) for effect_id, effect in at.items()}
     spans: dict[str, tuple[NDArray[np.float64], NDArray[np.float64] | None]] = {}  # each design's, made once
+    separations: Separations | None = None  # made when a first pair asks, for every pair after it
 
     def span(effect_id: str) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         if effect_id not in spans:
@@ -391,5 +392,7 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
         # ... and what would tell it from its closest partners.
         closest = candidate.confounded_with[:SEPARATIONS]
         pairs = [(at[candidate.effect], at[o["effect"]]) for o in closest]
-        for entry, separated in zip(closest, separating_measurements(pairs, search.campaign)):
+        if pairs and separations is None:
+            separations = Separations(search.campaign)
+        for entry, separated in zip(closest, separations(pairs) if pairs else []):
             entry["separated_by"] = separated

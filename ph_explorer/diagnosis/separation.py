@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, lattice_axes
+from ph_explorer.diagnosis.fitted_bases import settings_key
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models.hybrid import fitted_basis
@@ -101,22 +102,54 @@ MEASUREMENTS: tuple[tuple[str, Callable[[Campaign], Touches | None]], ...] = (
 )
 
 
+class Separations:
+    """What would separate pairs of effects on one campaign (separating_measurements), each
+    measurement's touches, each effect's columns and each span made once for all the pairs asked:
+    a candidate and its closest partners share effects between their pairs."""
+
+    def __init__(self, campaign: Campaign) -> None:
+        self.texts = [""] + [text for text, _ in MEASUREMENTS]
+        # Set 0: the campaign's own touches; set i: what MEASUREMENTS[i - 1] adds (None: nothing new).
+        self.touch_sets = [campaign_touches(campaign)] + [make(campaign) for _, make in MEASUREMENTS]
+        self._columns: dict[tuple, NDArray[np.float64]] = {}
+        self._spans: dict[tuple, NDArray[np.float64]] = {}
+
+    def _columns_at(self, effect: Effect, i: int) -> NDArray[np.float64]:
+        key = (settings_key(effect), i)
+        if key not in self._columns:
+            self._columns[key] = _columns(effect, [self.touch_sets[i]])
+        return self._columns[key]
+
+    def _span(self, effect: Effect, i: int) -> NDArray[np.float64]:
+        """The effect's orthonormal span over the own touches and, for i > 0, set i's."""
+        key = (settings_key(effect), i)
+        if key not in self._spans:
+            own = self._columns_at(effect, 0)
+            self._spans[key] = orthonormal_span(own if i == 0 else np.concatenate([own, self._columns_at(effect, i)]))
+        return self._spans[key]
+
+    def shared(self, a: Effect, b: Effect, i: int) -> float:
+        """shared_over(a, b, own touches + set i's), from the spans made once."""
+        return span_share([self._span(a, i)], [self._span(b, i)])
+
+    def __call__(self, pairs: Sequence[tuple[Effect, Effect]]) -> list[dict[str, float | str]]:
+        out = []
+        for a, b in pairs:
+            now = self.shared(a, b, 0)
+            best: tuple[float, str] = (now, "")
+            for i in range(1, len(self.touch_sets)):
+                touches = self.touch_sets[i]
+                if touches is None or a.unmet_needs(touches) or b.unmet_needs(touches):  # e.g. drift without touch times
+                    continue
+                shared = self.shared(a, b, i)
+                if shared <= best[0] - SEPARATES:
+                    best = (shared, self.texts[i])
+            out.append({"measurement": best[1], "shared": round(best[0], 3), "shared_now": round(now, 3)})
+        return out
+
+
 def separating_measurements(pairs: Sequence[tuple[Effect, Effect]], campaign: Campaign) -> list[dict[str, float | str]]:
     """For each pair, {"measurement": what to measure best, "shared": the share it would leave,
     "shared_now": the share over this campaign's touches}, both over the touches alone ("measurement"
-    is "" when none of MEASUREMENTS lowers it by SEPARATES or more). Each measurement's touches are
-    made once for all pairs."""
-    own = campaign_touches(campaign)
-    extras = [(text, make(campaign)) for text, make in MEASUREMENTS]
-    out = []
-    for a, b in pairs:
-        now = shared_over(a, b, [own])
-        best: tuple[float, str] = (now, "")
-        for text, touches in extras:
-            if touches is None or a.unmet_needs(touches) or b.unmet_needs(touches):  # e.g. drift without touch times
-                continue
-            shared = shared_over(a, b, [own, touches])
-            if shared <= best[0] - SEPARATES:
-                best = (shared, text)
-        out.append({"measurement": best[1], "shared": round(best[0], 3), "shared_now": round(now, 3)})
-    return out
+    is "" when none of MEASUREMENTS lowers it by SEPARATES or more)."""
+    return Separations(campaign)(pairs)
