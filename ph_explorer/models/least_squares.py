@@ -175,6 +175,13 @@ def _side_by_side(parts: list[NDArray[np.float64]], c: int) -> NDArray[np.float6
     return np.stack([part.reshape(-1, c).T for part in parts])
 
 
+def _each_times(parts: NDArray[np.float64], other: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(S, c, k): parts (S, c, rows) @ other (rows, k) as one matrix product (numpy's batched matmul
+    calls BLAS once per design: 3-7x slower on these shapes)."""
+    s, c, rows = parts.shape
+    return (parts.reshape(s * c, rows) @ other).reshape(s, c, -1)
+
+
 def explained_beyond(fixed: Design | None, designs: list[Design], targets: Design) -> NDArray[np.float64]:
     """(len(designs), k): what each design explains of every target column beyond `fixed`, all at once.
 
@@ -186,7 +193,7 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
     n_rep = targets.n_rep
     means = _side_by_side([d.mean for d in designs], c)  # (S, c, rows)
     t_mean, t_within = targets.flat()
-    u = n_rep * (means @ t_mean)  # (S, c, k)
+    u = n_rep * _each_times(means, t_mean)  # (S, c, k)
     gram = n_rep * (means @ np.swapaxes(means, 1, 2))  # (S, c, c)
     withins = [d.within for d in designs]
     changing = any(w is not None for w in withins)
@@ -194,14 +201,14 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
         shape = targets.mean.shape[:1] + (n_rep,) + targets.mean.shape[1:2] + (c,)
         w_all = _side_by_side([w if w is not None else np.zeros(shape) for w in withins], c)
         if t_within is not None:
-            u = u + w_all @ t_within
+            u = u + _each_times(w_all, t_within)
         gram = gram + w_all @ np.swapaxes(w_all, 1, 2)
     cross = None
     if fixed is not None and fixed.n_columns:
         f_mean, f_within = fixed.flat()
-        cross = n_rep * (means @ f_mean)  # (S, c, f): X_s' F
+        cross = n_rep * _each_times(means, f_mean)  # (S, c, f): X_s' F
         if f_within is not None and changing:
-            cross = cross + w_all @ f_within
+            cross = cross + _each_times(w_all, f_within)
     return _explained(u, gram, cross, fixed, targets, max(d.scale for d in designs), _rows(designs[0]))
 
 
