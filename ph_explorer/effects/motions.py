@@ -61,12 +61,13 @@ class _ErrorMotion(Effect):
     def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         m = self.params["cycles_per_rev"]
         angle = m * np.radians(joint_angle_deg(touches, self.axis))
+        sin, cos = np.sin(angle), np.cos(angle)  # once for every direction
         screw = screw_deviation(touches, self.axis)
         columns, names = [], []
         tag = f"{self.id}_{m:g}"
         for prefix, column, _ in self.directions:
             lever = screw[..., column]
-            columns += [np.sin(angle) * lever, np.cos(angle) * lever]
+            columns += [sin * lever, cos * lever]
             label = f"{tag}_{prefix}" if prefix else tag
             names += [f"{label}_sin", f"{label}_cos"]
         return full_shape(np.stack(columns, axis=-1), touches), names

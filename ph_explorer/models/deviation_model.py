@@ -88,8 +88,9 @@ def draw_repetitions(
     rows = max(1, DRAW_CHUNK_VALUES // max(1, n_repetitions * n_pt))
     for start in range(0, m, rows):
         part = slice(start, min(m, start + rows))
-        noise = rng.standard_normal((part.stop - part.start, n_repetitions, n_pt)) * (inflate * s[part])[:, None, :]
-        out[part] = systematic[part, None, :] + remove_size_and_centre(noise)
+        noise = rng.standard_normal((part.stop - part.start, n_repetitions, n_pt))
+        noise *= (inflate * s[part])[:, None, :]  # in place: the draws are the largest array here
+        np.add(systematic[part, None, :], remove_size_and_centre(noise), out=out[part])
     return out
 
 
