@@ -89,7 +89,8 @@ class TrilinearModel(DeviationModel):
         self.a_axis: NDArray[np.float64] | None = None  # (n_a,) deg, ascending
         self.b_axis: NDArray[np.float64] | None = None  # (n_b,) deg, ascending in [-180, 180)
         self.mean_table: NDArray[np.float64] | None = None  # (n_a, n_b, n_pt) um, gaps filled
-        self.sigma_table: NDArray[np.float64] | None = None  # (n_a, n_b, n_pt) um, gaps filled
+        self._sigma_table: NDArray[np.float64] | None = None  # (n_a, n_b, n_pt) um, gaps filled (sigma_table)
+        self._node_sigma: NDArray[np.float64] | None = None  # the measured nodes' sigma, its gaps filled when asked
         self.measured: NDArray[np.bool_] | None = None  # (n_a, n_b) node had training data
         self.n_points = 64
 
@@ -122,9 +123,22 @@ class TrilinearModel(DeviationModel):
         variance = np.where(c > 1, (total_sq - c * mean**2) / np.maximum(c - 1, 1), 0.0)
         self.a_axis, self.b_axis, self.measured = a_axis, b_axis, measured
         self.mean_table = fill_missing_nodes(mean, measured, a_axis, b_axis)
-        self.sigma_table = fill_missing_nodes(np.sqrt(np.maximum(variance, 0.0)), measured, a_axis, b_axis)
+        self._sigma_table, self._node_sigma = None, np.sqrt(np.maximum(variance, 0.0))
         self.n_points = n_pt
         return self
+
+    @property
+    def sigma_table(self) -> NDArray[np.float64] | None:
+        """(n_a, n_b, n_pt) um, gaps filled: made when first asked (out-of-sample weights fit a
+        model per ring and ask only for its means)."""
+        if self._sigma_table is None and self._node_sigma is not None:
+            self._sigma_table = fill_missing_nodes(self._node_sigma, self.measured, self.a_axis, self.b_axis)
+            self._node_sigma = None
+        return self._sigma_table
+
+    @sigma_table.setter
+    def sigma_table(self, table: NDArray[np.float64] | None) -> None:
+        self._sigma_table, self._node_sigma = table, None
 
     # -- interpolation -------------------------------------------------------------------------
     def _interpolate(self, table: NDArray[np.float64], orientations: ArrayLike, n_points: int | None) -> NDArray[np.float64]:
