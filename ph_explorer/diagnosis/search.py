@@ -102,6 +102,7 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
+        self._before: tuple[Design | None, tuple[NDArray, NDArray]] | None = None  # judge's last check_residual
         self._design_bytes = self._within_design_bytes = 0
         self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
         self.residual = self.smoother.residual(campaign.deviations)
@@ -240,7 +241,10 @@ class CandidateSearch:
         effect, fixed, total, scanned = scan.effect, scan.fixed, scan.total, scan.scanned
         threshold = NULL_MARGIN * null_level
         trials = [item for item in scanned if item[0] > threshold][:MAX_MATERIAL_TRIALS] or scanned[:1]
-        before = self.check_residual(fixed)
+        # What the fixed columns leave at the check rings: the same for every candidate of a ranking.
+        if self._before is None or self._before[0] is not fixed:
+            self._before = (fixed, self.check_residual(fixed))
+        before = self._before[1]
         chosen = None
         for explained, settings in trials:
             design = self.design([effect.with_settings(**settings)])
