@@ -131,8 +131,9 @@ class TrilinearModel(DeviationModel):
     def sigma_table(self) -> NDArray[np.float64] | None:
         """(n_a, n_b, n_pt) um, gaps filled: made when first asked (out-of-sample weights fit a
         model per ring and ask only for its means)."""
-        if self._sigma_table is None and self._node_sigma is not None:
-            self._sigma_table = fill_missing_nodes(self._node_sigma, self.measured, self.a_axis, self.b_axis)
+        node_sigma = self._node_sigma  # read once: the explorer's sessions may ask at the same time
+        if self._sigma_table is None and node_sigma is not None:
+            self._sigma_table = fill_missing_nodes(node_sigma, self.measured, self.a_axis, self.b_axis)
             self._node_sigma = None
         return self._sigma_table
 
