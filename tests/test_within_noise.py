@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
+from hypothesis.extra.numpy import arrays
 
 from ph_explorer.diagnosis.within_noise import FALSE_ALARM, ScaledWithinNoise, kept_null, ring_sigma, within_noise
 from ph_explorer.harmonics import remove_size_and_centre
@@ -105,3 +107,17 @@ def test_the_scaled_test_is_the_test_of_the_scaled_residual(smoother, changing):
         np.testing.assert_allclose(fast.ring_p_within, direct.ring_p_within, rtol=1e-9)
         verdicts.add(fast.fails)
     assert verdicts == {False, True}  # the factors span the verdict's change
+
+
+@given(
+    arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(1, 12)), elements=st.sampled_from([0.0, 0.25, 0.5, 1.0, 2.0, np.nan])),
+    st.sampled_from([1.0, 2.0, 0.5]),
+)
+@settings(max_examples=200, deadline=None)
+def test_the_nulls_counts_from_one_sort_are_the_comparisons_counts(null_stat, tolerance) -> None:
+    """noise_null's p-values of the mean statistic: each draw's count of tolerated draws at or above
+    it, from one stable sort per ring, equals the direct (n, d, d) comparison, ties and NaN included."""
+    from ph_explorer.diagnosis.within_noise import _count_at_least
+
+    direct = (tolerance * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1)
+    np.testing.assert_array_equal(_count_at_least(tolerance * null_stat, null_stat), direct)

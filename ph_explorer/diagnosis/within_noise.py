@@ -158,7 +158,7 @@ def noise_null(
     # The within p-values cost nothing to draw, so the null statistic takes STATISTIC_DRAWS draws,
     # each pairing a mean draw (a whole column: rings share neighbours' noise) with fresh uniforms:
     # its 95th percentile is then known to well under a percent.
-    p_mean_null = (tolerance * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1) / MEAN_DRAWS
+    p_mean_null = _count_at_least(tolerance * null_stat, null_stat) / MEAN_DRAWS
     columns = np.arange(STATISTIC_DRAWS) % MEAN_DRAWS
     excess_null = _excess(_combined(p_mean_null[:, columns], rng.uniform(size=(n_o, STATISTIC_DRAWS))))
     null_statistic = excess_null.sum(axis=0) - excess_null.max(axis=0)  # the worst ring left out
@@ -271,6 +271,21 @@ class ScaledWithinNoise:
         return _judged(self.mean_residual + factor * self.added_mean, p_within, self.weights, self.null)
 
 
+def _count_at_least(reference: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(n, m): how many of each row's reference values (n, d) are >= each of its values (n, m), from
+    one stable sort of each row (the values first, so that a tie counts), not an (n, m, d) comparison."""
+    if np.isnan(reference).any() or np.isnan(values).any():  # NaN compares false: count as numpy does
+        return (reference[:, None, :] >= values[..., None]).sum(axis=-1).astype(float)
+    m = values.shape[1]
+    order = np.argsort(np.concatenate([values, reference], axis=1), axis=1, kind="stable")
+    below = np.cumsum(order >= m, axis=1)  # reference values sorted before each position
+    counts = np.empty(values.shape)
+    rows = np.arange(values.shape[0])[:, None]
+    is_value = order < m
+    counts[rows.repeat(m, axis=1), order[is_value].reshape(-1, m)] = reference.shape[1] - below[is_value].reshape(-1, m)
+    return counts
+
+
 def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:
     """A ring's p-value from its two statistics (Bonferroni)."""
     return np.minimum(1.0, 2.0 * np.minimum(p_mean, p_within))
@@ -278,4 +293,6 @@ def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDA
 
 def _excess(ring_p: NDArray[np.float64]) -> NDArray[np.float64]:
     """How far each ring is beyond RING_LEVEL, log(RING_LEVEL / p), zero for a ring within it."""
-    return np.maximum(0.0, np.log(RING_LEVEL / np.maximum(ring_p, 1e-300)))
+    ratio = RING_LEVEL / np.maximum(ring_p, 1e-300)
+    # The log only where it is positive: a few per cent of a null's 20 000 draws per ring (NaN stays NaN).
+    return np.log(ratio, out=np.zeros(ratio.shape), where=~(ratio <= 1.0))
