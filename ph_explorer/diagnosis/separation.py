@@ -111,14 +111,14 @@ class Separations:
         self.texts = [""] + [text for text, _ in MEASUREMENTS]
         # Set 0: the campaign's own touches; set i: what MEASUREMENTS[i - 1] adds (None: nothing new).
         self.touch_sets = [campaign_touches(campaign)] + [make(campaign) for _, make in MEASUREMENTS]
-        self._columns: dict[tuple, NDArray[np.float64]] = {}
+        self._fitted: dict[tuple, NDArray[np.float64]] = {}  # each effect's columns at each set
         self._spans: dict[tuple, NDArray[np.float64]] = {}
 
     def _columns_at(self, effect: Effect, i: int) -> NDArray[np.float64]:
         key = (settings_key(effect), i)
-        if key not in self._columns:
-            self._columns[key] = _columns(effect, [self.touch_sets[i]])
-        return self._columns[key]
+        if key not in self._fitted:
+            self._fitted[key] = _columns(effect, [self.touch_sets[i]])
+        return self._fitted[key]
 
     def _span(self, effect: Effect, i: int) -> NDArray[np.float64]:
         """The effect's orthonormal span over the own touches and, for i > 0, set i's."""

@@ -279,10 +279,9 @@ def _count_at_least(reference: NDArray[np.float64], values: NDArray[np.float64])
     m = values.shape[1]
     order = np.argsort(np.concatenate([values, reference], axis=1), axis=1, kind="stable")
     below = np.cumsum(order >= m, axis=1)  # reference values sorted before each position
+    is_value = order < m  # each row's m values, in sorted order
     counts = np.empty(values.shape)
-    rows = np.arange(values.shape[0])[:, None]
-    is_value = order < m
-    counts[rows.repeat(m, axis=1), order[is_value].reshape(-1, m)] = reference.shape[1] - below[is_value].reshape(-1, m)
+    np.put_along_axis(counts, order[is_value].reshape(-1, m), reference.shape[1] - below[is_value].reshape(-1, m), axis=1)
     return counts
 
 
