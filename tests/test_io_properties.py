@@ -169,6 +169,7 @@ def _outcome(path: Path) -> tuple[str, object]:
 @example(data=VALID.replace(b"0.00,", b"nan,", 1).replace(b",0.5\n", b",inf\n", 1))  # two bad cells: the same one named
 @example(data=VALID + b"\n")  # a blank line at the end: numpy skips it, the row-by-row path reads it
 @example(data=VALID.replace(b"A_deg", b"\r_deg", 1))  # a lone carriage return ends a line for the row-by-row path
+@example(data=VALID.replace(b"-0.01,", b"-0.0\x1c,", 1))  # numpy reads past a separator control character, float() does not
 @SETTINGS
 def test_the_plain_path_reads_what_the_row_by_row_path_reads(tmp_path: Path, data: bytes) -> None:
     """numpy's fast reader of plain files gives the same campaign, or the same one-line error, as
