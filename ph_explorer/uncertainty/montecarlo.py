@@ -67,11 +67,23 @@ def is_stable(batch_results: NDArray[np.float64], tolerance: NDArray[np.float64]
     return bool(np.all(2.0 * s[:, active] <= tolerance[active]))
 
 
+TRANSPOSE_ROWS = 128  # rows of a batch transposed at a time: both sides of the copy stay in cache
+
+
+def _transposed(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """values.T as a contiguous copy, a block of rows at a time: a third of the time of one strided
+    copy of a batch (10 000 trials x a few hundred quantities), the same numbers."""
+    out = np.empty(values.shape[::-1])
+    for start in range(0, values.shape[0], TRANSPOSE_ROWS):
+        out[:, start : start + TRANSPOSE_ROWS] = values[start : start + TRANSPOSE_ROWS].T
+    return out
+
+
 def tail_quantiles(values: NDArray[np.float64], tail: float) -> NDArray[np.float64]:
     """np.quantile(values, [tail, 1 - tail], axis=0) (its default, linear interpolation), (2, q), from
     one sort of each quantity's trials: numpy's vectorised sort takes under half the time of the
     partition np.quantile makes, and the two order statistics and their interpolation are numpy's."""
-    ordered = np.ascontiguousarray(np.asarray(values, dtype=float).T)  # (q, n): each quantity's trials in a row
+    ordered = _transposed(np.asarray(values, dtype=float))  # (q, n): each quantity's trials in a row
     ordered.sort(axis=1)
     n = ordered.shape[1]
     if n < 2 or np.isnan(ordered[:, -1]).any():  # NaN sorts last; np.quantile gives NaN there
