@@ -8,10 +8,18 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings, strategies as st
 from synthetic import lobing_campaign, systematic_curves
 
 from ph_explorer.harmonics import fourier_basis
-from ph_explorer.models.crossval import OutOfSampleSmoother, weights_operator
+from ph_explorer.models.crossval import (
+    _WEIGHTS,
+    OutOfSampleSmoother,
+    _out_of_sample,
+    out_of_sample_weights,
+    unit_campaign,
+    weights_operator,
+)
 from ph_explorer.models.trilinear import TrilinearModel, _node_sums, periodic_weights
 
 
@@ -117,6 +125,41 @@ def test_the_smoother_applies_a_sparse_w_as_the_dense_one(campaign):
     assert np.allclose(smoother.predict(values), np.tensordot(smoother.weights, values, axes=(1, 0)), rtol=0, atol=1e-12)
     dense = np.full((4, 4), 0.25)  # the mean curve's W: every ring from all: applied dense
     assert isinstance(weights_operator(dense), np.ndarray)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    a_rows=st.lists(st.sampled_from([0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0]), min_size=1, max_size=4, unique=True),
+    b_columns=st.lists(st.sampled_from([-180.0, -160.0, -90.0, -20.0, 0.0, 12.5, 40.0, 170.0, 180.0]), min_size=1, max_size=6, unique=True),
+    drop=st.floats(0.0, 0.6),
+    extra=st.lists(st.tuples(st.floats(0.0, 90.0), st.floats(-180.0, 180.0)), max_size=4),
+    twice=st.integers(0, 3),
+    seed=st.integers(0, 2**16),
+)
+def test_the_trilinear_weights_from_one_fit_are_those_of_a_refit_per_ring(a_rows, b_columns, drop, extra, twice, seed):
+    """out_of_sample_weights of the trilinear model (one fit; a refit only for the rings it cannot
+    read off it) equals a refit without each ring (_out_of_sample), bit for bit: lattices with holes,
+    emptied rows, rings off the grid or measured twice, B at -180 and 180, a few rings held out."""
+    rng = np.random.default_rng(seed)
+    grid = np.array([(a, b) for a in a_rows for b in b_columns])
+    grid = grid[rng.random(len(grid)) >= drop] if len(grid) > 1 else grid
+    orientations = np.concatenate([grid, np.array(extra).reshape(-1, 2), grid[: min(twice, len(grid))]])
+    train = rng.random(len(orientations)) > 0.15
+    assume(len(orientations) >= 3 and train.any())  # a unit campaign's "points" are its rings: a circle needs 3
+
+    def outcome(weights_of):
+        try:
+            return weights_of()
+        except ValueError as error:  # no ring on the lattice: the same refusal both ways
+            return str(error)
+
+    generic = outcome(lambda: _out_of_sample(TrilinearModel, unit_campaign(orientations), train, lambda model, at: model.interpolate(at)))
+    _WEIGHTS.clear()
+    weights = outcome(lambda: out_of_sample_weights(orientations, train))
+    if isinstance(generic, str) or isinstance(weights, str):
+        assert type(weights) is type(generic) and weights == generic
+    else:
+        assert np.array_equal(weights, generic) and np.array_equal(np.signbit(weights), np.signbit(generic))
 
 
 def test_trilinear_save_load_round_trip(campaign, tmp_path):

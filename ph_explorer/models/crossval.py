@@ -21,7 +21,7 @@ from scipy import sparse
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations
-from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.models.trilinear import TrilinearModel, leave_one_ring_out_weights
 
 ModelFactory = Callable[[], DeviationModel]
 
@@ -116,6 +116,10 @@ SPARSE_SHARE = 0.1  # a W with at most this share of nonzero weights is applied 
 _WEIGHTS_LOCK = threading.Lock()  # the explorer's sessions diagnose in threads
 
 
+def _interpolate(model: DeviationModel, at: NDArray[np.float64]) -> NDArray[np.float64]:
+    return model.interpolate(at)
+
+
 def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel) -> NDArray[np.float64]:
     """W (n_o x n_o) of a model linear in its data: row i predicts orientation i out of sample
     (its interpolation of unit vectors, before any circle fit: unit_campaign). Read-only.
@@ -124,12 +128,29 @@ def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike, model_type:
     key = (model_type, o.shape, o.tobytes(), mask.tobytes())
     weights = _WEIGHTS.get(key)
     if weights is None:
-        weights = _out_of_sample(model_type, unit_campaign(o), mask, lambda model, at: model.interpolate(at))
+        if model_type is TrilinearModel and mask.any():
+            weights = _trilinear_weights(o, mask)
+        else:
+            weights = _out_of_sample(model_type, unit_campaign(o), mask, _interpolate)
         weights.flags.writeable = False
         with _WEIGHTS_LOCK:
             while len(_WEIGHTS) >= WEIGHTS_KEPT:
                 _WEIGHTS.pop(next(iter(_WEIGHTS)))  # the oldest first
             _WEIGHTS[key] = weights
+    return weights
+
+
+def _trilinear_weights(orientations: NDArray[np.float64], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The trilinear model's W from one fit (trilinear.leave_one_ring_out_weights), with a refit for
+    each ring it cannot read off that fit: the same W as a refit for every ring, several times faster."""
+    unit = unit_campaign(orientations)
+    try:
+        weights, refit = leave_one_ring_out_weights(orientations, train)
+    except ValueError:  # the training rings together put none on a node: each refit says what it can
+        return _out_of_sample(TrilinearModel, unit, train, _interpolate)
+    if refit.size:
+        groups = [refit[i : i + 1] for i in range(refit.size)]
+        weights[refit] = _out_of_sample(TrilinearModel, unit, train, _interpolate, groups=groups, held_out=False)[refit]
     return weights
 
 

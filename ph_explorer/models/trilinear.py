@@ -252,3 +252,54 @@ def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArr
     """Index of each value on the axis, -1 when it is not a node."""
     hit = np.abs(values[:, None] - axis[None, :]) <= ORIENTATION_TOLERANCE_DEG
     return np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
+
+
+def leave_one_ring_out_weights(
+    orientations: NDArray[np.float64], train: NDArray[np.bool_]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """The trilinear model's out-of-sample weights W (models.crossval.out_of_sample_weights) from one
+    fit, not one per ring: where a training ring alone on its node, at the node itself, leaves the
+    lattice as it was, the model without it differs only at that node, filled from the others (the
+    same arithmetic as fill_missing_nodes). Returns W and the training rings left to a refit each."""
+    n = len(orientations)
+    full = TrilinearModel().fit(Campaign(orientations, np.eye(n)[:, None, :]), train)
+    weights = np.zeros((n, n))
+    if (~train).any():
+        weights[~train] = full.interpolate(orientations[~train])
+    rings = np.flatnonzero(train)
+    o = orientations[rings]
+    ia, ib = _node_index(o[:, 0], full.a_axis), _node_index(wrap_deg(o[:, 1]), full.b_axis)
+    node = np.where((ia >= 0) & (ib >= 0), ia * full.b_axis.size + ib, -1)
+    alone = (node >= 0) & (np.bincount(node[node >= 0], minlength=full.measured.size)[np.maximum(node, 0)] == 1)
+    # Interpolated at its node exactly: weight 1 on that node, 0 on the other corners.
+    a0, a1, wa = linear_weights(o[:, 0], full.a_axis)
+    b0, b1, wb = periodic_weights(o[:, 1], full.b_axis)
+    exact = (((wa == 0) & (a0 == ia)) | ((wa == 1) & (a1 == ia))) & (((wb == 0) & (b0 == ib)) | ((wb == 1) & (b1 == ib)))
+    fast = alone & exact & _axis_kept_without_each(o[:, 0]) & _axis_kept_without_each(o[:, 1])
+    rows_with_data = full.measured.any(axis=1)
+    for k in np.flatnonzero(fast):  # a few small arrays per ring: the fill at one node
+        ra, rb = ia[k], ib[k]
+        known = np.flatnonzero(full.measured[ra] & (np.arange(full.b_axis.size) != rb))
+        if known.size:  # along B within its row, as fill_missing_nodes
+            j0, j1, w = periodic_weights(full.b_axis[[rb]], full.b_axis[known])
+            weights[rings[k]] = ((1 - w)[:, None] * full.mean_table[ra, known[j0]] + w[:, None] * full.mean_table[ra, known[j1]])[0]
+            continue
+        rows = np.flatnonzero(rows_with_data & (np.arange(full.a_axis.size) != ra))
+        if not rows.size:
+            fast[k] = False  # no data left: the refit says so
+            continue
+        i0, i1, w = linear_weights(full.a_axis[[ra]], full.a_axis[rows])  # its row emptied: along A
+        weights[rings[k]] = ((1 - w)[:, None] * full.mean_table[rows[i0], rb] + w[:, None] * full.mean_table[rows[i1], rb])[0]
+    return weights, rings[~fast]
+
+
+def _axis_kept_without_each(angles: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Per orientation: would lattice_axes keep the same values of this angle without it?"""
+    values, inverse, counts = np.unique(orientation_keys(angles), return_inverse=True, return_counts=True)
+
+    def kept(c: NDArray[np.int64]) -> NDArray[np.bool_]:  # lattice_axes's rule, a value of count 0 gone
+        return (c > 0) & (c >= max(2, 0.5 * c.max())) if c.max() >= 2 else c > 0
+
+    base = kept(counts)
+    same = np.array([np.array_equal(kept(counts - (np.arange(values.size) == j)), base) for j in range(values.size)], dtype=bool)
+    return same[inverse]
