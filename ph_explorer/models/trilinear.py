@@ -260,7 +260,8 @@ def leave_one_ring_out_weights(
     """The trilinear model's out-of-sample weights W (models.crossval.out_of_sample_weights) from one
     fit, not one per ring: where a training ring alone on its node, at the node itself, leaves the
     lattice as it was, the model without it differs only at that node, filled from the others (the
-    same arithmetic as fill_missing_nodes). Returns W and the training rings left to a refit each."""
+    same arithmetic as fill_missing_nodes). Returns W and the training rings left to a refit each
+    (docs/methods/crossval.md)."""
     n = len(orientations)
     full = TrilinearModel().fit(Campaign(orientations, np.eye(n)[:, None, :]), train)
     weights = np.zeros((n, n))
