@@ -19,17 +19,18 @@ import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar, Self
+from typing import TYPE_CHECKING, ClassVar, Self
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import ConstantKernel, Kernel, Matern, WhiteKernel
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
+
+if TYPE_CHECKING:  # scikit-learn is imported where a GP is made (1.1 s): the explorer and the CLI start without it
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import Kernel
 
 FILE_NAME = "gp.npz"
 N_FEATURES = 3
@@ -44,6 +45,8 @@ def features(orientations: ArrayLike) -> NDArray[np.float64]:
 
 def default_kernel() -> Kernel:
     """Constant x Matern 5/2 (one length scale per feature) + white noise, before its fit."""
+    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
+
     return ConstantKernel(1.0, (1e-4, 1e4)) * Matern(np.ones(N_FEATURES), (1e-2, 1e3), nu=2.5) + WhiteKernel(0.1, (1e-6, 1e2))
 
 
@@ -69,6 +72,9 @@ def learnt_theta(x: NDArray[np.float64], curves: NDArray[np.float64]) -> NDArray
     with _THETAS_LOCK:
         if key in _THETAS:
             return _THETAS[key].copy()
+    from sklearn.exceptions import ConvergenceWarning
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
     learner = GaussianProcessRegressor(default_kernel(), n_restarts_optimizer=RESTARTS, random_state=0)
     with warnings.catch_warnings():
         # A length scale at its upper bound says that feature does not matter: an answer, not a failure.
@@ -128,6 +134,8 @@ class GaussianProcessModel(DeviationModel):
         self.train_features, self.train_curves, self.sigma_curve = x, curves, sigma
         self.n_points = curves.shape[-1]
         targets, self.mean_curve_, self.scale_ = standardised(curves)
+        from sklearn.gaussian_process import GaussianProcessRegressor
+
         kernel = default_kernel().clone_with_theta(np.asarray(self.theta, dtype=float))
         self.regressor_ = GaussianProcessRegressor(kernel, optimizer=None).fit(x, targets)
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import norm
+from scipy.special import ndtri  # the normal quantile, as scipy.stats.norm.ppf gives it, without scipy.stats's import (0.9 s)
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, draw_repetitions
@@ -260,7 +260,7 @@ def gaussian_band(
     o = as_orientations(orientation)[:1]
     n = sources.model.n_points if n_points is None else int(n_points)
     prediction = sources.model.predict(o, n_points=n)[0]
-    half = float(norm.ppf(0.5 + level / 2.0)) * np.sqrt(band_variance(sources, o, n, band, components)[0])
+    half = float(ndtri(0.5 + level / 2.0)) * np.sqrt(band_variance(sources, o, n, band, components)[0])
     return prediction - half, prediction + half
 
 
@@ -282,7 +282,7 @@ def calibrate_model_error(sources: Sources, orientations: ArrayLike, mean_curves
     curves = np.asarray(mean_curves, dtype=float)
     n = curves.shape[-1]
     residual = np.abs(curves - sources.model.predict(o, n_points=n))
-    z = float(norm.ppf(0.5 + level / 2.0))
+    z = float(ndtri(0.5 + level / 2.0))
     fixed, power, q = _variance_parts(sources, o, n, "mean", COMPONENTS)
     needed = (residual / z) ** 2 - fixed  # (m, N) what the model error must add at each point
     # The model's variance grows with s (piecewise linearly): bisect every point at once.
