@@ -28,7 +28,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
 
-if TYPE_CHECKING:  # scikit-learn is imported where a GP is made (1.1 s): the explorer and the CLI start without it
+if TYPE_CHECKING:  # scikit-learn is imported where a GP is made: the explorer and the CLI start without it
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import Kernel
 
