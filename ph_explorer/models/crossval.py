@@ -145,7 +145,7 @@ def _trilinear_weights(orientations: NDArray[np.float64], train: NDArray[np.bool
     each ring it cannot read off that fit: the same W as a refit for every ring, several times faster."""
     unit = unit_campaign(orientations)
     try:
-        weights, refit = leave_one_ring_out_weights(orientations, train)
+        weights, refit = leave_one_ring_out_weights(unit, train)
     except ValueError:  # the training rings together put none on a node: each refit says what it can
         return _out_of_sample(TrilinearModel, unit, train, _interpolate)
     if refit.size:

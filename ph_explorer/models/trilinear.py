@@ -254,16 +254,14 @@ def _node_index(values: NDArray[np.float64], axis: NDArray[np.float64]) -> NDArr
     return np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
 
 
-def leave_one_ring_out_weights(
-    orientations: NDArray[np.float64], train: NDArray[np.bool_]
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+def leave_one_ring_out_weights(unit: Campaign, train: NDArray[np.bool_]) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """The trilinear model's out-of-sample weights W (models.crossval.out_of_sample_weights) from one
     fit, not one per ring: where a training ring alone on its node, at the node itself, leaves the
     lattice as it was, the model without it differs only at that node, filled from the others (the
-    same arithmetic as fill_missing_nodes). Returns W and the training rings left to a refit each
-    (docs/methods/crossval.md)."""
-    n = len(orientations)
-    full = TrilinearModel().fit(Campaign(orientations, np.eye(n)[:, None, :]), train)
+    same arithmetic as fill_missing_nodes). `unit`: crossval.unit_campaign of the orientations.
+    Returns W and the training rings left to a refit each (docs/methods/crossval.md)."""
+    orientations, n = unit.orientations, unit.n_orientations
+    full = TrilinearModel().fit(unit, train)
     weights = np.zeros((n, n))
     if (~train).any():
         weights[~train] = full.interpolate(orientations[~train])

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.special import ndtri  # the normal quantile, as scipy.stats.norm.ppf gives it, without scipy.stats's import (0.9 s)
+from scipy.special import ndtri  # the normal quantile, as scipy.stats.norm.ppf gives it, without importing scipy.stats
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, draw_repetitions
