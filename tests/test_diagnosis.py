@@ -17,6 +17,8 @@ from command_line import run_cli
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose, verdict_text
+from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.telling_apart import told_apart
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
@@ -317,6 +319,43 @@ def test_a_campaign_on_another_lattice_and_geometry(hidden):
     assert best.params["cycles_per_rev"] == hidden["cycles_per_rev"]
     assert best.params["amplitude_arcsec"] == pytest.approx(hidden["amplitude_arcsec"], rel=0.2)
     assert result.steps[-1].mae_um["mean"] <= 1.3 * result.steps[-1].noise_floor_um["mean"]
+
+
+def few_off_grid_campaign(seed: int) -> Campaign:
+    """A 15 x 30 deg lattice whose only rings off its A rows are five check rings, and a hidden A-axis
+    tilt motion at 18/rev: a function of A alone, which the lattice interpolates along B at every
+    lattice ring, so that the five check rings alone see it."""
+    recipe = tomllib.loads((scenarios_dir() / "paper.toml").read_text())
+    recipe.update(
+        name="few_off_grid",
+        seed=seed,
+        repetitions=5,
+        check_orientations=[],
+        geometry={"points_per_circle": 48},
+        orientations={"a_deg": [0, 90, 15], "b_deg": [-150, 180, 30], "off_grid": [[9, 45], [27, -75], [49, 105], [63, -15], [81, 165]]},
+    )
+    tilt = {"about_y_amplitude_arcsec": 1.2, "about_y_phase_deg": 40.0, "about_z_amplitude_arcsec": 1.2, "about_z_phase_deg": 100.0}
+    recipe["effects"] = recipe["effects"] + [{"id": "a_axis_tilt_motion", **tilt, "cycles_per_rev": 18, "hidden": True}]
+    return simulate(scenario_from_dict(recipe))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_period_the_rings_do_not_tell_from_the_one_found_is_not_excluded(seed):
+    # Five rings cannot pin an 18/rev period of A (on seed 2 the touches alone chose 20 and excluded
+    # every other): the settings it cannot exclude hold the truth, and each setting left out is
+    # one the rings tell from the chosen, as a claim is told from a partner.
+    campaign = few_off_grid_campaign(seed)
+    result = diagnose(campaign, nested=False)
+    (found,) = [c for c in result.found if c.effect == "a_axis_tilt_motion"]
+    kept = [found.settings, *found.settings_not_excluded]
+    assert {"cycles_per_rev": 18} in kept
+    search = CandidateSearch(campaign, ~campaign.holdout_mask())
+    effect = DEFAULT_CATALOG["a_axis_tilt_motion"]()
+    chosen = effect.with_settings(**found.settings)
+    for settings in effect.scan_grid()[::3]:  # every third: the test's time
+        if settings not in kept:
+            assert told_apart(search, chosen, effect.with_settings(**settings), [])["told_apart"], settings
+    assert "cannot exclude cycles_per_rev" in " ".join(verdict_text(result, DEFAULT_CATALOG)[1])
 
 
 @pytest.mark.slow

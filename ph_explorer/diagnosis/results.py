@@ -278,7 +278,7 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
         for c in result.found:
             if c.settings_not_excluded:
-                others = "; ".join(", ".join(f"{k} {v:g}" for k, v in o.items()) for o in c.settings_not_excluded)
+                others = settings_text(c.settings_not_excluded)
                 lines.append(f"{c.effect}: the campaign cannot exclude {others} beside the setting found (95 %).")
     test = after if result.verdict in ("missing", "partial") else before
     if test is None:
@@ -339,6 +339,20 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
+
+
+def settings_text(settings: list[dict[str, Any]]) -> str:
+    """'cycles_per_rev 1-14, 17-21': scanned settings in words, consecutive values of one parameter as a range."""
+    if len({tuple(s) for s in settings}) != 1 or len(settings[0]) != 1:
+        return "; ".join(", ".join(f"{k} {v:g}" for k, v in s.items()) for s in settings)
+    (name,) = settings[0]
+    runs: list[list[float]] = []
+    for value in sorted(float(s[name]) for s in settings):
+        if runs and value == runs[-1][-1] + 1:
+            runs[-1].append(value)
+        else:
+            runs.append([value])
+    return f"{name} " + ", ".join(f"{r[0]:g}" if len(r) == 1 else f"{r[0]:g}-{r[-1]:g}" for r in runs)
 
 
 def exceeding_text(count: int) -> str:

@@ -6,6 +6,8 @@ large. The question is answered as a claim is (diagnosis.replication), with ring
 ring's out-of-sample sum of squares with the partner in the model less that with the candidate,
 in the ring's own noise variances, tested over rings by sign flips (Student's t on few rings),
 and still significant without the most influential ring. Method: docs/methods/deciding.md#told-apart.
+The same question of a claim's own setting against the effect's other scanned settings (a period
+two off) bounds what the rings say of its setting (`settings_told_apart`).
 """
 
 from __future__ import annotations
@@ -61,3 +63,26 @@ def tell_apart(
                 continue
             partner = by_id[entry["effect"]].with_settings(**settings.get(entry["effect"], {}))
             entry.update(told_apart(search, effect, partner, start, seed))
+
+
+def settings_told_apart(
+    search: CandidateSearch,
+    candidates: Sequence[Candidate],
+    claimed: Sequence[str],
+    by_id: dict[str, Effect],
+    start: Sequence[Effect],
+    seed: int = 0,
+) -> None:
+    """On each claimed or suggested candidate, every other scanned setting of its effect that the
+    rings do not tell from the one chosen (told_apart, the chosen in the partner's place) joins its
+    settings_not_excluded, in scan order: a setting is excluded only when the touches' profile
+    likelihood and the rings as units both exclude it."""
+    for candidate in candidates:
+        if not (candidate.effect in claimed or candidate.suggested) or not candidate.settings:
+            continue
+        effect = by_id[candidate.effect]
+        chosen = effect.with_settings(**candidate.settings)
+        excluded = [s for s in effect.scan_grid() if s != candidate.settings and s not in candidate.settings_not_excluded]
+        kept = [s for s in excluded if not told_apart(search, chosen, effect.with_settings(**s), start, seed)["told_apart"]]
+        if kept:
+            candidate.settings_not_excluded = [s for s in effect.scan_grid() if s in kept or s in candidate.settings_not_excluded]
