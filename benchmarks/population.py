@@ -14,8 +14,9 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    reach the strength plausibly on the design is replaced by the next; a head on which none does,
    by another head) at 1-3x its detection
    limit: "missing" or "partial" with the right effect at its settings (or at settings it cannot
-   exclude: search.SETTINGS_NOT_EXCLUDED), or with a found effect
-   confounded with it; and for the right effect found at its settings, the share of its fitted
+   exclude: the touches' profile likelihood, search.SETTINGS_NOT_EXCLUDED, and the rings,
+   telling_apart.settings_told_apart), or with a found effect confounded with it; beside it the
+   share found at the true setting itself and how many other settings each find keeps; and for the right effect found at its settings, the share of its fitted
    parameters whose truth is within fit +- U (per parameter, as k = 2 is stated; every parameter
    of an effect at once is reported beside it).
 4. outside_catalog: heads with one effect of a shape no catalog holds (benchmarks.outside_catalog)
@@ -322,6 +323,13 @@ def run_jobs(todo: list[dict[str, Any]], client: Client, log: Callable[[str], No
     return sorted(records, key=lambda r: (r["group"], r["seed"]))
 
 
+def spread(counts: list[int]) -> dict[str, Any]:
+    """Median, 90th percentile and maximum of counts (None on none)."""
+    if not counts:
+        return {"median": None, "p90": None, "max": None, "of": 0}
+    return {"median": float(np.median(counts)), "p90": float(np.quantile(counts, 0.9)), "max": int(max(counts)), "of": len(counts)}
+
+
 def rate(k: int, n: int) -> dict[str, Any]:
     return {"count": k, "of": n, "share": share(k, n), "ci95": clopper_pearson(k, n)}
 
@@ -352,6 +360,10 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     within = [parameters_within_u(r, f) for r, f in exact_finds(effect)]  # per found effect, per parameter
     out["catalog_effect"] = {
         "found": rate(sum(f is not None and r["verdict"] in ("missing", "partial") for r, f in right), len(effect)),
+        # the same, the setting chosen the true one: a found effect's set of settings the campaign
+        # cannot exclude (the touches' and the rings' tests) can hold the truth beside another choice
+        "found_at_the_true_setting": rate(sum(r["verdict"] in ("missing", "partial") for r, _ in exact_finds(effect)), len(effect)),
+        "settings_not_excluded_per_find": spread([len(f["not_excluded"]) for _, f in right if f is not None and "not_excluded" in f]),
         # judged per parameter, as a k = 2 expanded uncertainty is stated; jointly over all of an
         # effect's 2-4 parameters the share is lower by construction (0.95^4 = 0.81)
         "truth_within_u": rate(sum(map(sum, within)), sum(map(len, within))),

@@ -1107,14 +1107,22 @@ no verdict). Healthy heads: any verdict but `none` is a false alarm, unless it n
 head's own background terms at their true settings (a true finding of a term the lattice model
 leaves, e.g. a 4/rev B-axis error a 20 deg lattice cannot follow); both shares are shown.
 Stability: the same heads with another draw of their noise. One catalog effect at 1-3x its
-detection limit: `missing` or `partial` with it (at its settings) or with a candidate confounded
-with it, and its true parameters within the fit +- U (per parameter, as k = 2 is stated; all of
+detection limit: `missing` or `partial` with it (at its settings, or at settings the diagnosis
+cannot exclude; beside it, found at its true setting, and how many others each find keeps) or
+with a candidate confounded with it, and its true parameters within the fit +- U (per parameter, as k = 2 is stated; all of
 an effect's parameters at once beside it). One effect of a shape no catalog holds (a local
 defect of an axis, seven lobes of the probe) at 2-4x its detection limit: how often it is called
 `missing` (an overclaim), and, where the diagnosis sees it, whether the signature's first
 variable is of the defect's own joint (b_joint_deg or b0_deg for a B defect), the exact variable,
 and a bump within two widths of the defect. Intervals are 95 % Clopper-Pearson.
 """
+
+
+def not_excluded_text(spread: Mapping[str, Any] | None) -> str:
+    """'other settings not excluded per find: median 0, 90th percentile 3, max 19'."""
+    if not spread or spread.get("median") is None:
+        return ""
+    return f"other settings not excluded per find: median {spread['median']:g}, 90th percentile {spread['p90']:g}, max {spread['max']}"
 
 
 def population(results: Mapping[str, Any]) -> str:
@@ -1135,6 +1143,11 @@ def population(results: Mapping[str, Any]) -> str:
             "one catalog effect: found",
             share_of(get(pop, "catalog_effect", "found")),
             joined([f"{k} {v}" for k, v in (get(pop, "catalog_effect", "verdicts") or {}).items()]),
+        ],
+        [
+            "one catalog effect: found at its true setting",
+            share_of(get(pop, "catalog_effect", "found_at_the_true_setting")),
+            not_excluded_text(get(pop, "catalog_effect", "settings_not_excluded_per_find")),
         ],
         ["one catalog effect: parameters with the truth within U", share_of(get(pop, "catalog_effect", "truth_within_u")), ""],
         [
