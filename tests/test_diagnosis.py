@@ -19,13 +19,14 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose, verdict_text
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import told_apart
-from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog
+from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, scenarios_dir
+from ph_explorer.planning.deciding import rings_that_decide
 from ph_explorer.twin import load_scenario, scenario_from_dict, simulate
 
 # Each teaching scenario, its hidden effect, and the reference that exposes it.
@@ -356,6 +357,12 @@ def test_a_period_the_rings_do_not_tell_from_the_one_found_is_not_excluded(seed)
         if settings not in kept:
             assert told_apart(search, chosen, effect.with_settings(**settings), [])["told_apart"], settings
     assert "cannot exclude cycles_per_rev" in " ".join(verdict_text(result, DEFAULT_CATALOG)[1])
+    # The closest setting the rings keep is a question for the rings that would decide.
+    rival = effect.with_settings(**found.rival_setting["settings"])
+    assert found.rival_setting["settings"] in found.settings_not_excluded
+    assert not told_apart(search, chosen, rival, [])["told_apart"]
+    decision = rings_that_decide(campaign, result, DEFAULT_CATALOG, 8)
+    assert f"{effect_label(chosen)} vs {effect_label(rival)}" in decision.questions
 
 
 @pytest.mark.slow

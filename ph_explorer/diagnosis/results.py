@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.within_noise import NoiseTest
-from ph_explorer.effects import Catalog, Effect, effect_label
+from ph_explorer.effects import Catalog, Effect, effect_label, settings_text
 from ph_explorer.models.hybrid import HybridModel
 
 DIGITS = 5
@@ -55,6 +55,8 @@ class Candidate:
     not_needed: bool = False
     # Other scanned settings the data cannot exclude (search.SETTINGS_NOT_EXCLUDED), e.g. a period one off.
     settings_not_excluded: list[dict[str, Any]] = field(default_factory=list)
+    # Of those the rings cannot exclude, the closest (telling_apart.settings_told_apart), fitted, and its test.
+    rival_setting: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
@@ -278,8 +280,14 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
         lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
         for c in result.found:
             if c.settings_not_excluded:
-                others = settings_text(c.settings_not_excluded)
-                lines.append(f"{c.effect}: the campaign cannot exclude {others} beside the setting found (95 %).")
+                lines.append(
+                    f"{c.effect}: the campaign cannot exclude {settings_text(c.settings_not_excluded)} beside the setting found (95 %)."
+                )
+            if r := c.rival_setting:
+                lines.append(
+                    f"{c.effect}: the rings cannot tell its setting from {settings_text([r['settings']])} ({told_apart_text(r)}); "
+                    "which rings would: Rings that would decide (explorer), or ph-explorer design --data FILE.csv --decide."
+                )
     test = after if result.verdict in ("missing", "partial") else before
     if test is None:
         lines.append("One repetition: no repetition spread, so 'within noise' could not be tested.")
@@ -339,20 +347,6 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(result.found[0].teaching)
     return headline, lines
-
-
-def settings_text(settings: list[dict[str, Any]]) -> str:
-    """'cycles_per_rev 1-14, 17-21': scanned settings in words, consecutive values of one parameter as a range."""
-    if len({tuple(s) for s in settings}) != 1 or len(settings[0]) != 1:
-        return "; ".join(", ".join(f"{k} {v:g}" for k, v in s.items()) for s in settings)
-    (name,) = settings[0]
-    runs: list[list[float]] = []
-    for value in sorted(float(s[name]) for s in settings):
-        if runs and value == runs[-1][-1] + 1:
-            runs[-1].append(value)
-        else:
-            runs.append([value])
-    return f"{name} " + ", ".join(f"{r[0]:g}" if len(r) == 1 else f"{r[0]:g}-{r[-1]:g}" for r in runs)
 
 
 def exceeding_text(count: int) -> str:

@@ -16,9 +16,10 @@ from collections.abc import Sequence
 
 from ph_explorer.diagnosis.replication import replication, ring_gains
 from ph_explorer.diagnosis.results import Candidate
-from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
+from ph_explorer.models import least_squares
 
 
 def told_apart(
@@ -76,13 +77,23 @@ def settings_told_apart(
     """On each claimed or suggested candidate, every other scanned setting of its effect that the
     rings do not tell from the one chosen (told_apart, the chosen in the partner's place) joins its
     settings_not_excluded, in scan order: a setting is excluded only when the touches' profile
-    likelihood and the rings as units both exclude it."""
+    likelihood and the rings as units both exclude it. The closest of them (the largest p-value)
+    is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
     for candidate in candidates:
         if not (candidate.effect in claimed or candidate.suggested) or not candidate.settings:
             continue
         effect = by_id[candidate.effect]
         chosen = effect.with_settings(**candidate.settings)
-        excluded = [s for s in effect.scan_grid() if s != candidate.settings and s not in candidate.settings_not_excluded]
-        kept = [s for s in excluded if not told_apart(search, chosen, effect.with_settings(**s), start, seed)["told_apart"]]
-        if kept:
-            candidate.settings_not_excluded = [s for s in effect.scan_grid() if s in kept or s in candidate.settings_not_excluded]
+        others = [s for s in effect.scan_grid() if s != candidate.settings]
+        tests = [(s, told_apart(search, chosen, effect.with_settings(**s), start, seed)) for s in others]
+        kept = [(s, test) for s, test in tests if not test["told_apart"]]
+        if not kept:
+            continue
+        candidate.settings_not_excluded = [s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept)]
+        settings, test = max(kept, key=lambda item: item[1]["p_value"])
+        rival = effect.with_settings(**settings)
+        design = search.design([*start, rival])
+        own = least_squares.fit(design, search.targets)[0][-search.design([rival]).n_columns :, 0]
+        shared = shared_variance(search.design([chosen]), search.design([rival]))
+        params = {k: float(v) for k, v in rival.from_coefficients(own).items()}
+        candidate.rival_setting = {"settings": settings, "params": params, "shared": round(shared, 3), **test}

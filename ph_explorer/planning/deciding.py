@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import Candidate, Diagnosis
-from ph_explorer.effects import Catalog, Effect
+from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import fitted_basis
@@ -37,12 +37,22 @@ class Question:
     separated_by: str = ""  # a measurement other than rings that would separate them (diagnosis.separation)
 
     @property
+    def names(self) -> tuple[str, str]:
+        """The two sides in words: their ids, each with its settings when both are one effect (its period)."""
+        if self.other is None:
+            return self.effect.id, ""
+        if self.other.id == self.effect.id:
+            return effect_label(self.effect), effect_label(self.other)
+        return self.effect.id, self.other.id
+
+    @property
     def label(self) -> str:
-        return f"{self.effect.id} vs {self.other.id}" if self.other is not None else self.effect.id
+        return " vs ".join(self.names) if self.other is not None else self.effect.id
 
     def reason(self, gain: float, total: float) -> str:
         if self.other is not None:
-            return f"tells {self.effect.id} from {self.other.id}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
+            first, second = self.names
+            return f"tells {first} from {second}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
         return f"confirms or refutes {self.effect.id}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
 
 
@@ -69,7 +79,8 @@ class Decision:
 
 def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
     """Every question the diagnosis leaves: each claimed or suggested candidate against each
-    confounded partner its rings do not tell it from, and each suggested candidate to confirm."""
+    confounded partner its rings do not tell it from and against its rival setting (the closest
+    one its rings do not tell from its own), and each suggested candidate to confirm."""
     ranked: dict[str, Candidate] = {}
     for ranking in result.rankings or [result.candidates]:
         for c in ranking:
@@ -85,16 +96,20 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
                 asked.add(pair)
                 measurement = (partner.get("separated_by") or {}).get("measurement", "")
                 out.append(Question(effect, fitted_effect(other, catalog), float(partner["shared"]), measurement))
+        rival = candidate.rival_setting
+        if rival:
+            out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival["shared"])))
         if candidate.suggested:
             out.append(Question(effect))
     return out
 
 
-def fitted_effect(candidate: Candidate, catalog: Catalog) -> Effect:
-    """The candidate's effect at its fitted parameters (and settings)."""
+def fitted_effect(candidate: Candidate, catalog: Catalog, at: dict[str, Any] | None = None) -> Effect:
+    """The candidate's effect at its fitted parameters and settings, or at those of `at` (its rival_setting)."""
     cls = catalog[candidate.effect]
     known = {p.name for p in cls.parameters}
-    return cls(**{k: v for k, v in {**candidate.params, **candidate.settings}.items() if k in known})
+    fit = at if at is not None else {"params": candidate.params, "settings": candidate.settings}
+    return cls(**{k: v for k, v in {**fit["params"], **fit["settings"]}.items() if k in known})
 
 
 def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
