@@ -193,10 +193,11 @@ class Diagnosis:
     @property
     def leaves_open(self) -> bool:
         """Whether rings could decide something this diagnosis leaves open: a claimed or suggested
-        candidate its rings do not tell from a confounded partner, or a suggested one
-        (planning.deciding)."""
+        candidate its rings do not tell from a confounded partner or from its rival setting, or a
+        suggested one (planning.deciding)."""
         candidates = [*self.found, *self.suggested]
-        return bool(self.suggested) or any(o.get("told_apart") is False for c in candidates for o in c.confounded_with)
+        untold = any(o.get("told_apart") is False for c in candidates for o in c.confounded_with)
+        return bool(self.suggested) or untold or any(c.rival_setting for c in candidates)
 
     @property
     def not_needed(self) -> list[Candidate]:
