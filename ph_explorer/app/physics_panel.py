@@ -268,11 +268,11 @@ class PhysicsPanel:
         # The verdict in short (what was found, what to do); the tests' figures, the teaching text
         # (shown once, here) and the verdicts under "More".
         # The found effects' parameters +- U are in the results' table just below: not repeated here.
-        # A pair the rings cannot tell apart matters beside a claim; beside `none` it is in "More".
+        # A pair the rings cannot tell apart, or a setting they cannot pin, matters beside a claim;
+        # beside `none` it is in "More".
         claims = result.verdict != "none"
-        short = [
-            line for line in lines if line.startswith("Resumed with") or (claims and ("told apart" in line or "tell them apart" in line))
-        ]
+        open_ = ("told apart", "tell them apart", "the rings cannot tell it from")
+        short = [line for line in lines if line.startswith("Resumed with") or (claims and any(words in line for words in open_))]
         self.nested = result.nested  # the honest "after", shown with the error history
         self.verdict.content = "\n\n".join([f"**{headline}**", *short])
         self.keep_in_view("Verdict:")

@@ -193,11 +193,11 @@ class Diagnosis:
     @property
     def leaves_open(self) -> bool:
         """Whether rings could decide something this diagnosis leaves open: a claimed or suggested
-        candidate its rings do not tell from a confounded partner or from its rival setting, or a
-        suggested one (planning.deciding)."""
+        candidate its rings do not tell from a confounded partner, a claim from its rival setting,
+        or a suggested one (planning.deciding)."""
         candidates = [*self.found, *self.suggested]
         untold = any(o.get("told_apart") is False for c in candidates for o in c.confounded_with)
-        return bool(self.suggested) or untold or any(c.rival_setting for c in candidates)
+        return bool(self.suggested) or untold or any(c.rival_setting for c in self.found)
 
     @property
     def not_needed(self) -> list[Candidate]:
@@ -280,13 +280,13 @@ def verdict_text(result: Diagnosis, catalog: Catalog) -> tuple[str, list[str]]:
     if result.verdict in ("missing", "partial") and result.found:
         lines.append(f"Found: {found} (+- expanded uncertainty, k = 2).")
         for c in result.found:
+            effect = catalog[c.effect]().with_settings(**c.settings)
             if c.settings_not_excluded:
-                lines.append(
-                    f"{c.effect}: the campaign cannot exclude {settings_text(c.settings_not_excluded)} beside the setting found (95 %)."
-                )
+                others = settings_text(effect, c.settings_not_excluded)
+                lines.append(f"{c.effect}: the campaign cannot exclude {others} beside the setting found (95 %).")
             if r := c.rival_setting:
                 lines.append(
-                    f"{c.effect}: the rings cannot tell its setting from {settings_text([r['settings']])} ({told_apart_text(r)}); "
+                    f"{effect_label(effect)}: the rings cannot tell it from {settings_text(effect, [r['settings']])} ({told_apart_text(r)}); "
                     "which rings would: Rings that would decide (explorer), or ph-explorer design --data FILE.csv --decide."
                 )
     test = after if result.verdict in ("missing", "partial") else before

@@ -382,10 +382,12 @@ def effect_label(effect: Effect) -> str:
     return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
 
 
-def settings_text(settings: list[dict[str, Any]]) -> str:
-    """'cycles_per_rev 1-14, 17-21': scanned settings in words, consecutive values of one parameter as a range."""
+def settings_text(effect: Effect, settings: list[dict[str, Any]]) -> str:
+    """'1-14, 17-21 cycles/rev': settings of the effect's scanned parameters in words, consecutive
+    values of one parameter as a range, in its unit."""
+    units = {p.name: p.unit for p in effect.parameters}
     if len({tuple(s) for s in settings}) != 1 or len(settings[0]) != 1:
-        return "; ".join(", ".join(f"{k} {v:g}" for k, v in s.items()) for s in settings)
+        return "; ".join(", ".join(f"{k} {v:g} {units.get(k, '')}".strip() for k, v in s.items()) for s in settings)
     (name,) = settings[0]
     runs: list[list[float]] = []
     for value in sorted(float(s[name]) for s in settings):
@@ -393,4 +395,4 @@ def settings_text(settings: list[dict[str, Any]]) -> str:
             runs[-1].append(value)
         else:
             runs.append([value])
-    return f"{name} " + ", ".join(f"{r[0]:g}" if len(r) == 1 else f"{r[0]:g}-{r[-1]:g}" for r in runs)
+    return (", ".join(f"{r[0]:g}" if len(r) == 1 else f"{r[0]:g}-{r[-1]:g}" for r in runs) + f" {units.get(name, '')}").strip()

@@ -79,8 +79,8 @@ class Decision:
 
 def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
     """Every question the diagnosis leaves: each claimed or suggested candidate against each
-    confounded partner its rings do not tell it from and against its rival setting (the closest
-    one its rings do not tell from its own), and each suggested candidate to confirm."""
+    confounded partner its rings do not tell it from, each claim against its rival setting (the
+    closest one its rings do not tell from its own), and each suggested candidate to confirm."""
     ranked: dict[str, Candidate] = {}
     for ranking in result.rankings or [result.candidates]:
         for c in ranking:
@@ -97,7 +97,7 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
                 measurement = (partner.get("separated_by") or {}).get("measurement", "")
                 out.append(Question(effect, fitted_effect(other, catalog), float(partner["shared"]), measurement))
         rival = candidate.rival_setting
-        if rival:
+        if rival and not candidate.suggested:  # a suggestion is confirmed first, its setting after
             out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival["shared"])))
         if candidate.suggested:
             out.append(Question(effect))
