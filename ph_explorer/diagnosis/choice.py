@@ -24,10 +24,13 @@ from ph_explorer.models import least_squares
 
 
 def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
-    """The within-noise test of what the effects, fitted through the smoother, leave."""
+    """The within-noise test of what the effects, fitted through the smoother, leave out of sample:
+    each ring's terms fitted without that ring (as the replication test fits them), so that the
+    rings that alone carry an effect are not judged on a fit to themselves."""
     design = search.design(effects)
-    mean, within = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
-    changing = 0.0 if within is None else within
+    coef = least_squares.jackknife(design, search.targets, np.arange(campaign.n_orientations))  # (n_o, c)
+    mean = np.einsum("opc,oc->op", design.mean, coef)
+    changing = 0.0 if design.within is None else np.einsum("orpc,oc->orp", design.within, coef)
     residual = search.residual - mean[:, None, :] - changing
     return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
 
