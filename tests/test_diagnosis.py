@@ -17,11 +17,14 @@ from command_line import run_cli
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose, verdict_text
+from ph_explorer.diagnosis.choice import within_noise_after
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import told_apart
+from ph_explorer.diagnosis.within_noise import within_noise
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
@@ -369,6 +372,22 @@ def test_a_period_the_rings_do_not_tell_from_the_one_found_is_not_excluded(seed)
     assert decision.questions == [f"{effect_label(chosen)} vs {effect_label(rival)}"]
     found.rival_setting = {}
     assert not result.leaves_open
+
+
+def test_the_rings_that_alone_carry_an_effect_are_judged_within_noise_on_a_fit_without_them():
+    # Only the five check rings see the A-axis tilt (18/rev). At a wrong period (16/rev) its four
+    # terms still fit those five rings themselves, and judged on that fit the model is within noise;
+    # each ring judged on the terms fitted without it, it is not. At the true period it is, both ways.
+    campaign = few_off_grid_campaign(1)
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), detail=False)
+    tilt = DEFAULT_CATALOG["a_axis_tilt_motion"]()
+    wrong, right = [tilt.with_settings(cycles_per_rev=16)], [tilt.with_settings(cycles_per_rev=18)]
+    design = search.design(wrong)
+    mean, _ = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
+    on_itself = within_noise(search.residual - mean[:, None, :], search.smoother.weights, campaign.deviations)
+    assert not on_itself.fails
+    assert within_noise_after(search, campaign, wrong).fails
+    assert not within_noise_after(search, campaign, right).fails
 
 
 @pytest.mark.slow
