@@ -53,7 +53,8 @@ class Candidate:
     replication: dict[str, Any] = field(default_factory=dict)  # Replication.as_dict(), for a candidate the search would take
     # Significant, but the model is within noise without it: nothing is missing that the campaign shows.
     not_needed: bool = False
-    # Other scanned settings the data cannot exclude (search.SETTINGS_NOT_EXCLUDED), e.g. a period one off.
+    # Other scanned settings the data cannot exclude, e.g. a period one off: the touches' profile
+    # likelihood (search.SETTINGS_NOT_EXCLUDED) or the rings as units (telling_apart.settings_told_apart).
     settings_not_excluded: list[dict[str, Any]] = field(default_factory=list)
     # Of those the rings cannot exclude, the closest (telling_apart.settings_told_apart), fitted, and its test.
     rival_setting: dict[str, Any] = field(default_factory=dict)
