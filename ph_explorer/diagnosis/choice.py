@@ -28,9 +28,8 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
     each ring's terms fitted without that ring (as the replication test fits them), so that the
     rings that alone carry an effect are not judged on a fit to themselves."""
     design = search.design(effects)
-    coef = least_squares.jackknife(design, search.targets, np.arange(campaign.n_orientations))  # (n_o, c)
-    mean = np.einsum("opc,oc->op", design.mean, coef)
-    changing = 0.0 if design.within is None else np.einsum("orpc,oc->orp", design.within, coef)
+    mean, within = design.apply_each(least_squares.jackknife(design, search.targets, np.arange(campaign.n_orientations)))
+    changing = 0.0 if within is None else within
     residual = search.residual - mean[:, None, :] - changing
     return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
 

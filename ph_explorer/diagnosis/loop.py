@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
-from ph_explorer.diagnosis.telling_apart import settings_told_apart, tell_apart
+from ph_explorer.diagnosis.telling_apart import tell_apart
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -171,7 +171,6 @@ def diagnose(
         settle_presence(candidates, choice.remaining, [c.effect for c in found])
     confounding(search, candidates, by_id)
     tell_apart(search, candidates, [c.effect for c in found], by_id, start, seed)
-    settings_told_apart(search, candidates, [c.effect for c in found], by_id, start, seed)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
 

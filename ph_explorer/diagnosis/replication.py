@@ -78,10 +78,8 @@ def ring_residual_squares(residual: NDArray[np.float64], design: Design | None, 
     """(n_o,): each ring's sum of squares over single touches of what the design leaves of the
     residual (n_o, n_rep, n_pt), its coefficients fitted without that ring."""
     if design is not None and design.n_columns:
-        coef = least_squares.jackknife(design, targets, np.arange(residual.shape[0]))  # (n_o, c)
-        residual = residual - np.einsum("opc,oc->op", design.mean, coef)[:, None, :]
-        if design.within is not None:
-            residual = residual - np.einsum("orpc,oc->orp", design.within, coef)
+        mean, within = design.apply_each(least_squares.jackknife(design, targets, np.arange(residual.shape[0])))
+        residual = residual - mean[:, None, :] - (0.0 if within is None else within)
     return (residual**2).sum(axis=(1, 2))
 
 

@@ -53,7 +53,8 @@ def tell_apart(
     seed: int = 0,
 ) -> None:
     """On each claimed or suggested candidate of the first ranking, each confounded partner's entry
-    gains "told_apart" and its figures (told_apart); the chain before them is `start`."""
+    gains "told_apart" and its figures (told_apart), and its own setting is asked against the
+    effect's others (settings_told_apart); the chain before them is `start`."""
     settings = {c.effect: c.settings for c in candidates}
     for candidate in candidates:
         if not (candidate.effect in claimed or candidate.suggested):
@@ -64,36 +65,26 @@ def tell_apart(
                 continue
             partner = by_id[entry["effect"]].with_settings(**settings.get(entry["effect"], {}))
             entry.update(told_apart(search, effect, partner, start, seed))
+        if candidate.settings:
+            settings_told_apart(search, candidate, effect, start, seed)
 
 
-def settings_told_apart(
-    search: CandidateSearch,
-    candidates: Sequence[Candidate],
-    claimed: Sequence[str],
-    by_id: dict[str, Effect],
-    start: Sequence[Effect],
-    seed: int = 0,
-) -> None:
-    """On each claimed or suggested candidate, every other scanned setting of its effect that the
-    rings do not tell from the one chosen (told_apart, the chosen in the partner's place) joins its
+def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: Effect, start: Sequence[Effect], seed: int = 0) -> None:
+    """Every other scanned setting of the candidate's effect (`chosen`: at its own) that the rings
+    do not tell from the chosen (told_apart, the chosen in the partner's place) joins its
     settings_not_excluded, in scan order: a setting is excluded only when the touches' profile
     likelihood and the rings as units both exclude it. The closest of them (the largest p-value)
     is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
-    for candidate in candidates:
-        if not (candidate.effect in claimed or candidate.suggested) or not candidate.settings:
-            continue
-        effect = by_id[candidate.effect]
-        chosen = effect.with_settings(**candidate.settings)
-        others = [s for s in effect.scan_grid() if s != candidate.settings]
-        tests = [(s, told_apart(search, chosen, effect.with_settings(**s), start, seed)) for s in others]
-        kept = [(s, test) for s, test in tests if not test["told_apart"]]
-        if not kept:
-            continue
-        candidate.settings_not_excluded = [s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept)]
-        settings, test = max(kept, key=lambda item: item[1]["p_value"])
-        rival = effect.with_settings(**settings)
-        design = search.design([*start, rival])
-        own = least_squares.fit(design, search.targets)[0][-search.design([rival]).n_columns :, 0]
-        shared = shared_variance(search.design([chosen]), search.design([rival]))
-        params = {k: float(v) for k, v in rival.from_coefficients(own).items()}
-        candidate.rival_setting = {"settings": settings, "params": params, "shared": round(shared, 3), **test}
+    others = [s for s in chosen.scan_grid() if s != candidate.settings]
+    tests = [(s, told_apart(search, chosen, chosen.with_settings(**s), start, seed)) for s in others]
+    kept = [(s, test) for s, test in tests if not test["told_apart"]]
+    if not kept:
+        return
+    candidate.settings_not_excluded = [s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept)]
+    settings, test = max(kept, key=lambda item: item[1]["p_value"])
+    rival = chosen.with_settings(**settings)
+    design = search.design([*start, rival])
+    own = least_squares.fit(design, search.targets)[0][-search.design([rival]).n_columns :, 0]
+    shared = shared_variance(search.design([chosen]), search.design([rival]))
+    params = {k: float(v) for k, v in rival.from_coefficients(own).items()}
+    candidate.rival_setting = {"settings": settings, "params": params, "shared": round(shared, 3), **test}

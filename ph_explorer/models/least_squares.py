@@ -99,6 +99,12 @@ class Design:
         within = None if self.within is None else self.within @ coef
         return self.mean @ coef, within
 
+    def apply_each(self, coef: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """The fitted terms with each ring's own coefficients coef (n_o, c), e.g. a jackknife's:
+        (mean part (n_o, n_pt), within part (n_o, n_rep, n_pt) or None)."""
+        within = None if self.within is None else np.einsum("orpc,oc->orp", self.within, coef)
+        return np.einsum("opc,oc->op", self.mean, coef), within
+
     def first_column(self) -> Design:
         """A view of column 0 only (the data, where the other columns are noise draws)."""
         out = object.__new__(Design)
