@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ph_explorer.diagnosis.choice import next_found
-from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, determined_size, replication, ring_gains
+from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, SIGN_FLIPS, determined_size, replication, ring_gains, sign_flip_p
 from ph_explorer.diagnosis.results import Candidate, flagged_in
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.models.least_squares import Design
@@ -25,6 +25,20 @@ def test_a_gain_most_rings_share_is_replicated():
     test = replication(gain, CHECK)
     assert test.replicated and test.p_value < REPLICATION_LEVEL and test.p_without_top < REPLICATION_LEVEL
     assert test.rings_gaining > 50
+
+
+def test_the_sign_flip_p_is_the_share_of_sign_patterns_and_mirrors_at_least_as_large():
+    """The p-value from its definition, written out: each random sign pattern (rng.choice of -1, +1)
+    and its mirror image applied to the gains, the statistic the check rings' mean and the lattice
+    rings' mean averaged, the observed value counted once."""
+    for seed, shift in ((4, 0.0), (5, 0.3), (6, -0.2)):
+        gain = noise_gains(seed) + shift
+        signs = np.random.default_rng(seed).choice(np.array([-1.0, 1.0]), size=(SIGN_FLIPS, N_RINGS))
+        patterns = np.concatenate([signs, -signs]) * gain
+        null = (patterns[:, CHECK].mean(axis=1) + patterns[:, ~CHECK].mean(axis=1)) / 2
+        observed = (gain[CHECK].mean() + gain[~CHECK].mean()) / 2
+        expected = (1 + (null >= observed - 1e-9).sum()) / (null.size + 1)
+        assert sign_flip_p(gain, CHECK, np.random.default_rng(seed)) == expected
 
 
 def test_one_ring_of_many_carries_no_claim():

@@ -83,18 +83,21 @@ def ring_residual_squares(residual: NDArray[np.float64], design: Design | None, 
     return (residual**2).sum(axis=(1, 2))
 
 
-def weighted_mean_gain(gain: NDArray[np.float64], check: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """The statistic: half the check rings' mean gain plus half the lattice rings' (the whole
-    mean when one group is empty); gain (..., n_o) may hold many sign patterns at once."""
-    groups = [g for g in (check, ~check) if g.any()]
-    return sum(gain[..., g].mean(axis=-1) for g in groups) / len(groups)
+def ring_weights(check: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """(n_o,): each ring's weight in the statistic: half the check rings' mean gain plus half the
+    lattice rings' (the whole mean when one group is empty)."""
+    groups = sum(1 for g in (check, ~check) if g.any())
+    return np.where(check, 1.0 / max(check.sum(), 1), 1.0 / max((~check).sum(), 1)) / max(groups, 1)
 
 
 def sign_flip_p(gain: NDArray[np.float64], check: NDArray[np.bool_], rng: np.random.Generator) -> float:
     """One-sided p-value of the weighted mean gain against random sign flips of every ring's gain."""
-    observed = weighted_mean_gain(gain, check)
-    signs = rng.choice(np.array([-1.0, 1.0]), size=(SIGN_FLIPS, gain.size))
-    null = weighted_mean_gain(np.concatenate([signs, -signs]) * gain, check)
+    weighted = gain * ring_weights(check)
+    observed = float(weighted.sum())
+    # The draws of rng.choice([-1.0, 1.0], size) (the same stream), at a third of its cost.
+    signs = rng.integers(0, 2, size=(SIGN_FLIPS, gain.size), dtype=np.int64) * 2.0 - 1.0
+    half = signs @ weighted  # a sign pattern's statistic; its mirror image is its negative
+    null = np.concatenate([half, -half])
     return float((1.0 + (null >= observed - 1e-12 * np.abs(observed)).sum()) / (null.size + 1.0))
 
 
@@ -135,9 +138,7 @@ def replication(gain: NDArray[np.float64], check: NDArray[np.bool_], determined:
     rng = np.random.default_rng(seed)
     p_value = rings_p(gain, check, rng)
     # The most influential ring: the one whose gain adds most to the statistic (its group's weight).
-    groups = sum(1 for g in (check, ~check) if g.any())
-    weight = np.where(check, 1.0 / max(check.sum(), 1), 1.0 / max((~check).sum(), 1)) / groups
-    top = int(np.argmax(weight * gain)) if gain.size else 0
+    top = int(np.argmax(ring_weights(check) * gain)) if gain.size else 0
     keep = np.arange(gain.size) != top
     p_without = rings_p(gain[keep], check[keep], rng) if keep.sum() >= 2 else 1.0
     order = np.argsort(-gain)
