@@ -39,6 +39,7 @@ class FittedBases:
         # keep: False for a search of its own, whose designs are kept instead (CandidateSearch).
         self.keep = keep
         self._columns: dict[tuple[str, tuple], NDArray[np.float64]] = {}
+        self._libraries: dict[tuple[str, tuple], tuple[NDArray[np.float64], list[NDArray[np.intp]]]] = {}
         self._rings: NDArray[np.intp] | None = None
         self._within_bytes = [0]  # shared with the subsets: one budget for the whole campaign
 
@@ -46,6 +47,7 @@ class FittedBases:
         """The same columns at some rings only (indices into the campaign's orientations)."""
         out = object.__new__(FittedBases)
         out.touches, out.keep, out._columns, out._rings = self.touches, self.keep, self._columns, np.asarray(rings)
+        out._libraries = self._libraries
         out._within_bytes = self._within_bytes
         return out
 
@@ -68,11 +70,18 @@ class FittedBases:
 
     def library(self, effect: Effect) -> tuple[NDArray[np.float64], list[NDArray[np.intp]]] | None:
         """The effect's scan library (Effect.scan_library) fitted as __call__ fits columns, at
-        these rings; not kept (a dense campaign's drift library is hundreds of MB). None: it has none."""
-        library = effect.scan_library(self.touches)
+        these rings; kept within the same budget as the columns (every fold scans it again; a dense
+        campaign's drift library is hundreds of MB and is made again). None: it has none."""
+        key = settings_key(effect)
+        library = self._libraries.get(key)
         if library is None:
-            return None
-        columns = fitted_columns(library[0], self.touches)
-        if self._rings is not None:
-            columns = columns[self._rings]
-        return columns, library[1]
+            made = effect.scan_library(self.touches)
+            if made is None:
+                return None
+            library = fitted_columns(made[0], self.touches), made[1]
+            if self.keep and self._within_bytes[0] + library[0].nbytes <= WITHIN_BUDGET_BYTES:
+                self._within_bytes[0] += library[0].nbytes
+                library[0].flags.writeable = False  # a search makes its design from a copy (a fold's rings), never this
+                self._libraries[key] = library
+        columns, indices = library
+        return (columns if self._rings is None else columns[self._rings]), indices
