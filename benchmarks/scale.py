@@ -5,7 +5,9 @@ process (so its render times and memory are measured where they happen).
 Two server-side figures per render: `server_update_ms`, the time of the render itself, and
 `latency_ms`, from the oldest slider event the render drew (when viser applied it) to the end of
 that render, so queueing behind other browsers' renders is counted. Slider moves that arrive
-before their session's turn are coalesced: `renders` is at most `slider_updates_sent`.
+before their session's turn are coalesced: `renders` is at most `slider_updates_sent`. A render draws
+what the eye follows (head, curves, polar plot, map marker) and, at most every FOLLOW_INTERVAL_S, what
+follows (tables, charts, a following camera), which a catch-up render also draws at the last orientation.
 The browsers start once the app's dataset is prepared (`lattice`: each model's curves on a dense
 lattice, so that a slider move predicts nothing); `server_cpu_ms_per_update` is the server
 process' CPU per slider update, every thread included.
@@ -25,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.app.server import ExplorerApp
+from ph_explorer.app.session import FOLLOW_INTERVAL_S
 from ph_explorer.models.lattice import TOLERANCE_UM
 
 REPOSITORY = Path(__file__).resolve().parent.parent
@@ -72,6 +75,9 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     sessions: list[Any] = []
     stats = app.stats  # every render of every session, failed ones included
     renders_before, errors_before = stats.render_count + stats.error_count, stats.error_count
+    following = app.shared.following_stats  # the renders that catch up what follows the sliders (Session.following)
+    following.render_times.clear()
+    following_before = following.render_count
     process = subprocess.Popen(
         [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
         cwd=REPOSITORY,
@@ -139,6 +145,14 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         if per_session
         else None,
         "renders_in_percentiles": len(times),  # app.stats.render_times keeps the last 10 000
+        # Tables 1-3, the charts and a following camera: drawn by a render at most every FOLLOW_INTERVAL_S
+        # and once more at the last orientation (these catch-up renders; the renders above include the rest).
+        "follow_interval_s": FOLLOW_INTERVAL_S,
+        "following_catch_up_renders": following.render_count - following_before,
+        "following_catch_up_ms": {
+            "p50": percentile_ms(list(following.render_times), 50),
+            "p95": percentile_ms(list(following.render_times), 95),
+        },
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},
         "latency_ms": {"p50": percentile_ms(latencies, 50), "p95": percentile_ms(latencies, 95), "max": percentile_ms(latencies, 100)},

@@ -377,3 +377,39 @@ def test_throttle_allows_once_per_interval_and_calls_back_once_it_may() -> None:
     assert calls[0] - start >= 0.19 and len(calls) == 1
     assert throttle.ready()  # asked again when called back: allowed
     throttle.close()
+
+
+def test_what_follows_is_drawn_at_most_once_per_interval_and_ends_at_the_last_values(queue: RenderQueue) -> None:
+    """A drag of 40 moves in ~0.4 s: every move is drawn (coalesced), what follows at most every
+    0.1 s plus the first, and once the drag ends, at the last value drawn; a render by another
+    thread (a script's jump) draws what follows at once."""
+    from ph_explorer.app.render_queue import Following
+
+    drawn: list[int] = []  # the live values, in render order
+    followed: list[tuple[int, float]] = []  # (the value what follows shows, when)
+    value = [0]
+
+    def follow() -> None:
+        followed.append((drawn[-1], time.monotonic()))
+
+    def render() -> None:
+        drawn.append(value[0])
+        if following.due():
+            follow()
+
+    following = Following(follow, queue, interval_s=0.1)
+    state = RenderState(render)
+    start = time.monotonic()
+    for k in range(1, 41):
+        value[0] = k
+        queue.request(state)
+        time.sleep(0.01)
+    assert state.wait_rendered(TIMEOUT) and following.wait_caught_up(TIMEOUT)
+    dragged = time.monotonic() - start
+    assert drawn[-1] == 40 and followed[-1][0] == 40  # both end at the last move
+    assert 2 <= len(followed) <= 2 + dragged / 0.1  # throttled, not once per move
+    assert all(later - earlier >= 0.099 for (_, earlier), (_, later) in zip(followed, followed[1:]))
+    value[0] = 99
+    state.render_now()  # another thread: what follows at once, whatever the interval
+    assert followed[-1][0] == 99 and following.wait_caught_up(0.0)
+    following.close()

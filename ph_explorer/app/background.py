@@ -47,6 +47,12 @@ class Throttle:
                 LATER.call(wait, self._due)
             return False
 
+    @property
+    def armed(self) -> bool:
+        """A call of later() is scheduled."""
+        with self._lock:
+            return self._armed
+
     def _due(self) -> None:
         with self._lock:
             self._armed = False

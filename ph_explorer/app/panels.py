@@ -18,6 +18,7 @@ from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's pane
 from ph_explorer.figures.charts import bar_chart_svg, line_chart_svg
 from ph_explorer.figures.orientation_map import MapFigure
 from ph_explorer.figures.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
+from ph_explorer.geometry import wrap_deg
 from ph_explorer.paper.tables import tables_markdown as orientation_tables_markdown
 
 PAPER_PRESETS: dict[str, tuple[float, float]] = {
@@ -29,6 +30,11 @@ PAPER_PRESETS: dict[str, tuple[float, float]] = {
 NO_CHOICE = "(choose)"
 DEFAULT_MAGNIFICATION = 10000.0
 MAX_UPR = 16
+
+
+def wrap_b(b_deg: float) -> float:
+    """B into [-180, 180), keeping 180 as written (both ends of the slider)."""
+    return 180.0 if b_deg == 180.0 else float(wrap_deg(b_deg))
 
 
 class ControlsPanel:

@@ -3,7 +3,8 @@
 A browser's slider event returns at once; ONE render thread per app (`RenderQueue`) draws the
 sessions' dirty states (`RenderState`) in the order they became dirty, each with its latest values,
 and a state that moved again while drawn goes to the back. `RenderStats` gathers the render figures
-for benchmarks; `WhenResting` runs a slow figure's job once a slider rests, never one per move.
+for benchmarks; `Following` draws what follows the sliders at most every so often, and at their last
+values; `WhenResting` runs a slow figure's job once a slider rests, never one per move.
 Values set by scripts and tests are drawn in the caller's thread (`RenderState.render_now`).
 
 Method: docs/methods/render_queue.md.
@@ -17,6 +18,8 @@ import traceback
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+
+from ph_explorer.app.background import Throttle
 
 Clock = Callable[[], float]
 TimedHook = Callable[[float, float], None]
@@ -267,6 +270,42 @@ class RenderQueue:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+class Following:
+    """What follows a session's renders (a following camera, tables, charts): a render by the queue's
+    thread draws it at most every `interval_s`, and a catch-up render once the interval has passed
+    draws it at the values drawn last; a render in another thread (go_to, a script) draws it at once.
+
+    In a render, `due()` says whether that render draws it; `draw()` draws it at the values drawn
+    last; `on_timed` times the catch-up renders as RenderState's does.
+    """
+
+    def __init__(self, draw: Callable[[], None], queue: RenderQueue, interval_s: float, on_timed: TimedHook | None = None) -> None:
+        self.draw = draw
+        self.queue = queue
+        self.catch_up = RenderState(self._catch_up, on_timed=on_timed)
+        self._throttle = Throttle(interval_s, lambda: queue.request(self.catch_up))
+
+    def due(self) -> bool:
+        return threading.current_thread() is not self.queue.thread or self._throttle.ready()
+
+    def _catch_up(self) -> None:
+        if self.due():  # a render that came first took the turn (and asked for another)
+            self.draw()
+
+    def wait_caught_up(self, timeout: float = 10.0) -> bool:
+        """Wait until no catch-up is due or drawing (what follows shows the values drawn last); False on timeout."""
+        deadline = time.monotonic() + timeout
+        while self._throttle.armed or not self.catch_up.idle:
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.005)  # the catch-up is a timer's call, then a render: no condition spans both
+        return True
+
+    def close(self) -> None:
+        self._throttle.close()
+        self.catch_up.close()
 
 
 class WhenResting:

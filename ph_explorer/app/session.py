@@ -19,28 +19,26 @@ import numpy as np
 import viser
 
 from ph_explorer.app.accessibility import name_inputs
-from ph_explorer.app.background import FOREGROUND, Throttle
-from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
+from ph_explorer.app.background import FOREGROUND
+from ph_explorer.app.dataset import Dataset, OrientationView, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
-from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, orientation_label
+from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, wrap_b
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.physics_panel import PhysicsPanel
-from ph_explorer.app.render_queue import RenderQueue, RenderState, RenderStats, WhenResting
+from ph_explorer.app.render_queue import Following, RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
 from ph_explorer.app.study_file import StudyFile
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.effects import Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.figures.polar import polar_scale
-from ph_explorer.geometry import wrap_deg
 from ph_explorer.twin import Scenario
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
-# The longest a render by the server itself (go_to) waits for the render thread to finish this session's render.
-RENDER_WAIT_S = 30.0
+RENDER_WAIT_S = 30.0  # the longest a render by the server itself (go_to) waits for the render thread's of this session
 
 
 @dataclass(frozen=True)
@@ -53,17 +51,14 @@ class Shared:
     scenarios: Mapping[str, Scenario]  # the shipped scenarios by name
     geometry_overrides: Mapping[str, float] = field(default_factory=dict)  # applied to uploaded files
     stats: RenderStats = field(default_factory=RenderStats)
+    following_stats: RenderStats = field(default_factory=RenderStats)  # the renders that catch up what follows
     study: StudyFile | None = None  # the operator's study (serve --study), continued by every browser
 
 
 TASK_SETTLE_S = 0.5  # the sliders at rest this long: compute the task's RONt (a second or so per model)
-# A following camera moves at most this often while the sliders move; then where the last orientation wants it.
-CAMERA_INTERVAL_S = 0.2
-
-
-def wrap_b(b_deg: float) -> float:
-    """B into [-180, 180), keeping 180 as written (both ends of the slider)."""
-    return 180.0 if b_deg == 180.0 else float(wrap_deg(b_deg))
+# A browser's slider move draws the head, the curves, the polar plot and the map's marker; what follows
+# (Tables 1-3, the charts, a following camera) at most this often, and at the last orientation drawn.
+FOLLOW_INTERVAL_S = 0.25
 
 
 class Session:
@@ -84,9 +79,7 @@ class Session:
         self._camera_at: tuple[float, float] | None = None
         self._camera_view = "ring + head"
         self._camera_extent = 0.0  # the chart's size the camera was placed for
-        # A following camera: at most every CAMERA_INTERVAL_S, then caught up with the last drawn orientation.
-        self._camera_catch_up = RenderState(lambda: self._follow(self.view.a_deg, self.view.b_deg))
-        self._camera_due = Throttle(CAMERA_INTERVAL_S, lambda: self.shared.renders.request(self._camera_catch_up))
+        self.following = Following(self._draw_following, shared.renders, FOLLOW_INTERVAL_S, shared.following_stats.rendered)
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
 
@@ -197,13 +190,9 @@ class Session:
         self._camera_view = view  # the view a following camera keeps
 
     def _follow(self, a: float, b: float) -> None:
-        """In a render: keep a following camera on the ring drawn at (a, b). A browser's slider moves
-        (the render thread's) move it at most every CAMERA_INTERVAL_S, the last one always; a jump
-        (go_to, a script) at once."""
+        """Keep a following camera on the ring drawn at (a, b)."""
         moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
-        if not (self.controls.follow.value and moved and self._camera_view != "whole field"):
-            return
-        if threading.current_thread() is not self.shared.renders.thread or self._camera_due.ready():
+        if self.controls.follow.value and moved and self._camera_view != "whole field":
             self.look(self._camera_view)
 
     # -- rendering ---------------------------------------------------------------------------------
@@ -212,8 +201,9 @@ class Session:
         return self.render_state.render_count
 
     def wait_rendered(self, timeout: float = 10.0) -> bool:
-        """Wait until this session's latest values are drawn; False on timeout."""
-        return self.render_state.wait_rendered(timeout)
+        """Wait until this session's latest values are drawn, and what follows them; False on timeout."""
+        deadline = time.monotonic() + timeout
+        return self.render_state.wait_rendered(timeout) and self.following.wait_caught_up(max(0.0, deadline - time.monotonic()))
 
     def _render(self) -> None:
         try:
@@ -250,11 +240,18 @@ class Session:
             self.polar.update(scale, view, shown, show_repetitions, band, title)
             self.field.highlight(a, b, ds.campaign.geometry.pivot_to_ball_mm)
             self.map_panel.draw(a, b)
-            self.tables.update(view, ds)
-            self.charts.update(view, shown)
-            self._follow(a, b)
+            if self.following.due():
+                self._draw_following(view, shown)
         self.view = view
         self._want_task(a, b)
+
+    def _draw_following(self, view: OrientationView | None = None, shown: Mapping[str, bool] | None = None) -> None:
+        """What follows the sliders (FOLLOW_INTERVAL_S), by default at the orientation drawn last."""
+        view = self.view if view is None else view
+        with self.client.atomic():
+            self.tables.update(view, self.dataset)
+            self.charts.update(view, self.controls.shown() if shown is None else shown)
+            self._follow(view.a_deg, view.b_deg)
 
     # -- the task's RONt, once the sliders rest ------------------------------------------------------------
     def _want_task(self, a: float, b: float) -> None:
@@ -412,8 +409,7 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
-        self._camera_due.close()
-        self._camera_catch_up.close()
+        self.following.close()
         self._task.close()
         self.render_state.close()
         self._jobs.shutdown(wait=False, cancel_futures=True)
