@@ -620,6 +620,10 @@ browsers at the same rate: what the lattice cache buys ([The explorer](explorer.
 says how a render works). **With the Gaussian process shown** (`scale.with_gp`): the same browsers
 on the same data with the GP data part fitted on the training rings and drawn beside the models,
 its curves read from a lattice of its own (its own target: p95 at most the same 50 ms, no errors). These room figures vary between runs of the same serving code.
+A render draws what the eye follows (the head, the ring's curves, the polar plot, the map's marker);
+Tables 1-3, the charts and a following camera are drawn at most every `follow_interval_s` while a
+browser's sliders move, and once more at its last orientation by a catch-up render of their own
+(counted and timed apart: `following_catch_up_renders`, `following_catch_up_ms`).
 """
 
 
@@ -672,6 +676,12 @@ def scale(results: Mapping[str, Any]) -> str:
             f"Targets for {num(x.get('browsers'))} browsers: slider event to drawn p95 at most {num(x.get('p95_target_ms'), 'ms')}, "
             f"server time per render p95 at most {num(x.get('server_p95_target_ms'), 'ms')}, no errors: {holds(x.get('holds'))}."
         )
+        if "following_catch_up_renders" in x:
+            out.append(
+                f"What follows the sliders (tables, charts, camera), at most every {num(x.get('follow_interval_s'), 's')}: "
+                f"{num(x.get('following_catch_up_renders'))} catch-up renders, ms p50 / p95 "
+                f"{num(get(x, 'following_catch_up_ms', 'p50'))} / {num(get(x, 'following_catch_up_ms', 'p95'))}."
+            )
         lattice = x.get("lattice") or {}
         if lattice:
             sizes = ", ".join(f"{k} {num(v, 'MiB')}" for k, v in (lattice.get("models") or {}).items())
