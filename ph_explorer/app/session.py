@@ -156,7 +156,7 @@ class Session:
             # A browser's message: viser stamped the value when its event loop applied it.
             self.shared.renders.request(self.render_state, since=event.target.update_timestamp)
         elif not self._moving:  # set by the server (a test, a script): drawn when this returns, here
-            self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
+            self._draw_here()
 
     # -- orientation and camera ------------------------------------------------------------------------
     @property
@@ -171,7 +171,7 @@ class Session:
             self.controls.b.value = wrap_b(b_deg)
         finally:
             self._moving = False
-        self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
+        self._draw_here()
 
     def look(self, view: str) -> None:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
@@ -204,6 +204,11 @@ class Session:
         """Wait until this session's latest values are drawn, and what follows them; False on timeout."""
         deadline = time.monotonic() + timeout
         return self.render_state.wait_rendered(timeout) and self.following.wait_caught_up(max(0.0, deadline - time.monotonic()))
+
+    def _draw_here(self) -> None:
+        """Values set by the server (go_to, a script, a test): drawn when this returns, what follows them too."""
+        if self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S):  # False inside its own render
+            self.following.wait_caught_up(RENDER_WAIT_S)
 
     def _render(self) -> None:
         try:
@@ -298,7 +303,7 @@ class Session:
         self.data_panel.set_source(dataset)
         self.show_failing()
         self.refresh_field()
-        self.render_state.render_now(wait=True, timeout=RENDER_WAIT_S)
+        self._draw_here()
 
     def refresh_field(self) -> None:
         """Redraw the error map and recolour the 3D field; slow figures are computed on the worker."""
