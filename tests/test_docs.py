@@ -37,8 +37,8 @@ def test_the_site_builds_strictly(tmp_path):
 def test_the_readme_stays_short_and_holds_the_two_commands():
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert len(readme.splitlines()) <= 200
-    assert "python3 -m venv .venv && .venv/bin/pip install --no-compile . && .venv/bin/ph-explorer serve" in readme
-    assert 'python3 -m venv .venv && .venv/bin/pip install --no-compile ".[test]" && .venv/bin/python -m pytest' in readme
+    assert "python3 -m venv .venv && .venv/bin/pip install . && .venv/bin/ph-explorer serve" in readme
+    assert 'python3 -m venv .venv && .venv/bin/pip install ".[test]" && .venv/bin/python -m pytest' in readme
 
 
 def test_the_readme_links_resolve():
