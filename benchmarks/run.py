@@ -3,7 +3,7 @@
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
 DIR/calibration.png. The full run takes about 45 minutes on 2 cores (the diagnosis
 calibration about 22 of them); --quick is a smoke-test mode (two subsets, a
-short network, 2 browsers for 2 s, a few diagnoses) that keeps every key. --only runs some
+short network, 2 browsers for 1 s, a few diagnoses) that keeps every key. --only runs some
 sections and updates them in the last run's results.json, each stamped under "updated" with its
 date and the code it was measured on. The many diagnoses of the calibration, the population, the
 hidden effects and the coverage are tasks of ph_explorer.cluster: on a LocalCluster of this
@@ -149,7 +149,7 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
     # Server time per slider update, one browser; then 3. scale, N browsers.
     app = build_server(port=0)
     try:
-        one = scale.drive(app, 1, 20.0, 2.0 if quick else 15.0)
+        one = scale.drive(app, 1, 20.0, 1.0 if quick else 15.0)
         s["slider_update_ms"] = {
             **one["server_update_ms"],
             "target_p95_ms": 20,
@@ -163,7 +163,7 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
         log(f"  slider update (1 browser) {s['slider_update_ms']}")
         if with_scale:
             log("scale")
-            n_browsers, seconds = (2, 2.0) if quick else (30, 60.0)
+            n_browsers, seconds = (2, 1.0) if quick else (30, 60.0)
             load = scale.drive(app, n_browsers, 20.0, seconds)
             load["clients"] = "websocket clients on 127.0.0.1 speaking viser's protocol, in a separate process (benchmarks/browsers.py)"
             # Issue 16: slider -> drawn p95 <= 50 ms and server time per render p95 <= 2 ms, no errors.
@@ -192,7 +192,7 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
             }
             log(f"  with the GP shown {json.dumps(load['with_gp'])}")
             # A bigger room at a gentler pace: 100 browsers at 5 Hz, no errors; its latency reported.
-            n_room, room_seconds = (3, 2.0) if quick else (100, 30.0)
+            n_room, room_seconds = (3, 1.0) if quick else (100, 30.0)
             room = scale.drive(app, n_room, 5.0, room_seconds)
             room["clients"] = load["clients"]
             results["scale_100"] = room
