@@ -29,7 +29,7 @@ from ph_explorer.diagnosis.fleet import fleet_row
 from ph_explorer.io import write_campaign
 from ph_explorer.twin.random_heads import random_campaign
 
-CAMPAIGNS, QUICK_CAMPAIGNS = 20, 4
+CAMPAIGNS, QUICK_CAMPAIGNS = 20, 2  # quick: one campaign per worker of the two-worker run
 TARGET_RATIO = 0.6
 CORES = (8, 32, 128)
 
