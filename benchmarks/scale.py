@@ -145,8 +145,8 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         if per_session
         else None,
         "renders_in_percentiles": len(times),  # app.stats.render_times keeps the last 10 000
-        # Tables 1-3, the charts and a following camera: drawn by a render at most every FOLLOW_INTERVAL_S
-        # and once more at the last orientation (these catch-up renders; the renders above include the rest).
+        # Tables 1-3, the charts and a following camera: drawn by a render at most every FOLLOW_INTERVAL_S,
+        # and at the last orientation by a catch-up render of their own (counted here, not in `renders`).
         "follow_interval_s": FOLLOW_INTERVAL_S,
         "following_catch_up_renders": following.render_count - following_before,
         "following_catch_up_ms": {

@@ -38,7 +38,7 @@ from ph_explorer.figures.polar import polar_scale
 from ph_explorer.twin import Scenario
 
 INITIAL_ORIENTATION = PAPER_PRESETS["A15 B-20"]
-RENDER_WAIT_S = 30.0  # the longest a render by the server itself (go_to) waits for the render thread's of this session
+RENDER_WAIT_S = 30.0  # how long a render by the server itself (go_to) waits for the render thread to end this session's
 
 
 @dataclass(frozen=True)
