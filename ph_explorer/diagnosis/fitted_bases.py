@@ -51,6 +51,13 @@ class FittedBases:
         out._within_bytes = self._within_bytes
         return out
 
+    def _reserve(self, nbytes: int) -> bool:
+        """Whether an array that changes between repetitions may be kept: then counted in the budget."""
+        if not (self.keep and self._within_bytes[0] + nbytes <= WITHIN_BUDGET_BYTES):
+            return False
+        self._within_bytes[0] += nbytes
+        return True
+
     def __call__(self, effect: Effect) -> NDArray[np.float64]:
         key = settings_key(effect)
         columns = self._columns.get(key)
@@ -60,8 +67,7 @@ class FittedBases:
                 columns = columns[:, :1]
                 if self.keep:
                     self._columns[key] = columns
-            elif self.keep and self._within_bytes[0] + columns.nbytes <= WITHIN_BUDGET_BYTES:
-                self._within_bytes[0] += columns.nbytes
+            elif self._reserve(columns.nbytes):
                 self._columns[key] = columns
         if self._rings is not None:
             columns = columns[self._rings]
@@ -79,8 +85,7 @@ class FittedBases:
             if made is None:
                 return None
             library = fitted_columns(made[0], self.touches), made[1]
-            if self.keep and self._within_bytes[0] + library[0].nbytes <= WITHIN_BUDGET_BYTES:
-                self._within_bytes[0] += library[0].nbytes
+            if self._reserve(library[0].nbytes):
                 library[0].flags.writeable = False  # a search makes its design from a copy (a fold's rings), never this
                 self._libraries[key] = library
         columns, indices = library
