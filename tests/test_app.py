@@ -148,6 +148,34 @@ def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
     assert s.head.root.visible
 
 
+def test_a_view_click_is_not_undone_by_a_following_camera(browser, monkeypatch) -> None:
+    """A follow that read the View before a click places the camera first; the click's View stays."""
+    import ph_explorer.app.camera as camera
+    from ph_explorer.app.scene import FIELD_VIEW
+
+    s, real = browser, camera.view_camera
+    inside, release = threading.Event(), threading.Event()
+
+    def held(view: str, *args: object):  # the follow waits, inside its placement, until released
+        if threading.current_thread().name == "follow":
+            inside.set()
+            release.wait(10.0)
+        return real(view, *args)
+
+    monkeypatch.setattr(camera, "view_camera", held)
+    follow = threading.Thread(target=s.camera.follow, args=(75.0, 40.0), name="follow")
+    follow.start()
+    assert inside.wait(10.0)
+    click = threading.Thread(target=s.look, args=("whole field",))
+    click.start()
+    click.join(0.3)  # unserialised, the click would be placed here, then undone by the follow
+    release.set()
+    follow.join(10.0)
+    click.join(10.0)
+    assert s.camera.view == "whole field"
+    np.testing.assert_allclose(s.client.camera.position, FIELD_VIEW["position"], atol=1e-6)
+
+
 def test_magnification_scales_the_deviation_about_the_reference_circle(browser) -> None:
     s = browser
     s.go_to(15.0, -20.0)

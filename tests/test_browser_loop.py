@@ -382,8 +382,14 @@ def readable_scene(page, session) -> None:
     positions through the browser's camera), nor two texts of a chart; along the axis and ring +
     head put the ring's centre in the middle of the canvas between the docked panels."""
     for view in ("whole field", "along the axis", "ring + head"):  # ring + head last: the screenshot's view
-        page.get_by_role("button", name=view, exact=True).click()
-        assert wait_for(lambda: session._camera_view == view, timeout=30), (view, session._camera_view, page.viewport_size)
+        # A View click is lost now and then under load (twice in ~10 runs, CI and local: the View
+        # stayed, no error logged); the server's side of a click is test_app's. Clicked again, twice at most.
+        for _ in range(3):
+            page.get_by_role("button", name=view, exact=True).click()
+            if wait_for(lambda: session.camera.view == view, timeout=10):
+                break
+            print(f"View {view!r} at {page.viewport_size}: the click was lost, clicked again")
+        assert session.camera.view == view, (view, session.camera.view, page.viewport_size)
         time.sleep(1.0)
         canvas = scene_canvas(page)
         boxes = scene_label_boxes(session, canvas)

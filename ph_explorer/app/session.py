@@ -20,6 +20,7 @@ import viser
 
 from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.background import FOREGROUND
+from ph_explorer.app.camera import ViewCamera
 from ph_explorer.app.dataset import Dataset, OrientationView, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
@@ -29,7 +30,7 @@ from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import Following, RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
 from ph_explorer.app.ring import RingScene
-from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
+from ph_explorer.app.scene import HeadScene
 from ph_explorer.app.study_file import StudyFile
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.effects import Catalog
@@ -76,9 +77,7 @@ class Session:
         self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-{client.client_id}")
         self._moving = False  # sliders being set together (go_to): render once at the end
         self._field_token = 0  # the latest field request; older computations do not draw
-        self._camera_at: tuple[float, float] | None = None
-        self._camera_view = "ring + head"
-        self._camera_extent = 0.0  # the chart's size the camera was placed for
+        self.camera = ViewCamera(client, lambda: (self.head, self.ring, self.dataset.campaign.geometry.axial_distance_mm))
         self.following = Following(self._draw_following, shared.renders, FOLLOW_INTERVAL_S, shared.following_stats.rendered)
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
@@ -143,7 +142,7 @@ class Session:
         @c.follow.on_update
         def _(_: viser.GuiEvent) -> None:
             if c.follow.value:  # back to following: the ring's view, even after "whole field"
-                self.look("ring + head" if self._camera_view == "whole field" else self._camera_view)
+                self.camera.follow(*self.orientation, resume=True)
 
         @data.scenario.on_update
         def _(_: viser.GuiEvent) -> None:
@@ -175,25 +174,7 @@ class Session:
 
     def look(self, view: str) -> None:
         """Point this browser's camera: 'ring + head', 'along the axis' or 'whole field'."""
-        a, b = self.orientation
-        extent, aspect = self.ring.extent_mm, float(getattr(self.client.camera, "aspect", 0.0) or DEFAULT_ASPECT)
-        position, look_at, up = view_camera(view, a, b, self.dataset.campaign.geometry.axial_distance_mm, extent, aspect)
-        with self.client.atomic():  # position first: viser moves look_at along with it
-            # Along the axis the camera looks through the head: hidden there, shown in the other views.
-            self.head.set_visible(view != "along the axis")
-            self.ring.show_labels(view != "whole field")  # there the ring is a few pixels wide
-            self.client.camera.position = position
-            self.client.camera.look_at = look_at
-            self.client.camera.up_direction = up
-        self._camera_at = (a, b)
-        self._camera_extent = extent
-        self._camera_view = view  # the view a following camera keeps
-
-    def _follow(self, a: float, b: float) -> None:
-        """Keep a following camera on the ring drawn at (a, b)."""
-        moved = self._camera_at != (a, b) or abs(self.ring.extent_mm - self._camera_extent) > 1.0
-        if self.controls.follow.value and moved and self._camera_view != "whole field":
-            self.look(self._camera_view)
+        self.camera.look(view, *self.orientation)
 
     # -- rendering ---------------------------------------------------------------------------------
     @property
@@ -256,7 +237,8 @@ class Session:
         with self.client.atomic():
             self.tables.update(view, self.dataset)
             self.charts.update(view, self.controls.shown() if shown is None else shown)
-            self._follow(view.a_deg, view.b_deg)
+            if self.controls.follow.value:
+                self.camera.follow(view.a_deg, view.b_deg)
 
     # -- the task's RONt, once the sliders rest ------------------------------------------------------------
     def _want_task(self, a: float, b: float) -> None:

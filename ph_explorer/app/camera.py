@@ -1,0 +1,51 @@
+"""One browser's camera: the View chosen ('ring + head', 'along the axis', 'whole field'), kept on
+the ring while it follows the sliders (docs/explorer.md, "Orientation")."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import viser
+
+from ph_explorer.app.ring import RingScene
+from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
+
+
+class ViewCamera:
+    """One browser's camera at a View, kept on the ring while it follows the sliders.
+
+    A View click (a callback thread) and a following camera (the render threads) both place it:
+    one placement at a time, so a follow that read the View before a click never undoes the click.
+    `scene()` gives the browser's head and ring and the ring's axial distance (mm) as they are now.
+    """
+
+    def __init__(self, client: viser.ClientHandle, scene: Callable[[], tuple[HeadScene, RingScene, float]]) -> None:
+        self.client, self._scene = client, scene
+        self.view = "ring + head"
+        self._at: tuple[float, float] | None = None  # the orientation and the chart's size it was placed for
+        self._extent = 0.0
+        self._lock = threading.RLock()
+
+    def look(self, view: str, a_deg: float, b_deg: float) -> None:
+        """Point the camera: 'ring + head', 'along the axis' or 'whole field', at the ring drawn at (A, B)."""
+        with self._lock:
+            head, ring, axial_distance_mm = self._scene()
+            camera = self.client.camera
+            extent, aspect = ring.extent_mm, float(getattr(camera, "aspect", 0.0) or DEFAULT_ASPECT)
+            position, look_at, up = view_camera(view, a_deg, b_deg, axial_distance_mm, extent, aspect)
+            with self.client.atomic():  # position first: viser moves look_at along with it
+                # Along the axis the camera looks through the head: hidden there, shown in the other views.
+                head.set_visible(view != "along the axis")
+                ring.show_labels(view != "whole field")  # there the ring is a few pixels wide
+                camera.position, camera.look_at, camera.up_direction = position, look_at, up
+            self._at, self._extent, self.view = (a_deg, b_deg), extent, view
+
+    def follow(self, a_deg: float, b_deg: float, resume: bool = False) -> None:
+        """Keep the View on the ring drawn at (A, B) if either moved; `resume`: back to following, out of the whole field."""
+        with self._lock:
+            if resume and self.view == "whole field":
+                self.view = "ring + head"
+            moved = resume or self._at != (a_deg, b_deg) or abs(self._scene()[1].extent_mm - self._extent) > 1.0
+            if moved and self.view != "whole field":
+                self.look(self.view, a_deg, b_deg)
