@@ -623,7 +623,8 @@ its curves read from a lattice of its own (its own target: p95 at most the same 
 A render draws what the eye follows (the head, the ring's curves, the polar plot, the map's marker);
 Tables 1-3, the charts and a following camera are drawn at most every `follow_interval_s` while a
 browser's sliders move, and once more at its last orientation by a catch-up render of their own
-(counted and timed apart: `following_catch_up_renders`, `following_catch_up_ms`).
+(counted and timed apart: `following_catch_up_renders`, `following_catch_up_ms`; a catch-up turn
+that finds them drawn within the interval draws nothing and is not counted).
 """
 
 

@@ -413,3 +413,21 @@ def test_what_follows_is_drawn_at_most_once_per_interval_and_ends_at_the_last_va
     state.render_now()  # another thread: what follows at once, whatever the interval
     assert followed[-1][0] == 99 and following.wait_caught_up(0.0)
     following.close()
+
+
+def test_a_catch_up_turn_that_draws_nothing_is_not_timed_as_a_catch_up_render(queue: RenderQueue) -> None:
+    """A catch-up render that finds what follows drawn within the interval draws nothing, and is not
+    timed (the benchmarks count and time the catch-up renders); one that draws is."""
+    from ph_explorer.app.render_queue import Following
+
+    drawn: list[str] = []
+    timed: list[float] = []
+    following = Following(lambda: drawn.append("catch-up"), queue, interval_s=0.5, on_timed=lambda render_s, _: timed.append(render_s))
+    state = RenderState(lambda: following.due() and drawn.append("render"))
+    queue.request(state)
+    assert state.wait_rendered(TIMEOUT) and drawn == ["render"]  # the first render draws what follows
+    queue.request(following.catch_up)  # a turn within the interval: nothing to draw
+    assert following.catch_up.wait_rendered(TIMEOUT) and drawn == ["render"] and timed == []
+    assert following.wait_caught_up(TIMEOUT)  # the interval over: the catch-up it asked for draws
+    assert drawn == ["render", "catch-up"] and len(timed) == 1
+    following.close()

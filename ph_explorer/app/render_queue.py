@@ -278,21 +278,28 @@ class Following:
     draws it at the values drawn last; a render in another thread (go_to, a script) draws it at once.
 
     In a render, `due()` says whether that render draws it; `draw()` draws it at the values drawn
-    last; `on_timed` times the catch-up renders as RenderState's does.
+    last; `on_timed` times the catch-up renders that drew, as RenderState's does.
     """
 
     def __init__(self, draw: Callable[[], None], queue: RenderQueue, interval_s: float, on_timed: TimedHook | None = None) -> None:
         self.draw = draw
         self.queue = queue
-        self.catch_up = RenderState(self._catch_up, on_timed=on_timed)
+        self.on_timed = on_timed
+        self._drew = False  # whether the last catch-up render drew (one render thread: no lock)
+        self.catch_up = RenderState(self._catch_up, on_timed=self._timed)
         self._throttle = Throttle(interval_s, lambda: queue.request(self.catch_up))
 
     def due(self) -> bool:
         return threading.current_thread() is not self.queue.thread or self._throttle.ready()
 
     def _catch_up(self) -> None:
-        if self.due():  # a render that came first took the turn (and asked for another)
+        self._drew = self.due()  # not due: a render that came first took the turn (and asked for another)
+        if self._drew:
             self.draw()
+
+    def _timed(self, render_s: float, latency_s: float) -> None:
+        if self._drew and self.on_timed is not None:  # a turn that drew nothing is no catch-up render
+            self.on_timed(render_s, latency_s)
 
     def wait_caught_up(self, timeout: float = 10.0) -> bool:
         """Wait until no catch-up is due or drawing (what follows shows the values drawn last); False on timeout."""
