@@ -422,7 +422,7 @@ def test_a_catch_up_turn_that_draws_nothing_is_not_timed_as_a_catch_up_render(qu
 
     drawn: list[str] = []
     timed: list[float] = []
-    following = Following(lambda: drawn.append("catch-up"), queue, interval_s=0.5, on_timed=lambda render_s, _: timed.append(render_s))
+    following = Following(lambda: drawn.append("catch-up"), queue, interval_s=1.0, on_timed=lambda render_s, _: timed.append(render_s))
     state = RenderState(lambda: following.due() and drawn.append("render"))
     queue.request(state)
     assert state.wait_rendered(TIMEOUT) and drawn == ["render"]  # the first render draws what follows
