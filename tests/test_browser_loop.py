@@ -388,8 +388,9 @@ def readable_scene(page, session) -> None:
             page.get_by_role("button", name=view, exact=True).click()
             if wait_for(lambda: session.camera.view == view, timeout=10):
                 break
-            print(f"View {view!r} at {page.viewport_size}: the click was lost, clicked again")
-        assert session.camera.view == view, (view, session.camera.view, page.viewport_size)
+            # The button's value on the server says whether the click's message arrived at all.
+            print(f"View {view!r} at {page.viewport_size}: lost (the button's value: {session.controls.view_ring.value!r}), clicked again")
+        assert session.camera.view == view, (view, session.camera.view, session.controls.view_ring.value, page.viewport_size)
         time.sleep(1.0)
         canvas = scene_canvas(page)
         boxes = scene_label_boxes(session, canvas)
