@@ -42,7 +42,7 @@ def main(out: Path) -> None:
             dismiss_notices(page)
             time.sleep(1.0)
             page.screenshot(path=str(out / "screenshot_default.png"))
-            session.data_panel.scenario.value = "head_3"
+            session.data_panel.scenario.value = session.data_panel.label_of("head_3")  # as a browser chooses it
             session.wait(timeout=300)
             session.submit(session.loop.diagnose)  # what the Diagnose button runs
             session.wait(timeout=600)

@@ -76,6 +76,7 @@ class FakeBrowser:
         self.received = 0  # frames received
         self.errors: list[str] = []  # how the connection failed, if it did before close()
         self.widgets: dict[str, dict[str, Any]] = {}  # label -> {"uuid", "type", "props", "value"}
+        self.last: dict[str, dict[str, Any]] = {}  # message type -> the last message of that type received
         self._by_uuid: dict[str, dict[str, Any]] = {}
         self._wanted = None if labels is None else set(labels)
         self._downloads: dict[str, dict[str, Any]] = {}  # transfer id -> {"filename", "part_count", "parts"}
@@ -167,6 +168,7 @@ class FakeBrowser:
         with self._known:
             for m in messages:
                 kind = m.get("type", "")
+                self.last[kind] = m
                 if kind == "FileTransferStartDownload":
                     self._downloads[m["transfer_uuid"]] = {"filename": m["filename"], "part_count": m["part_count"], "parts": {}}
                 elif kind == "FileTransferPart" and m.get("transfer_uuid") in self._downloads:

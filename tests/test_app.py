@@ -79,6 +79,18 @@ def test_binds_localhost_and_serves_the_page(app: ExplorerApp) -> None:
     assert "<html" in html.lower()
 
 
+def test_a_browser_is_lit_without_an_environment_map_to_prefilter(opened) -> None:
+    """No HDR image for the browser to prefilter on load (without a GPU that stalled the page ~4 s);
+    a sky-and-ground light instead (ph_explorer/app/loading.py)."""
+    from ph_explorer.app.loading import HEMISPHERE_LIGHT
+
+    fake, _ = opened
+    assert wait_for(lambda: "HemisphereLightMessage" in fake.last and "EnvironmentMapMessage" in fake.last)
+    assert fake.last["EnvironmentMapMessage"]["hdri_data"] is None
+    light = fake.last["HemisphereLightMessage"]["props"]
+    assert light["intensity"] == HEMISPHERE_LIGHT["intensity"] and tuple(light["ground_color"]) == HEMISPHERE_LIGHT["ground_color"]
+
+
 def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
     s = browser
     s.controls.a.value = 43.0
