@@ -49,16 +49,19 @@ def decode_frame(raw: bytes) -> list[dict[str, Any]]:
     return list(msgspec.msgpack.decode(payload).get("messages", ()))
 
 
-def camera_message() -> _messages.ViewerCameraMessage:
-    """The camera a browser reports on connecting (viser registers the client on it)."""
+def camera_message(
+    width: int = 800, height: int = 600, position: tuple[float, float, float] = (100.0, -100.0, 0.0)
+) -> _messages.ViewerCameraMessage:
+    """The camera a browser reports on connecting (viser registers the client on it), on an orbit
+    (another position) and when its canvas changes shape (another width and height, px)."""
     return _messages.ViewerCameraMessage(
         wxyz=(1.0, 0.0, 0.0, 0.0),
-        position=(100.0, -100.0, 0.0),
+        position=position,
         fov=1.0,
         near=1.0,
         far=5000.0,
-        image_height=600,
-        image_width=800,
+        image_height=height,
+        image_width=width,
         look_at=(0.0, 0.0, -60.0),
         up_direction=(0.0, 0.0, 1.0),
     )

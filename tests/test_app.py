@@ -11,7 +11,7 @@ import threading
 
 import numpy as np
 import pytest
-from fake_browser import FakeBrowser, open_session, wait_for
+from fake_browser import FakeBrowser, camera_message, open_session, wait_for
 from synthetic import lobing_campaign
 from viser.transforms import SO3
 
@@ -158,6 +158,28 @@ def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
     s.controls.follow.value = True
     s.look("ring + head")
     assert s.head.root.visible
+
+
+def test_a_canvas_that_changes_shape_has_its_view_placed_again_and_an_orbit_keeps_its_camera(opened) -> None:
+    """The canvas a browser reports changes shape (its panels dock after the first placement, its
+    window is made narrow): the View is placed again for it, farther when narrower than the docked
+    1440x900 canvas, so that the chart fits; an orbit (another position, the same shape) stays."""
+    from ph_explorer.app.scene import ring_camera
+
+    fake, s = opened
+    s.go_to(43.0, 90.0)
+    axial = s.dataset.campaign.geometry.axial_distance_mm
+    fake.send(camera_message(400, 900))  # a narrow window
+    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=400 / 900)
+    assert wait_for(lambda: np.allclose(s.client.camera.position, position, atol=1e-6)), (s.client.camera.position, position)
+    np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    wide = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=800 / 600)[0]
+    assert np.linalg.norm(position - look_at) > 1.05 * np.linalg.norm(wide - look_at)  # farther: the chart fits the narrow canvas
+    orbit = (300.0, 50.0, 20.0)
+    fake.send(camera_message(400, 900, position=orbit))
+    assert wait_for(lambda: np.allclose(s.client.camera.position, orbit))
+    s.camera.reframe()  # what the orbit's report calls: the same shape, nothing placed
+    np.testing.assert_allclose(s.client.camera.position, orbit)
 
 
 def test_a_view_click_is_not_undone_by_a_following_camera(browser, monkeypatch) -> None:

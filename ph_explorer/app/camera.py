@@ -11,6 +11,10 @@ import viser
 from ph_explorer.app.ring import RingScene
 from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
 
+# A change of the canvas's aspect (width / height) beyond this fraction places the View again: the
+# browser docks its side panels after the first placement (1440x900: aspect 1.6, then 0.70).
+ASPECT_TOLERANCE = 0.05
+
 
 class ViewCamera:
     """One browser's camera at a View, kept on the ring while it follows the sliders.
@@ -25,6 +29,7 @@ class ViewCamera:
         self.view = "ring + head"
         self._at: tuple[float, float] | None = None  # the orientation and the chart's size it was placed for
         self._extent = 0.0
+        self._aspect = DEFAULT_ASPECT  # the canvas's aspect it was placed for
         self._lock = threading.RLock()
 
     def look(self, view: str, a_deg: float, b_deg: float) -> None:
@@ -32,14 +37,25 @@ class ViewCamera:
         with self._lock:
             head, ring, axial_distance_mm = self._scene()
             camera = self.client.camera
-            extent, aspect = ring.extent_mm, float(getattr(camera, "aspect", 0.0) or DEFAULT_ASPECT)
+            extent, aspect = ring.extent_mm, self._canvas_aspect()
             position, look_at, up = view_camera(view, a_deg, b_deg, axial_distance_mm, extent, aspect)
             with self.client.atomic():  # position first: viser moves look_at along with it
                 # Along the axis the camera looks through the head: hidden there, shown in the other views.
                 head.set_visible(view != "along the axis")
                 ring.show_labels(view != "whole field")  # there the ring is a few pixels wide
                 camera.position, camera.look_at, camera.up_direction = position, look_at, up
-            self._at, self._extent, self.view = (a_deg, b_deg), extent, view
+            self._at, self._extent, self._aspect, self.view = (a_deg, b_deg), extent, aspect, view
+
+    def _canvas_aspect(self) -> float:
+        """The aspect of the browser's canvas as it last reported it (DEFAULT_ASPECT before it has)."""
+        return float(getattr(self.client.camera, "aspect", 0.0) or DEFAULT_ASPECT)
+
+    def reframe(self) -> None:
+        """The browser's canvas changed shape (its panels docked, its window resized): the View placed
+        again for it, so that what it shows fits the new canvas; an orbit (same shape) keeps its camera."""
+        with self._lock:
+            if self._at is not None and abs(self._canvas_aspect() / self._aspect - 1.0) > ASPECT_TOLERANCE:
+                self.look(self.view, *self._at)
 
     def follow(self, a_deg: float, b_deg: float, resume: bool = False) -> None:
         """Keep the View on the ring drawn at (A, B) if either moved; `resume`: back to following, out of the whole field."""

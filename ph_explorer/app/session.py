@@ -122,6 +122,8 @@ class Session:
             handle.on_update(self._control_changed)
         c.presets.on_click(lambda event: self.go_to(*PAPER_PRESETS[event.target.value]))
         c.view_ring.on_click(lambda event: self.look(event.target.value))
+        # The browser reports its camera on every orbit and resize: a followed View fits its canvas.
+        self.client.camera.on_update(lambda _: self.camera.reframe() if c.follow.value else None)
         self.map_panel.figure.on_update(lambda _: self.refresh_field())
         self.map_panel.show.on_update(lambda _: self.field.set_visible(bool(self.map_panel.show.value)))
         data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
