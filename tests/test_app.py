@@ -7,6 +7,7 @@ session (as a script would), and asserts on its scene handles and panel contents
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import numpy as np
@@ -402,6 +403,40 @@ def test_the_band_shows_what_the_model_uncertainty_adds_and_table_1_the_tasks_ro
         assert value > 0 and u > 0
     s.tables.task.value = False
     assert "RONt, 1 meas." not in s.tables.markdown.content
+
+
+class WatchedSlots:
+    """The app's bound on heavy jobs with its two slots held by the test, saying when a job asks for one and is done."""
+
+    def __init__(self) -> None:
+        self.slots = threading.BoundedSemaphore(2)
+        self.asked, self.done = threading.Event(), threading.Event()
+        for _ in range(2):
+            self.slots.acquire()
+
+    def __enter__(self) -> None:
+        self.asked.set()
+        self.slots.acquire()
+
+    def __exit__(self, *_: object) -> None:
+        self.slots.release()
+        self.done.set()
+
+
+def test_a_browser_that_leaves_has_no_more_ront_computed_for_it(app: ExplorerApp) -> None:
+    """Its RONt job waiting for a slot when the browser closes stops there: nobody would see it, and
+    a room's thirty leaving browsers kept the server's two cores busy for half a minute."""
+    fake, s = open_session(app)
+    slots = WatchedSlots()
+    s.shared = dataclasses.replace(s.shared, heavy=slots)  # this browser's jobs only
+    s.go_to(31.5, 77.5)  # not measured, not asked before: its RONt is wanted once the sliders rest
+    assert slots.asked.wait(30), "the resting sliders asked for no RONt"
+    fake.close()
+    assert wait_for(lambda: s.client.client_id not in app.sessions)
+    slots.slots.release()
+    slots.slots.release()
+    assert slots.done.wait(60)
+    assert all(app.dataset.cached_task(m, 31.5, 77.5) is None for m in app.dataset.model_names)
 
 
 def test_thirty_browsers_at_once_each_keep_their_own_state(app: ExplorerApp) -> None:

@@ -77,6 +77,7 @@ class Session:
         self._jobs = ThreadPoolExecutor(max_workers=1, thread_name_prefix=f"ph-explorer-{client.client_id}")
         self._moving = False  # sliders being set together (go_to): render once at the end
         self._field_token = 0  # the latest field request; older computations do not draw
+        self._closed = False  # the browser left (close)
         self.camera = ViewCamera(client, lambda: (self.head, self.ring, self.dataset.campaign.geometry.axial_distance_mm))
         self.following = Following(self._draw_following, shared.renders, FOLLOW_INTERVAL_S, shared.following_stats.rendered)
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
@@ -250,15 +251,15 @@ class Session:
             self._task.want(a, b)
 
     def _compute_task(self, a: float, b: float) -> None:
-        if self.orientation != (a, b):
-            return  # gone elsewhere: that orientation asks for itself
+        if self._closed or self.orientation != (a, b):
+            return  # gone elsewhere (that orientation asks for itself), or the browser left
         ds = self.dataset
         try:
             for model in ds.model_names:
                 FOREGROUND.wait_idle()  # a clicked job first, alone; then a model at a time
-                if self.orientation != (a, b):
-                    return
-                with self.shared.heavy:
+                with self.shared.heavy:  # asked again once its turn comes: other browsers' jobs go first
+                    if self._closed or self.orientation != (a, b):
+                        return
                     ds.task(model, a, b)
         except Exception as error:  # the tables say it; the server log keeps the rest
             self.data_panel.show_info(f"**Error** — RONt of one measurement: {type(error).__name__}: {' '.join(str(error).split())}")
@@ -398,6 +399,7 @@ class Session:
             raise TimeoutError("the session's latest values were not drawn in time")
 
     def close(self) -> None:
+        self._closed = True  # a RONt under way stops after its model: nobody will see the rest
         self.following.close()
         self._task.close()
         self.render_state.close()
