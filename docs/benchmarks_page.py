@@ -677,6 +677,12 @@ def scale(results: Mapping[str, Any]) -> str:
             f"Targets for {num(x.get('browsers'))} browsers: slider event to drawn p95 at most {num(x.get('p95_target_ms'), 'ms')}, "
             f"server time per render p95 at most {num(x.get('server_p95_target_ms'), 'ms')}, no errors: {holds(x.get('holds'))}."
         )
+        shown = x.get("with_gp") or {}
+        if shown:
+            out.append(
+                f"With the Gaussian process shown: slider event to drawn p95 at most {num(x.get('p95_target_ms'), 'ms')}, "
+                f"no errors: {holds(shown.get('holds'))}."
+            )
         if "following_catch_up_renders" in x:
             out.append(
                 f"What follows the sliders (tables, charts, camera), at most every {num(x.get('follow_interval_s'), 's')}: "
