@@ -77,22 +77,47 @@ def speed_plot(results: dict[str, Any], path: Path) -> Path:
     axes[0].barh(labels, values, color="tab:purple")
     axes[0].set_xlabel("seconds")
     axes[0].set_title(f"speed on {speed['cpu_count']} cores")
-    one = speed["slider_update_ms"]
-    ms = [
-        ("1 browser", one, one.get("latency_ms", {})),
-        (f"{scale.get('browsers', '?')} browsers", scale.get("server_update_ms", {}), scale.get("latency_ms", {})),
+    one, shown = speed["slider_update_ms"], scale.get("with_gp") or {}
+    room = f"{scale.get('browsers', '?')} browsers"
+    # Each group: its render and latency figures, and its own targets drawn over it (kind, ms).
+    groups = [
+        ("1 browser", one, one.get("latency_ms", {}), [("render p95", one.get("target_p95_ms"))]),
+        (
+            room,
+            scale.get("server_update_ms", {}),
+            scale.get("latency_ms", {}),
+            [("render p95", scale.get("server_p95_target_ms")), ("latency p95", scale.get("p95_target_ms"))],
+        ),
     ]
-    names = [m[0] for m in ms]
+    if shown:
+        groups.append(
+            (
+                f"{room}, GP shown",
+                shown.get("server_update_ms", {}),
+                shown.get("latency_ms", {}),
+                [("latency p95", scale.get("p95_target_ms"))],
+            )
+        )
     # Render time (server time of the render) and latency (slider event -> end of its render).
     bars = [("render p50", 1, "p50"), ("render p95", 1, "p95"), ("latency p50", 2, "p50"), ("latency p95", 2, "p95")]
     width = 0.2
     for k, (label, part, q) in enumerate(bars):
-        axes[1].bar([i + width * k for i in range(len(ms))], [m[part].get(q) or 0 for m in ms], width=width, label=label)
-    axes[1].axhline(20, color="red", ls="--", label="target render p95 20 ms")
-    axes[1].set_xticks([i + 1.5 * width for i in range(len(ms))], names)
+        axes[1].bar([i + width * k for i in range(len(groups))], [g[part].get(q) or 0 for g in groups], width=width, label=label)
+    for i, (_, _, _, targets) in enumerate(groups):
+        for kind, target in targets:
+            if target is not None:
+                k = [b[0] for b in bars].index(kind)
+                x = i + width * k
+                axes[1].hlines(target, x - 0.6 * width, x + 0.6 * width, color="red", lw=2)
+    axes[1].plot([], [], color="red", lw=2, label="target (over its bar)")
+    axes[1].set_xticks([i + 1.5 * width for i in range(len(groups))], [g[0] for g in groups])
     axes[1].set_yscale("log")
+    axes[1].yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    axes[1].yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+    axes[1].yaxis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(2.0, 3.0, 5.0)))
+    axes[1].tick_params(axis="y", which="minor", labelsize=7)
     axes[1].set_ylabel("ms per slider update (log)")
-    axes[1].legend(fontsize=8)
+    axes[1].legend(fontsize=8, ncol=3, loc="lower center", bbox_to_anchor=(0.5, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
