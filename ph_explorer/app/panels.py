@@ -191,7 +191,7 @@ class TablesPanel:
 
     def __init__(self, gui: viser.GuiApi) -> None:
         self.task = gui.add_checkbox(
-            "RONt +- U of one measurement",
+            "RONt ± U of one measurement",
             initial_value=True,
             hint="Each model's Monte Carlo of one N-touch measurement here (its band's components), computed once the sliders rest",
         )
