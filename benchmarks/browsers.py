@@ -3,7 +3,8 @@
 Run as a separate process from the repository root (`python -m benchmarks.browsers PORT N RATE_HZ
 SECONDS`) so that the clients' own work does not run under the server's interpreter lock. Each
 browser connects, sends a camera message (viser registers a client on it), reads the server's
-messages until it has seen its own A and B sliders, then moves them at RATE_HZ (one slider update
+messages until it has seen its own A and B sliders; once every browser has (or has failed to), all
+move their sliders at RATE_HZ (one slider update
 per tick, A and B in turn) for SECONDS and ends on a final orientation of its own. When every
 browser has sent its final orientation the process prints `FINALS [[A, B], ...]` and waits (at
 most RELEASE_TIMEOUT_S) for a line on stdin, so that the server can check its sessions while the
@@ -32,21 +33,38 @@ def final_orientation(k: int) -> tuple[float, float]:
     return float(10 + (k * 7) % 100), float(-170 + (k * 13) % 340)
 
 
+def start_together(ready: threading.Barrier) -> None:
+    """This browser is connected (or has failed to): wait for the others, at most CONNECT_TIMEOUT_S."""
+    try:
+        ready.wait(CONNECT_TIMEOUT_S)
+    except threading.BrokenBarrierError:
+        pass  # one of them is late: the others start without it
+
+
 def browser(
-    k: int, port: int, rate_hz: float, seconds: float, start_at: float, out: dict[str, Any], done: threading.Event, release: threading.Event
+    k: int,
+    port: int,
+    rate_hz: float,
+    seconds: float,
+    ready: threading.Barrier,
+    out: dict[str, Any],
+    done: threading.Event,
+    release: threading.Event,
 ) -> None:
     """One browser's run, reported in `out`; every failure goes to out["errors"], never raised."""
     try:
         client = FakeBrowser(port, labels=(A_LABEL, B_LABEL))
     except Exception as error:  # noqa: BLE001
         out["errors"].append(f"connect: {type(error).__name__}: {error}")
+        start_together(ready)
         done.set()
         return
     try:
-        for label in (A_LABEL, B_LABEL):  # wait until the server has sent both sliders
-            client.uuid(label, timeout=CONNECT_TIMEOUT_S)
-        # Everyone starts together; each browser has its own phase.
-        time.sleep(max(0.0, start_at - time.monotonic()))
+        try:
+            for label in (A_LABEL, B_LABEL):  # wait until the server has sent both sliders
+                client.uuid(label, timeout=CONNECT_TIMEOUT_S)
+        finally:
+            start_together(ready)  # everyone starts together; each browser has its own phase
         period, t0, tick = 1.0 / rate_hz, time.monotonic(), 0
         while time.monotonic() - t0 < seconds:
             t = time.monotonic() - t0
@@ -74,12 +92,12 @@ def browser(
 
 
 def run(port: int, n: int, rate_hz: float, seconds: float) -> dict[str, Any]:
-    start_at = time.monotonic() + 2.0 + 0.1 * n  # time for every browser to connect first
+    ready = threading.Barrier(n)  # every browser connected (or failed to): all start together
     results: list[dict[str, Any]] = [{"final": None, "sent": 0, "received": 0, "errors": []} for _ in range(n)]
     done = [threading.Event() for _ in range(n)]
     release = threading.Event()
     threads = [
-        threading.Thread(target=browser, args=(k, port, rate_hz, seconds, start_at, results[k], done[k], release), daemon=True)
+        threading.Thread(target=browser, args=(k, port, rate_hz, seconds, ready, results[k], done[k], release), daemon=True)
         for k in range(n)
     ]
     for thread in threads:
