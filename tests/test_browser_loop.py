@@ -63,11 +63,42 @@ def colour_census(png: bytes) -> tuple[int, int]:
     return int(inked.sum()), int((counts >= COLOUR_PIXELS).sum())
 
 
-def in_view(locator, what: str) -> dict:
-    """The element is shown and wholly inside the viewport (1440x900, or the page's), as the page stands."""
-    locator.wait_for(state="visible", timeout=30_000)
-    box = locator.bounding_box()
+# The page has settled when no element, attribute or text of it has changed for QUIET_MS (the
+# server's updates drawn), then two frames painted; at most MOST_MS.
+QUIET_MS, MOST_MS = 300, 5000
+SETTLED = """([quiet, most]) => new Promise(resolve => {
+  let ended = false, timer = null;
+  const end = () => { if (ended) return; ended = true; observer.disconnect();
+    requestAnimationFrame(() => requestAnimationFrame(() => resolve(true))); };
+  const observer = new MutationObserver(() => { clearTimeout(timer); timer = setTimeout(end, quiet); });
+  observer.observe(document.body, {subtree: true, childList: true, attributes: true, characterData: true});
+  timer = setTimeout(end, quiet);
+  setTimeout(end, most);
+})"""
+
+
+def settled(page) -> None:
+    """Wait until the page has drawn the server's last updates (SETTLED), not a fixed time."""
+    page.evaluate(SETTLED, [QUIET_MS, MOST_MS])
+
+
+def steady_box(locator, what: str, timeout: float = 10.0) -> dict:
+    """The element's box once it stops moving (a panel the app scrolls glides there)."""
+    deadline, box = time.monotonic() + timeout, None
+    while time.monotonic() < deadline:
+        now = locator.bounding_box()
+        if now is not None and box is not None and all(abs(now[k] - box[k]) < 0.5 for k in ("x", "y", "width", "height")):
+            return now
+        box = now
+        time.sleep(0.05)
     assert box is not None, what
+    return box
+
+
+def in_view(locator, what: str) -> dict:
+    """The element is shown and wholly inside the viewport (1440x900, or the page's), once it stands still."""
+    locator.wait_for(state="visible", timeout=30_000)
+    box = steady_box(locator, what)
     size = locator.page.viewport_size or {"width": WIDTH, "height": HEIGHT}
     print(f"{what}: x {box['x']:.0f}-{box['x'] + box['width']:.0f}, y {box['y']:.0f}-{box['y'] + box['height']:.0f}")
     if not os.environ.get("PH_EXPLORER_LOOP_MEASURE"):
@@ -175,7 +206,7 @@ def scene_label_boxes(session, canvas: dict) -> list[tuple[str, float, float, fl
 
 def step_shot(page, shots: Path, name: str) -> None:
     no_scroll(page)
-    time.sleep(1.0)  # the last panel updates painted
+    settled(page)
     page.screenshot(path=str(shots / f"{name}.png"))
 
 
@@ -258,7 +289,7 @@ def teach(page, session, shots: Path) -> None:
     assert all(mae > floor or "by its repetitions' scatter" in label for label, (_, _, mae, floor, _) in zip(buttons, figures))
     for label in buttons:
         in_view(page.get_by_role("button", name=label), f"failing ring {label}")
-    time.sleep(1.0)
+    settled(page)
     figures_drawn(page)
     error_map = page.locator('svg[aria-label^="error map"]').first
     assert "out-of-sample MAE / its floor" in (error_map.get_attribute("aria-label") or "")
@@ -277,7 +308,7 @@ def teach(page, session, shots: Path) -> None:
             label,
             slider.get_attribute("aria-valuenow"),
         )
-    time.sleep(1.0)
+    settled(page)
     figures_drawn(page, f"A{a_target:g} B{b_target:g}")
     step_shot(page, shots, "loop_4_at_the_worst_ring")
 
@@ -311,7 +342,7 @@ def teach(page, session, shots: Path) -> None:
     in_view(reveal, "Reveal")
     reveal.click()
     assert wait_for(lambda: "truth:" in session.physics.revealed.content, timeout=60)
-    time.sleep(1.0)
+    settled(page)
     in_view(page.get_by_text("Hidden:", exact=False).first, "Reveal's result")
     in_view(page.get_by_text("truth:", exact=False).first, "the truth")
     in_view(page.get_by_text("diagnosis (significant", exact=False).first, "what was found")
@@ -340,7 +371,7 @@ def teach(page, session, shots: Path) -> None:
     # step's results are brought into view beside the button that made them.
     for width, height in ((WIDTH, HEIGHT), (1280, 720)):
         page.set_viewport_size({"width": width, "height": height})
-        time.sleep(1.0)
+        settled(page)
         curves = page.get_by_role("button", name="Curves", exact=True)
         if curves.get_attribute("aria-expanded") != "true":
             curves.click()
@@ -353,10 +384,10 @@ def teach(page, session, shots: Path) -> None:
         page.get_by_role("button", name="Refit the hybrid").click()
         assert wait_for(lambda: len(session.loop.steps) > steps, timeout=600)
         session.wait(timeout=300)
-        time.sleep(1.5)
+        settled(page)
         in_view(page.get_by_text("Check-ring MAE:", exact=False).first, f"the error fall at {width}x{height}, Curves open")
         page.get_by_role("button", name="Reveal the hidden effect").click()
-        time.sleep(1.5)
+        settled(page)
         in_view(page.get_by_text("Hidden:", exact=False).first, f"Reveal's result at {width}x{height}, Curves open")
         in_view(page.get_by_text("last refit:", exact=False).first, f"the last refit at {width}x{height}, Curves open")
         assert page.evaluate("() => window.scrollY") == 0  # the panel scrolls, never the page
