@@ -65,7 +65,7 @@ def colour_census(png: bytes) -> tuple[int, int]:
 
 # The page has settled when no element, attribute or text of it has changed for QUIET_MS (the
 # server's updates drawn), then two frames painted; at most MOST_MS.
-QUIET_MS, MOST_MS = 300, 5000
+QUIET_MS, MOST_MS = 500, 5000
 SETTLED = """([quiet, most]) => new Promise(resolve => {
   let ended = false, timer = null;
   const end = () => { if (ended) return; ended = true; observer.disconnect();
