@@ -133,10 +133,21 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             # Along the axis: the ring and its curves, not the inside of the head.
             page.get_by_role("button", name="along the axis").click()
             assert wait_for(lambda: not session.head.root.visible)
-            time.sleep(2.0)
-            view = page.screenshot(path=str(shots / "explorer_along_the_axis.png"), clip={"x": 0, "y": 0, "width": 1000, "height": 900})
-            # The model's curve (orange; A18 is not measured, so no black mean) and the chart's labels: not a grey screen.
-            assert coloured_pixels(view) > 300 and dark_pixels(view) > 100
+            # The scene redrawn along the axis: the dark head gone from the canvas, the ring and the
+            # model's curve (orange; A18 is not measured, so no black mean) drawn, not a grey screen.
+            canvas = page.evaluate(
+                "() => { const r = document.querySelector('canvas').getBoundingClientRect(); return {x: r.x, y: r.y, width: r.width, height: r.height}; }"
+            )
+            seen: list[tuple[int, int]] = []
+
+            def along_the_axis() -> bool:
+                png = page.screenshot(clip=canvas)
+                seen.append((dark_pixels(png), coloured_pixels(png)))
+                return seen[-1][0] < 2000 and seen[-1][1] > 1000
+
+            assert wait_for(along_the_axis, timeout=30), seen[-3:]
+            print(f"along the axis: canvas {canvas}, (dark, coloured) pixels {seen[0]} -> {seen[-1]} in {len(seen)} shots")
+            page.screenshot(path=str(shots / "explorer_along_the_axis.png"), clip={"x": 0, "y": 0, "width": 1000, "height": 900})
             # The error map (Map tab) is drawn: its coloured markers and colour bar, not only DOM nodes.
             page.get_by_role("tab", name="Map").click()
             error_map = page.locator('svg[aria-label^="error map"]').first
