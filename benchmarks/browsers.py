@@ -4,11 +4,11 @@ Run as a separate process from the repository root (`python -m benchmarks.browse
 SECONDS`) so that the clients' own work does not run under the server's interpreter lock. Each
 browser connects, sends a camera message (viser registers a client on it), reads the server's
 messages until it has seen its own A and B sliders; once every browser has (or has failed to), all
-move their sliders at RATE_HZ (one slider update
-per tick, A and B in turn) for SECONDS and ends on a final orientation of its own. When every
-browser has sent its final orientation the process prints `FINALS [[A, B], ...]` and waits (at
-most RELEASE_TIMEOUT_S) for a line on stdin, so that the server can check its sessions while the
-browsers are still connected; then it closes them and prints one JSON line:
+move their sliders at RATE_HZ (one slider update per tick, A and B in turn) for SECONDS and each
+ends on a final orientation of its own. When every browser has sent its final orientation the
+process prints `FINALS [[A, B], ...]` and waits (at most RELEASE_TIMEOUT_S) for a line on stdin, so
+that the server can check its sessions while the browsers are still connected; then it closes them
+and prints one JSON line:
 {"browsers": [{"final": [A, B], "sent": n, "received": n, "errors": [...]}, ...]}.
 Bounded: every wait has a timeout and the run stops by itself.
 """

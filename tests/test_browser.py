@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fake_browser import wait_for
+from test_browser_loop import scene_canvas
 from viser.transforms import SO3
 
 CHROMIUM = "/usr/bin/chromium"
@@ -135,9 +136,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(tmp_path: Path) -> None:
             assert wait_for(lambda: not session.head.root.visible)
             # The scene redrawn along the axis: the dark head gone from the canvas, the ring and the
             # model's curve (orange; A18 is not measured, so no black mean) drawn, not a grey screen.
-            canvas = page.evaluate(
-                "() => { const r = document.querySelector('canvas').getBoundingClientRect(); return {x: r.x, y: r.y, width: r.width, height: r.height}; }"
-            )
+            canvas = scene_canvas(page)
             seen: list[tuple[int, int]] = []
 
             def along_the_axis() -> bool:
