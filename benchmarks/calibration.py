@@ -172,7 +172,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
     # The error after the effects found: on the check rings (which took part in choosing them), and
     # nested (chosen without the rings measured), each with its "before" on the same rings.
     record["check_rings_um"] = {"before": result.steps[0].mae_um, "after": result.steps[-1].mae_um}
-    record["nested_after"] = None if result.nested is None else result.nested.as_dict()
+    record["nested_after"] = None if result.nested is None else result.nested.to_json()
     record["baseline"] = _test_dict(result.within_noise.get("baseline"))
     record["after"] = _test_dict(result.within_noise.get("after"))
     if result.candidates:

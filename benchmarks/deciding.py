@@ -78,11 +78,16 @@ def claims(result: Diagnosis) -> list[dict[str, Any]]:
             "effect": c.effect,
             "settings": {k: float(v) for k, v in c.settings.items()},
             "partners": [
-                {"effect": o["effect"], "shared": o["shared"], **{k: o[k] for k in ("told_apart", "p_value", "p_without_top") if k in o}}
+                {"effect": o.effect, "shared": o.shared}
+                | (
+                    {}
+                    if o.test is None
+                    else {"told_apart": o.test.told_apart, "p_value": o.test.p_value, "p_without_top": o.test.p_without_top}
+                )
                 for o in c.confounded_with
-                if "separated_by" in o
+                if o.separated_by is not None
             ],
-            "twins": [o["effect"] for o in c.confounded_with if o["shared"] >= TWIN],
+            "twins": [o.effect for o in c.confounded_with if o.shared >= TWIN],
         }
         for c in result.found
     ]
@@ -94,7 +99,7 @@ def suggestions(result: Diagnosis) -> list[dict[str, Any]]:
         {
             "effect": c.effect,
             "settings": {k: float(v) for k, v in c.settings.items()},
-            "twins": [o["effect"] for o in c.confounded_with if o["shared"] >= TWIN],
+            "twins": [o.effect for o in c.confounded_with if o.shared >= TWIN],
         }
         for c in result.suggested
     ]

@@ -95,7 +95,7 @@ def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[
         "named_first_at_its_period": named_first,
         "named_as": first["effect"] if first else None,
         "truth_within_u": bool(named_first and covered(effect_id, truth, first)),
-        "top_confounded_with": [o["effect"] for o in top.confounded_with],
+        "top_confounded_with": [o.effect for o in top.confounded_with],
         "check_rings_mae_mean_um": {"before": round(result.steps[0].mae_um["mean"], 4), "after": round(result.steps[-1].mae_um["mean"], 4)},
         "noise_floor_mean_um": round(result.steps[-1].noise_floor_um["mean"], 4),
         "after_over_floor": round(result.steps[-1].mae_um["mean"] / result.steps[-1].noise_floor_um["mean"], 3),

@@ -157,7 +157,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
             "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
             "params": {k: float(v) for k, v in c.params.items()},
             "params_u": {k: float(v) for k, v in c.params_u.items()},
-            "confounded_with": [o["effect"] for o in c.confounded_with],
+            "confounded_with": [o.effect for o in c.confounded_with],
         }
         for c in result.found
     ]

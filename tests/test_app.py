@@ -576,7 +576,7 @@ def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(opened) ->
     fake, s = opened
     s.physics.effects["lobing"].value = True
     click(fake, s, "Refit the hybrid")
-    assert [step.added for step in s.loop.steps] == [[], ["lobing"]]
+    assert [step.added for step in s.loop.steps] == [(), ("lobing",)]
     assert s.physics.history.visible and s.physics.history.content.count('fill="#1f77b4"><title>') == 2  # two steps, vs the mean
     assert "hybrid" in s.dataset.models
     # The fitted parameters are written by the effect itself, with their units.
@@ -638,7 +638,7 @@ def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: 
         assert rings and [r.ratio for r in rings] == sorted((r.ratio for r in rings), reverse=True)
         labels = [button.label for button in s1.map_panel.failing_buttons]
         assert labels == [failing_label(r) for r in rings[:MAX_FAILING_BUTTONS]]
-        assert f"{rings[0].mae_um:.3f} um, floor {rings[0].floor_um:.3f} um" in labels[0]
+        assert f"{rings[0].mae_um['mean']:.3f} um, floor {rings[0].floor_um['mean']:.3f} um" in labels[0]
         assert f"{len(rings)} rings exceed their noise" in s1.map_panel.failing_text.content
         target = rings[min(1, len(rings) - 1)]
         b1.click(failing_label(target))
@@ -685,13 +685,13 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened, tmp_path) -> None:
     assert wait_for(lambda: f'aria-label="signature plot {other.effect}' in p.evidence.content)
     assert other.name in p.evidence_text.content
     # The history starts at the baseline.
-    assert len(s.loop.steps) == 1 and s.loop.steps[0].added == [] and not p.history.visible  # one point: the fall line says it
+    assert len(s.loop.steps) == 1 and s.loop.steps[0].added == () and not p.history.visible  # one point: the fall line says it
     baseline = s.loop.steps[0]
     p.effects["b_axis_cyclic"].value = True
     click(fake, s, "Refit the hybrid", timeout=600)
     last = s.loop.steps[-1]
     print("history", [(st.added, st.mae_um, st.noise_floor_um) for st in s.loop.steps])
-    assert last.added == ["b_axis_cyclic"]
+    assert last.added == ("b_axis_cyclic",)
     assert last.mae_um["mean"] < baseline.mae_um["mean"]
     assert last.mae_um["mean"] <= 1.3 * last.noise_floor_um["mean"], last
     # The chart: the steps named on the axis; MAE and floor against the mean and single repetitions per step.
@@ -705,8 +705,8 @@ def test_teaching_loop_diagnose_add_refit_error_falls(opened, tmp_path) -> None:
     assert f"{baseline.mae_um['mean']:.3f} -> **{last.mae_um['mean']:.3f} um**" in p.fall.content
     # Beside the history, the honest "after": the choice cross-validated (nested), before and after.
     nested = s.loop.diagnosis.nested
-    assert nested is not None and f"**{nested.after_um['mean']:.3f} um** after" in p.history_table.content
-    assert f"{nested.before_um['mean']:.3f} um before" in p.history_table.content
+    assert nested is not None and f"| after | {nested.after_um['mean']:.3f} | {nested.after_um['single']:.3f} |" in p.history_table.content
+    assert f"| before | {nested.before_um['mean']:.3f} |" in p.history_table.content
     # The hybrid curve is in the scene, the charts and the tables.
     assert "hybrid" in s.dataset.models
     s.go_to(43.0, 90.0)

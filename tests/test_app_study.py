@@ -76,7 +76,7 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         assert "s.json" in p.study_line.content and "1 run;" in p.study_line.content
         assert B22 in p.study_line.content and "missing" in p.study_line.content and p.save_study.visible
         # The history starts with the study's steps (Step objects rebuilt from the JSON).
-        assert [st.added for st in s.loop.steps] == [st["added"] for st in cli_study["steps"]] == [[], ["b_axis_cyclic"]]
+        assert [list(st.added) for st in s.loop.steps] == [st["added"] for st in cli_study["steps"]] == [[], ["b_axis_cyclic"]]
         assert [st.mae_um["mean"] for st in s.loop.steps] == [st["mae_um"]["mean"] for st in cli_study["steps"]]
         assert p.history.visible and "+ b_axis_cyclic" in p.history_table.content
         # Saving before any diagnosis is refused in one line: a run records a diagnosis.
@@ -99,7 +99,7 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         fake.click("Refit the hybrid")
         assert wait_for(lambda: len(s.jobs) > 0)
         s.wait(timeout=300)
-        assert s.loop.steps[-1].added == ["b_axis_cyclic", ticked.effect] and len(s.loop.steps) == 3
+        assert s.loop.steps[-1].added == ("b_axis_cyclic", ticked.effect) and len(s.loop.steps) == 3
         # A write that fails (disk full) is one line in the panel; the study on disk is untouched.
         before = study_file.read_text()
         from ph_explorer.app import study_file as app_study
@@ -150,7 +150,7 @@ def test_a_new_study_is_written_on_the_first_save(small_csv, tmp_path):
         assert wait_for(lambda: bool(s.jobs))
         s.wait(timeout=300)
         assert s.loop.diagnosis.started_from == 0 and s.loop.diagnosis.nested is not None  # the honest "after", as the CLI
-        assert "Nested cross-validation" in s.physics.history_table.content
+        assert "measured honestly" in s.physics.history_table.content
         fake.click("Save study")
         assert wait_for(lambda: "Saved: run 1" in s.physics.study_status.content)
         saved = check_study(json.loads(path.read_text()), str(path))

@@ -265,7 +265,7 @@ def teach(page, session, shots: Path) -> None:
     for name, value in best.params.items():
         if best.params_u.get(name):  # a fitted parameter, shown with its uncertainty
             assert f"{value:.3g}" in session.physics.fit.content, (name, value)
-    told = all(o.get("told_apart") for o in best.confounded_with)
+    told = all(o.told_apart for o in best.confounded_with)
     ident = "identifiable" if not best.confounded_with else ("told apart by the rings" if told else "confounded")
     in_view(page.get_by_text(ident, exact=False).first, "identifiability")
     figures_drawn(page)

@@ -7,21 +7,25 @@ numbering, no sidecar, so the held-out rings are the off-grid ones).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tomllib
 from pathlib import Path
 
+import jsonschema
 import numpy as np
 import pytest
 from command_line import run_cli
 
-from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis import diagnose, verdict_text
+from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.diagnosis import Diagnosis, diagnose
+from ph_explorer.diagnosis.candidates import PairTest, RivalSetting
 from ph_explorer.diagnosis.choice import within_noise_after
 from ph_explorer.diagnosis.search import CandidateSearch
-from ph_explorer.diagnosis.telling_apart import told_apart
+from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import within_noise
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
+from ph_explorer.figures.diagnosis_text import report_sections, report_text, shared_text
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -30,7 +34,7 @@ from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, scenarios_dir
 from ph_explorer.planning.deciding import rings_that_decide
-from ph_explorer.twin import load_scenario, scenario_from_dict, simulate
+from ph_explorer.twin import list_scenarios, load_scenario, scenario_from_dict, simulate
 
 # Each teaching scenario, its hidden effect, and the reference that exposes it.
 TEACHING = {
@@ -39,6 +43,7 @@ TEACHING = {
     "head_5": ("direction", "single"),
     "head_2": ("b_axis_tilt_motion", "mean"),
 }
+SHIPPED = ("paper", *TEACHING, "head_6", "near_vertical")  # every shipped scenario (test_the_record_covers_every_shipped_scenario)
 
 
 def write_like_another_program(campaign: Campaign, path: Path) -> Path:
@@ -66,9 +71,11 @@ def diagnoses(tmp_path_factory) -> dict[tuple[str, bool], object]:
     """Each scenario diagnosed once from its sidecar campaign and once from the foreign CSV."""
     out = {}
     folder = tmp_path_factory.mktemp("foreign")
-    for name in ("paper", *TEACHING):
+    for name in SHIPPED:
         campaign = simulate(load_scenario(name))
         out[(name, True)] = diagnose(campaign, nested=name in ("paper", "head_3"))  # the nested figures tested below
+        if name in ("head_6", "near_vertical"):  # each other scenario also as another program writes it
+            continue
         foreign = read_campaign(write_like_another_program(campaign, folder / f"{name}.csv"))
         assert foreign.check_orientations is None
         out[(name, False)] = diagnose(foreign, nested=False)  # the nested figures: from the sidecar runs
@@ -107,20 +114,20 @@ def test_hidden_effect_is_found_added_and_the_error_falls(diagnoses, name, sidec
 
 
 @pytest.mark.slow
-def test_the_near_vertical_lesson_names_the_b_line_or_its_twin_and_says_they_are_one():
+def test_the_near_vertical_lesson_names_the_b_line_or_its_twin_and_says_they_are_one(diagnoses):
     # Near the vertical a tilt eps of the B axis moves the ball as an offset of eps L: the hidden
     # offset of the B line is found as one of the pair, the other named beside it as confounded,
     # and the error falls most of the way to the floor. No other explanation is credited: what
     # the five near-vertical rings alone would give lobing or ball form is only suggested.
     scenario = load_scenario("near_vertical")
     (hidden,) = [e for e, h in zip(scenario.effects, scenario.hidden) if h]
-    result = diagnose(simulate(scenario), nested=False)
+    result = diagnoses[("near_vertical", True)]
     assert result.verdict == "missing"
     first = result.found[0]
     pair = {hidden.id, "b_axis_orientation"}
     assert hidden.id == "b_axis_position" and first.effect in pair
-    twin = [o for o in first.confounded_with if o["effect"] in pair - {first.effect}]
-    assert twin and twin[0]["shared"] >= 0.99
+    twin = [o for o in first.confounded_with if o.effect in pair - {first.effect}]
+    assert twin and twin[0].shared >= 0.99
     assert [c.effect for c in result.found] == [first.effect]
     final, start = result.steps[-1], result.steps[0]
     floor = final.noise_floor_um["mean"]
@@ -219,7 +226,7 @@ def test_cli_add_takes_the_users_choice_and_user_effects(b22_csv):
     # The text report names the verdict and the history.
     text = run_cli("diagnose", "--data", str(b22_csv), "--add", "b_axis_cyclic")
     assert text.returncode == 0, text.stderr
-    assert "Verdict: missing" in text.stdout and "Found: b_axis_cyclic (amplitude" in text.stdout
+    assert "Verdict: missing" in text.stdout and "Found\n  b_axis_cyclic 22 cycles/rev: amplitude" in text.stdout
     assert "+ b_axis_cyclic" in text.stdout
 
 
@@ -234,7 +241,7 @@ def test_the_after_error_is_also_measured_on_rings_that_took_no_part_in_the_choi
     # ... and on those rings the error falls, towards the floor, though less than the optimistic check-ring figure says.
     assert nested.after_um["mean"] < 0.85 * nested.before_um["mean"]
     assert nested.after_um["mean"] < 1.6 * nested.noise_floor_um["mean"]
-    assert result.as_dict()["nested_after"]["after_um"]["mean"] == pytest.approx(nested.after_um["mean"], abs=1e-5)
+    assert result.to_json()["nested_after"]["after_um"]["mean"] == pytest.approx(nested.after_um["mean"], abs=1e-5)
     # Nothing found, nothing to cross-validate.
     assert diagnoses[("paper", True)].nested is None
 
@@ -242,9 +249,9 @@ def test_the_after_error_is_also_measured_on_rings_that_took_no_part_in_the_choi
 @pytest.mark.slow
 def test_a_study_is_saved_resumed_and_refused_on_another_campaign(b22_csv, tmp_path):
     study = tmp_path / "study.json"
-    done = run_cli("diagnose", "--data", str(b22_csv), "--save", str(study))
+    done = run_cli("diagnose", "--data", str(b22_csv), "--save", str(study), "--detail", "full")
     assert done.returncode == 0, done.stderr
-    # The report re-ranks the candidates with the effect found in the model.
+    # The full report re-ranks the candidates with the effect found in the model.
     assert "Re-ranked with b_axis_cyclic 22 cycles/rev in the model" in done.stdout
     saved = json.loads(study.read_text())
     assert saved["format"] == "ph-explorer study 1" and saved["verdict"] == "missing"
@@ -358,20 +365,20 @@ def test_a_period_the_rings_do_not_tell_from_the_one_found_is_not_excluded(seed)
     chosen = effect.with_settings(**found.settings)
     for settings in effect.scan_grid()[::3]:  # every third: the test's time
         if settings not in kept:
-            assert told_apart(search, chosen, effect.with_settings(**settings), [])["told_apart"], settings
-    words = " ".join(verdict_text(result, DEFAULT_CATALOG)[1])
-    assert "a_axis_tilt_motion: the campaign cannot exclude " in words and " cycles/rev beside the setting found" in words
+            assert rings_prefer(search, chosen, effect.with_settings(**settings), []).told_apart, settings
+    words = report_text(result, DEFAULT_CATALOG)
+    assert "the campaign cannot exclude " in words and " cycles/rev beside this setting" in words
     # The closest setting the rings keep is a question for the rings that would decide.
-    rival = effect.with_settings(**found.rival_setting["settings"])
-    assert found.rival_setting["settings"] in found.settings_not_excluded
-    assert not told_apart(search, chosen, rival, [])["told_apart"]
-    for candidate in result.found:  # the rival setting alone is open (the explorer offers its Rings that would decide)
-        candidate.confounded_with = []
-    assert result.leaves_open
-    decision = rings_that_decide(campaign, result, DEFAULT_CATALOG, 8)
+    rival = effect.with_settings(**found.rival_setting.settings)
+    assert found.rival_setting.settings in found.settings_not_excluded
+    assert not rings_prefer(search, chosen, rival, []).told_apart
+    # the rival setting alone is open (the explorer offers its Rings that would decide)
+    alone = dataclasses.replace(result, found=tuple(dataclasses.replace(c, confounded_with=()) for c in result.found))
+    assert alone.leaves_open
+    decision = rings_that_decide(campaign, alone, DEFAULT_CATALOG, 8)
     assert decision.questions == [f"{effect_label(chosen)} vs {effect_label(rival)}"]
-    found.rival_setting = {}
-    assert not result.leaves_open
+    settled = dataclasses.replace(alone, found=tuple(dataclasses.replace(c, rival_setting=None) for c in alone.found))
+    assert not settled.leaves_open
 
 
 def test_the_rings_that_alone_carry_an_effect_are_judged_within_noise_on_a_fit_without_them():
@@ -423,7 +430,7 @@ def test_a_campaign_without_touch_times_is_diagnosed_and_says_what_it_cannot_tes
 def test_a_single_repetition_campaign_gives_strict_json():
     campaign = simulate(load_scenario("head_3"))
     campaign.deviations, campaign.times_s = campaign.deviations[:, :1], campaign.times_s[:, :1]
-    report = diagnose(campaign).as_dict()
+    report = diagnose(campaign).to_json()
 
     def refuse(constant: str) -> None:
         raise AssertionError(f"{constant} is not JSON")
@@ -486,8 +493,8 @@ def test_a_hidden_effect_the_catalog_lacks_is_unexplained(name):
     test = result.within_noise["baseline"]
     assert result.verdict == "unexplained" and not result.found
     assert test.fails and test.failing_rings >= 2 and test.statistic > test.critical
-    headline, lines = verdict_text(result, catalog_without(effect_id))
-    assert headline.startswith("Verdict: unexplained") and any("rings exceed their noise" in line for line in lines)
+    verdict = report_sections(result, catalog_without(effect_id))[0]
+    assert verdict.title.startswith("Verdict: unexplained") and any("rings exceed their noise" in line for line in verdict.lines)
 
 
 @pytest.mark.slow
@@ -522,14 +529,15 @@ def test_the_stylus_ball_form_next_to_lobing_is_reported_as_confounded():
     best = result.candidates[0]
     assert best.effect in ("lobing", "ball_form") and best.significant
     partner = "ball_form" if best.effect == "lobing" else "lobing"
-    shared = {o["effect"]: o["shared"] for o in best.confounded_with}
+    shared = {o.effect: o.shared for o in best.confounded_with}
     assert shared.get(partner, 0.0) > 0.9
-    assert f"is also explained by {partner}: this campaign cannot tell them apart" in "\n".join(verdict_text(result, catalog)[1])
-    assert result.as_dict()["candidates"][0]["confounded_with"]
+    full = report_text(result, catalog, "full")
+    assert f"is also explained by {partner}" in full and "cannot tell them apart" in full
+    assert result.to_json()["candidates"][0]["confounded_with"]
     # ... and what would separate them: the seats and a 3-lobe ball are the same over any head touches.
     closest = best.confounded_with[0]
-    assert closest["effect"] == partner and closest["separated_by"]["measurement"] == ""
-    assert f"To tell {best.effect} from {partner}: none of the measurements tried" in "\n".join(verdict_text(result, catalog)[1])
+    assert closest.effect == partner and closest.separated_by.measurement == ""
+    assert "no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share" in full
 
 
 @pytest.mark.slow
@@ -538,17 +546,17 @@ def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a
     one ring exceeds at the ring level, and candidates beyond noise are shown, one confounded."""
     from ph_explorer.app.map_panel import failing_label
     from ph_explorer.app.physics_panel import fit_html
-    from ph_explorer.diagnosis.results import VERDICTS, shared_text
+    from ph_explorer.diagnosis.results import VERDICTS
 
     result = diagnoses[("paper", True)]
     test = result.within_noise["baseline"]
     shown = [c for c in result.candidates if c.beyond_noise or c.significant]
     assert result.verdict == "none" and not test.fails and shown  # the case the words must get right
-    headline, lines = verdict_text(result, DEFAULT_CATALOG)
+    short = {section.key: section for section in report_sections(result, DEFAULT_CATALOG)}
+    headline, lines = short["verdict"].title, short["verdict"].lines
     assert headline == f"Verdict: none - {VERDICTS['none']}." and "within-noise test passes" in headline
-    noise_line = next(line for line in lines if line.startswith("Within-noise test (the baseline)"))
-    if test.failing_rings:  # rings that exceed alone do not contradict a campaign within noise: said so
-        assert "the campaign is within noise, though a few rings exceed at the ring level" in noise_line
+    noise_line = next(line for line in lines if line.startswith("Within-noise test, the baseline"))
+    assert "the campaign is within noise" in noise_line
     # Every ring listed as exceeding does, by one of the test's two statistics, and says which when
     # its MAE is under its floor.
     for ring in result.failing_rings():
@@ -557,11 +565,111 @@ def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a
     # The candidates shown beside a `none` carry their status: none of them reads as found.
     table = fit_html(result, DEFAULT_CATALOG)
     assert all(c.status in table and c.status != "found" for c in shown)
-    # A confounded pair says what its share means, in the verdict and in the table.
+    # A confounded pair says what its share means, in the full report and in the table; the short
+    # report says nothing of candidates neither claimed nor suggested.
     pairs = [(c, o) for c in shown for o in c.confounded_with]
     assert pairs, "the paper scenario has no confounded candidate any more: pick another campaign for this test"
     c, other = pairs[0]
     words = shared_text(c.effect, other)
-    assert words.endswith(f"of what this campaign shows of {c.effect} is also explained by {other['effect']}")
-    assert any(words in line and "this campaign cannot tell them apart" in line for line in lines)
+    assert words.endswith(f"of what this campaign shows of {c.effect} is also explained by {other.effect}")
+    full = {section.key: section for section in report_sections(result, DEFAULT_CATALOG, "full")}
+    assert any(words in line and "this campaign cannot tell them apart" in line for line in full["partners"].lines)
+    assert "partners" not in short and words not in report_text(result, DEFAULT_CATALOG)
     assert f"{words}: this campaign cannot tell them apart" in table
+
+
+# -- the record of a diagnosis (issue 57) -------------------------------------------------------------
+
+
+def test_the_record_covers_every_shipped_scenario():
+    assert set(SHIPPED) == {s.name for s in list_scenarios()}
+
+
+def diagnosis_schema() -> dict:
+    """The schema of the diagnose --json object, as docs/formats.md documents it."""
+    text = (Path(__file__).parents[1] / "docs" / "formats.md").read_text(encoding="utf-8")
+    block = text.split("<!-- diagnosis-schema -->", 1)[1].split("```json", 1)[1].split("```", 1)[0]
+    return json.loads(block)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHIPPED)
+def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figures(diagnoses, name):
+    """The record validates against its documented schema, reads back through from_json, and
+    holds every verdict, effect and figure the diagnosis gave before the record (the figures of
+    04d23b5, tests/data/diagnoses_before_the_record.json; evidence and texts left out there)."""
+    result = diagnoses[(name, True)]
+    record = result.to_json()
+    jsonschema.Draft202012Validator(diagnosis_schema()).validate(json.loads(json.dumps(record)))
+    assert record["schema_version"] == 1
+    again = Diagnosis.from_json(json.loads(json.dumps(record)))
+    assert again.to_json() == json.loads(json.dumps(record))
+    assert again.verdict == result.verdict and [c.effect for c in again.found] == [c.effect for c in result.found]
+    before = json.loads((Path(__file__).parent / "data" / "diagnoses_before_the_record.json").read_text())[name]
+    assert differences(before, json.loads(json.dumps(record))) == []
+
+
+def differences(before, now, path: str = "$") -> list[str]:
+    """Where `now` does not hold `before`: every key of before, equal (now may hold more)."""
+    if isinstance(before, dict):
+        if not isinstance(now, dict):
+            return [f"{path}: {now!r} is not an object"]
+        return [d for k, v in before.items() for d in (differences(v, now[k], f"{path}.{k}") if k in now else [f"{path}.{k}: missing"])]
+    if isinstance(before, list):
+        if not isinstance(now, list) or len(now) != len(before):
+            return [f"{path}: {len(before)} items before, now {now!r:.80}"]
+        return [d for i, (a, b) in enumerate(zip(before, now)) for d in differences(a, b, f"{path}[{i}]")]
+    return [] if before == now else [f"{path}: {before!r} before, now {now!r}"]
+
+
+def test_a_record_of_another_schema_version_is_refused(diagnoses):
+    record = dict(diagnoses[("paper", True)].to_json(), schema_version=2)
+    with pytest.raises(ValueError, match="schema_version 2"):
+        Diagnosis.from_json(record)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", SHIPPED)
+def test_the_short_report_leads_with_the_verdict_and_keeps_to_forty_lines(diagnoses, name):
+    result = diagnoses[(name, True)]
+    short, full = report_text(result, DEFAULT_CATALOG), report_text(result, DEFAULT_CATALOG, "full")
+    assert short.startswith(f"Verdict: {result.verdict} - ") and len(short.splitlines()) <= 40
+    # No line about a candidate that is neither claimed nor suggested; the full report keeps them.
+    spoken = {c.effect for c in (*result.found, *result.suggested)}
+    for c in result.candidates:
+        if c.effect not in spoken:
+            assert f"of what this campaign shows of {c.effect}" not in short and f"\n  {c.effect} " not in short
+    assert all(f"{c.effect} " in full for c in result.candidates) and "Candidate effects, best first" in full
+    # The worst five rings, each with the test that flagged it.
+    for ring in result.failing_rings()[:5]:
+        assert f"{orientation_label(ring.a_deg, ring.b_deg)} (" in short and "exceeds by" in short
+
+
+def test_the_short_report_keeps_to_forty_lines_however_much_is_open(diagnoses):
+    """The most the short report can hold: three claims, each with untold partners and a rival
+    setting, many suggestions, every ring failing and a resumed chain, still 40 lines at most."""
+    result = diagnoses[("head_2", True)]
+    claim = result.candidates[0]
+    partners = tuple(
+        dataclasses.replace(p, test=PairTest(False, 0.3, 0.4, 3, 9))
+        for p in (result.candidates[1].confounded_with or claim.confounded_with)
+    )
+    rival = RivalSetting({"cycles_per_rev": 12.0}, claim.params, 0.9, PairTest(False, 0.2, 0.3, 4, 9))
+    heavy = dataclasses.replace(claim, confounded_with=partners * 3, settings_not_excluded=({"cycles_per_rev": 12.0},), rival_setting=rival)
+    crowded = dataclasses.replace(
+        result,
+        verdict="partial",
+        found=(heavy,) * 3,
+        suggested=tuple(dataclasses.replace(c, suggested=True, note="not replicated over rings") for c in result.candidates[:8]),
+        rings=tuple(dataclasses.replace(r, exceeds=True) for r in result.rings),
+        started_from=len(result.chain),
+    )
+    assert len(report_text(crowded, DEFAULT_CATALOG).splitlines()) <= 40
+
+
+def test_nothing_in_the_package_decides_by_the_words_of_a_report():
+    """Verdicts and statuses are typed; nothing matches English text to decide (issue 57)."""
+    package = Path(__file__).parents[1] / "ph_explorer"
+    text = "\n".join(path.read_text(encoding="utf-8") for path in package.rglob("*.py"))
+    for phrase in ('startswith("best catalog', 'startswith("Resumed', '"tell them apart", ', "note.startswith("):
+        assert phrase not in text, phrase

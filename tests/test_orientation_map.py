@@ -10,7 +10,7 @@ import pytest
 from synthetic import lobing_campaign
 
 from ph_explorer.app.dataset import LOO_FIGURE, LOO_RATIO_FIGURE, RONT_FIGURE, Dataset, dataset_for
-from ph_explorer.diagnosis.results import RING_VERDICTS, Diagnosis
+from ph_explorer.diagnosis.results import RING_VERDICTS, Diagnosis, Ring
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.figures.charts import nice_ticks
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
@@ -112,24 +112,25 @@ def test_a_verdict_map_has_a_legend_of_its_categories_not_a_colour_bar(twin: Dat
 def diagnosis_of(mae: list[float], floor: list[float], failing: list[bool], held_out: list[bool]) -> Diagnosis:
     """A Diagnosis holding only what the per-ring figures read."""
     n = len(mae)
-    orientations = np.column_stack([np.full(n, 30.0), np.arange(n) * 20.0 - 160.0])
     p_ring = np.where(failing, 1e-4, 0.5)
+    rings = tuple(
+        Ring(30.0, i * 20.0 - 160.0, held_out[i], {"mean": mae[i], "single": mae[i]}, {"mean": floor[i], "single": floor[i]}, failing[i])
+        for i in range(n)
+    )
     return Diagnosis(
+        verdict="unexplained",
         noise_floor_um={},
         baseline_model="trilinear",
         baseline_mae_um={},
-        candidates=[],
-        verdict="unexplained",
-        found=[],
-        signature=[],
+        candidates=(),
+        found=(),
+        suggested=(),
+        not_needed=(),
+        signature=(),
         # Failing rings by their mean (the smaller p-value), as the per-ring figures read them.
         within_noise={"baseline": NoiseTest(p_ring, int(sum(failing)), 2.0, 1.0, 0.01, True, 2.0, p_ring / 2, np.ones(n)), "after": None},
-        steps=[],
-        orientations=orientations,
-        out_of_sample_mae_um={"mean": np.array(mae)},
-        out_of_sample_floor_um={"mean": np.array(floor)},
-        failing=np.array(failing),
-        held_out=np.array(held_out),
+        steps=(),
+        rings=rings,
     )
 
 
@@ -143,8 +144,8 @@ def test_failing_rings_are_worst_first_by_their_error_over_their_floor() -> None
     )
     rings = result.failing_rings()
     assert [(r.b_deg, round(r.ratio, 2)) for r in rings] == [(-140.0, 4.0), (-120.0, 4.0), (-160.0, 2.0), (-80.0, 1.25)]
-    assert rings[0].held_out and rings[0].mae_um == 0.12 and rings[0].floor_um == 0.03
-    assert not any(r.by_scatter for r in rings) and rings[0].reason == "by its repetition mean"
+    assert rings[0].held_out and rings[0].mae_um["mean"] == 0.12 and rings[0].floor_um["mean"] == 0.03
+    assert not any(r.by_scatter for r in rings) and rings[0].exceeds_by == "repetition mean"
     figures = diagnosis_figures(result)
     verdict = figures["diagnosis: ring verdict (within-noise test)"]
     np.testing.assert_array_equal(verdict.values, [1, 1, 1, 0, 1])

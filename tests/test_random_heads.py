@@ -100,7 +100,7 @@ def test_a_catalog_effect_most_rings_see_is_claimed_and_what_it_leaves_is_judged
     assert result.verdict == "missing" and not result.within_noise["after"].fails
     found = result.found[0]
     assert (found.effect, found.settings["cycles_per_rev"]) == ("b_axis_cyclic", truth["cycles_per_rev"])
-    assert found.replication["replicated"] and found.replication["rings_gaining"] > found.replication["rings"] / 2
+    assert found.replication.replicated and found.replication.rings_gaining > found.replication.rings / 2
 
 
 def test_one_deviant_ring_on_a_healthy_head_is_no_claim():

@@ -3,11 +3,14 @@ rings decides (ph_explorer.diagnosis.replication)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import next_found
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, SIGN_FLIPS, determined_size, replication, ring_gains, sign_flip_p
-from ph_explorer.diagnosis.results import Candidate, flagged_in
+from ph_explorer.diagnosis.results import flagged_in
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.models.least_squares import Design
 
@@ -92,16 +95,17 @@ def test_the_gains_are_out_of_sample_per_ring():
 
 def test_a_model_within_noise_takes_no_effect_however_much_a_candidate_lowers_the_check_rings():
     """One yardstick: a significant candidate on a model the within-noise test passes is "not needed", never found."""
-    candidate = Candidate.untested("b_axis_cyclic", "B-axis cyclic error", "")
-    candidate.significant, candidate.beyond_noise = True, True
+    candidate = replace(Candidate.untested("b_axis_cyclic", "B-axis cyclic error", ""), significant=True, beyond_noise=True)
     passing = NoiseTest(np.ones(5), 0, 0.0, 1.0, 1.0, False)
-    assert next_found([candidate], passing, None, None, [], {}) is None
-    assert candidate.status == "not needed" and "within noise without it" in candidate.note
-    assert flagged_in([[candidate]], "not_needed") == [candidate] and flagged_in([[candidate]], "suggested") == []
+    (judged,), taken = next_found([candidate], passing, None, None, [], {})
+    assert taken is None and not candidate.not_needed  # a new record: the old one is not changed
+    assert judged.status == "not needed" and "within noise without it" in judged.note
+    assert flagged_in([[judged]], "not_needed") == (judged,) and flagged_in([[judged]], "suggested") == ()
     # On a failing model an untested candidate is passed over (nothing to take), and not marked.
     untested = Candidate.untested("lobing", "Lobing", "")
     failing = NoiseTest(np.full(5, 1e-4), 5, 3.0, 1.0, 1e-4, True)
-    assert next_found([untested], failing, None, None, [], {}) is None and untested.status != "not needed"
+    (passed,), taken = next_found([untested], failing, None, None, [], {})
+    assert taken is None and passed.status != "not needed"
 
 
 def test_five_check_rings_that_all_gain_replicate_an_effect_the_lattice_rings_cannot_see():

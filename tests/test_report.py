@@ -26,7 +26,8 @@ from test_teaching import TEACHING, named
 from ph_explorer import twin
 from ph_explorer.app.dataset import dataset_for
 from ph_explorer.app.server import ExplorerApp
-from ph_explorer.diagnosis import diagnose
+from ph_explorer.campaign import orientation_label
+from ph_explorer.diagnosis import Diagnosis, diagnose
 from ph_explorer.diagnosis.study import check_study, study_campaign, study_record
 from ph_explorer.effects import DEFAULT_CATALOG, effect_label
 from ph_explorer.figures.html_report import report_html
@@ -175,7 +176,10 @@ def test_the_command_reports_a_study_of_a_scenario_without_diagnosing(diagnosed,
     assert result.returncode == 0, result.stderr
     page = out.read_text(encoding="utf-8")
     assert "scenario head_3" in page and "Verdict: missing" in page and named(page, "head_3") == []
-    assert "rings exceeded their noise under the baseline in the study's last run" in page
+    # The study records its diagnosis whole: the rings that failed are named without diagnosing again.
+    rings = Diagnosis.from_json(study["diagnosis"]).failing_rings()
+    assert rings and f"{len(rings)} of {campaign.n_orientations} rings exceed their noise" in page
+    assert orientation_label(rings[0].a_deg, rings[0].b_deg) in page
 
 
 def bad_inputs(small_csv: Path, tmp_path: Path) -> list[tuple[list[str], str]]:

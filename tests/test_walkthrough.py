@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from ph_explorer.diagnosis import diagnose, verdict_text
+from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import BUILTIN_EFFECTS, Catalog
+from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.twin import load_scenario, simulate
 
 WALKTHROUGH = Path(__file__).resolve().parent.parent / "docs" / "walkthrough_unknown_effect.md"
@@ -31,7 +32,7 @@ def test_the_loop_closes_on_an_effect_in_no_catalog(tmp_path):
     assert first.verdict == "unexplained" and first.within_noise["baseline"].fails
     top = next(entry for entry in first.signature if entry["significant"])
     assert (top["variable"], top["kind"], top["cycles_per_rev"]) == ("b_joint_deg", "periodic", 22)
-    assert "b_joint_deg periodic, 22 cycles/rev" in "\n".join(verdict_text(first, lacking)[1])
+    assert "b_joint_deg periodic, 22 cycles/rev" in report_text(first, lacking)
 
     effects_file = tmp_path / "my_effects.py"
     effects_file.write_text(user_effect_source())

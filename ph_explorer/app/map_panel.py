@@ -16,17 +16,18 @@ import viser
 from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE, orientation_label
-from ph_explorer.diagnosis.results import FailingRing, exceeding_text
+from ph_explorer.diagnosis.results import Ring
+from ph_explorer.figures.diagnosis_text import exceeding_text
 from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
 
 MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict shows the rest
 
 
-def failing_label(ring: FailingRing) -> str:
+def failing_label(ring: Ring) -> str:
     """A failing ring's button: where, its error and floor in um, how far above its floor."""
     kind = ", check ring" if ring.held_out else ""
     by = ", by its repetitions' scatter" if ring.by_scatter else ""  # its mean may be under its floor
-    return f"{orientation_label(ring.a_deg, ring.b_deg)}: {ring.mae_um:.3f} um, floor {ring.floor_um:.3f} um ({ring.ratio:.1f}x{kind}{by})"
+    return f"{orientation_label(ring.a_deg, ring.b_deg)}: {ring.mae_um['mean']:.3f} um, floor {ring.floor_um['mean']:.3f} um ({ring.ratio:.1f}x{kind}{by})"
 
 
 class MapPanel:
@@ -91,7 +92,7 @@ class MapPanel:
         if self._current is not None:
             self.draw(*self._current)
 
-    def set_failing(self, rings: Sequence[FailingRing] | None, tested: bool = True) -> None:
+    def set_failing(self, rings: Sequence[Ring] | None, tested: bool = True) -> None:
         """The rings that fail, worst first, a button each; before a diagnosis, say so."""
         for button in self.failing_buttons:
             button.remove()

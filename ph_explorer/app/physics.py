@@ -135,9 +135,10 @@ class PhysicsLoop:
         continued = f", continuing the study from {' + '.join(effect_label(e) for e in start)}" if start else ""
         if result.found:
             p.show_progress("the verdict is in; now the honest 'after': the search again without each fold of rings…", None)
-            result.nested = diagnosis.honest_after(ds.campaign, result, self.catalog)
+            result = result.with_nested(diagnosis.honest_after(ds.campaign, result, self.catalog))
             if ds.campaign is not self.current().campaign:
                 return
+            self.diagnosis = result
             p.nested = result.nested
             p.show_history(self.steps)
         p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned{continued}.")

@@ -14,15 +14,11 @@ import viser
 
 from ph_explorer.app.accessibility import bring_into_view
 from ph_explorer.app.panels import NO_CHOICE
-from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
-from ph_explorer.diagnosis.results import shared_text
+from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
-
-
-def step_label(step: Step) -> str:
-    return f"baseline ({step.model})" if not step.added else "+ " + " + ".join(step.added) + f" ({step.model})"
+from ph_explorer.figures.diagnosis_text import chosen_text, nested_summary, report_sections, shared_text, signature_text, step_label
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -33,13 +29,13 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
     cell = "padding:2px 4px;vertical-align:top;"
     rows = []
     for c in shown:
-        untold = [o for o in c.confounded_with if not o.get("told_apart")]
-        told = [o for o in c.confounded_with if o.get("told_apart")]
+        untold = [p for p in c.confounded_with if not p.told_apart]
+        told = [p for p in c.confounded_with if p.told_apart]
         if untold:
-            shared = "; ".join(shared_text(c.effect, o) for o in untold[:3])
+            shared = "; ".join(shared_text(c.effect, p) for p in untold[:3])
             ident = f'<span style="color:#b35900">confounded: {shared}: this campaign cannot tell them apart</span>'
         elif told:
-            shared = "; ".join(shared_text(c.effect, o) for o in told[:3])
+            shared = "; ".join(shared_text(c.effect, p) for p in told[:3])
             ident = f"told apart by the rings, though {shared}"
         else:
             ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"
@@ -75,14 +71,12 @@ def verdicts_markdown(verdict: str) -> str:
 
 
 def nested_markdown(nested: NestedAfter) -> str:
-    """The honest "after": before and after the search's effects, each ring predicted by what the
-    search chose without it (nested cross-validation over the training rings), against both references."""
-    return (
-        f"**Nested cross-validation** ({nested.folds} folds over {nested.rings} training rings; each fold's rings "
-        f"predicted by the effects the search chose without them): MAE vs the mean {nested.before_um['mean']:.3f} um before, "
-        f"**{nested.after_um['mean']:.3f} um** after (floor {nested.noise_floor_um['mean']:.3f}); vs single repetitions "
-        f"{nested.before_um['single']:.3f} -> {nested.after_um['single']:.3f} um (floor {nested.noise_floor_um['single']:.3f})."
-    )
+    """The honest "after" (nested cross-validation over the training rings): the renderer's sentence, its figures as a table."""
+    rows = [("before", nested.before_um), ("after", nested.after_um), ("noise floor", nested.noise_floor_um)]
+    table = ["| | vs mean, um | vs single, um |", "|---|---|---|"] + [
+        f"| {name} | {f['mean']:.3f} | {f['single']:.3f} |" for name, f in rows
+    ]
+    return "\n\n".join([nested_summary(nested), "\n".join(table), f"Chosen in the folds: {chosen_text(nested)}."])
 
 
 def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: int = 8) -> str:
@@ -264,19 +258,22 @@ class PhysicsPanel:
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
         self.candidates.content = candidates_html(result.candidates, self.catalog)
-        headline, lines = verdict_text(result, self.catalog)
-        # The verdict in short (what was found, what to do); the tests' figures, the teaching text
-        # (shown once, here) and the verdicts under "More".
-        # The found effects' parameters +- U are in the results' table just below: not repeated here.
-        # A pair the rings cannot tell apart, or a setting they cannot pin, matters beside a claim;
-        # beside `none` it is in "More".
-        claims = result.verdict != "none"
-        open_ = ("told apart", "tell them apart", "the rings cannot tell it from")
-        short = [line for line in lines if line.startswith("Resumed with") or (claims and any(words in line for words in open_))]
+        # The report's order (figures.diagnosis_text): the verdict and what to do next, the claims
+        # with U and their untold partners, the suggestions, how many rings fail; the rest of the
+        # full report (the tests' figures, the partners of every candidate, the teaching text) under "More".
+        short = {s.key: s for s in report_sections(result, self.catalog)}
+        full = report_sections(result, self.catalog, "full")
+        headline = short["verdict"].title
+        lines = [*short["verdict"].lines, *short["claims"].lines] if "claims" in short else list(short["verdict"].lines)
+        if "suggested" in short:
+            lines += [f"Suggested, not claimed: {line}" for line in short["suggested"].lines]
+        if "worst_rings" in short:
+            lines.append(short["worst_rings"].lines[0] + " (the Map tab names them, worst first).")
+        more = [f"**{s.title}**\n\n" + "\n\n".join(s.lines) for s in full if s.key in ("tests", "partners", "teaching")]
         self.nested = result.nested  # the honest "after", shown with the error history
-        self.verdict.content = "\n\n".join([f"**{headline}**", *short])
+        self.verdict.content = "\n\n".join([f"**{headline}**", *lines])
         self.keep_in_view("Verdict:")
-        self.verdict_more.content = "\n\n".join(line for line in lines if line not in short) + "\n\n" + verdicts_markdown(result.verdict)
+        self.verdict_more.content = "\n\n".join(more) + "\n\n" + verdicts_markdown(result.verdict)
         self._place_effects({c.effect for c in result.found})
         # What is left (the signature) first, then each candidate's evidence, by the label shown in the dropdown.
         self.evidence_items = {}

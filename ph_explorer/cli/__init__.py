@@ -249,6 +249,12 @@ def _diagnose(
         ),
     ] = None,
     json_output: JsonOpt = False,
+    detail: Annotated[
+        str,
+        typer.Option(
+            help="How much the text report says: short (the verdict, claims, worst rings, history) or full (every candidate and test)."
+        ),
+    ] = "short",
     scheduler: Annotated[
         Optional[str],
         typer.Option(help="A fleet on this Dask scheduler (tcp://HOST:PORT) instead of a local cluster of this machine's cores."),
@@ -266,7 +272,7 @@ def _diagnose(
             typer.echo(f"option {'--save' if save is not None else '--resume'}: a study is of one campaign; diagnose it alone", err=True)
             raise typer.Exit(2)
         _run("diagnose", fleet.fleet_command, specs=data, scheduler=scheduler, report=report, geometry=geometry, **options)
-    _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, save=save, resume=resume, **options)
+    _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, save=save, resume=resume, detail=detail, **options)
 
 
 @app.command("effects")

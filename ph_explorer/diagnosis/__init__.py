@@ -1,15 +1,16 @@
 """See where a model fails, find the missing physical effect, add it, and watch the error fall.
 
-results (what a diagnosis finds, as data), within_noise (is a model within noise?), search (which
+results (the record of a diagnosis, typed), within_noise (is a model within noise?), search (which
 effect is missing), choice (the chain of effects the search takes), nested (the error of that
 choice on rings that took no part in it), evidence and signature (what a candidate, or what is
 left, looks like in the head's variables), loop (diagnose, add_effects).
 """
 
+from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import Choice, choose_effects
 from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, honest_after, repetition_sigma
 from ph_explorer.diagnosis.nested import NESTED_FOLDS, nested_after
-from ph_explorer.diagnosis.results import VERDICTS, Candidate, Diagnosis, NestedAfter, Step, signature_text, verdict_text
+from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step, Verdict
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 
@@ -25,15 +26,15 @@ __all__ = [
     "NestedAfter",
     "Diagnosis",
     "NoiseTest",
+    "Ring",
     "Step",
+    "Verdict",
     "add_effects",
     "choose_effects",
     "nested_after",
     "diagnose",
     "honest_after",
     "decide",
-    "signature_text",
-    "verdict_text",
     "within_noise",
     "rank_candidates",
     "repetition_sigma",

@@ -8,15 +8,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
-from ph_explorer.diagnosis.results import Candidate
 from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
@@ -43,22 +43,22 @@ RINGS_BROUGHT_WITHIN = 2
 SHARE_BROUGHT_WITHIN = 0.25
 
 
-def replicated(search: CandidateSearch, candidate: Candidate, chain: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0) -> bool:
-    """Whether the candidate's gain is replicated over rings (diagnosis.replication); when it is
-    not, the candidate is marked suggested, with why and the rings that carry it."""
+def replicated(
+    search: CandidateSearch, candidate: Candidate, chain: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0
+) -> Candidate:
+    """The candidate with its gain's test over rings (diagnosis.replication); when it is not
+    replicated, marked suggested, with why and the rings that carry it."""
     effect = by_id[candidate.effect].with_settings(**candidate.settings)
     before = search.design(chain) if chain else None
     after = search.design([*chain, effect])
     gain = ring_gains(search.residual, before, after, search.targets, ring_sigma(search.campaign.deviations) ** 2)
     test = replication(gain, ~search.train, determined_size(candidate.params, candidate.params_u, effect.amplitudes()), seed)
-    candidate.replication = test.as_dict()
     if test.replicated:
-        return True
+        return replace(candidate, replication=test)
     o = search.campaign.orientations
     carried = ", ".join(f"A{o[i, 0]:g} B{o[i, 1]:g}" for i in test.carried_by)
-    candidate.suggested = True
-    candidate.note = f"not replicated over rings: {'; '.join(test.reasons())}" + (f"; carried by {carried}" if carried else "")
-    return False
+    note = f"not replicated over rings: {'; '.join(test.reasons())}" + (f"; carried by {carried}" if carried else "")
+    return replace(candidate, replication=test, suggested=True, note=note)
 
 
 def next_found(
@@ -69,9 +69,10 @@ def next_found(
     chain: Sequence[Effect],
     by_id: dict[str, Effect],
     seed: int = 0,
-) -> tuple[Candidate, NoiseTest | None] | None:
-    """The next effect the search takes, best ranked first, with the within-noise test of the
-    chain with it; None when none is (docs/diagnosis.md, step 2).
+) -> tuple[list[Candidate], tuple[Candidate, NoiseTest | None] | None]:
+    """The ranking with what the search learnt of its candidates, and the next effect the search
+    takes, best ranked first, with the within-noise test of the chain with it; None when none is
+    (docs/diagnosis.md, step 2).
 
     Only while the model fails the within-noise test (one yardstick; a campaign of one repetition
     has no test). Taken: a significant candidate, or one beyond noise and plausible that brings
@@ -79,13 +80,11 @@ def next_found(
     (a failure the check rings do not see); either replicated over rings (`replicated`), else
     suggested and the next tried.
     """
+    ranked = list(ranked)
     if current is not None and not current.fails:
-        for candidate in ranked:
-            if candidate.significant:
-                candidate.not_needed = True
-                candidate.note = candidate.note or "lowers the check rings' error, but the model is within noise without it"
-        return None
-    for candidate in ranked:
+        note = "lowers the check rings' error, but the model is within noise without it"
+        return [replace(c, not_needed=True, note=c.note or note) if c.significant else c for c in ranked], None
+    for index, candidate in enumerate(ranked):
         if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
             continue
         test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
@@ -93,14 +92,12 @@ def next_found(
             brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
             if test is None or test.failing_rings > current.failing_rings - brought:
                 continue
-            candidate.significant = True
-            candidate.note = (
-                f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed "
-                "their noise within it (the check rings alone do not show it)"
-            )
-        if replicated(search, candidate, chain, by_id, seed):
-            return candidate, test
-    return None
+            note = f"brings {current.failing_rings - test.failing_rings} of the {current.failing_rings} rings that exceed their noise within it (the check rings alone do not show it)"
+            candidate = replace(candidate, significant=True, note=note)
+        ranked[index] = candidate = replicated(search, candidate, chain, by_id, seed)
+        if not candidate.suggested:
+            return ranked, (candidate, test)
+    return ranked, None
 
 
 @dataclass
@@ -109,11 +106,15 @@ class Choice:
 
     search: CandidateSearch
     before: NoiseTest | None  # the baseline's within-noise test
-    candidates: list[Candidate]  # the first ranking
     found: list[Candidate]  # the effects taken, in order
     chain: list[Effect]  # start + the effects taken, at their chosen settings
     after: NoiseTest | None  # the test with the chain in the model (None: nothing in it)
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
+
+    @property
+    def candidates(self) -> list[Candidate]:
+        """The first ranking."""
+        return self.rankings[0]
 
     @property
     def remaining(self) -> list[Candidate]:
@@ -146,7 +147,7 @@ def choose_effects(
     rankings = [rank_candidates(search, effects, fixed=search.design(chain) if chain else None, progress=progress)]
     found: list[Candidate] = []
     while rankings[-1] and len(found) < max_steps:
-        taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
+        rankings[-1], taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
         if taken is None:
             break
         pick, current = taken
@@ -156,4 +157,4 @@ def choose_effects(
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
         rankings.append(rank_candidates(search, effects, fixed=search.design(chain), progress=progress))
-    return Choice(search, before, rankings[0], found, chain, after, rankings)
+    return Choice(search, before, found, chain, after, rankings)

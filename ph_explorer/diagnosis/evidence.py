@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.diagnosis.results import DIGITS
+from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.effects import Evidence
 
 DEFAULT_BINS = 48

@@ -62,7 +62,7 @@ def diagnosed_file(
         row["error"] = f"{path}: {type(error).__name__}: {' '.join(str(error).split())}"
     else:
         row.update(summary(result))
-        row["diagnosis"] = result.as_dict()
+        row["diagnosis"] = result.to_json()
         return row, campaign, result, loaded
     return row, None, None, None
 

@@ -12,6 +12,7 @@ Method: docs/methods/diagnosis_loop.md.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,9 +20,10 @@ from numpy.typing import NDArray
 from ph_explorer import metrics
 from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.results import Candidate, Diagnosis, NestedAfter, Step, flagged_in
+from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.telling_apart import tell_apart
@@ -65,18 +67,22 @@ def out_of_sample_figures(
     return mae, floors
 
 
-def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate], found: Sequence[str]) -> None:
-    """A candidate beyond noise in the first ranking only because it took a share of what an
-    effect found explains is not "present": judged again in the last ranking, with the effects
-    found in the model."""
+def settle_presence(candidates: Sequence[Candidate], final: Sequence[Candidate], found: Sequence[str]) -> list[Candidate]:
+    """The candidates, judged again in the last ranking (with the effects found in the model): one
+    beyond noise in the first ranking only because it took a share of what an effect found
+    explains is not "present"."""
     last = {c.effect: c for c in final}
+    out = []
     for candidate in candidates:
         if candidate.beyond_noise and not candidate.significant and not getattr(last.get(candidate.effect), "beyond_noise", False):
-            candidate.beyond_noise = False
-            candidate.note = candidate.note or f"beyond noise only with {', '.join(found)} left out of the model"
+            candidate = replace(
+                candidate, beyond_noise=False, note=candidate.note or f"beyond noise only with {', '.join(found)} left out of the model"
+            )
+        out.append(candidate)
+    return out
 
 
-def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, suggested: bool = False) -> str:
+def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, suggested: bool = False) -> Verdict:
     """The verdict (see VERDICTS) from the within-noise tests before and after the effects found.
 
     Found effects are replicated over rings (diagnosis.replication); a baseline that fails with
@@ -106,7 +112,7 @@ def add_effects(
     hybrid = HybridModel(list(effects), data_model, progress=progress).fit(campaign, ~held_out)
     floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
     model = f"hybrid, {hybrid.data_model.name} data part" if effects else hybrid.data_model.name
-    step = Step([e.id for e in effects], held_out_mae(hybrid, campaign, held_out), floor, hybrid.effect_parameters(), model)
+    step = Step(tuple(e.id for e in effects), held_out_mae(hybrid, campaign, held_out), floor, tuple(hybrid.effect_parameters()), model)
     return hybrid, step
 
 
@@ -162,15 +168,19 @@ def diagnose(
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
     choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start)
-    search, before, candidates, found, chain = choice.search, choice.before, choice.candidates, choice.found, choice.chain
+    search, before, chain = choice.search, choice.before, choice.chain
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
-    failing = before.ring_exceeds if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
     verdict = decide(before, choice.after, bool(chain), bool(flagged_in(choice.rankings, "suggested")))
+    # What the search learnt of its first ranking, each stage returning new candidates.
+    candidates = choice.candidates
     if chain:
-        settle_presence(candidates, choice.remaining, [c.effect for c in found])
-    confounding(search, candidates, by_id)
-    tell_apart(search, candidates, [c.effect for c in found], by_id, start, seed)
+        candidates = settle_presence(candidates, choice.remaining, [c.effect for c in choice.found])
+    candidates = confounding(search, candidates, by_id)
+    candidates = tell_apart(search, candidates, [c.effect for c in choice.found], by_id, start, seed)
+    learnt = {id(old): new for old, new in zip(choice.candidates, candidates)}
+    rankings = [candidates, *choice.rankings[1:]]
+    found = tuple(learnt.get(id(c), c) for c in choice.found)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
 
@@ -179,7 +189,7 @@ def diagnose(
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
     floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
-    steps = [Step([], baseline_mae, floor, model=baseline_name)]
+    steps = [Step((), baseline_mae, floor, model=baseline_name)]
     scan = {c.effect: c for c in candidates}
     if add is None:
         chosen_steps = chain
@@ -190,29 +200,40 @@ def diagnose(
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_model)
         steps.append(step)
 
+    by_scatter = before.ring_by_scatter if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
+    rings = tuple(
+        Ring(
+            float(a),
+            float(b),
+            bool(held_out[i]),
+            {k: float(v[i]) for k, v in mae.items()},
+            {k: float(v[i]) for k, v in floors.items()},
+            None if before is None else bool(before.ring_exceeds[i]),
+            bool(by_scatter[i]),
+        )
+        for i, (a, b) in enumerate(campaign.orientations)
+    )
     result = Diagnosis(
+        verdict=verdict,
         # The touch noise once the modelled effects that change between repetitions are taken out.
         noise_floor_um=steps[-1].noise_floor_um,
         baseline_model=baseline_name,
         baseline_mae_um=baseline_mae,
-        candidates=candidates,
-        verdict=verdict,
+        candidates=tuple(candidates),
         found=found,
-        signature=left,
+        suggested=flagged_in(rankings, "suggested"),
+        not_needed=flagged_in(rankings, "not_needed"),
+        signature=tuple(left),
         within_noise={"baseline": before, "after": choice.after},
-        rankings=choice.rankings,
-        chain=chosen_steps,
+        steps=tuple(steps),
+        rings=rings,
+        reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
+        chain=tuple(chosen_steps),
         started_from=len(start),
-        steps=steps,
-        orientations=campaign.orientations,
-        out_of_sample_mae_um=mae,
-        out_of_sample_floor_um=floors,
-        failing=failing,
-        held_out=held_out,
         hybrid=hybrid,
     )
     if nested:
-        result.nested = honest_after(campaign, result, catalog, max_steps, seed)
+        result = result.with_nested(honest_after(campaign, result, catalog, max_steps, seed))
     return result
 
 

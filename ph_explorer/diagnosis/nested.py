@@ -81,5 +81,5 @@ def nested_after(
         before_um=metrics.mae(np.concatenate(before), measured),
         after_um=metrics.mae(np.concatenate(after), measured),
         noise_floor_um=metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions),
-        chosen=chosen,
+        chosen=tuple(tuple(fold) for fold in chosen),
     )

@@ -73,6 +73,19 @@ class Replication:
             "level": REPLICATION_LEVEL,
         }
 
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> Replication:
+        gains = [np.nan if data[k] is None else data[k] for k in ("check_gain", "lattice_gain")]
+        return cls(
+            data["p_value"],
+            data["p_without_top"],
+            data["rings_gaining"],
+            data["rings"],
+            *gains,
+            list(data["carried_by"]),
+            data["determined"],
+        )
+
 
 def ring_residual_squares(residual: NDArray[np.float64], design: Design | None, targets: Design) -> NDArray[np.float64]:
     """(n_o,): each ring's sum of squares over single touches of what the design leaves of the

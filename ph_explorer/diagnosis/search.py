@@ -13,16 +13,16 @@ lowers the out-of-sample rms error against the reference that exposes it materia
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate, Partner, Separation
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
-from ph_explorer.diagnosis.results import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.separation import Separations, orthonormal_span, span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
@@ -277,11 +277,12 @@ class CandidateSearch:
             params={k: float(v) for k, v in params.items()},
             params_u={k: float(v) for k, v in params_u.items()},
             settings=settings,
-            settings_not_excluded=not_excluded,
+            settings_not_excluded=tuple(not_excluded),
             teaching=effect.teaching,
             evidence=self.evidence(found, design, own) if self.detail else {},
             note="best catalog fit implausible: " + "; ".join(implausible) if implausible else "",
             beyond_noise=bool(explained > threshold and not implausible),
+            implausible=bool(implausible),
         )
 
     def check_residual(self, design: Design | None) -> tuple[NDArray, NDArray]:
@@ -371,9 +372,10 @@ def shared_variance(a: Design, b: Design) -> float:
     return span_share(touch_span(a), touch_span(b))
 
 
-def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> None:
-    """Name, on each candidate beyond noise, the others it cannot be told from on this campaign
-    (their columns at the chosen settings share more than CONFOUNDED), with how much they share."""
+def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> list[Candidate]:
+    """The candidates, each beyond noise or significant with the others it cannot be told from on
+    this campaign (their columns at the chosen settings share more than CONFOUNDED), the closest
+    first, and what would separate it from its closest SEPARATIONS."""
     # Each effect once in the ranking: its columns at the settings it was scored at.
     at = {c.effect: by_id[c.effect].with_settings(**c.settings) for c in candidates if c.evidence.get("x")}
     designs = {effect_id: search.design([effect]) for effect_id, effect in at.items()}
@@ -385,18 +387,23 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
             spans[effect_id] = touch_span(designs[effect_id])
         return spans[effect_id]
 
+    out = []
     for candidate in candidates:
         if not (candidate.beyond_noise or candidate.significant) or candidate.effect not in designs:
+            out.append(candidate)
             continue
+        partners = []
         for other in designs:
             shared = span_share(span(candidate.effect), span(other)) if other != candidate.effect else 0.0
             if shared > CONFOUNDED:
-                candidate.confounded_with.append({"effect": other, "shared": round(shared, 3)})
-        candidate.confounded_with.sort(key=lambda o: -o["shared"])  # the closest first
+                partners.append(Partner(other, round(shared, 3)))
+        partners.sort(key=lambda p: -p.shared)  # the closest first
         # ... and what would tell it from its closest partners.
-        closest = candidate.confounded_with[:SEPARATIONS]
-        pairs = [(at[candidate.effect], at[o["effect"]]) for o in closest]
-        if pairs and separations is None:
+        closest = partners[:SEPARATIONS]
+        if closest and separations is None:
             separations = Separations(search.campaign)
-        for entry, separated in zip(closest, separations(pairs) if pairs else []):
-            entry["separated_by"] = separated
+        pairs = [(at[candidate.effect], at[p.effect]) for p in closest]
+        separated = [Separation(**s) for s in separations(pairs)] if pairs else []
+        partners[: len(closest)] = [replace(p, separated_by=s) for p, s in zip(closest, separated)]
+        out.append(replace(candidate, confounded_with=tuple(partners)))
+    return out

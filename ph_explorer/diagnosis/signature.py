@@ -20,8 +20,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.diagnosis.candidates import DIGITS, Candidate
 from ph_explorer.diagnosis.evidence import binned_evidence
-from ph_explorer.diagnosis.results import DIGITS, Candidate
 from ph_explorer.diagnosis.search import NULL_MARGIN, CandidateSearch
 from ph_explorer.effects.effect import Effect, Evidence, Parameter
 from ph_explorer.errors import InputError

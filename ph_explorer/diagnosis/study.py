@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import Diagnosis, Step, signature_text
+from ph_explorer.diagnosis.results import Diagnosis, Step
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
 
@@ -45,9 +45,9 @@ def study_record(
     steps: the error history when it is not the diagnosis's own (the app's refits); its last
     step's parameters are the chain's.
     """
-    figures = result.as_dict()
+    figures = result.to_json()
     if steps is not None:
-        figures["steps"] = Diagnosis.steps_dict(steps)
+        figures["steps"] = [s.to_json() for s in steps]
     else:
         steps = result.steps
     # Parameters: the joint fit of the whole chain (the last step); their uncertainty from the
@@ -93,29 +93,9 @@ def study_record(
         # the one the study's last nested figures measured.
         "nested_after": figures["nested_after"] if figures["nested_after"] is not None else (previous or {}).get("nested_after"),
         "runs": [*(previous or {}).get("runs", []), run],
-        # What the last run saw, for its report: the candidates ranked and one signature plot.
-        "candidates": [
-            {
-                k: c[k]
-                for k in ("effect", "status", "explained_fraction", "error_reduction", "noise_fraction", "params", "params_u", "settings")
-            }
-            for c in figures["candidates"]
-        ],
-        "signature_plot": signature_plot(result),
+        # What the last run found, whole (diagnosis.results, its JSON): the report's ranking and signature.
+        "diagnosis": figures,
     }
-
-
-def signature_plot(result: Diagnosis) -> dict[str, Any] | None:
-    """The run's plot of evidence worth a report: the first found effect's signature (its residual
-    and fitted term), else what is left unexplained, else the top candidate's; None if none has one."""
-    for candidate in [*result.found, *result.suggested]:
-        if candidate.evidence.get("x"):
-            return {"title": f"{candidate.effect} ({candidate.status})", "evidence": candidate.evidence}
-    for entry in result.signature:
-        if entry["significant"] and entry["evidence"].get("x"):
-            return {"title": "left unexplained: " + signature_text(entry), "evidence": entry["evidence"]}
-    top = next((c for c in result.candidates if c.evidence.get("x")), None)
-    return None if top is None else {"title": f"{top.effect} ({top.status}, the best candidate)", "evidence": top.evidence}
 
 
 def check_study(study: dict[str, Any], source: str) -> dict[str, Any]:
@@ -183,16 +163,8 @@ def study_steps(study: dict[str, Any] | None, source: str = "study") -> list[Ste
     steps = []
     for index, entry in enumerate((study or {}).get("steps", [])):
         try:
-            steps.append(
-                Step(
-                    [str(e) for e in entry["added"]],
-                    {k: float(entry["mae_um"][k]) for k in ("mean", "single")},
-                    {k: float(entry["noise_floor_um"][k]) for k in ("mean", "single")},
-                    list(entry.get("params", [])),
-                    str(entry.get("model", "")),
-                )
-            )
-        except (KeyError, TypeError, ValueError):
+            steps.append(Step.from_json(entry))
+        except (KeyError, TypeError, ValueError, AttributeError):
             raise InputError(
                 "each step must hold added, mae_um {mean, single} and noise_floor_um {mean, single}", file=source, column=f"steps[{index}]"
             ) from None

@@ -13,20 +13,18 @@ two off) bounds what the rings say of its setting (`settings_told_apart`).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
+from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
 from ph_explorer.diagnosis.replication import replication, ring_gains
-from ph_explorer.diagnosis.results import Candidate
 from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
 
 
-def told_apart(
-    search: CandidateSearch, effect: Effect, partner: Effect, chain: Sequence[Effect], seed: int = 0
-) -> dict[str, float | int | bool]:
-    """Whether the rings prefer `effect` to `partner`, each added to `chain` (module docstring):
-    {"told_apart", "p_value", "p_without_top", "rings_better", "rings"}."""
+def rings_prefer(search: CandidateSearch, effect: Effect, partner: Effect, chain: Sequence[Effect], seed: int = 0) -> PairTest:
+    """Whether the rings prefer `effect` to `partner`, each added to `chain` (module docstring)."""
     gain = ring_gains(
         search.residual,
         search.design([*chain, partner]),
@@ -35,13 +33,7 @@ def told_apart(
         ring_sigma(search.campaign.deviations) ** 2,
     )
     test = replication(gain, ~search.train, True, seed)
-    return {
-        "told_apart": test.replicated,
-        "p_value": round(test.p_value, 5),
-        "p_without_top": round(test.p_without_top, 5),
-        "rings_better": test.rings_gaining,
-        "rings": test.rings,
-    }
+    return PairTest(test.replicated, round(test.p_value, 5), round(test.p_without_top, 5), test.rings_gaining, test.rings)
 
 
 def tell_apart(
@@ -51,40 +43,45 @@ def tell_apart(
     by_id: dict[str, Effect],
     start: Sequence[Effect],
     seed: int = 0,
-) -> None:
-    """On each claimed or suggested candidate of the first ranking, each confounded partner's entry
-    gains "told_apart" and its figures (told_apart), and its own setting is asked against the
-    effect's others (settings_told_apart); the chain before them is `start`."""
+) -> list[Candidate]:
+    """The candidates, each claimed or suggested one with its closest confounded partners' PairTest
+    (rings_prefer) and its own setting asked against the effect's others (settings_told_apart); the
+    chain before them is `start`."""
     settings = {c.effect: c.settings for c in candidates}
+    out = []
     for candidate in candidates:
         if not (candidate.effect in claimed or candidate.suggested):
+            out.append(candidate)
             continue
         effect = by_id[candidate.effect].with_settings(**candidate.settings)
-        for entry in candidate.confounded_with:
-            if "separated_by" not in entry:  # beyond the closest partners: no separation asked
-                continue
-            partner = by_id[entry["effect"]].with_settings(**settings.get(entry["effect"], {}))
-            entry.update(told_apart(search, effect, partner, start, seed))
-        if candidate.settings:
-            settings_told_apart(search, candidate, effect, start, seed)
+        partners = tuple(
+            # Beyond the closest partners (no separation asked) the rings are not asked either.
+            p
+            if p.separated_by is None
+            else replace(p, test=rings_prefer(search, effect, by_id[p.effect].with_settings(**settings.get(p.effect, {})), start, seed))
+            for p in candidate.confounded_with
+        )
+        candidate = replace(candidate, confounded_with=partners)
+        out.append(settings_told_apart(search, candidate, effect, start, seed) if candidate.settings else candidate)
+    return out
 
 
-def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: Effect, start: Sequence[Effect], seed: int = 0) -> None:
-    """Every other scanned setting of the candidate's effect (`chosen`: at its own) that the rings
-    do not tell from the chosen (told_apart, the chosen in the partner's place) joins its
+def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: Effect, start: Sequence[Effect], seed: int = 0) -> Candidate:
+    """The candidate with every other scanned setting of its effect (`chosen`: at its own) that the
+    rings do not tell from the chosen (rings_prefer, the chosen in the partner's place) in its
     settings_not_excluded, in scan order: a setting is excluded only when the touches' profile
     likelihood and the rings as units both exclude it. The closest of them (the largest p-value)
     is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
     others = [s for s in chosen.scan_grid() if s != candidate.settings]
-    tests = [(s, told_apart(search, chosen, chosen.with_settings(**s), start, seed)) for s in others]
-    kept = [(s, test) for s, test in tests if not test["told_apart"]]
+    tests = [(s, rings_prefer(search, chosen, chosen.with_settings(**s), start, seed)) for s in others]
+    kept = [(s, test) for s, test in tests if not test.told_apart]
     if not kept:
-        return
-    candidate.settings_not_excluded = [s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept)]
-    settings, test = max(kept, key=lambda item: item[1]["p_value"])
+        return candidate
+    not_excluded = tuple(s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept))
+    settings, test = max(kept, key=lambda item: item[1].p_value)
     rival = chosen.with_settings(**settings)
     design = search.design([*start, rival])
     own = least_squares.fit(design, search.targets)[0][-search.design([rival]).n_columns :, 0]
     shared = shared_variance(search.design([chosen]), search.design([rival]))
     params = {k: float(v) for k, v in rival.from_coefficients(own).items()}
-    candidate.rival_setting = {"settings": settings, "params": params, "shared": round(shared, 3), **test}
+    return replace(candidate, settings_not_excluded=not_excluded, rival_setting=RivalSetting(settings, params, round(shared, 3), test))

@@ -63,7 +63,13 @@ class NoiseTest:
             return np.zeros(len(self.ring_p_value), dtype=bool)
         return self.ring_p_within < self.ring_p_mean
 
+    @property
+    def rings(self) -> int:
+        """How many rings were tested."""
+        return len(self.ring_p_value)
+
     def as_dict(self) -> dict[str, Any]:
+        """The test as JSON: its figures, and each ring's p-values (from_json reads them back)."""
         return {
             "fails": self.fails,
             "failing_rings": self.failing_rings,
@@ -73,7 +79,17 @@ class NoiseTest:
             "ring_level": RING_LEVEL,
             "mean_tolerance": self.tolerance,
             "false_alarm_rate": FALSE_ALARM,
-        }
+            "rings": self.rings,
+        } | {key: None if (values := getattr(self, key)) is None else [float(v) for v in values] for key in RING_P_VALUES}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> NoiseTest:
+        rings = {key: None if data.get(key) is None else np.array(data[key], dtype=float) for key in RING_P_VALUES}
+        figures = (data["failing_rings"], data["statistic"], data["critical"], data["p_value"], data["fails"], data["mean_tolerance"])
+        return cls(rings["ring_p_value"], *figures, rings["ring_p_mean"], rings["ring_p_within"])
+
+
+RING_P_VALUES = ("ring_p_value", "ring_p_mean", "ring_p_within")  # each ring's, in the JSON
 
 
 def ring_sigma(deviations: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -17,10 +17,11 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.campaign import Campaign, orientation_label
-from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, Step
+from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.study import study_steps
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
+from ph_explorer.figures.diagnosis_text import chosen_text, report_sections, ring_reason, signature_text, step_label
 from ph_explorer.figures.orientation_map import MapFigure
 
 MAX_FAILING_LISTED = 15  # the worst failing rings named; the map's colours show every ring
@@ -61,38 +62,60 @@ class EffectNames:
 
 
 def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | None, catalog: Catalog, names: EffectNames) -> list[str]:
+    """The diagnosis: the report's words (figures.diagnosis_text) on the run's record (`diagnosis`,
+    else the study's), then the study's model, candidates, signature, history and runs."""
     parts = ['<section id="diagnosis"><h2>4. The diagnosis</h2>']
     if study is None:
         return parts + [
             "<p>This campaign has not been diagnosed: <code>ph-explorer diagnose</code> or the explorer's Diagnose makes a "
             "study, and <code>ph-explorer report --study</code> puts it here.</p></section>"
         ]
-    verdict = str(study.get("verdict", ""))
-    parts.append(f'<p class="verdict">Verdict: {_e(verdict)} - {_e(VERDICTS.get(verdict, "not a verdict of this version"))}.</p>')
-    parts += _noise_tests(study)
+    record = diagnosis if diagnosis is not None else recorded(study, catalog)
+    if record is None:  # a study written before the record (format 1): its verdict only
+        verdict = str(study.get("verdict", ""))
+        parts.append(f'<p class="verdict">Verdict: {_e(verdict)} - {_e(VERDICTS.get(verdict, "not a verdict of this version"))}.</p>')
+    else:
+        sections = {s.key: s for s in report_sections(record, catalog, name=names.text)}
+        verdict = sections.pop("verdict")
+        parts.append(f'<p class="verdict">{_e(verdict.title)}</p>' + "".join(f"<p>{_e(line)}</p>" for line in verdict.lines))
+        for key in ("claims", "suggested"):
+            if key in sections:
+                lines = "".join(f"<li>{_e(line.strip())}</li>" for line in sections[key].lines)
+                parts.append(f'<h3>{_e(sections[key].title)}</h3><ul class="{key}">{lines}</ul>')
+        parts += _noise_tests(record)
     parts += _chain_table(study, catalog, names)
-    if diagnosis is not None and diagnosis.found and not names.teaching:  # a teaching text says what the effect is
-        parts.append(f'<p class="note">{_e(diagnosis.found[0].teaching)}</p>')
-    parts += _ranking(study, catalog, names)
-    parts += _signature(study, names)
+    if record is not None and record.found and not names.teaching:  # a teaching text says what the effect is
+        parts.append(f'<p class="note">{_e(record.found[0].teaching)}</p>')
+    if record is not None:
+        parts += _ranking(record, catalog, names)
+        parts += _signature(record, names)
     steps = study_steps(dict(study), "study")
     parts += _history(steps, names)
-    parts += _nested(study.get("nested_after"), names)
-    parts += _where_it_fails(study, diagnosis)
+    nested = record.nested if record is not None and record.nested is not None else study.get("nested_after")
+    parts += _nested(NestedAfter.from_json(nested) if isinstance(nested, Mapping) else nested, names)
+    parts += _where_it_fails(record)
     parts += _runs(study, names)
     parts.append("</section>")
     return parts
 
 
-def _noise_tests(study: Mapping[str, Any]) -> list[str]:
+def recorded(study: Mapping[str, Any], catalog: Catalog) -> Diagnosis | None:
+    """The diagnosis a study records (its last run's), None for a study of format 1 or of another schema."""
+    try:
+        return Diagnosis.from_json(study["diagnosis"], catalog) if isinstance(study.get("diagnosis"), Mapping) else None
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _noise_tests(record: Diagnosis) -> list[str]:
     rows = []
-    for key, model in (("baseline", f"the baseline ({study.get('baseline', '')})"), ("after", "with the effects found")):
-        test = (study.get("within_noise") or {}).get(key)
+    for key, model in (("baseline", f"the baseline ({record.baseline_model})"), ("after", "with the effects found")):
+        test = record.within_noise.get(key)
         if test is None:
             continue
         rows.append(
-            f"<tr><td>{_e(model)}</td><td>{test['failing_rings']}</td><td>{test['statistic']:.1f}</td><td>{test['critical']:.1f}</td>"
-            f"<td>{test['p_value']:.3g}</td><td class='t'>{'fails' if test['fails'] else 'within noise'}</td></tr>"
+            f"<tr><td>{_e(model)}</td><td>{test.failing_rings}</td><td>{test.statistic:.1f}</td><td>{test.critical:.1f}</td>"
+            f"<td>{test.p_value:.3g}</td><td class='t'>{'fails' if test.fails else 'within noise'}</td></tr>"
         )
     if not rows:
         return ["<p>One repetition: no repetition spread, so 'within noise' could not be tested.</p>"]
@@ -127,23 +150,20 @@ def _chain_table(study: Mapping[str, Any], catalog: Catalog, names: EffectNames)
 RANKED_SHOWN = 8  # the report's candidate table: the best this many
 
 
-def _ranking(study: Mapping[str, Any], catalog: Catalog, names: EffectNames) -> list[str]:
-    """The last run's candidates, best first: what each explains, the fall of the check rings'
-    error, what noise alone explains, and its status (a study made before 2026-11 has none)."""
-    candidates = study.get("candidates") or []
+def _ranking(record: Diagnosis, catalog: Catalog, names: EffectNames) -> list[str]:
+    """The run's candidates, best first: what each explains, the fall of the check rings' error,
+    what noise alone explains, and its status."""
+    candidates = record.candidates
     if not candidates:
         return []
     rows = []
     for rank, c in enumerate(candidates[:RANKED_SHOWN], 1):
-        cls = catalog.get(str(c["effect"]))
         fitted = (
-            cls.parameters_text(c.get("params") or {}, c.get("params_u") or None)
-            if cls is not None and c["status"] != "not significant"
-            else ""
+            catalog[c.effect].parameters_text(c.params, c.params_u or None) if c.effect in catalog and c.status != "not significant" else ""
         )
         rows.append(
-            f'<tr><td class="t">{rank}. {_e(names.label(str(c["effect"])))}</td><td>{100 * c["explained_fraction"]:.1f} %</td>'
-            f'<td>{100 * c["error_reduction"]:.0f} %</td><td>{100 * c["noise_fraction"]:.2f} %</td><td class="t">{_e(c["status"])}</td>'
+            f'<tr><td class="t">{rank}. {_e(names.label(c.effect))}</td><td>{100 * c.explained_fraction:.1f} %</td>'
+            f'<td>{100 * c.error_reduction:.0f} %</td><td>{100 * c.noise_fraction:.2f} %</td><td class="t">{_e(c.status)}</td>'
             f'<td class="t">{_e(names.text(fitted))}</td></tr>'
         )
     more = f" The best {RANKED_SHOWN} of {len(candidates)}." if len(candidates) > RANKED_SHOWN else ""
@@ -156,15 +176,27 @@ def _ranking(study: Mapping[str, Any], catalog: Catalog, names: EffectNames) -> 
     ]
 
 
-def _signature(study: Mapping[str, Any], names: EffectNames) -> list[str]:
-    """The run's signature plot (diagnosis.study.signature_plot): a residual binned against the
-    head's variable that shows it, and the fitted term."""
-    plot = study.get("signature_plot")
-    if not plot:
+def signature_plot(record: Diagnosis) -> tuple[str, dict[str, Any]] | None:
+    """The run's plot of evidence worth a report, as (title, evidence): the first found effect's
+    signature (its residual and fitted term), else what is left unexplained, else the top candidate's."""
+    for candidate in [*record.found, *record.suggested]:
+        if candidate.evidence.get("x"):
+            return f"{candidate.effect} ({candidate.status})", candidate.evidence
+    for entry in record.signature:
+        if entry["significant"] and entry["evidence"].get("x"):
+            return "left unexplained: " + signature_text(entry), entry["evidence"]
+    top = next((c for c in record.candidates if c.evidence.get("x")), None)
+    return None if top is None else (f"{top.effect} ({top.status}, the best candidate)", top.evidence)
+
+
+def _signature(record: Diagnosis, names: EffectNames) -> list[str]:
+    """The run's signature plot: a residual binned against the head's variable that shows it, and the fitted term."""
+    plot = signature_plot(record)
+    if plot is None:
         return []
-    evidence = dict(plot["evidence"])
+    evidence = dict(plot[1])
     evidence["x_label"], evidence["y_label"] = names.text(evidence["x_label"]), names.text(evidence["y_label"])
-    title = names.text(str(plot["title"]))
+    title = names.text(plot[0])
     return [
         "<h3>Signature</h3>",
         f'<figure id="signature-chart" style="max-width:560px">{evidence_svg(evidence, title)}<figcaption>Every touch\'s out-of-sample residual, '
@@ -172,18 +204,11 @@ def _signature(study: Mapping[str, Any], names: EffectNames) -> list[str]:
     ]
 
 
-def step_label(step: Step, names: EffectNames) -> str:
-    """'baseline (trilinear)' or '+ effect A 22 cycles/rev (hybrid, ...)': one step of the history."""
-    if not step.added:
-        return f"baseline ({step.model})" if step.model else "baseline"
-    return names.text("+ " + " + ".join(step.added) + (f" ({step.model})" if step.model else ""))
-
-
 def _history(steps: Sequence[Step], names: EffectNames) -> list[str]:
     if not steps:
         return ["<h3>History</h3><p>The study records no step.</p>"]
     rows = "".join(
-        f'<tr><td>{k}</td><td class="t">{_e(step_label(s, names))}</td>'
+        f'<tr><td>{k}</td><td class="t">{_e(step_label(s, names.text))}</td>'
         f"<td>{s.mae_um['mean']:.3f}</td><td>{s.noise_floor_um['mean']:.3f}</td>"
         f"<td>{s.mae_um['single']:.3f}</td><td>{s.noise_floor_um['single']:.3f}</td></tr>"
         for k, s in enumerate(steps)
@@ -197,54 +222,43 @@ def _history(steps: Sequence[Step], names: EffectNames) -> list[str]:
     ]
 
 
-def _nested(nested: Mapping[str, Any] | None, names: EffectNames) -> list[str]:
-    if not nested:
+def _nested(nested: NestedAfter | None, names: EffectNames) -> list[str]:
+    if nested is None:
         return []
-    counts: dict[str, int] = {}
-    for fold in nested.get("chosen", []):
-        for label in fold:
-            counts[label] = counts.get(label, 0) + 1
-    chosen = ", ".join(f"{names.text(label)} ({n} of {nested['folds']})" for label, n in counts.items()) or "nothing"
-    before, after, floor = nested["before_um"], nested["after_um"], nested["noise_floor_um"]
+    before, after, floor = nested.before_um, nested.after_um, nested.noise_floor_um
 
-    def cell(value: float | None) -> str:
-        return "—" if value is None else f"{value:.3f}"
+    def cell(value: float) -> str:
+        return "—" if not np.isfinite(value) else f"{value:.3f}"
 
     return [
         "<h3>The honest after: nested cross-validation</h3>",
-        f"<p>The check rings took part in choosing the effects; here each of {nested['folds']} folds of the {nested['rings']} "
+        f"<p>The check rings took part in choosing the effects; here each of {nested.folds} folds of the {nested.rings} "
         "training rings is predicted by what the search chose without it.</p>",
         "<table><tr><th></th><th>MAE vs mean, um</th><th>MAE vs single, um</th></tr>"
-        f"<tr><td>before</td><td>{cell(before.get('mean'))}</td><td>{cell(before.get('single'))}</td></tr>"
-        f"<tr><td>after</td><td>{cell(after.get('mean'))}</td><td>{cell(after.get('single'))}</td></tr>"
-        f"<tr><td>noise floor</td><td>{cell(floor.get('mean'))}</td><td>{cell(floor.get('single'))}</td></tr></table>",
-        f"<p>Chosen in the folds: {_e(chosen)}.</p>",
+        f"<tr><td>before</td><td>{cell(before['mean'])}</td><td>{cell(before['single'])}</td></tr>"
+        f"<tr><td>after</td><td>{cell(after['mean'])}</td><td>{cell(after['single'])}</td></tr>"
+        f"<tr><td>noise floor</td><td>{cell(floor['mean'])}</td><td>{cell(floor['single'])}</td></tr></table>",
+        f"<p>Chosen in the folds: {_e(chosen_text(nested, names.text))}.</p>",
     ]
 
 
-def _where_it_fails(study: Mapping[str, Any], diagnosis: Diagnosis | None) -> list[str]:
+def _where_it_fails(record: Diagnosis | None) -> list[str]:
     parts = ['<h3 id="where-it-fails">Where it fails</h3>']
-    if diagnosis is None:
-        test = (study.get("within_noise") or {}).get("baseline")
-        if test is None:
-            return parts + ["<p>One repetition: no ring can be tested against its noise.</p>"]
-        return parts + [
-            f"<p>{test['failing_rings']} rings exceeded their noise under the baseline in the study's last run "
-            "(a study keeps their count; the report of a fresh diagnosis names them).</p>"
-        ]
-    if diagnosis.within_noise["baseline"] is None:
+    if record is None:
+        return parts + ["<p>The study records no diagnosis of this version: diagnose again to see where it fails.</p>"]
+    if not record.tested:
         return parts + ["<p>One repetition: no ring can be tested against its noise.</p>"]
-    rings = diagnosis.failing_rings()
+    rings = record.failing_rings()
     if not rings:
         return parts + ["<p>No ring exceeds its noise (the within-noise test, ring level 1 %).</p>"]
     rows = "".join(
         f'<tr><td>{_e(orientation_label(r.a_deg, r.b_deg))}</td><td class="t">{"check ring" if r.held_out else "leave-one-out"}</td>'
-        f'<td>{r.mae_um:.3f}</td><td>{r.floor_um:.3f}</td><td>{r.ratio:.1f}</td><td class="t">{_e(r.reason)}</td></tr>'
+        f'<td>{r.mae_um["mean"]:.3f}</td><td>{r.floor_um["mean"]:.3f}</td><td>{r.ratio:.1f}</td><td class="t">{_e(ring_reason(r))}</td></tr>'
         for r in rings[:MAX_FAILING_LISTED]
     )
     more = f" The worst {MAX_FAILING_LISTED} are listed; the map shows every ring." if len(rings) > MAX_FAILING_LISTED else ""
     return parts + [
-        f"<p>{len(rings)} of {len(diagnosis.failing)} rings exceed their noise under the baseline, worst first (out-of-sample MAE "
+        f"<p>{len(rings)} of {len(record.rings)} rings exceed their noise under the baseline, worst first (out-of-sample MAE "
         f"against the repetition mean over its own floor).{more}</p>",
         f"<table><tr><th>ring</th><th>predicted</th><th>MAE, um</th><th>floor, um</th><th>x floor</th><th>exceeds</th></tr>{rows}</table>",
     ]
@@ -292,7 +306,7 @@ def diagnosis_figures(result: Diagnosis) -> dict[str, MapFigure]:
     """The diagnosis's per-ring figures for the error map: out-of-sample MAE over its floor, and
     each ring's verdict (no verdict where the test could not run: one repetition)."""
     ratio = result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"]
-    tested = result.within_noise["baseline"] is not None
+    tested = result.tested
     verdict = result.failing.astype(float) if tested else np.full(len(result.failing), np.nan)
     return {
         "diagnosis: out-of-sample MAE / its floor": MapFigure(

@@ -18,8 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.diagnosis.candidates import Candidate, RivalSetting
 from ph_explorer.diagnosis.replication import replication
-from ph_explorer.diagnosis.results import Candidate, Diagnosis
+from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -89,27 +90,27 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
     asked: set[frozenset[str]] = set()  # a pair once, whichever of the two asks
     for candidate in [*result.found, *result.suggested]:
         effect = fitted_effect(candidate, catalog)
-        for partner in candidate.confounded_with:
-            other = ranked.get(partner["effect"])
-            pair = frozenset((candidate.effect, partner["effect"]))
-            if partner.get("told_apart") is False and other is not None and other.params and pair not in asked:
+        for partner in candidate.untold:
+            other = ranked.get(partner.effect)
+            pair = frozenset((candidate.effect, partner.effect))
+            if other is not None and other.params and pair not in asked:
                 asked.add(pair)
-                measurement = (partner.get("separated_by") or {}).get("measurement", "")
-                out.append(Question(effect, fitted_effect(other, catalog), float(partner["shared"]), measurement))
+                measurement = partner.separated_by.measurement if partner.separated_by is not None else ""
+                out.append(Question(effect, fitted_effect(other, catalog), float(partner.shared), measurement))
         rival = candidate.rival_setting
-        if rival and not candidate.suggested:  # a suggestion is confirmed first, its setting after
-            out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival["shared"])))
+        if rival is not None and not candidate.suggested:  # a suggestion is confirmed first, its setting after
+            out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival.shared)))
         if candidate.suggested:
             out.append(Question(effect))
     return out
 
 
-def fitted_effect(candidate: Candidate, catalog: Catalog, at: dict[str, Any] | None = None) -> Effect:
+def fitted_effect(candidate: Candidate, catalog: Catalog, at: RivalSetting | None = None) -> Effect:
     """The candidate's effect at its fitted parameters and settings, or at those of `at` (its rival_setting)."""
     cls = catalog[candidate.effect]
     known = {p.name for p in cls.parameters}
-    fit = at if at is not None else {"params": candidate.params, "settings": candidate.settings}
-    return cls(**{k: v for k, v in {**fit["params"], **fit["settings"]}.items() if k in known})
+    fit = at if at is not None else candidate
+    return cls(**{k: v for k, v in {**fit.params, **fit.settings}.items() if k in known})
 
 
 def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:

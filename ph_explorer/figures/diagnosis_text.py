@@ -1,0 +1,354 @@
+"""A diagnosis in words: the one renderer of the record (diagnosis.results.Diagnosis) that the
+command line, the HTML report and the explorer show.
+
+`report_sections` gives the report as sections in reading order: the verdict and what to do next,
+each claim with U and its untold partner, the suggestions, the worst rings with the test that
+flagged each, the error history with its honest after; `detail="full"` adds everything else
+(the tests' figures, every candidate and its partners, the teaching text). Each front end lays
+the sections out; none decides anything from their words. Method: docs/diagnosis.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+from ph_explorer.campaign import orientation_label
+from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner
+from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step
+from ph_explorer.diagnosis.within_noise import FALSE_ALARM
+from ph_explorer.effects import Catalog, effect_label, settings_text
+
+Detail = Literal["short", "full"]
+SectionKey = Literal["verdict", "claims", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"]
+WORST_SHOWN = 5  # the worst rings named in the short report
+SUGGESTED_SHOWN = 3  # the suggestions listed in the short report
+RERANKED_SHOWN = 5  # rows of each table re-ranked after a step (full detail)
+DECIDE_COMMAND = "ph-explorer design --data FILE.csv --decide"
+
+
+@dataclass(frozen=True)
+class Section:
+    """One part of the report: its key (what it is, for a front end's layout), a title, its lines."""
+
+    key: SectionKey
+    title: str
+    lines: tuple[str, ...]
+
+
+def report_sections(result: Diagnosis, catalog: Catalog, detail: Detail = "short", name: Callable[[str], str] = str) -> list[Section]:
+    """The report in reading order (module docstring); `name` writes text naming effects (a
+    teaching report's letters, figures.diagnosis_report.EffectNames.text)."""
+    sections = [
+        Section("verdict", verdict_headline(result), tuple(verdict_lines(result))),
+        Section("claims", "Found", tuple(line for c in result.found for line in claim_lines(c, result, catalog))),
+        Section(
+            "suggested", "Suggested, not claimed", tuple(suggestion_lines(result, catalog, SUGGESTED_SHOWN if detail == "short" else None))
+        ),
+        Section("worst_rings", "Where it fails", tuple(worst_ring_lines(result, WORST_SHOWN if detail == "short" else None))),
+        Section(
+            "history", "Error history on the check rings (MAE / um, and the noise floor)", tuple(history_lines(result.steps, result.nested))
+        ),
+    ]
+    if detail == "full":  # before the history, which stays last (the honest after ends the report)
+        sections[1:1] = [Section("tests", "The tests", tuple(test_lines(result, catalog)))]
+        sections[-1:-1] = [
+            Section("candidates", "Candidate effects, best first", tuple(candidate_table(result, catalog))),
+            Section("partners", "What the campaign cannot tell apart", tuple(partner_lines(result))),
+            Section("teaching", "The effect found", (result.found[0].teaching,) if result.found else ()),
+        ]
+    return [Section(s.key, name(s.title), tuple(name(line) for line in s.lines)) for s in sections if s.lines or s.key == "verdict"]
+
+
+def report_text(result: Diagnosis, catalog: Catalog, detail: Detail = "short") -> str:
+    """The report as plain text (the command line's): each section's title, its lines indented."""
+    blocks = ["\n".join([section.title, *(f"  {line}" for line in section.lines)]) for section in report_sections(result, catalog, detail)]
+    return "\n\n".join(blocks) + "\n"
+
+
+# -- the verdict -------------------------------------------------------------------------------------
+
+
+def verdict_headline(result: Diagnosis) -> str:
+    return f"Verdict: {result.verdict} - {VERDICTS[result.verdict]}."
+
+
+def verdict_lines(result: Diagnosis) -> list[str]:
+    """Under the headline: a resumed study, the campaign's test in one line, what to do next."""
+    lines = []
+    if result.started_from:
+        already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
+        lines.append(f"Resumed with {already} in the model; the search continued from there.")
+    lines.append(campaign_test_line(result))
+    if result.verdict in ("partial", "unexplained"):
+        lines.append(left_line(result))
+    implausible = [c for c in result.candidates if c.status == "implausible"]
+    if result.verdict == "unexplained" and implausible:
+        lines.append(
+            f"{len(implausible)} catalog effects would explain more than noise only with implausible parameters "
+            "(--detail full lists them): none is the explanation."
+        )
+    lines.append("Next: " + next_step(result))
+    return lines
+
+
+def campaign_test_line(result: Diagnosis) -> str:
+    claims = result.verdict in ("missing", "partial")
+    test = result.within_noise["after" if claims else "baseline"]
+    if test is None:
+        return "One repetition: no repetition spread, so 'within noise' could not be tested."
+    model = "with the effects found" if claims else f"the baseline ({result.baseline_model})"
+    outcome = "fails" if test.fails else "is within noise"
+    return (
+        f"Within-noise test, {model}: the campaign {outcome} ({test.failing_rings} of {test.rings} rings exceed their noise; "
+        f"statistic {test.statistic:.1f}, critical {test.critical:.1f}, p = {test.p_value:.3g}, false-alarm rate {100 * FALSE_ALARM:.0f} %)."
+    )
+
+
+def next_step(result: Diagnosis) -> str:
+    """What to do next, by verdict and by what the diagnosis leaves open."""
+    if result.leaves_open:
+        what = "confirm the suggestion" if result.suggested and not result.found else "decide what these rings cannot tell"
+        return f"measure the rings that would {what}: {DECIDE_COMMAND} (or Rings that would decide in the explorer)."
+    return {
+        "none": "nothing is missing that this campaign shows; a model of it is within noise.",
+        "missing": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall.",
+        "suggested": f"measure more rings where the suggestion predicts the largest difference ({DECIDE_COMMAND}).",
+        "partial": "add the effects found, then look at what is left below: an effect outside the catalog (--effects FILE.py) may explain it.",
+        "unexplained": "no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature (--effects FILE.py).",
+    }[result.verdict]
+
+
+def left_line(result: Diagnosis) -> str:
+    significant = [entry for entry in result.signature if entry["significant"]]
+    what = "; ".join(signature_text(entry) for entry in significant[:5]) if significant else "nothing beyond noise in any single variable"
+    return f"What is left, in the head's own variables (share of the residual explained; noise alone): {what}."
+
+
+# -- claims, suggestions, partners -------------------------------------------------------------------
+
+
+def claim_lines(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> list[str]:
+    """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
+    cannot tell it from, in one voice, and the settings they cannot exclude."""
+    effect = catalog[candidate.effect]().with_settings(**candidate.settings)
+    lines = [f"{effect_label(effect)}: {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)."]
+    if candidate.untold:
+        lines.append("  " + untold_text(candidate.effect, candidate.untold))
+    settings = []
+    if candidate.settings_not_excluded:
+        settings.append(
+            f"the campaign cannot exclude {settings_text(effect, list(candidate.settings_not_excluded))} beside this setting (95 %)"
+        )
+    if (rival := candidate.rival_setting) is not None:
+        settings.append(
+            f"the rings cannot tell it from {settings_text(effect, [rival.settings])} ({test_text(rival.test)}); {DECIDE_COMMAND} gives the rings that would"
+        )
+    if settings:
+        lines.append("  " + "; ".join(settings) + ".")
+    return lines
+
+
+def untold_text(effect: str, partners: Sequence[Partner]) -> str:
+    """One voice on the partners the rings cannot tell a claim from: how much each shares, the
+    rings' test, and what would decide."""
+    shared = "; ".join(
+        f"{partner.effect}, which explains {percent(partner.shared)} of what this campaign shows of {effect}"
+        + (f" (the rings' test: {test_text(partner.test)})" if partner.test is not None else "")
+        for partner in partners
+    )
+    measurements = sorted({p.separated_by.measurement for p in partners if p.separated_by is not None and p.separated_by.measurement})
+    if measurements:
+        decide = f"measuring {' or '.join(measurements)} would separate them"
+    else:
+        decide = f"no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share; {DECIDE_COMMAND} says whether more rings decide, with their power"
+    return f"or {shared}: these rings cannot tell them apart; {decide}."
+
+
+def suggestion_lines(result: Diagnosis, catalog: Catalog, limit: int | None) -> list[str]:
+    """Each suggestion with its parameters and why it is not claimed (the first `limit`, all when None)."""
+    lines = [
+        f"{c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)}); {c.note}. "
+        "More rings where it predicts the largest difference would confirm or refute it."
+        for c in result.suggested[:limit]
+    ]
+    more = len(result.suggested) - len(lines)
+    return lines + ([f"... and {more} more (--detail full)."] if more else [])
+
+
+def partner_lines(result: Diagnosis) -> list[str]:
+    """Every candidate's confounded partners (full detail): the claims' and those beyond noise."""
+    lines = []
+    for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
+        for partner in candidate.confounded_with:
+            if partner.told_apart:
+                lines.append(f"{shared_text(candidate.effect, partner)}, yet the rings tell them apart: {test_text(partner.test)}.")
+            elif partner.told_apart is False:
+                lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner])}")
+            else:
+                lines.append(
+                    f"{shared_text(candidate.effect, partner)}: this campaign cannot tell them apart; the credit is not theirs to split."
+                )
+    return lines
+
+
+def shared_text(effect: str, partner: Partner) -> str:
+    """'93 % of what this campaign shows of X is also explained by Y' (the largest squared canonical
+    correlation of their columns over the touches)."""
+    return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {partner.effect}"
+
+
+def test_text(test: PairTest) -> str:
+    """'better on 10 of 12 rings, p = 0.002 (0.004 without the top ring)': diagnosis.telling_apart in words."""
+    return f"better on {test.rings_better} of {test.rings} rings, p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
+
+
+def percent(share: float) -> str:
+    """'83 %', '99.6 %': a share near 1 keeps a decimal (rounded to 100 % it would read as identical)."""
+    return f"{100 * share:.1f} %" if 0.995 <= share < 1.0 else f"{100 * share:.0f} %"
+
+
+def signature_text(entry: dict) -> str:
+    """'b_joint_deg periodic, 22 cycles/rev, 8.4 % (0.07 %)': one entry of a signature in words."""
+    setting = {
+        "cycles_per_rev": "{:g} cycles/rev",
+        "cycles_per_span": "{:g} cycles over its span",
+        "centre_deg": "at {:g} deg",
+        "centre_s": "at {:g} s",
+        "centre_touch": "at touch {:g}",
+        "joint": "{} joint",
+    }
+    where = ", ".join(text.format(entry[key]) for key, text in setting.items() if key in entry)
+    return (
+        f"{entry['variable']} {entry['kind']}, {where}, {100 * entry['explained_fraction']:.1f} % ({100 * entry['noise_fraction']:.2f} %)"
+    )
+
+
+# -- rings, tests, candidates ------------------------------------------------------------------------
+
+
+def exceeding_text(count: int) -> str:
+    """'1 ring exceeds its noise', '3 rings exceed their noise'."""
+    return "1 ring exceeds its noise" if count == 1 else f"{count} rings exceed their noise"
+
+
+def ring_reason(ring: Ring) -> str:
+    """By which of the ring test's two statistics the ring exceeds (docs/methods/within_noise.md)."""
+    return "by the scatter between its repetitions (harmonics 2-8)" if ring.by_scatter else "by its repetition mean"
+
+
+def worst_ring_lines(result: Diagnosis, limit: int | None) -> list[str]:
+    """How many rings exceed their noise, then the worst (all when limit is None), each with the test that flagged it."""
+    if not result.tested:
+        return ["One repetition: no ring can be tested against its noise."]
+    rings = result.failing_rings()
+    worst = f"; the worst {limit}, by out-of-sample MAE over its own floor:" if limit is not None and len(rings) > limit else "."
+    lines = [
+        f"Under the baseline {len(rings)} of {len(result.rings)} rings exceed their noise, out of sample (the within-noise test of each ring, level 1 %){worst}"
+    ]
+    for ring in rings[:limit]:
+        kind = "check ring" if ring.held_out else "leave-one-out"
+        lines.append(
+            f"{orientation_label(ring.a_deg, ring.b_deg)} ({kind}): MAE {ring.mae_um['mean']:.3f} um, {ring.ratio:.1f}x its floor; exceeds {ring_reason(ring)}"
+        )
+    return lines
+
+
+def test_lines(result: Diagnosis, catalog: Catalog) -> list[str]:
+    """The noise floor, the baseline and both within-noise tests (full detail)."""
+    floor, baseline = result.noise_floor_um, result.baseline_mae_um
+    lines = [
+        f"Noise floor (touch noise after the modelled effects): {floor['mean']:.3f} um against the repetition mean, "
+        f"{floor['single']:.3f} um against single repetitions.",
+        f"Baseline ({result.baseline_model}) on the {int(result.held_out.sum())} held-out rings: "
+        f"MAE {baseline['mean']:.3f} um (mean), {baseline['single']:.3f} um (single).",
+    ]
+    for key, model in (("baseline", "the baseline"), ("after", "with the effects found")):
+        test = result.within_noise.get(key)
+        if test is not None:
+            quiet = test.failing_rings and not test.fails
+            lines.append(
+                f"Within-noise test ({model}): by how much the rings exceed their noise, summed over all rings but the worst: "
+                f"{test.statistic:.1f}; the campaign fails above {test.critical:.1f} (p = {test.p_value:.3g})"
+                + (": within noise, though a few rings exceed at the ring level (1 %), as noise alone makes some." if quiet else ".")
+            )
+    lines += [
+        f"Not needed: {c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)}) would lower the check rings' error by "
+        f"{100 * c.error_reduction:.0f} %, but the model is within noise without it: nothing the campaign shows is missing, so it is not claimed."
+        for c in result.not_needed
+    ]
+    return lines
+
+
+def candidate_table(result: Diagnosis, catalog: Catalog) -> list[str]:
+    """The ranked candidates (full detail), then each re-ranking after a step."""
+    lines = ["share of the out-of-sample residual explained, fall of the held-out error; * significant"]
+    lines += ranking_lines(result.candidates, catalog)
+    chain: list[str] = []
+    for found, ranking in zip(result.found, result.reranked):
+        chain.append(effect_label(catalog[found.effect]().with_settings(**found.settings)))
+        lines += [f"Re-ranked with {' + '.join(chain)} in the model (top {RERANKED_SHOWN}):"]
+        lines += ranking_lines(ranking[:RERANKED_SHOWN], catalog)
+    return lines
+
+
+def ranking_lines(candidates: Sequence[Candidate], catalog: Catalog) -> list[str]:
+    lines = []
+    width = max([len(c.effect) for c in candidates] + [6])
+    for c in candidates:
+        if c.status == "not tested":
+            lines.append(f"  {c.effect.ljust(width)}  not tested: {c.note}")
+            continue
+        shown = c.significant or c.beyond_noise  # a fit of noise describes nothing
+        params = catalog[c.effect].parameters_text(c.params, c.params_u) if shown else ""
+        lines.append(
+            f"{'*' if c.significant else ' '} {c.effect.ljust(width)}  explains {100 * c.explained_fraction:5.1f} %  "
+            f"(noise alone {100 * c.noise_fraction:5.2f} %)  error -{100 * c.error_reduction:4.1f} %  {c.status}"
+            + (f": {params}" if params else "")
+            + (f"  ({c.note})" if c.note and c.status != "not significant" else "")
+        )
+    return lines
+
+
+# -- the error history -------------------------------------------------------------------------------
+
+
+def step_label(step: Step, name: Callable[[str], str] = str) -> str:
+    """'baseline (trilinear)' or '+ b_axis_cyclic (hybrid, trilinear data part)': one step of the history."""
+    if not step.added:
+        return f"baseline ({step.model})" if step.model else "baseline"
+    return name("+ " + " + ".join(step.added) + (f" ({step.model})" if step.model else ""))
+
+
+def mae_text(mae: dict[str, float], floor: dict[str, float]) -> str:
+    return f"mean {mae['mean']:.3f} (floor {floor['mean']:.3f})   single {mae['single']:.3f} (floor {floor['single']:.3f})"
+
+
+def history_lines(steps: Sequence[Step], nested: NestedAfter | None) -> list[str]:
+    """Each step's check-ring MAE and floor, then the honest after (nested_lines)."""
+    lines = [f"{step_label(step):50s} {mae_text(step.mae_um, step.noise_floor_um)}" for step in steps]
+    return lines + (nested_lines(nested) if nested is not None else [])
+
+
+def nested_summary(nested: NestedAfter) -> str:
+    """The honest after in one sentence: what the nested cross-validation measures."""
+    return (
+        f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
+        f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):"
+    )
+
+
+def nested_lines(nested: NestedAfter) -> list[str]:
+    """The nested cross-validation's lines: the error history's last."""
+    return [
+        nested_summary(nested),
+        f"{'  before':50s} " + mae_text(nested.before_um, nested.noise_floor_um),
+        f"{'  after':50s} " + mae_text(nested.after_um, nested.noise_floor_um),
+        f"  chosen in the folds: {chosen_text(nested)}",
+    ]
+
+
+def chosen_text(nested: NestedAfter, name: Callable[[str], str] = str) -> str:
+    """'b_axis_cyclic 22 cycles/rev (5 of 5), ...': what the folds chose, each with how many folds."""
+    return ", ".join(f"{name(label)} ({n} of {nested.folds})" for label, n in nested.chosen_counts().items()) or "nothing"
