@@ -1,10 +1,10 @@
 """mkdocs hooks (mkdocs.yml `hooks:`): the pages written from the code and the results at build time.
 
 - cli.md from the typer app (docs/cli_page.py);
-- benchmarks.md from benchmarks/results.json (docs/benchmarks_page.py), with the plots
+- benchmarks.md from benchmarks/results.json (docs/benchmarks_page/, one module a section), with the plots
   benchmarks/*.png as img/benchmarks/*.png;
 - the population's verdict rates in diagnosis.md, in place of its `<!-- verdict-rates -->` line
-  (docs/benchmarks_page.py, `verdict_rates`);
+  (docs/benchmarks_page/page_population.py, `verdict_rates`);
 - the effects catalog's table in twin.md, in place of its `<!-- effects-catalog -->` line
   (docs/cli_page.py, `catalog_table`).
 

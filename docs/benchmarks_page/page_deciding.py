@@ -1,0 +1,56 @@
+"""The benchmarks page's `## Rings that decide` section (`deciding`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from .page_format import joined, num, table
+
+DECIDING_INTRO = """\
+## Rings that decide
+
+`deciding`: the whole loop a metrologist runs when the diagnosis cannot tell two candidates apart or
+cannot confirm one ([Rings that decide](methods/deciding.md)): diagnose, `design --decide` (at most
+{budget} rings), the twin measures the rings after the campaign on another noise draw, `merge`,
+diagnose again. The pair cases: the paper's campaign with one hidden effect, over noise seeds;
+success is the true effect claimed at its period and told apart from every confounded partner. The
+false suggestions: the population run's healthy and out-of-catalog heads whose diagnosis suggests an
+effect the head does not have (a random head's background of lobing, location and low-order cyclic
+errors is real); success is that suggestion not claimed after the rings.
+"""
+
+
+def deciding(results: Mapping[str, Any]) -> str:
+    d = results.get("deciding", {})
+
+    def rate(x: Any) -> str:
+        x = x or {}
+        return f"{num(x.get('count'))} of {num(x.get('of'))}"
+
+    rows = []
+    for name in ("a_axis_angular", "b_axis_tilt"):
+        case = d.get(name) or {}
+        truth = case.get("truth") or {}
+        shared = [f"{v:.3f}" if v is not None else "-" for v in case.get("shared_after") or []]
+        rows.append(
+            [
+                f"{name}: {truth.get('id')} {truth.get('cycles_per_rev')}/rev",
+                rate(case.get("named_and_told_apart_before")),
+                rate(case.get("named_and_told_apart_after")),
+                joined([str(n) for n in case.get("rings_proposed") or []]),
+                joined(shared),
+            ]
+        )
+    false = d.get("false_suggestions") or {}
+    rows.append(
+        [
+            "false suggestions: not claimed after",
+            f"false claims before: {rate(false.get('false_claims_before'))}",
+            f"{rate(false.get('refuted_or_left_suggested'))} (any false claim after: {rate(false.get('false_claims_after'))})",
+            joined([str(n) for n in false.get("rings_proposed") or []]),
+            "",
+        ]
+    )
+    header = ["case", "before the rings", "after the rings", "rings proposed", "share with the closest partner after"]
+    return DECIDING_INTRO.format(budget=d.get("budget")) + "\n" + table(header, rows) + "\n"
