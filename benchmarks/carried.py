@@ -40,7 +40,7 @@ not material on its check rings): omitting a present term biases the terms that 
 with it. A set of terms whose fit on the campaign is implausible for a PH20/TP20-class head
 (Effect.implausible) is never carried. Among the admissible sets, backward elimination on the
 hybrid's cross-validated error (crossval.cross_val_predict, strict) with the one-standard-error
-rule: see carried_effects. The data part beside the terms: models.stacking.carried_hybrid.
+rule: see carried_effects. The data part beside the terms: benchmarks.stacking.carried_hybrid.
 """
 
 from __future__ import annotations

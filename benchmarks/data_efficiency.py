@@ -20,10 +20,10 @@ present beyond noise but not material there, of which it keeps those the subset 
 catalog alias it cannot tell from them that predicts otherwise between its rings, unless the data
 part reproduces them there; a scanned setting the subset itself chooses beside the candidates it
 cannot carry; a plausible fit) and its own cross-validation says the data can carry
-(models.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
+(benchmarks.carried.carried_effects: backward elimination on crossval.cross_val_predict, strict).
 Its data part is the weighted average of the hybrid with the trilinear interpolation and the hybrid
 with the mean curve of the subset's rings, the weight chosen by its own cross-validation
-(models.stacking.carried_hybrid). The hybrid is fitted on a
+(benchmarks.stacking.carried_hybrid). The hybrid is fitted on a
 campaign holding the training orientations only, so neither its physical terms nor its data part
 see a check ring or an orientation left out of the subset; it then predicts every touch of the
 check rings. The rule (issue 16): at every subset the hybrid's check-ring MAE is at most 1.05 x
@@ -251,7 +251,7 @@ def run_scenario(
             "hybrid_effects_source": "diagnosis",
             "hybrid_effects": hybrid_effects_chosen,
             "hybrid_data_model": "the hybrids with the trilinear and with the mean curve averaged, the weight chosen on each "
-            "subset by its own cross-validation (models.stacking.carried_hybrid; hybrid_effects[].weights)",
+            "subset by its own cross-validation (benchmarks.stacking.carried_hybrid; hybrid_effects[].weights)",
             "hybrid_protocol": "effects from the diagnosis on the training subset, kept by the hybrid's own cross-validation; "
             "fitted on the training orientations only; predicts every check-ring touch",
             "never_worse": never_worse,

@@ -4,21 +4,22 @@ Smooth lobing-like systematic curves that vary with the orientation the way the 
 (physics.md): a 3-lobe pattern whose phase turns with B0 at A0 = 0 and less as A0 grows, whose
 amplitude grows with the lateral share of gravity (sin A0), a 2-lobe term and a 6-lobe term,
 plus Gaussian touch noise; every repetition goes through its own least-squares circle fit.
-Beside it, what the hybrid's tests share: `training_columns` (training subsets), `designed_rings`
-and `check_ring_mae`.
+Beside it, `scenario_with`: the paper scenario's rings with only the effects a test names (the
+twin), which the data-part tests share.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.geometry import point_angles_deg
 from ph_explorer.harmonics import remove_size_and_centre
-from ph_explorer.kinematics import campaign_touches
-from ph_explorer.models.deviation_model import DeviationModel
+from ph_explorer.twin import Scenario, load_scenario
 
 PAPER_A_DEG = np.arange(0.0, 91.0, 15.0)
 PAPER_B_DEG = np.arange(-160.0, 181.0, 20.0)
@@ -62,21 +63,8 @@ def lobing_campaign(
     )
 
 
-def training_columns(campaign: Campaign, k: int) -> Campaign:
-    """The campaign's training rings on every A row x k B columns (the data-efficiency benchmark's subset)."""
-    from benchmarks.data_efficiency import lattice_subsets
-
-    return campaign.subset(lattice_subsets(campaign, ~campaign.holdout_mask(), (k,))[0])
-
-
-def designed_rings(campaign: Campaign, budget: int) -> Campaign:
-    """The campaign's training rings `ph-explorer design --budget N` proposes (the benchmark's designed subset)."""
-    from benchmarks.data_efficiency import designed_subsets
-
-    return campaign.subset(designed_subsets(campaign, ~campaign.holdout_mask(), (budget,))[0][0])
-
-
-def check_ring_mae(model: DeviationModel, campaign: Campaign) -> float:
-    """A fitted model's MAE (um) against the repetition mean over every touch of the campaign's check rings."""
-    check = campaign.holdout_mask()
-    return metrics.mae(model.predict_touches(campaign_touches(campaign.subset(check))), campaign.deviations[check])["mean"]
+def scenario_with(*effects) -> Scenario:
+    """The paper's rings, repetitions and noise with only these effects (and the ring's form)."""
+    paper = load_scenario("paper")
+    kept = [DEFAULT_CATALOG["noise"](sigma_um=0.175), DEFAULT_CATALOG["ring_form"](form_um=0.2, shape_seed=7), *effects]
+    return dataclasses.replace(paper, effects=kept, hidden=[False] * len(kept))

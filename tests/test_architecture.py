@@ -182,6 +182,20 @@ def test_experiment_code_stays_out_of_the_product():
     assert not offenders, offenders
 
 
+EXPERIMENTS = ("benchmarks.carried", "benchmarks.stacking")  # the experiment code only a benchmark uses
+
+
+def test_the_test_suite_leaves_the_experiment_code_to_its_own_checks():
+    """tests/ tests the product; the experiment code is checked beside it (benchmarks/experiment_checks.py)."""
+    offenders = [
+        f"{path.relative_to(PACKAGE.parent)}:{line} imports {imported}"
+        for path in sorted((PACKAGE.parent / "tests").glob("*.py"))
+        for imported, line in imported_names(path)
+        if any(imported == name or imported.startswith(f"{name}.") for name in EXPERIMENTS)
+    ]
+    assert not offenders, offenders
+
+
 def docstring_lengths(path: Path) -> list[tuple[int, int]]:
     """(line, number of lines) of every docstring in the file."""
     tree = ast.parse(path.read_text(encoding="utf-8"))

@@ -9,7 +9,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from synthetic import lobing_campaign
+from synthetic import lobing_campaign, scenario_with
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -132,8 +132,6 @@ def test_its_variance_grows_away_from_the_rings(campaign, fitted) -> None:
 def test_a_hybrid_with_a_gp_part_finds_a_b_axis_error_beside_it() -> None:
     """The paper's rings with a B 2/rev error of 1.8 arcsec (and the ring's form, the touch noise):
     the hybrid's physical fit, through the GP's own out-of-sample weights, recovers its amplitude."""
-    from test_data_part import scenario_with
-
     b_axis = DEFAULT_CATALOG["b_axis_cyclic"]
     campaign = simulate(scenario_with(b_axis(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), 3)
     hybrid = HybridModel([b_axis(cycles_per_rev=2)], "gp").fit(campaign, ~campaign.holdout_mask())

@@ -54,7 +54,7 @@ curves the terms were chosen with: no fit is added). The two are the ends of wha
 carry. When the terms carry the orientation dependence, interpolating between a few rings only
 carries those rings' noise into every prediction, and the mean curve averages it over all of
 them; when an error no catalog holds varies between the rings, only the interpolation learns it;
-where the rings cannot tell the two apart, neither end is chosen (`tests/test_data_part.py`).
+where the rings cannot tell the two apart, neither end is chosen (`benchmarks/experiment_checks.py`).
 Why a few designed rings cannot decide between the ends: the D-optimal design takes rings where
 the effects show most and repeats every A row, so no ring is ever predicted across an A gap,
 where the check rings lie. The trilinear model alone gains nothing from the design: the design

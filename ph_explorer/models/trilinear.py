@@ -212,8 +212,9 @@ class MeanCurveModel(TrilinearModel):
     The trilinear model on a single node: the least flexible data-driven part. Beside physical
     terms that carry the orientation dependence, it predicts a ring with the noise of every
     training ring averaged, where the interpolation carries the noise of the few rings around it
-    (MAE against the mean: the floor times sqrt(1 + sum of squared weights)). A hybrid uses it only
-    when its own cross-validation says so (models.carried.carried_hybrid).
+    (MAE against the mean: the floor times sqrt(1 + sum of squared weights)). The data-efficiency
+    benchmark's stacked hybrid weighs it by its own cross-validation (benchmarks/stacking.py,
+    experiment code).
     """
 
     name = "mean_curve"
