@@ -16,7 +16,7 @@ catalog, Monte Carlo seed 0):
    effects found), and the share with any verdict other than "none".
 5. seconds_per_diagnosis: the median over the paper campaigns of part 1.
 
-The diagnoses run as tasks of ph_explorer.cluster on the client the run gives (a LocalCluster of the
+The diagnoses run as tasks of ph_explorer.task_runner on the client the run gives (a LocalCluster of the
 cores, or `python -m benchmarks --scheduler ADDRESS`'s cluster; one BLAS thread each), each
 simulated on its worker from its scenario and seed; the results do not depend on the order they
 finish in. `run(quick=True)` is the smoke mode: a few diagnoses, the same keys.
@@ -40,10 +40,10 @@ import numpy as np
 from scipy.stats import binomtest
 
 import ph_explorer
-from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import VERDICTS, diagnose
 from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL
 from ph_explorer.paths import scenarios_dir
+from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import scenario_from_dict, simulate
 
 if TYPE_CHECKING:

@@ -24,9 +24,9 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.population import CALIBRATION_HEADS, COUNTS, FIRST_SEED, U_CALIBRATION_HEADS
-from ph_explorer.cluster import dask_client, one_thread_task, run_tasks
 from ph_explorer.diagnosis.fleet import fleet_row
 from ph_explorer.io import write_campaign
+from ph_explorer.task_runner import dask_client, one_thread_task, run_tasks
 from ph_explorer.twin.random_heads import random_campaign
 
 CAMPAIGNS, QUICK_CAMPAIGNS = 20, 2  # quick: one campaign per worker of the two-worker run

@@ -7,7 +7,7 @@ default catalog). Recorded: the verdict, the effects found with their parameters
 uncertainties, whether the hidden effect is named first at its true period with every true
 amplitude and phase inside fit +- U, the candidates the top one is confounded with, the check-ring
 MAE (against the mean of the repetitions) before and after with the floor, the nested "after",
-and the seconds. Each case is a task of ph_explorer.cluster on the client the run gives (simulated
+and the seconds. Each case is a task of ph_explorer.task_runner on the client the run gives (simulated
 and diagnosed on its worker). `run(quick=True)` runs the first case only.
 """
 
@@ -20,10 +20,10 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from benchmarks.population import error_over_u
-from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.paths import scenarios_dir
+from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import scenario_from_dict, simulate
 
 if TYPE_CHECKING:

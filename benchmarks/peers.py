@@ -37,7 +37,7 @@ predictive variance through the Fourier basis; for single touches the repetition
 and its coverage of the check rings' mean curves and single touches, with its mean half-width,
 beside the project's Monte Carlo bands (benchmarks.uncertainty_coverage's calibrated band; coverage
 and mean half-width) of the trilinear model and of the GP data part, whose model component is its
-posterior variance: the goal on coverage is that band's. Each campaign is a task of ph_explorer.cluster.
+posterior variance: the goal on coverage is that band's. Each campaign is a task of ph_explorer.task_runner.
 """
 
 from __future__ import annotations
@@ -54,13 +54,13 @@ from benchmarks.stacking import WITH_GP, carried_hybrid
 from benchmarks.uncertainty_coverage import QUICK_CHECK_RINGS, one_model
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.models.gaussian_process import GaussianProcessModel
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.off_the_shelf import HARMONICS, PEER_MODELS, CoefficientGPPeer
 from ph_explorer.models.trilinear import MeanCurveModel, TrilinearModel
+from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import list_scenarios, load_scenario, simulate
 
 if TYPE_CHECKING:

@@ -25,7 +25,7 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    "none") the share whose signature's first variable is of the defect's own joint (b_joint_deg
    or b0_deg for a B defect: outside_catalog.py), the exact variable, and a bump located at it.
 
-Each share has its 95 % Clopper-Pearson interval. The diagnoses run as tasks of ph_explorer.cluster on
+Each share has its 95 % Clopper-Pearson interval. The diagnoses run as tasks of ph_explorer.task_runner on
 the client the run gives, each head simulated on its worker from its seed.
 0. tolerance: how MEAN_TOLERANCE was chosen. On CALIBRATION_HEADS other healthy heads (seeds of
    their own, never the parts above), the share whose baseline fails the within-noise test at
@@ -61,7 +61,6 @@ import numpy as np
 from benchmarks.calibration import clopper_pearson, code_version, commit, share
 from benchmarks.click import run as explorer_click
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
-from ph_explorer.cluster import run_tasks
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.detection import hidden_effect_of
 from ph_explorer.diagnosis.loop import honest_after
@@ -70,6 +69,7 @@ from ph_explorer.diagnosis.within_noise import MEAN_TOLERANCE, within_noise
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.io import write_campaign
+from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import load_scenario, simulate
 from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
 

@@ -6,7 +6,7 @@ calibration about 22 of them); --quick is a smoke-test mode (two subsets, a
 short network, 2 browsers for 1 s, a few diagnoses) that keeps every key. --only runs some
 sections and updates them in the last run's results.json, each stamped under "updated" with its
 date and the code it was measured on. The many diagnoses of the calibration, the population, the
-hidden effects and the coverage are tasks of ph_explorer.cluster: on a LocalCluster of this
+hidden effects and the coverage are tasks of ph_explorer.task_runner: on a LocalCluster of this
 machine's cores (quick: one worker thread in this process), or on the cluster of --scheduler.
 """
 
@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 from benchmarks import calibration, large_campaign
 from ph_explorer.campaign import Campaign
-from ph_explorer.cluster import dask_client
+from ph_explorer.task_runner import dask_client
 from ph_explorer.twin import load_scenario, simulate
 
 if TYPE_CHECKING:

@@ -12,7 +12,7 @@ the noise-only band of today (its repeatability component alone), and the budget
 the check rings. On the paper campaign, the task of every check ring (one measurement, 64
 touches): simulated RONt and harmonics 2..15 with U (k = 2) against the measured repetitions,
 E_n and its count <= 1, and how many single measured RONt fall in the simulated 95 % interval.
-Each campaign is a task of ph_explorer.cluster on the client the run gives (simulated, trained and
+Each campaign is a task of ph_explorer.task_runner on the client the run gives (simulated, trained and
 sampled on its worker; its Monte Carlo seeded by its place in the run).
 """
 
@@ -27,7 +27,6 @@ import numpy as np
 
 from benchmarks.large_campaign import QUICK_EPOCHS
 from ph_explorer.campaign import Campaign
-from ph_explorer.cluster import run_tasks
 from ph_explorer.io import read_campaign
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_card, load_models
@@ -36,6 +35,7 @@ from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.network import FourierNetwork, NetworkConfig
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paths import assets_dir, default_model_dir
+from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import Scenario, list_scenarios, load_scenario, simulate
 from ph_explorer.uncertainty.bands import COMPONENTS, Sources, band_coverage, calibrate_model_error, model_bands
 from ph_explorer.uncertainty.model_error import own_error

@@ -118,11 +118,11 @@ def test_viser_is_imported_only_in_the_app():
 
 
 # The layers, lowest first: a module may import its own layer and those below, never one above.
-# The basic modules (geometry, campaign, kinematics, harmonics, metrics, errors, paths, blas, cluster) and
+# The basic modules (geometry, campaign, kinematics, harmonics, metrics, errors, paths, blas, task_runner) and
 # the package's own __init__ are the floor. The app and the command line translate: both sit on
 # top, and the app never imports the command line (test below).
 LAYERS = ("io", "effects", "twin", "models", "uncertainty", "paper", "diagnosis", "planning", "figures", "app", "cli")
-BASIC = {"geometry", "campaign", "kinematics", "harmonics", "metrics", "errors", "paths", "blas", "cluster"}
+BASIC = {"geometry", "campaign", "kinematics", "harmonics", "metrics", "errors", "paths", "blas", "task_runner"}
 
 
 def layer_of(name: str) -> int:

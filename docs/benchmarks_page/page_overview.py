@@ -29,7 +29,7 @@ def overview(results: Mapping[str, Any]) -> str:
         "section of the last `results.json` as it was and stamps the ones it ran under `updated` (date, mode, "
         "a sha256 of the package's sources): each section below says which run it comes from. "
         "The many diagnoses of the calibration, the population, the hidden effects and the coverage are tasks "
-        "of one runner ([`ph_explorer.cluster`](fleet.md#where-it-runs), the fleet's): on a LocalCluster of the "
+        "of one runner ([`ph_explorer.task_runner`](fleet.md#where-it-runs), the fleet's): on a LocalCluster of the "
         "machine's cores, or with `--scheduler` on a Dask cluster, each random head simulated on its worker from its seed. "
         "Robustness is in the test suite, not here: `tests/test_robustness.py` (any generated file through "
         "`ph-explorer inspect` ends in exit 0 or one line and exit 2, never a traceback; bad uploads over the "

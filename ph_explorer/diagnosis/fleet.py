@@ -3,7 +3,7 @@
 Each task gets a file's path and the command's options, reads the file on its worker and diagnoses
 it as `ph-explorer diagnose` does (diagnosis.campaign_file); it sends back plain JSON-ready data,
 never a pickled model. Without a scheduler address the fleet runs on a LocalCluster of one
-single-threaded worker process per core (ph_explorer.cluster, the runner the benchmarks use too).
+single-threaded worker process per core (ph_explorer.task_runner, the runner the benchmarks use too).
 """
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.campaign import Campaign, orientation_label
-from ph_explorer.cluster import dask_client, run_tasks
 from ph_explorer.diagnosis.campaign_file import catalog_of, diagnose_campaign, parse_add
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_models
+from ph_explorer.task_runner import dask_client, run_tasks
 
 
 def summary(result: Diagnosis) -> dict[str, Any]:
@@ -79,7 +79,7 @@ def run_fleet(
     again on the others)}; on_row(row) as each campaign ends.
 
     scheduler: a Dask scheduler's address (tcp://HOST:PORT); None starts a LocalCluster of the
-    machine's cores (cluster.dask_client). row: what a task makes of a file (default fleet_row)."""
+    machine's cores (task_runner.dask_client). row: what a task makes of a file (default fleet_row)."""
     with dask_client(scheduler) as client:
         run = run_tasks(client, row or fleet_row, [str(p) for p in paths], on_result=on_row, options=options)
     return {"campaigns": run.results, "workers": run.workers, "workers_lost": run.workers_lost}
