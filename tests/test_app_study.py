@@ -2,7 +2,7 @@
 
 A small twin campaign (40 rings of 4 repetitions of 32 points, a hidden 22/rev B-axis error of
 2 arcsec) keeps each diagnosis to seconds; its study is made by the core as `diagnose --save`
-makes it (diagnose, then study_record), so the app opens what the command line writes.
+makes it (diagnose, then Study.of_run), so the app opens what the command line writes.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from fake_browser import open_session, wait_for
 
 from ph_explorer.app.server import build_server
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.diagnosis.study import check_study, study_record
-from ph_explorer.effects import effect_label
+from ph_explorer.diagnosis.study import Study
+from ph_explorer.effects import DEFAULT_CATALOG, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.io import file_sha256, read_campaign, write_campaign, write_json_object
 from ph_explorer.twin import scenario_from_dict, simulate
@@ -57,7 +57,14 @@ def cli_study(small_csv: Path) -> dict:
         "orientations": campaign.n_orientations,
         "repetitions": campaign.n_repetitions,
     }
-    return study_record(result, result.chain, described, "trilinear")
+    return Study.of_run(result, result.chain, described, "trilinear").to_json()
+
+
+def checked(path: Path) -> dict:
+    """The study on disk, as JSON, once it reads back whole as a Study."""
+    saved = json.loads(path.read_text())
+    Study.parse(saved, str(path), DEFAULT_CATALOG)
+    return saved
 
 
 @pytest.fixture()
@@ -102,12 +109,12 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         assert s.loop.steps[-1].added == ("b_axis_cyclic", ticked.effect) and len(s.loop.steps) == 3
         # A write that fails (disk full) is one line in the panel; the study on disk is untouched.
         before = study_file.read_text()
-        from ph_explorer.app import study_file as app_study
+        from ph_explorer.diagnosis import study as study_module
 
         def full(path, document):
             raise OSError(28, "No space left on device")
 
-        monkeypatch.setattr(app_study, "write_json_object", full)
+        monkeypatch.setattr(study_module, "write_json_object", full)
         fake.click("Save study")
         assert wait_for(lambda: "No space left on device" in p.study_status.content)
         s.wait()
@@ -117,14 +124,14 @@ def test_a_study_opens_with_its_history_continues_from_its_chain_and_saves_a_run
         fake.click("Save study")
         assert wait_for(lambda: "Saved: run 2" in p.study_status.content)
         s.wait()
-        saved = check_study(json.loads(study_file.read_text()), str(study_file))
+        saved = checked(study_file)
         assert len(saved["runs"]) == 2 and saved["runs"][0] == cli_study["runs"][0]
         assert saved["runs"][1]["started_from"] == 1 and saved["runs"][1]["added"] == [effect_label(s.loop.chain[1])]
         assert [e["effect"] for e in saved["chain"]] == ["b_axis_cyclic", ticked.effect]
         assert saved["chain"][0]["settings"] == {"cycles_per_rev": 22.0} and saved["chain"][0]["params"]
         assert [st["added"] for st in saved["steps"]] == [[], ["b_axis_cyclic"], ["b_axis_cyclic", ticked.effect]]
-        assert saved["verdict"] == result.verdict and saved["campaign"] == cli_study["campaign"]
-        assert s.loop.previous == saved and "2 runs" in p.study_line.content and not p.effects[ticked.effect].value
+        assert saved["runs"][-1]["verdict"] == result.verdict and saved["campaign"] == cli_study["campaign"]
+        assert s.loop.previous.to_json() == saved and "2 runs" in p.study_line.content and not p.effects[ticked.effect].value
         # The other browser opened the study before that save: its save would drop run 2, so it is refused.
         s2.loop.diagnosis, s2.loop.diagnosed = result, True  # as if it had diagnosed too
         fake2.click("Save study")
@@ -153,9 +160,9 @@ def test_a_new_study_is_written_on_the_first_save(small_csv, tmp_path):
         assert "measured honestly" in s.physics.history_table.content
         fake.click("Save study")
         assert wait_for(lambda: "Saved: run 1" in s.physics.study_status.content)
-        saved = check_study(json.loads(path.read_text()), str(path))
+        saved = checked(path)
         assert saved["campaign"]["sha256"] == file_sha256(small_csv) and saved["chain"] == []
-        assert saved["verdict"] == "missing" and [st["added"] for st in saved["steps"]] == [[]]
+        assert saved["runs"][-1]["verdict"] == "missing" and [st["added"] for st in saved["steps"]] == [[]]
         assert sorted(p.name for p in tmp_path.iterdir()) == ["new.json"]  # nothing else written beside it
     finally:
         fake.close()

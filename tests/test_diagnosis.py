@@ -254,7 +254,7 @@ def test_a_study_is_saved_resumed_and_refused_on_another_campaign(b22_csv, tmp_p
     # The full report re-ranks the candidates with the effect found in the model.
     assert "Re-ranked with b_axis_cyclic 22 cycles/rev in the model" in done.stdout
     saved = json.loads(study.read_text())
-    assert saved["format"] == "ph-explorer study 1" and saved["verdict"] == "missing"
+    assert saved["format"] == "ph-explorer study 2" and saved["runs"][-1]["verdict"] == saved["diagnosis"]["verdict"] == "missing"
     assert [(e["effect"], e["settings"]) for e in saved["chain"]] == [("b_axis_cyclic", {"cycles_per_rev": 22.0})]
     assert set(saved["chain"][0]["params_u"]) >= {"amplitude_arcsec", "phase_deg"}
     assert len(saved["campaign"]["sha256"]) == 64 and len(saved["runs"]) == 1
@@ -493,8 +493,9 @@ def test_a_hidden_effect_the_catalog_lacks_is_unexplained(name):
     test = result.within_noise["baseline"]
     assert result.verdict == "unexplained" and not result.found
     assert test.fails and test.failing_rings >= 2 and test.statistic > test.critical
-    verdict = report_sections(result, catalog_without(effect_id))[0]
-    assert verdict.title.startswith("Verdict: unexplained") and any("rings exceed their noise" in line for line in verdict.lines)
+    sections = {s.key: s for s in report_sections(result, catalog_without(effect_id))}
+    assert sections["verdict"].title.startswith("Verdict: unexplained") and "write the effect" in sections["verdict"].lines[-1]
+    assert any("rings exceed their noise" in line for line in sections["why"].lines)
 
 
 @pytest.mark.slow
@@ -555,7 +556,7 @@ def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a
     short = {section.key: section for section in report_sections(result, DEFAULT_CATALOG)}
     headline, lines = short["verdict"].title, short["verdict"].lines
     assert headline == f"Verdict: none - {VERDICTS['none']}." and "within-noise test passes" in headline
-    noise_line = next(line for line in lines if line.startswith("Within-noise test, the baseline"))
+    noise_line = next(line for line in short["why"].lines if line.startswith("Within-noise test, the baseline"))
     assert "the campaign is within noise" in noise_line
     # Every ring listed as exceeding does, by one of the test's two statistics, and says which when
     # its MAE is under its floor.

@@ -28,7 +28,7 @@ from ph_explorer.app.dataset import dataset_for
 from ph_explorer.app.server import ExplorerApp
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis import Diagnosis, diagnose
-from ph_explorer.diagnosis.study import check_study, study_campaign, study_record
+from ph_explorer.diagnosis.study import Study, study_campaign
 from ph_explorer.effects import DEFAULT_CATALOG, effect_label
 from ph_explorer.figures.html_report import report_html
 from ph_explorer.io import campaign_sha256, file_sha256, read_campaign, write_campaign, write_json_object
@@ -51,15 +51,20 @@ def diagnosed(small_csv: Path):
     campaign = read_campaign(small_csv)
     result = diagnose(campaign)
     assert result.verdict == "missing" and [effect_label(e) for e in result.chain] == [B22]
-    study = study_record(result, result.chain, study_campaign(small_csv.name, file_sha256(small_csv), campaign), "trilinear")
+    study = Study.of_run(result, result.chain, study_campaign(small_csv.name, file_sha256(small_csv), campaign), "trilinear").to_json()
     models, train, _ = campaign_models(campaign, None)
     return campaign, models, train, result, study
+
+
+def as_study(study: dict, source: str = "study") -> Study:
+    """A study's JSON as the report reads it (checked whole)."""
+    return Study.parse(study, source, DEFAULT_CATALOG)
 
 
 @pytest.fixture(scope="module")
 def report(diagnosed) -> str:
     campaign, models, train, result, study = diagnosed
-    return report_html(campaign, models, train, DEFAULT_CATALOG, [(43.0, 90.0), (30.0, 0.0)], study, result, reveal=True)
+    return report_html(campaign, models, train, DEFAULT_CATALOG, [(43.0, 90.0), (30.0, 0.0)], as_study(study), result, reveal=True)
 
 
 def external_references(page: str) -> list[str]:
@@ -107,7 +112,7 @@ def test_the_report_is_one_file_with_the_campaign_its_figures_and_its_diagnosis(
 
 def test_a_teaching_report_names_no_hidden_effect_unless_revealed(diagnosed) -> None:
     campaign, models, train, result, study = diagnosed
-    hidden = report_html(campaign, models, train, DEFAULT_CATALOG, None, study, result)
+    hidden = report_html(campaign, models, train, DEFAULT_CATALOG, None, as_study(study), result)
     # The small campaign hides head_3's effect: the shipped scenario's checker applies.
     assert campaign.scenario["hidden"] == twin.load_scenario("head_3").hidden_ids
     assert named(hidden, "head_3") == [], named(hidden, "head_3")
@@ -117,7 +122,7 @@ def test_a_teaching_report_names_no_hidden_effect_unless_revealed(diagnosed) -> 
     headings = re.findall(r"<h3>(A[-\d.]+ B[-\d.]+)</h3>", hidden)
     assert headings == [f"A{worst.a_deg:g} B{worst.b_deg:g}", f"A{first_check[0]:g} B{first_check[1]:g}"]
     assert "Revealed" not in hidden
-    revealed = report_html(campaign, models, train, DEFAULT_CATALOG, None, study, result, reveal=True)
+    revealed = report_html(campaign, models, train, DEFAULT_CATALOG, None, as_study(study), result, reveal=True)
     assert set(named(revealed, "head_3")) >= {"b_axis_cyclic", "cyclic"}
 
 
@@ -343,7 +348,7 @@ def test_open_study_loads_it_and_export_report_sends_it(app, diagnosed, tmp_path
         fake.click("Download study")
         assert wait_for(lambda: "Study sent" in s.report_panel.status.content, timeout=120)
         saved = json.loads(fake.download("study_small_b22.json", timeout=120).decode("utf-8"))
-        assert check_study(saved, "study_small_b22.json") == saved
+        assert as_study(saved, "study_small_b22.json").to_json() == saved
         assert saved["campaign"] == study["campaign"] and len(saved["runs"]) == len(study["runs"])
         assert [step["mae_um"]["mean"] for step in saved["steps"]] == pytest.approx([step["mae_um"]["mean"] for step in study["steps"]])
     finally:
@@ -426,3 +431,14 @@ def test_in_chromium_open_study_then_export_report_downloads_the_file(app, diagn
         text = saved.read_text(encoding="utf-8")
         assert saved.name == "report_small_b22.html" and "Verdict: missing" in text and external_references(text) == []
         browser.close()
+
+
+def test_a_study_of_format_1_still_reads_and_reports_its_verdict(diagnosed) -> None:
+    """A study written before the diagnosis record: its verdict beside its runs, no record."""
+    campaign, models, train, _, study = diagnosed
+    old = {k: v for k, v in study.items() if k != "diagnosis"} | {"format": "ph-explorer study 1", "verdict": "missing"}
+    old["runs"] = [{k: v for k, v in run.items() if k != "verdict"} for run in study["runs"]]
+    read = as_study(old, "old.json")
+    assert read.diagnosis is None and read.verdict == "missing" and [link.effect for link in read.chain] == ["b_axis_cyclic"]
+    page = report_html(campaign, models, train, DEFAULT_CATALOG, None, read)
+    assert "Verdict: missing" in page and "records no diagnosis of this version" in page

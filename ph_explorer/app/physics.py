@@ -22,7 +22,7 @@ from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.study_file import APP_DATA_PART, StudyFile, chain_of
 from ph_explorer.campaign import Campaign, orientation_label
-from ph_explorer.diagnosis.study import study_record, study_steps
+from ph_explorer.diagnosis.study import Study
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
@@ -59,7 +59,7 @@ class PhysicsLoop:
         # the chain it reached, and the effects of the last refit since then (the next save's chain).
         self.study = study
         self.previous = study.current() if study is not None else None
-        self.chain: list[Effect] = chain_of(self.previous, catalog, str(study.path)) if study is not None else []
+        self.chain: list[Effect] = chain_of(self.previous, catalog) if study is not None else []
         self.refitted: list[Effect] | None = None
         self.revealed = False  # the browser asked what a teaching scenario hides: its report names it
         self.diagnosed = False  # a diagnosis since the study was opened or last saved: a run to save
@@ -70,16 +70,16 @@ class PhysicsLoop:
         """Show the study: its line, and its steps as the start of the history."""
         if self.study is None:
             return
-        self.steps = study_steps(self.previous, str(self.study.path))
+        self.steps = list(self.previous.steps) if self.previous is not None else []
         self.panel.show_history(self.steps)
         self._show_study_line()
 
     def _show_study_line(self) -> None:
         if self.study is None:
             return
-        study = self.previous or {}
+        runs, verdict = (len(self.previous.runs), self.previous.verdict) if self.previous is not None else (0, None)
         chain = [effect_label(e) for e in self.chain]
-        self.panel.show_study(self.study.name, len(study.get("runs", [])), chain, study.get("verdict"), applies=self.study_open)
+        self.panel.show_study(self.study.name, runs, chain, verdict, applies=self.study_open)
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply, nor does the study."""
@@ -141,7 +141,8 @@ class PhysicsLoop:
             self.diagnosis = result
             p.nested = result.nested
             p.show_history(self.steps)
-        p.done(f"Diagnosed: {len(result.candidates)} candidate effects scanned{continued}.")
+        # The verdict says what was found and what to do next; the status line only what it continued from.
+        p.done(f"Diagnosed{continued}." if continued else "")
 
     def decide(self) -> None:
         """The rings that would decide what the diagnosis leaves open (planning.deciding), on the map."""
@@ -232,7 +233,7 @@ class PhysicsLoop:
             )
             return
         chain = self.refitted if self.refitted is not None else self.chain
-        record = study_record(self.diagnosis, chain, study.campaign, APP_DATA_PART, None, self.previous, steps=self.steps)
+        record = Study.of_run(self.diagnosis, chain, study.campaign, APP_DATA_PART, None, self.previous, steps=self.steps)
         try:
             study.save(record, self.previous)
         except InputError as error:
@@ -244,7 +245,9 @@ class PhysicsLoop:
         self.previous, self.chain, self.refitted, self.diagnosed = record, list(chain), None, False
         for box in p.effects.values():
             box.value = False  # what was ticked is in the study's chain now
-        p.study_status.content = f"Saved: run {len(record['runs'])} to {study.name} (model: {' + '.join(effect_label(e) for e in chain) or 'the baseline alone'})."
+        p.study_status.content = (
+            f"Saved: run {len(record.runs)} to {study.name} (model: {' + '.join(effect_label(e) for e in chain) or 'the baseline alone'})."
+        )
         self._show_study_line()
 
     def reveal(self) -> None:

@@ -258,20 +258,20 @@ class PhysicsPanel:
             f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
         )
         self.candidates.content = candidates_html(result.candidates, self.catalog)
-        # The report's order (figures.diagnosis_text): the verdict and what to do next, the claims
-        # with U and their untold partners, the suggestions, how many rings fail; the rest of the
-        # full report (the tests' figures, the partners of every candidate, the teaching text) under "More".
-        short = {s.key: s for s in report_sections(result, self.catalog)}
-        full = report_sections(result, self.catalog, "full")
+        # The report's order (figures.diagnosis_text), in the explorer's words: the verdict and what
+        # to do next, the claims' untold partners (their fit is in the table below), the
+        # suggestions; why, where it fails, the tests, every partner and the teaching text under "More".
+        short = {s.key: s for s in report_sections(result, self.catalog, front="explorer")}
+        full = report_sections(result, self.catalog, "full", front="explorer")
         headline = short["verdict"].title
-        lines = [*short["verdict"].lines, *short["claims"].lines] if "claims" in short else list(short["verdict"].lines)
-        if "suggested" in short:
-            lines += [f"Suggested, not claimed: {line}" for line in short["suggested"].lines]
-        if "worst_rings" in short:
-            lines.append(short["worst_rings"].lines[0] + " (the Map tab names them, worst first).")
-        more = [f"**{s.title}**\n\n" + "\n\n".join(s.lines) for s in full if s.key in ("tests", "partners", "teaching")]
+        lines = [line for key in ("claims", "suggested") if key in short for line in short[key].lines]
+        shown = [short[key] for key in ("why", "worst_rings") if key in short] + [
+            s for s in full if s.key in ("tests", "partners", "teaching")
+        ]
+        more = [f"**{s.title}**\n\n" + "\n\n".join(s.lines) for s in shown]
         self.nested = result.nested  # the honest "after", shown with the error history
-        self.verdict.content = "\n\n".join([f"**{headline}**", *lines])
+        # The headline and the next step in one paragraph: the loop's controls stay in view at 1440x900.
+        self.verdict.content = "\n\n".join([f"**{headline}** {' '.join(short['verdict'].lines)}", *lines])
         self.keep_in_view("Verdict:")
         self.verdict_more.content = "\n\n".join(more) + "\n\n" + verdicts_markdown(result.verdict)
         self._place_effects({c.effect for c in result.found})

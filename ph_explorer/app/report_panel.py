@@ -26,7 +26,7 @@ from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.physics import PhysicsLoop
 from ph_explorer.app.study_file import APP_DATA_PART
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record, study_steps
+from ph_explorer.diagnosis.study import Study, study_campaign
 from ph_explorer.effects import Catalog, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.figures.html_report import default_orientations, report_html
@@ -64,17 +64,17 @@ def shown_campaign(session: Session) -> tuple[str, str]:
     return str(name), campaign_sha256(campaign)
 
 
-def session_study(loop: PhysicsLoop, described: dict[str, Any]) -> dict[str, Any] | None:
+def session_study(loop: PhysicsLoop, described: dict[str, Any]) -> Study | None:
     """The study this browser would save now: its last diagnosis with the model refitted last (a
     study's chain when it continues one, as Save study writes it), else the study it opened; None
     before either."""
     if loop.diagnosis is not None:
         if loop.study_open:
             chain = loop.refitted if loop.refitted is not None else loop.chain
-            return study_record(loop.diagnosis, chain, described, APP_DATA_PART, None, loop.previous, steps=loop.steps)
+            return Study.of_run(loop.diagnosis, chain, described, APP_DATA_PART, None, loop.previous, steps=loop.steps)
         if loop.refitted is not None:  # the model as refitted last and the history of every step
-            return study_record(loop.diagnosis, loop.refitted, described, APP_DATA_PART, steps=loop.steps)
-        return study_record(loop.diagnosis, loop.diagnosis.chain, described, APP_DATA_PART)
+            return Study.of_run(loop.diagnosis, loop.refitted, described, APP_DATA_PART, steps=loop.steps)
+        return Study.of_run(loop.diagnosis, loop.diagnosis.chain, described, APP_DATA_PART)
     return loop.previous if loop.study_open else None
 
 
@@ -155,9 +155,9 @@ class ReportPanel:
             self.status.content = "**Nothing to download** — diagnose first (Physics tab), or open a study."
             return
         file_name = report_file_name(s.dataset.campaign, s.dataset.label).replace("report_", "study_", 1).rsplit(".", 1)[0] + ".json"
-        content = json_object_text(study).encode("utf-8")
+        content = json_object_text(study.to_json()).encode("utf-8")
         s.client.send_file_download(file_name, content, save_immediately=True)
-        runs = len(study["runs"])
+        runs = len(study.runs)
         self.status.content = (
             f"Study sent: **{file_name}** ({runs} run{'s' if runs != 1 else ''}); Open study or `diagnose --resume` continues it."
         )
@@ -170,11 +170,10 @@ class ReportPanel:
         try:
             if loop.study is not None and loop.study_open:
                 raise InputError(f"this server continues the study {loop.study.name} (serve --study): it is already open", file=source)
-            study = check_study(parse_json_object(content, source, "study"), source)
+            study = Study.parse(parse_json_object(content, source, "study"), source, loop.catalog)
             shown, sha256 = shown_campaign(s)
-            check_campaign(study, sha256, source, shown)
-            chain = study_chain(study, loop.catalog, source)
-            steps = study_steps(study, source)
+            study.rings_added_on(sha256, shown)
+            chain, steps = study.effects(loop.catalog), list(study.steps)
         except InputError as error:
             self.status.content = f"**Not opened** — {error.line()}\n\nThe session keeps what it had."
             return
@@ -183,8 +182,8 @@ class ReportPanel:
         loop.refitted, loop.diagnosed, loop.study_open = None, False, True
         loop.panel.show_history(steps)
         reached = " + ".join(effect_label(e) for e in chain) or "the baseline alone"
-        runs = len(study["runs"])
+        runs = len(study.runs)
         self.status.content = (
             f"Opened study **{source}**: {runs} run{'s' if runs != 1 else ''}; the model it reached: **{reached}**; verdict "
-            f"of its last run: **{study.get('verdict')}**. Diagnose continues from that model; Export report includes it."
+            f"of its last run: **{study.verdict}**. Diagnose continues from that model; Export report includes it."
         )

@@ -14,10 +14,10 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_steps
+from ph_explorer.diagnosis.study import Study, study_campaign
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.errors import InputError
-from ph_explorer.io import checked_output_file, file_sha256, read_json_object, write_json_object
+from ph_explorer.io import checked_output_file, file_sha256
 
 # The data-driven part every refit and diagnosis of the app uses (physics.py calls the core's defaults).
 APP_DATA_PART = "trilinear"
@@ -26,7 +26,7 @@ APP_DATA_PART = "trilinear"
 class StudyFile:
     """The operator's study file, the campaign it belongs to, and the study as last written."""
 
-    def __init__(self, path: Path, campaign: dict[str, Any], study: dict[str, Any] | None, catalog: Catalog) -> None:
+    def __init__(self, path: Path, campaign: dict[str, Any], study: Study | None, catalog: Catalog) -> None:
         self.path = path
         self.campaign = campaign  # {"file", "sha256", "orientations", "repetitions"} of the served campaign
         self.catalog = catalog
@@ -37,21 +37,21 @@ class StudyFile:
     def name(self) -> str:
         return self.path.name
 
-    def current(self) -> dict[str, Any] | None:
+    def current(self) -> Study | None:
         """The study as on disk now (as opened, or as a browser last saved it)."""
         with self._lock:
             return self._study
 
-    def save(self, study: dict[str, Any], previous: dict[str, Any] | None) -> None:
+    def save(self, study: Study, previous: Study | None) -> None:
         """Write the next study, made on top of `previous`; refused if another browser saved since."""
         with self._lock:
             if self._study is not previous:
-                runs = len((self._study or {}).get("runs", []))
+                runs = len(self._study.runs) if self._study is not None else 0
                 raise InputError(
                     f"another browser saved this study (now run {runs}) since this one opened it: reload the page to continue from it",
                     file=str(self.path),
                 )
-            write_json_object(self.path, study)
+            study.save(self.path)
             self._study = study
 
 
@@ -63,20 +63,17 @@ def open_study(path: Path, data_file: Path, campaign: Campaign, catalog: Catalog
     described = study_campaign(Path(data_file).name, sha256, campaign)
     study = None
     if path.exists():
-        source = str(path)
-        study = check_study(read_json_object(path, "study"), source)
-        check_campaign(study, sha256, source, str(data_file))
-        if study["data_part"] != APP_DATA_PART:
+        study = Study.load(path, catalog)  # every effect of the chain a candidate of this catalog, its history readable
+        study.rings_added_on(sha256, str(data_file))
+        if study.data_part != APP_DATA_PART:
             raise InputError(
-                f"the study's data part is {study['data_part']!r}; the explorer refits with the trilinear part "
+                f"the study's data part is {study.data_part!r}; the explorer refits with the trilinear part "
                 "(continue this study with ph-explorer diagnose --resume)",
-                file=source,
+                file=str(path),
             )
-        study_chain(study, catalog, source)  # every effect of the chain is a candidate of this catalog
-        study_steps(study, source)  # and its history reads back
     return StudyFile(path, described, study, catalog)
 
 
-def chain_of(study: dict[str, Any] | None, catalog: Catalog, source: str = "study") -> list[Effect]:
+def chain_of(study: Study | None, catalog: Catalog) -> list[Effect]:
     """The effects of the study's chain at their settings (none for a study not written yet)."""
-    return [] if study is None else study_chain(study, catalog, source)
+    return [] if study is None else study.effects(catalog)

@@ -94,12 +94,12 @@ def decide_command(
     campaign = read_campaign(Path(data), geometry or {})
     start = []
     if study is not None:
-        from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain
-        from ph_explorer.io.files import file_sha256, read_json_object
+        from ph_explorer.diagnosis.study import Study
+        from ph_explorer.io.files import file_sha256
 
-        previous = check_study(read_json_object(study, "study"), str(study))
-        start = study_chain(previous, catalog, str(study))
-        check_campaign(previous, file_sha256(Path(data)), str(study), str(data), campaign.scenario.get("merges", []))
+        previous = Study.load(Path(study), catalog)
+        start = previous.effects(catalog)
+        previous.rings_added_on(file_sha256(Path(data)), str(data), campaign.scenario.get("merges", []))
     result = diagnose(campaign, catalog=catalog, nested=False, start=start)
     decision = rings_that_decide(campaign, result, catalog, budget)
     if out is not None:

@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.progress import Progress
 
 from ph_explorer.errors import InputError
-from ph_explorer.io import checked_output_file, file_sha256, read_campaign, read_json_object, write_json_object
+from ph_explorer.io import checked_output_file, file_sha256, read_campaign
 
 PROGRESS_CONSOLE = Console(stderr=True)  # the bars on stderr: stdout holds the report alone, streamed
 
@@ -32,22 +32,21 @@ def diagnose_command(
     with --save or --resume, write the study."""
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
     from ph_explorer.diagnosis.loop import honest_after
-    from ph_explorer.diagnosis.study import check_campaign, check_study, study_campaign, study_chain, study_record
+    from ph_explorer.diagnosis.study import Study, study_campaign
     from ph_explorer.figures.diagnosis_text import nested_lines, report_text
 
     if detail not in DETAILS:
         raise InputError(f"unknown detail {detail!r} ({', '.join(DETAILS)})", option="--detail")
-
-    previous = check_study(read_json_object(resume, "study"), str(resume)) if resume is not None else None
-    data_part = check_data_part(data_part or (previous["data_part"] if previous else "trilinear"))
+    catalog = catalog_of(effects)
+    previous = Study.load(resume, catalog) if resume is not None else None
+    data_part = check_data_part(data_part or (previous.data_part if previous else "trilinear"))
     if save is not None:
         checked_output_file(save, "--save", "the study", "study.json")
-    catalog = catalog_of(effects)
     ids = parse_add(add, catalog)
-    start = study_chain(previous, catalog, str(resume)) if previous else []
+    start = previous.effects(catalog) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
     campaign = read_campaign(Path(data), geometry or {})
-    rings_added = check_campaign(previous, sha256, str(resume), str(data), campaign.scenario.get("merges", [])) if previous else []
+    rings_added = previous.rings_added_on(sha256, str(data), campaign.scenario.get("merges", [])) if previous else []
     with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
         task = bar.add_task("scanning candidate effects", total=None)
         network_task = bar.add_task("network on the residual", total=None, visible=False)
@@ -75,10 +74,8 @@ def diagnose_command(
     target = save if save is not None else resume
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
-        study = study_record(
-            result, result.chain, described, data_part, None if effects is None else str(effects), previous, rings_added=rings_added
-        )
-        write_json_object(target, study)
+        effects_file = None if effects is None else str(effects)
+        Study.of_run(result, result.chain, described, data_part, effects_file, previous, rings_added=rings_added).save(target)
     if json_output:
         print(json.dumps(result.to_json()))
     elif result.nested is not None:

@@ -15,7 +15,7 @@ from rich.progress import Progress
 from ph_explorer.cli.uncertainty_command import checked_orientations
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
-from ph_explorer.io import campaign_sha256, checked_output_file, file_sha256, read_campaign, read_json_object
+from ph_explorer.io import campaign_sha256, checked_output_file, file_sha256, read_campaign
 from ph_explorer.io.writer import atomic_write
 
 
@@ -33,7 +33,7 @@ def report_command(
     # torch-bound (the diagnosis, the models): imported when the command runs, as diagnose does.
     from ph_explorer import twin
     from ph_explorer.diagnosis.campaign_file import diagnose_campaign
-    from ph_explorer.diagnosis.study import check_campaign, check_study, study_chain, study_steps
+    from ph_explorer.diagnosis.study import Study
     from ph_explorer.figures.html_report import diagnosed_report_html, report_html
     from ph_explorer.models.folder import campaign_models, load_models
 
@@ -56,12 +56,9 @@ def report_command(
         name, sha256 = f"scenario {loaded.name}", campaign_sha256(campaign)
     campaign.source = name
     previous = None
-    if study is not None:
-        source = str(study)
-        previous = check_study(read_json_object(Path(study), "study"), source)
-        check_campaign(previous, sha256, source, name)
-        study_chain(previous, DEFAULT_CATALOG, source)  # every effect it names is one the report can describe
-        study_steps(previous, source)  # and its history reads back
+    if study is not None:  # checked whole: every effect it names is one the report can describe
+        previous = Study.load(Path(study), DEFAULT_CATALOG)
+        previous.rings_added_on(sha256, name)
     created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     if previous is not None:
         models, train, _ = campaign_models(campaign, model)

@@ -18,7 +18,7 @@ import numpy as np
 
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, NestedAfter, Step
-from ph_explorer.diagnosis.study import study_steps
+from ph_explorer.diagnosis.study import Study
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
 from ph_explorer.figures.diagnosis_text import chosen_text, report_sections, ring_reason, signature_text, step_label
@@ -61,7 +61,7 @@ class EffectNames:
 # -- the diagnosis -----------------------------------------------------------------------------------
 
 
-def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | None, catalog: Catalog, names: EffectNames) -> list[str]:
+def diagnosis_section(study: Study | None, diagnosis: Diagnosis | None, catalog: Catalog, names: EffectNames) -> list[str]:
     """The diagnosis: the report's words (figures.diagnosis_text) on the run's record (`diagnosis`,
     else the study's), then the study's model, candidates, signature, history and runs."""
     parts = ['<section id="diagnosis"><h2>4. The diagnosis</h2>']
@@ -70,9 +70,9 @@ def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | No
             "<p>This campaign has not been diagnosed: <code>ph-explorer diagnose</code> or the explorer's Diagnose makes a "
             "study, and <code>ph-explorer report --study</code> puts it here.</p></section>"
         ]
-    record = diagnosis if diagnosis is not None else recorded(study, catalog)
+    record = diagnosis if diagnosis is not None else study.diagnosis
     if record is None:  # a study written before the record (format 1): its verdict only
-        verdict = str(study.get("verdict", ""))
+        verdict = str(study.verdict)
         parts.append(f'<p class="verdict">Verdict: {_e(verdict)} - {_e(VERDICTS.get(verdict, "not a verdict of this version"))}.</p>')
     else:
         sections = {s.key: s for s in report_sections(record, catalog, name=names.text)}
@@ -89,22 +89,12 @@ def diagnosis_section(study: Mapping[str, Any] | None, diagnosis: Diagnosis | No
     if record is not None:
         parts += _ranking(record, catalog, names)
         parts += _signature(record, names)
-    steps = study_steps(dict(study), "study")
-    parts += _history(steps, names)
-    nested = record.nested if record is not None and record.nested is not None else study.get("nested_after")
-    parts += _nested(NestedAfter.from_json(nested) if isinstance(nested, Mapping) else nested, names)
+    parts += _history(study.steps, names)
+    parts += _nested(record.nested if record is not None and record.nested is not None else study.nested_after, names)
     parts += _where_it_fails(record)
     parts += _runs(study, names)
     parts.append("</section>")
     return parts
-
-
-def recorded(study: Mapping[str, Any], catalog: Catalog) -> Diagnosis | None:
-    """The diagnosis a study records (its last run's), None for a study of format 1 or of another schema."""
-    try:
-        return Diagnosis.from_json(study["diagnosis"], catalog) if isinstance(study.get("diagnosis"), Mapping) else None
-    except (KeyError, TypeError, ValueError):
-        return None
 
 
 def _noise_tests(record: Diagnosis) -> list[str]:
@@ -127,17 +117,15 @@ def _noise_tests(record: Diagnosis) -> list[str]:
     ]
 
 
-def _chain_table(study: Mapping[str, Any], catalog: Catalog, names: EffectNames) -> list[str]:
-    chain = study.get("chain", [])
-    if not chain:
-        return [f"<h3>Effects in the model</h3><p>None: the model is the baseline ({_e(study.get('baseline', ''))}) alone.</p>"]
+def _chain_table(study: Study, catalog: Catalog, names: EffectNames) -> list[str]:
+    if not study.chain:
+        return [f"<h3>Effects in the model</h3><p>None: the model is the baseline ({_e(study.baseline)}) alone.</p>"]
     rows = []
-    for entry in chain:
-        effect_id = str(entry["effect"])
-        cls = catalog.get(effect_id)
-        fitted = cls.parameters_text(entry.get("params") or {}, entry.get("params_u") or None) if cls is not None else ""
-        settings = ", ".join(f"{k} {v:g}" for k, v in entry.get("settings", {}).items())
-        label = names.label(effect_id) if names.teaching or cls is None else f"{cls.name} ({effect_id})"
+    for link in study.chain:
+        cls = catalog.get(link.effect)
+        fitted = cls.parameters_text(link.params, link.params_u or None) if cls is not None else ""
+        settings = ", ".join(f"{k} {v:g}" for k, v in link.settings.items())
+        label = names.label(link.effect) if names.teaching or cls is None else f"{cls.name} ({link.effect})"
         rows.append(f'<tr><td>{_e(label)}</td><td class="t">{_e(settings)}</td><td class="t">{_e(fitted) or "not fitted"}</td></tr>')
     return [
         "<h3>Effects in the model, fitted parameters +- U (k = 2)</h3>",
@@ -264,25 +252,24 @@ def _where_it_fails(record: Diagnosis | None) -> list[str]:
     ]
 
 
-def _runs(study: Mapping[str, Any], names: EffectNames) -> list[str]:
-    runs = study.get("runs", [])
-    if not runs:
+def _runs(study: Study, names: EffectNames) -> list[str]:
+    if not study.runs:
         return []
     rows = "".join(
-        f'<tr><td>{k}</td><td class="t">{_e(run.get("date", ""))}</td><td class="t">{_e(names.text(", ".join(run.get("added", []))) or "nothing")}</td>'
-        f'<td class="t">{_e(run.get("verdict", ""))}</td></tr>'
-        for k, run in enumerate(runs, 1)
+        f'<tr><td>{k}</td><td class="t">{_e(run.date)}</td><td class="t">{_e(names.text(", ".join(run.added))) or "nothing"}</td>'
+        f'<td class="t">{_e(run.verdict)}</td></tr>'
+        for k, run in enumerate(study.runs, 1)
     )
     return ["<h3>Runs of the study</h3>", f"<table><tr><th>run</th><th>date</th><th>added</th><th>verdict</th></tr>{rows}</table>"]
 
 
-def reveal_section(campaign: Campaign, catalog: Catalog, study: Mapping[str, Any] | None) -> list[str]:
+def reveal_section(campaign: Campaign, catalog: Catalog, study: Study | None) -> list[str]:
     scenario = campaign.scenario or {}
     hidden = [e for e in scenario.get("effects", []) if e.get("hidden")] or [{"id": i} for i in scenario.get("hidden", [])]
     parts = ['<section id="reveal"><h2>5. Revealed: what the scenario hid</h2>']
     if not hidden:
         return parts + ["<p>This campaign records no hidden effect (it is not a teaching scenario).</p></section>"]
-    fitted = {str(e["effect"]): e for e in (study or {}).get("chain", [])}
+    fitted = {link.effect: link for link in (study.chain if study is not None else ())}
     rows = []
     for entry in hidden:
         effect_id = str(entry["id"])
@@ -290,11 +277,7 @@ def reveal_section(campaign: Campaign, catalog: Catalog, study: Mapping[str, Any
         truth = {k: float(v) for k, v in entry.items() if k not in ("id", "hidden")}
         found = fitted.get(effect_id)
         truth_text = cls.parameters_text(truth) if cls is not None and truth else ", ".join(f"{k} {v:g}" for k, v in truth.items())
-        found_text = (
-            cls.parameters_text(found.get("params") or {}, found.get("params_u") or None)
-            if cls is not None and found
-            else "not in the study's model"
-        )
+        found_text = cls.parameters_text(found.params, found.params_u or None) if cls is not None and found else "not in the study's model"
         name = f"{cls.name} ({effect_id})" if cls is not None else effect_id
         rows.append(f"<tr><td>{_e(name)}</td><td>{_e(truth_text)}</td><td>{_e(found_text)}</td></tr>")
     return parts + [

@@ -21,11 +21,24 @@ from ph_explorer.diagnosis.within_noise import FALSE_ALARM
 from ph_explorer.effects import Catalog, effect_label, settings_text
 
 Detail = Literal["short", "full"]
-SectionKey = Literal["verdict", "claims", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"]
+Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
+SectionKey = Literal["verdict", "why", "claims", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"]
 WORST_SHOWN = 5  # the worst rings named in the short report
 SUGGESTED_SHOWN = 3  # the suggestions listed in the short report
 RERANKED_SHOWN = 5  # rows of each table re-ranked after a step (full detail)
-DECIDE_COMMAND = "ph-explorer design --data FILE.csv --decide"
+# The actions each front end offers, by what they do.
+ACTIONS: dict[Front, dict[str, str]] = {
+    "command line": {
+        "decide": "ph-explorer design --data FILE.csv --decide",
+        "add": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall",
+        "own": "--effects FILE.py",
+    },
+    "explorer": {
+        "decide": "Rings that would decide, below",
+        "add": "tick the effects found, then Refit the hybrid",
+        "own": "an effect file of your own, loaded with serve --effects",
+    },
+}
 
 
 @dataclass(frozen=True)
@@ -37,12 +50,18 @@ class Section:
     lines: tuple[str, ...]
 
 
-def report_sections(result: Diagnosis, catalog: Catalog, detail: Detail = "short", name: Callable[[str], str] = str) -> list[Section]:
+def report_sections(
+    result: Diagnosis, catalog: Catalog, detail: Detail = "short", name: Callable[[str], str] = str, front: Front = "command line"
+) -> list[Section]:
     """The report in reading order (module docstring); `name` writes text naming effects (a
-    teaching report's letters, figures.diagnosis_report.EffectNames.text)."""
+    teaching report's letters, figures.diagnosis_report.EffectNames.text); `front`: whose actions
+    the next step names (the explorer shows a claim's fit in its own table, not in a line)."""
+    actions = ACTIONS[front]
+    claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
     sections = [
-        Section("verdict", verdict_headline(result), tuple(verdict_lines(result))),
-        Section("claims", "Found", tuple(line for c in result.found for line in claim_lines(c, result, catalog))),
+        Section("verdict", verdict_headline(result), tuple(verdict_lines(result, actions))),
+        Section("why", "Why", tuple(why_lines(result))),
+        Section("claims", "Found", claims),
         Section(
             "suggested", "Suggested, not claimed", tuple(suggestion_lines(result, catalog, SUGGESTED_SHOWN if detail == "short" else None))
         ),
@@ -52,10 +71,10 @@ def report_sections(result: Diagnosis, catalog: Catalog, detail: Detail = "short
         ),
     ]
     if detail == "full":  # before the history, which stays last (the honest after ends the report)
-        sections[1:1] = [Section("tests", "The tests", tuple(test_lines(result, catalog)))]
+        sections[2:2] = [Section("tests", "The tests", tuple(test_lines(result, catalog)))]
         sections[-1:-1] = [
             Section("candidates", "Candidate effects, best first", tuple(candidate_table(result, catalog))),
-            Section("partners", "What the campaign cannot tell apart", tuple(partner_lines(result))),
+            Section("partners", "What the campaign cannot tell apart", tuple(partner_lines(result, actions))),
             Section("teaching", "The effect found", (result.found[0].teaching,) if result.found else ()),
         ]
     return [Section(s.key, name(s.title), tuple(name(line) for line in s.lines)) for s in sections if s.lines or s.key == "verdict"]
@@ -74,13 +93,19 @@ def verdict_headline(result: Diagnosis) -> str:
     return f"Verdict: {result.verdict} - {VERDICTS[result.verdict]}."
 
 
-def verdict_lines(result: Diagnosis) -> list[str]:
-    """Under the headline: a resumed study, the campaign's test in one line, what to do next."""
+def verdict_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
+    """Under the headline: a resumed study, and what to do next."""
     lines = []
     if result.started_from:
         already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
         lines.append(f"Resumed with {already} in the model; the search continued from there.")
-    lines.append(campaign_test_line(result))
+    return lines + ["Next: " + next_step(result, actions)]
+
+
+def why_lines(result: Diagnosis) -> list[str]:
+    """Why the verdict: the campaign's within-noise test in one line; for a failure no claim explains,
+    what is left in the head's variables and how many catalog fits were implausible."""
+    lines = [campaign_test_line(result)]
     if result.verdict in ("partial", "unexplained"):
         lines.append(left_line(result))
     implausible = [c for c in result.candidates if c.status == "implausible"]
@@ -89,7 +114,6 @@ def verdict_lines(result: Diagnosis) -> list[str]:
             f"{len(implausible)} catalog effects would explain more than noise only with implausible parameters "
             "(--detail full lists them): none is the explanation."
         )
-    lines.append("Next: " + next_step(result))
     return lines
 
 
@@ -106,17 +130,17 @@ def campaign_test_line(result: Diagnosis) -> str:
     )
 
 
-def next_step(result: Diagnosis) -> str:
-    """What to do next, by verdict and by what the diagnosis leaves open."""
+def next_step(result: Diagnosis, actions: dict[str, str]) -> str:
+    """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions."""
     if result.leaves_open:
         what = "confirm the suggestion" if result.suggested and not result.found else "decide what these rings cannot tell"
-        return f"measure the rings that would {what}: {DECIDE_COMMAND} (or Rings that would decide in the explorer)."
+        return f"measure the rings that would {what} ({actions['decide']})."
     return {
         "none": "nothing is missing that this campaign shows; a model of it is within noise.",
-        "missing": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall.",
-        "suggested": f"measure more rings where the suggestion predicts the largest difference ({DECIDE_COMMAND}).",
-        "partial": "add the effects found, then look at what is left below: an effect outside the catalog (--effects FILE.py) may explain it.",
-        "unexplained": "no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature (--effects FILE.py).",
+        "missing": actions["add"] + ".",
+        "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
+        "partial": f"add the effects found, then look at what is left: an effect outside the catalog ({actions['own']}) may explain it.",
+        "unexplained": f"no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature ({actions['own']}).",
     }[result.verdict]
 
 
@@ -129,28 +153,32 @@ def left_line(result: Diagnosis) -> str:
 # -- claims, suggestions, partners -------------------------------------------------------------------
 
 
-def claim_lines(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> list[str]:
+def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str], with_fit: bool = True) -> list[str]:
     """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
     cannot tell it from, in one voice, and the settings they cannot exclude."""
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
-    lines = [f"{effect_label(effect)}: {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)."]
-    if candidate.untold:
-        lines.append("  " + untold_text(candidate.effect, candidate.untold))
+    fit = f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)" if with_fit else ""
+    told = [p for p in candidate.confounded_with if p.told_apart]
+    lines = [f"{effect_label(effect)}{fit}."] if with_fit or candidate.untold or told or candidate.rival_setting else []
+    partners = [untold_text(candidate.effect, candidate.untold, actions)] if candidate.untold else []
+    partners += [f"{p.effect} shares {percent(p.shared)} of it, yet the rings tell them apart ({test_text(p.test)})." for p in told]
+    if partners:
+        lines.append("  " + " ".join(partners))
     settings = []
-    if candidate.settings_not_excluded:
+    if candidate.settings_not_excluded and with_fit:
         settings.append(
             f"the campaign cannot exclude {settings_text(effect, list(candidate.settings_not_excluded))} beside this setting (95 %)"
         )
     if (rival := candidate.rival_setting) is not None:
         settings.append(
-            f"the rings cannot tell it from {settings_text(effect, [rival.settings])} ({test_text(rival.test)}); {DECIDE_COMMAND} gives the rings that would"
+            f"the rings cannot tell it from {settings_text(effect, [rival.settings])} ({test_text(rival.test)}); {actions['decide']} gives the rings that would"
         )
     if settings:
         lines.append("  " + "; ".join(settings) + ".")
     return lines
 
 
-def untold_text(effect: str, partners: Sequence[Partner]) -> str:
+def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str]) -> str:
     """One voice on the partners the rings cannot tell a claim from: how much each shares, the
     rings' test, and what would decide."""
     shared = "; ".join(
@@ -162,7 +190,7 @@ def untold_text(effect: str, partners: Sequence[Partner]) -> str:
     if measurements:
         decide = f"measuring {' or '.join(measurements)} would separate them"
     else:
-        decide = f"no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share; {DECIDE_COMMAND} says whether more rings decide, with their power"
+        decide = f"no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share; {actions['decide']} says whether more rings decide, with their power"
     return f"or {shared}: these rings cannot tell them apart; {decide}."
 
 
@@ -177,7 +205,7 @@ def suggestion_lines(result: Diagnosis, catalog: Catalog, limit: int | None) -> 
     return lines + ([f"... and {more} more (--detail full)."] if more else [])
 
 
-def partner_lines(result: Diagnosis) -> list[str]:
+def partner_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
     """Every candidate's confounded partners (full detail): the claims' and those beyond noise."""
     lines = []
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
@@ -185,7 +213,7 @@ def partner_lines(result: Diagnosis) -> list[str]:
             if partner.told_apart:
                 lines.append(f"{shared_text(candidate.effect, partner)}, yet the rings tell them apart: {test_text(partner.test)}.")
             elif partner.told_apart is False:
-                lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner])}")
+                lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner], actions)}")
             else:
                 lines.append(
                     f"{shared_text(candidate.effect, partner)}: this campaign cannot tell them apart; the credit is not theirs to split."

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_label
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.study import study_campaign, study_record
+from ph_explorer.diagnosis.study import Study, study_campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.figures.diagnosis_report import EffectNames, decision_section, diagnosis_figures, diagnosis_section, reveal_section
 from ph_explorer.figures.orientation_map import MapFigure, map_svg
@@ -83,7 +83,7 @@ def report_html(
     train_mask: NDArray[np.bool_],
     catalog: Catalog,
     orientations: Sequence[tuple[float, float]] | None = None,
-    study: Mapping[str, Any] | None = None,
+    study: Study | None = None,
     diagnosis: Diagnosis | None = None,
     reveal: bool = False,
     created: str = "",
@@ -94,7 +94,7 @@ def report_html(
 
     models: the models shown beside the measurement ("network", "trilinear", "hybrid", ...);
     train_mask: their training rings (the others are check rings);
-    study: a checked study (ph_explorer.diagnosis.study: `check_study`), the diagnosis it records;
+    study: a study (ph_explorer.diagnosis.study.Study), the diagnosis it records;
     None for a campaign not diagnosed;
     diagnosis: the run that made it, when at hand: names the failing rings and maps each ring's test;
     orientations: where the polar plots and tables are drawn (default: `default_orientations`);
@@ -247,6 +247,6 @@ def diagnosed_report_html(
     now; loaded: those models, when the diagnosis loaded them already), the diagnosis as a study
     records it, and the rings that would decide what it leaves open."""
     models, train, _ = campaign_models(campaign, model_dir, loaded)
-    study = study_record(result, result.chain, study_campaign(name, sha256, campaign), data_part)
+    study = Study.of_run(result, result.chain, study_campaign(name, sha256, campaign), data_part)
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET).as_dict()
     return report_html(campaign, models, train, catalog, orientations, study, result, reveal=reveal, created=created, decision=decision)
