@@ -554,7 +554,7 @@ def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a
     shown = [c for c in result.candidates if c.beyond_noise or c.significant]
     assert result.verdict == "none" and not test.fails and shown  # the case the words must get right
     short = {section.key: section for section in report_sections(result, DEFAULT_CATALOG)}
-    headline, lines = short["verdict"].title, short["verdict"].lines
+    headline = short["verdict"].title
     assert headline == f"Verdict: none - {VERDICTS['none']}." and "within-noise test passes" in headline
     noise_line = next(line for line in short["why"].lines if line.startswith("Within-noise test, the baseline"))
     assert "the campaign is within noise" in noise_line
