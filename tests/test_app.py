@@ -565,6 +565,26 @@ def test_physics_panel_lists_the_catalog_effects(browser) -> None:
     assert not p.history.visible and p.candidates.content == ""
 
 
+def test_teaching_only_controls_show_for_a_teaching_scenario_only(browser, tmp_path) -> None:
+    """Issue 57, item 8: Reveal and the report's naming of hidden effects are for a campaign that
+    records hidden effects (a teaching scenario); a lab's CSV, uploaded, hides them; a teaching
+    scenario loaded after it shows them again."""
+    s = browser
+
+    def shown() -> tuple[bool, bool]:
+        return bool(s.physics.reveal.visible), bool(s.report_panel.reveal.visible)
+
+    assert shown() == (False, False)  # the served synthetic campaign records nothing hidden
+    taught = lobing_campaign(seed=4, n_repetitions=3)
+    taught.scenario = {"name": "synthetic lobing", "hidden": ["lobing"], "effects": [{"id": "lobing", "hidden": True}]}
+    s._new_data(taught, "a teaching scenario")
+    assert shown() == (True, True)
+    s.load_upload("lab.csv", write_campaign(taught, tmp_path / "lab.csv").read_bytes())  # the CSV alone: no sidecar
+    assert "lab.csv" in s.data_panel.source.content and shown() == (False, False)
+    s._new_data(taught, "a teaching scenario again")
+    assert shown() == (True, True)
+
+
 def test_reveal_says_when_nothing_is_hidden(opened) -> None:
     fake, s = opened
     fake.click("Reveal the hidden effect")

@@ -32,6 +32,13 @@ from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_line
 from ph_explorer.twin import simulate, twin_scenario
 
 
+def teaching_scenario(campaign: Campaign) -> bool:
+    """A teaching scenario: a campaign whose sidecar records hidden effects, the truth Reveal shows.
+    A lab's campaign (an upload, a CSV without such a sidecar) is not one: its browser is shown no
+    teaching-only control (Reveal, the report's naming of hidden effects)."""
+    return bool((campaign.scenario or {}).get("hidden"))
+
+
 class PhysicsLoop:
     """The diagnosis, the error history (baseline, + effects, ...) and the hybrid of one session."""
 
@@ -253,9 +260,10 @@ class PhysicsLoop:
     def reveal(self) -> None:
         """What a teaching scenario hid in its data (the sidecar's hidden effects, with their true
         parameters) next to what this session found: the diagnosis's fit with its uncertainty, the last refit."""
-        scenario = self.current().campaign.scenario or {}
+        campaign = self.current().campaign
+        scenario = campaign.scenario or {}
         hidden = [e for e in scenario.get("effects", []) if e.get("hidden")]
-        if not scenario.get("hidden"):
+        if not teaching_scenario(campaign):
             self.panel.revealed.content = "_This campaign records no hidden effect (it is not a teaching scenario)._"
             return
         self.revealed = True

@@ -156,7 +156,7 @@ class PhysicsPanel:
         # The history right under the fall, above Reveal: still in view once the truth is shown.
         # The same SVG chart as the report's (figures.charts): steps named on the axis, round ticks.
         self.history = gui.add_html("", visible=False)
-        self.reveal = gui.add_button("Reveal the hidden effect", hint="teaching scenarios: what the twin hid in the data")
+        self.reveal = gui.add_button("Reveal the hidden effect", visible=False, hint="teaching scenarios: what the twin hid in the data")
         self.revealed = gui.add_markdown("")
         # The diagnosis's results (issue 15 item 6): a signature plot (a candidate's, or what is left
         # unexplained), the fitted parameters with their uncertainties and identifiability.

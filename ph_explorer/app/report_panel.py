@@ -87,8 +87,9 @@ class ReportPanel:
             self.export = gui.add_button(
                 "Export report", hint="one HTML file: the campaign, the map, polar plot and Tables 1-3, the diagnosis and its history"
             )
+            # Shown for a teaching scenario only (Session.set_dataset: app/physics.py's teaching_scenario).
             self.reveal = gui.add_checkbox(
-                "Name hidden effects in the report", False, hint="teaching scenarios: the report names what the twin hid"
+                "Name hidden effects in the report", False, visible=False, hint="teaching scenarios: the report names what the twin hid"
             )
             self.open = gui.add_upload_button(
                 "Open study", mime_type=".json,application/json", hint="a study of the campaign shown (diagnose --save)"

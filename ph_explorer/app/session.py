@@ -25,7 +25,7 @@ from ph_explorer.app.dataset import Dataset, OrientationView, dataset_for, read_
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
 from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, wrap_b
-from ph_explorer.app.physics import PhysicsLoop
+from ph_explorer.app.physics import PhysicsLoop, teaching_scenario
 from ph_explorer.app.physics_panel import PhysicsPanel
 from ph_explorer.app.render_queue import Following, RenderQueue, RenderState, RenderStats, WhenResting
 from ph_explorer.app.report_panel import ReportPanel
@@ -286,6 +286,9 @@ class Session:
         self.controls.set_models(dataset.model_names)
         self.map_panel.set_names(dataset.figure_names())
         self.data_panel.set_source(dataset)
+        # Teaching-only controls for a teaching scenario only: a lab's campaign hides nothing to reveal.
+        teaching = teaching_scenario(dataset.campaign)
+        self.physics.reveal.visible = self.report_panel.reveal.visible = teaching
         self.show_failing()
         self.refresh_field()
         self._draw_here()
