@@ -25,6 +25,7 @@ from ph_explorer.app.session import Session
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.geometry import A_LIMIT_DEG, head_rotation, stylus_direction
 from ph_explorer.io import write_campaign
+from ph_explorer.paper.tables import RONT_HEADER
 
 
 def rotation_of(wxyz: np.ndarray) -> np.ndarray:
@@ -392,17 +393,21 @@ def test_the_band_shows_what_the_model_uncertainty_adds_and_table_1_the_tasks_ro
     s.controls.band_of.value = s.controls.band_of.options[0]
     assert band_width() == pytest.approx(with_error)
 
-    def row():
-        return next(line for line in s.tables.markdown.content.splitlines() if line.startswith("| RONt, 1 meas."))
+    def rows() -> dict[str, str]:
+        """The RONt table under Table 1: a curve a row (a narrow panel keeps each figure on one line)."""
+        lines = s.tables.markdown.content.splitlines()
+        start = lines.index(RONT_HEADER) + 2
+        cells = [[c.strip() for c in line.strip("|").split("|")] for line in lines[start:] if line.startswith("|")]
+        return {name: cell for name, cell in cells[: 1 + len(s.dataset.model_names)]}
 
-    assert wait_for(lambda: "…" not in row(), timeout=120), row()
-    cells = [c.strip() for c in row().strip("|").split("|")[1:]]
-    assert len(cells) == 1 + len(s.dataset.model_names)  # measured and every model
-    for cell in cells:
+    assert wait_for(lambda: "…" not in rows().values(), timeout=120), rows()
+    assert list(rows()) == ["measured", *s.dataset.model_names]  # measured and every model
+    for cell in rows().values():
+        assert " " not in cell  # no-break spaces: "1.111 ± 0.327" is never broken
         value, u = (float(x) for x in cell.split("±"))
         assert value > 0 and u > 0
     s.tables.task.value = False
-    assert "RONt, 1 meas." not in s.tables.markdown.content
+    assert RONT_HEADER not in s.tables.markdown.content
 
 
 class WatchedSlots:

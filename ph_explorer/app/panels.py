@@ -202,7 +202,8 @@ class TablesPanel:
 
 
 def task_cell(task: Mapping[str, float] | None) -> str:
-    return "…" if task is None else f"{task['value']:.3f} ± {task['U']:.3f}"
+    """'1.111 ± 0.327' with no-break spaces: the figure and its U never part in a narrow panel."""
+    return "…" if task is None else f"{task['value']:.3f}\u00a0±\u00a0{task['U']:.3f}"
 
 
 def tables_markdown(view: OrientationView, dataset: Dataset, with_task: bool = False) -> str:

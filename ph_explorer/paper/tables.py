@@ -23,6 +23,7 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.models.deviation_model import DeviationModel
 
 DIGITS = 5  # 0.01 nm: far below anything measured, keeps the JSON readable
+RONT_HEADER = "| um | RONt ± U (k = 2) |"
 
 
 def orientation_tables(
@@ -91,7 +92,8 @@ def tables_markdown(
 ) -> str:
     """Tables 1-3 at one orientation (a `tables_at` result) as markdown: what the ring is (a training
     ring, a check ring, or not measured), range and max |dev| per curve, each model's MAE and the floor.
-    ront: a row under Table 1 (curve -> cell text, e.g. the task's RONt +- U), with its note."""
+    ront: a table under Table 1, one row per curve (curve -> cell text, e.g. the task's RONt +- U),
+    with its note: one figure a row stays on one line in a narrow panel, beside the curve it is of."""
     t = tables
     names = ["measured", *model_names] if measured else list(model_names)
     heading = orientation_label(a_deg, b_deg)
@@ -108,7 +110,8 @@ def tables_markdown(
     lines.append("| range | " + " | ".join(_fmt(t["range_um"].get(n)) for n in names) + " |")
     lines.append("| max abs | " + " | ".join(_fmt(t["max_abs_um"].get(n)) for n in names) + " |")
     if ront is not None:
-        lines.append("| RONt, 1 meas. ± U | " + " | ".join(ront.get(n, "-") for n in names) + " |")
+        # Its own table, a curve a row: as a row of Table 1, "1.111 ± 0.327" per column ran together.
+        lines += ["", RONT_HEADER, "|---|---|"] + [f"| {n} | {ront.get(n, '-')} |" for n in names]
         lines += ["", ront_note] if ront_note else []
     lines.append("")
     if t["mae_um"]:
