@@ -123,17 +123,73 @@ def test_sliders_turn_the_head_and_move_the_ring_and_curves(browser) -> None:
     assert not np.allclose(np.asarray(s.ring.curves["measured"].points), before, atol=1e-3)
 
 
+def on_screen(points, position, look_at, height_px: float = 900.0) -> np.ndarray:
+    """(x, y) px from the canvas's centre (y up) of world points through a camera with z up and the
+    app's field of view (CAMERA_FOV_DEG, vertical), on a canvas height_px high; NaN behind it."""
+    from ph_explorer.app.scene import CAMERA_FOV_DEG
+
+    forward = (np.asarray(look_at) - position) / np.linalg.norm(np.asarray(look_at) - position)
+    right = np.cross(forward, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    rel = np.atleast_2d(points) - position
+    depth = rel @ forward
+    focal = 0.5 * height_px / np.tan(np.radians(0.5 * CAMERA_FOV_DEG))
+    xy = focal * np.stack([rel @ right, rel @ up], axis=1) / depth[:, None]
+    xy[depth <= 0] = np.nan
+    return xy
+
+
+def test_ring_and_head_shows_the_whole_head_a_readable_ring_and_no_number_on_the_stylus(browser) -> None:
+    """Issue 57, item 8: at any orientation and canvas (1440x900's 632 x 900 between the docked
+    panels, 1280x720's, a wide one) the View 'ring + head' has every part of the head and the whole
+    chart inside the canvas (the head was cut off at the top), the chart at least a seventh of the
+    canvas's height across both ways (126 px at 1440x900, as large as the head leaves room for:
+    136-226 px), and no point number within 20 px of the stylus (32 sat on it)."""
+    from ph_explorer.app.scene import head_parts, head_points, ring_camera
+
+    s = browser
+    geometry = s.dataset.campaign.geometry
+    # The stylus is drawn from the ball up to the probe's module: its top, in the A joint's frame.
+    stylus_top = -max(
+        p.mesh.bounds[1][2] for p in head_parts(geometry.pivot_to_ball_mm, geometry.ball_diameter_mm) if p.name == "B/A/stylus"
+    )
+    for a, b in ((0.0, 0.0), (15.0, -20.0), (43.0, 90.0), (75.0, 40.0), (90.0, -150.0), (A_LIMIT_DEG, 120.0)):
+        s.go_to(a, b)
+        centre, frame = np.asarray(s.ring.frame.position), SO3(np.asarray(s.ring.frame.wxyz, dtype=float))
+        numbers = np.array([frame.apply(np.asarray(h.position)) for h in s.ring.labels]) + centre
+        theta = np.radians(np.arange(0.0, 360.0, 5.0))
+        e1, e2 = frame.as_matrix()[:, 0], frame.as_matrix()[:, 1]
+        chart = centre + s.ring.extent_mm * (np.cos(theta)[:, None] * e1 + np.sin(theta)[:, None] * e2)
+        head = head_points(a, b, geometry.pivot_to_ball_mm, geometry.ball_diameter_mm)
+        for width, height in ((632, 900), (472, 720), (800, 600)):
+            camera = ring_camera(a, b, geometry, extent_mm=s.ring.extent_mm, aspect=width / height)
+            half = 0.5 * np.array([width, height])
+            for what, points in (("head", head), ("chart", chart)):
+                xy = on_screen(points, *camera, height)
+                assert np.all(np.abs(xy) <= half), (a, b, width, what, np.nanmax(np.abs(xy) / half, axis=0))
+            xy = on_screen(chart, *camera, height)
+            assert np.min(xy.max(axis=0) - xy.min(axis=0)) >= height / 7.0, (a, b, width, xy.max(axis=0) - xy.min(axis=0))
+            if width == 632:  # the point numbers clear of the stylus at 1440x900
+                p0, p1 = on_screen([centre, stylus_top * stylus_direction(a, b)], *camera, height)
+                xy = on_screen(numbers, *camera, height)
+                t = np.clip((xy - p0) @ (p1 - p0) / np.dot(p1 - p0, p1 - p0), 0.0, 1.0)
+                clear = np.linalg.norm(xy - (p0 + t[:, None] * (p1 - p0)), axis=1)
+                assert clear.min() > 20.0, (a, b, dict(zip((h.text for h in s.ring.labels), clear.round())))
+
+
 def test_the_camera_follows_the_ring_in_the_chosen_view(browser) -> None:
     from ph_explorer.app.scene import CAMERA_FOV_DEG, axis_camera, ring_camera
 
     s = browser
-    axial = s.dataset.campaign.geometry.axial_distance_mm
+    geometry = s.dataset.campaign.geometry
+    axial = geometry.axial_distance_mm
     s.go_to(43.0, 90.0)
     aspect = s.client.camera.aspect  # the fake browser's canvas: 800 x 600
-    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=aspect)
+    position, look_at = ring_camera(43.0, 90.0, geometry, extent_mm=s.ring.extent_mm, aspect=aspect)
     np.testing.assert_allclose(s.client.camera.position, position, atol=1e-6)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
-    np.testing.assert_allclose(look_at, axial * stylus_direction(43.0, 90.0), atol=1e-9)  # the ring mid-canvas
+    assert s.client.camera.fov == pytest.approx(np.radians(CAMERA_FOV_DEG))  # the field of view the View is framed for
     assert s.head.root.visible
     s.look("along the axis")
     s.go_to(75.0, 40.0)  # the following camera keeps the chosen view
@@ -170,12 +226,12 @@ def test_a_canvas_that_changes_shape_has_its_view_placed_again_and_an_orbit_keep
 
     fake, s = opened
     s.go_to(43.0, 90.0)
-    axial = s.dataset.campaign.geometry.axial_distance_mm
+    geometry = s.dataset.campaign.geometry
     fake.send(camera_message(400, 900))  # a narrow window
-    position, look_at = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=400 / 900)
+    position, look_at = ring_camera(43.0, 90.0, geometry, extent_mm=s.ring.extent_mm, aspect=400 / 900)
     assert wait_for(lambda: np.allclose(s.client.camera.position, position, atol=1e-6)), (s.client.camera.position, position)
     np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
-    wide = ring_camera(43.0, 90.0, axial, extent_mm=s.ring.extent_mm, aspect=800 / 600)[0]
+    wide = ring_camera(43.0, 90.0, geometry, extent_mm=s.ring.extent_mm, aspect=800 / 600)[0]
     assert np.linalg.norm(position - look_at) > 1.05 * np.linalg.norm(wide - look_at)  # farther: the chart fits the narrow canvas
     orbit = (300.0, 50.0, 20.0)
     fake.send(camera_message(400, 900, position=orbit))
@@ -187,7 +243,7 @@ def test_a_canvas_that_changes_shape_has_its_view_placed_again_and_an_orbit_keep
 def test_a_view_click_is_not_undone_by_a_following_camera(browser, monkeypatch) -> None:
     """A follow that read the View before a click places the camera first; the click's View stays."""
     import ph_explorer.app.camera as camera
-    from ph_explorer.app.scene import FIELD_VIEW
+    from ph_explorer.app.scene import field_camera
 
     s, real = browser, camera.view_camera
     inside, release = threading.Event(), threading.Event()
@@ -209,7 +265,7 @@ def test_a_view_click_is_not_undone_by_a_following_camera(browser, monkeypatch) 
     follow.join(10.0)
     click.join(10.0)
     assert s.camera.view == "whole field"
-    np.testing.assert_allclose(s.client.camera.position, FIELD_VIEW["position"], atol=1e-6)
+    np.testing.assert_allclose(s.client.camera.position, field_camera(s.client.camera.aspect)[0], atol=1e-6)
 
 
 def test_magnification_scales_the_deviation_about_the_reference_circle(browser) -> None:

@@ -410,8 +410,9 @@ def teach(page, session, shots: Path) -> None:
 
 def readable_scene(page, session) -> None:
     """At each View: no two 3D labels overlap (their boxes on the canvas, from the server's label
-    positions through the browser's camera), nor two texts of a chart; along the axis and ring +
-    head put the ring's centre in the middle of the canvas between the docked panels."""
+    positions through the browser's camera), nor two texts of a chart; along the axis puts the
+    ring's centre in the middle of the canvas between the docked panels, and ring + head shows the
+    whole head (its outline inside the canvas) with the ring."""
     for view in ("whole field", "along the axis", "ring + head"):  # ring + head last: the screenshot's view
         # A View click is lost now and then under load (twice in ~10 runs, CI and local: the View
         # stayed, no error logged); the server's side of a click is test_app's. Clicked again, twice at most.
@@ -427,10 +428,21 @@ def readable_scene(page, session) -> None:
         boxes = scene_label_boxes(session, canvas)
         assert overlapping(boxes) == [], (view, boxes)
         assert all(canvas["x"] <= x and x + w <= canvas["x"] + canvas["width"] for _, x, _, w, _ in boxes), (view, canvas, boxes)
-        if view != "whole field":
+        if view == "along the axis":
             x, y, _ = on_canvas(session, np.asarray(session.ring.frame.position), canvas)
             assert abs(x - (canvas["x"] + canvas["width"] / 2)) < 0.1 * canvas["width"], (view, x, canvas)
             assert abs(y - (canvas["y"] + canvas["height"] / 2)) < 0.1 * canvas["height"], (view, y, canvas)
+        if view == "ring + head":
+            from ph_explorer.app.scene import head_points
+
+            geometry = session.dataset.campaign.geometry
+            a, b = session.orientation
+            outline = [on_canvas(session, p, canvas) for p in head_points(a, b, geometry.pivot_to_ball_mm, geometry.ball_diameter_mm)]
+            inside = [
+                canvas["x"] <= x <= canvas["x"] + canvas["width"] and canvas["y"] <= y <= canvas["y"] + canvas["height"]
+                for x, y, _ in outline
+            ]
+            assert all(inside), (view, page.viewport_size, sum(not i for i in inside), "points of the head outside the canvas")
     assert svg_text_overlaps(page) == []
 
 

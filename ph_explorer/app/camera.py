@@ -6,10 +6,11 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 
+import numpy as np
 import viser
 
 from ph_explorer.app.ring import RingScene
-from ph_explorer.app.scene import DEFAULT_ASPECT, HeadScene, view_camera
+from ph_explorer.app.scene import CAMERA_FOV_DEG, DEFAULT_ASPECT, HeadScene, view_camera
 
 # A change of the canvas's aspect (width / height) beyond this fraction places the View again: the
 # browser docks its side panels after the first placement (1440x900: aspect 1.6, then 0.70).
@@ -21,10 +22,10 @@ class ViewCamera:
 
     A View click (a callback thread) and a following camera (the render threads) both place it:
     one placement at a time, so a follow that read the View before a click never undoes the click.
-    `scene()` gives the browser's head and ring and the ring's axial distance (mm) as they are now.
+    `scene()` gives the browser's head and ring as they are now (the ring's geometry is the head's).
     """
 
-    def __init__(self, client: viser.ClientHandle, scene: Callable[[], tuple[HeadScene, RingScene, float]]) -> None:
+    def __init__(self, client: viser.ClientHandle, scene: Callable[[], tuple[HeadScene, RingScene]]) -> None:
         self.client, self._scene = client, scene
         self.view = "ring + head"
         self._at: tuple[float, float] | None = None  # the orientation and the chart's size it was placed for
@@ -35,11 +36,12 @@ class ViewCamera:
     def look(self, view: str, a_deg: float, b_deg: float) -> None:
         """Point the camera: 'ring + head', 'along the axis' or 'whole field', at the ring drawn at (A, B)."""
         with self._lock:
-            head, ring, axial_distance_mm = self._scene()
+            head, ring = self._scene()
             camera = self.client.camera
             extent, aspect = ring.extent_mm, self._canvas_aspect()
-            position, look_at, up = view_camera(view, a_deg, b_deg, axial_distance_mm, extent, aspect)
+            position, look_at, up = view_camera(view, a_deg, b_deg, ring.geometry, extent, aspect)
             with self.client.atomic():  # position first: viser moves look_at along with it
+                camera.fov = float(np.radians(CAMERA_FOV_DEG))  # the field of view the Views are framed for (sent when it differs)
                 # Along the axis the camera looks through the head: hidden there, shown in the other views.
                 head.set_visible(view != "along the axis")
                 ring.show_labels(view != "whole field")  # there the ring is a few pixels wide

@@ -20,7 +20,7 @@ from viser.transforms import SO3
 
 # The curves' colours are the core's (ph_explorer.figures.polar): a report draws them as the explorer does.
 from ph_explorer.figures.polar import BAND_COLORS, CURVE_COLORS, curve_color, hex_color  # noqa: F401 (re-exported)
-from ph_explorer.geometry import Geometry, stylus_direction
+from ph_explorer.geometry import A_LIMIT_DEG, Geometry, stylus_direction
 
 # -- rotations (viser wants wxyz quaternions; viser.transforms composes them) -------------------------
 
@@ -59,15 +59,25 @@ def stylus_point(a_deg: float, b_deg: float, distance_mm: float) -> tuple[float,
 # -- where to look from ----------------------------------------------------------------------------------
 
 
-# The chart radius (mm, point numbers included) the default camera distances were chosen for.
+# The chart radius (mm, point numbers included) of a chart at the bore's radius.
 CHART_EXTENT_MM = 26.0
-# Vertical field of view of viser's camera (deg): the along-axis view fits the chart in it.
-CAMERA_FOV_DEG = 75.0
+# Vertical field of view of the browsers' cameras (deg; viser's default is 75): at 75 the top of the
+# head, nearer the camera than the ring, was drawn twice its scale, so that a View showing the whole
+# head left the ring small; at 40 the perspective is mild and the ring about a fifth larger.
+CAMERA_FOV_DEG = 40.0
 
 
 # The scene's canvas lies between the docked panels; narrower than tall at 1440x900 (632 x 900 px)
 # and 1280x720 (472 x 720 px). A camera that has not reported its aspect is taken to have this one.
 DEFAULT_ASPECT = 0.7
+# What a View shows fills the canvas to 1 / FRAME_MARGIN of its half-width and half-height.
+FRAME_MARGIN = 1.06
+# "ring + head": the camera's direction from the ring, in the ring's frame: OFF_AXIS_DEG off the
+# stylus towards the head, and AZIMUTH_DEG from e1 (point 0) towards e2 (point 16). Halfway between
+# the point numbers, the stylus is drawn between 32 and 48 rather than through a number (at azimuth
+# 0 it ran through 32), and at OFF_AXIS_DEG no part of the head hides the curves at any A.
+OFF_AXIS_DEG = 62.0
+AZIMUTH_DEG = 45.0
 
 
 def fit_distance(extent_mm: float, aspect: float, margin: float = 1.2) -> float:
@@ -76,31 +86,50 @@ def fit_distance(extent_mm: float, aspect: float, margin: float = 1.2) -> float:
     return margin * extent_mm / (np.tan(np.radians(0.5 * CAMERA_FOV_DEG)) * min(1.0, aspect))
 
 
-def ring_camera(
-    a_deg: float,
-    b_deg: float,
-    axial_distance_mm: float,
-    distance_mm: float = 105.0,
-    off_axis_deg: float = 62.0,
-    extent_mm: float = CHART_EXTENT_MM,
-    aspect: float = DEFAULT_ASPECT,
+def frame_points(
+    points: NDArray[np.float64], reference: NDArray[np.float64], direction: NDArray[np.float64], aspect: float, margin: float = FRAME_MARGIN
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Camera (position, look_at) in mm showing the ring obliquely from the head's side, the stylus behind it.
+    """Camera (position, look_at) on the line `direction` (towards the camera, z up) that shows every
+    point inside the canvas (aspect = w / h), as near as it can: the nearest distance at which the
+    points' extreme rays fit the field of view both ways (in perspective: a point nearer the camera
+    counts larger), looking at the middle of what they span, in the plane through `reference`."""
+    d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    right = np.cross(-d, (0.0, 0.0, 1.0))
+    right /= np.linalg.norm(right)
+    up = np.cross(right, -d)
+    rel = np.asarray(points, dtype=float) - reference
+    depth = rel @ d  # towards the camera
+    distance, look_at = 0.0, np.asarray(reference, dtype=float).copy()
+    tan_v = np.tan(np.radians(0.5 * CAMERA_FOV_DEG)) / margin
+    for axis, tan in ((right, tan_v * aspect), (up, tan_v)):
+        offset = rel @ axis
+        # |offset - c| <= tan (D - depth) for every point: c in [high - tan D, low + tan D].
+        high, low = float(np.max(offset + tan * depth)), float(np.min(offset - tan * depth))
+        distance = max(distance, (high - low) / (2.0 * tan))
+        look_at += 0.5 * (high + low) * axis
+    return look_at + distance * d, look_at
 
-    The camera sits off the ring axis towards the A joint's axis (always horizontal), a little
-    raised, so the ring plane, its curves and the stylus arm stay in view at any orientation; it
-    looks at the ring's centre, so the ring sits in the middle of the canvas between the panels.
-    A larger chart (extent_mm, at high magnification) or a canvas narrower than DEFAULT_ASPECT
-    moves the camera back in proportion.
+
+def ring_camera(
+    a_deg: float, b_deg: float, geometry: Geometry, extent_mm: float = CHART_EXTENT_MM, aspect: float = DEFAULT_ASPECT
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Camera (position, look_at) in mm showing the whole head and the ring's chart, obliquely from the head's side.
+
+    The camera sits OFF_AXIS_DEG off the ring axis, towards the head, at AZIMUTH_DEG in the ring
+    plane (between the point numbers), as near as it can with every part of the head and the chart
+    (radius extent_mm) inside the canvas of this aspect (frame_points): the head is never cut off,
+    and the ring, below or beside it, is as large as the head leaves room for.
     """
-    grow = max(1.0, extent_mm / CHART_EXTENT_MM, fit_distance(extent_mm, aspect) / fit_distance(extent_mm, DEFAULT_ASPECT))
     s = stylus_direction(a_deg, b_deg)
-    centre = axial_distance_mm * s
-    b = np.radians(b_deg)
-    side = np.array([np.cos(b), np.sin(b), 0.0])  # the A axis after B: perpendicular to the stylus
-    e = np.radians(off_axis_deg)
-    direction = -np.cos(e) * s + np.sin(e) * side + np.array([0.0, 0.0, 0.12])
-    return centre + distance_mm * grow * direction / np.linalg.norm(direction), centre
+    frame = head_orientation(a_deg, b_deg).as_matrix()
+    e = np.radians(OFF_AXIS_DEG)
+    azimuth = np.radians(AZIMUTH_DEG)
+    direction = -np.cos(e) * s + np.sin(e) * (np.cos(azimuth) * frame[:, 0] + np.sin(azimuth) * frame[:, 1])
+    centre = geometry.axial_distance_mm * s
+    theta = np.radians(np.arange(0.0, 360.0, 10.0))
+    chart = centre + extent_mm * (np.cos(theta)[:, None] * frame[:, 0] + np.sin(theta)[:, None] * frame[:, 1])
+    head = head_points(a_deg, b_deg, geometry.pivot_to_ball_mm, geometry.ball_diameter_mm)
+    return frame_points(np.concatenate([head, chart]), centre, direction, aspect)
 
 
 def axis_camera(
@@ -119,19 +148,31 @@ def axis_camera(
     return centre - fit_distance(extent_mm, aspect) * s, centre, e2
 
 
-# The whole error field (dome of stylus directions, radius 300 mm) seen from outside, mm.
-FIELD_VIEW = {"position": (560.0, -700.0, 360.0), "look_at": (0.0, 0.0, -60.0)}
+# The whole error field (the dome of stylus directions, radius FIELD_RADIUS_MM) seen from outside:
+# the camera's direction from the pivot, and the point it frames around.
+FIELD_RADIUS_MM = 300.0
+FIELD_DIRECTION = (560.0, -700.0, 420.0)
+FIELD_CENTRE = (0.0, 0.0, -60.0)
+
+
+def field_camera(aspect: float = DEFAULT_ASPECT) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Camera (position, look_at) showing the whole dome of stylus directions (A up to the limit) and the head."""
+    a, b = np.meshgrid(np.linspace(0.0, A_LIMIT_DEG + 3.0, 12), np.arange(-180.0, 180.0, 15.0))
+    dome = FIELD_RADIUS_MM * stylus_direction(a.ravel(), b.ravel())
+    head = head_points(0.0, 0.0)
+    return frame_points(np.concatenate([dome, head]), np.array(FIELD_CENTRE), np.array(FIELD_DIRECTION), aspect)
 
 
 def view_camera(
-    view: str, a_deg: float, b_deg: float, axial_distance_mm: float, extent_mm: float, aspect: float = DEFAULT_ASPECT
+    view: str, a_deg: float, b_deg: float, geometry: Geometry, extent_mm: float, aspect: float = DEFAULT_ASPECT
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """(position, look_at, up) of a View button's camera: 'ring + head', 'along the axis', 'whole field'."""
     if view == "along the axis":
-        return axis_camera(a_deg, b_deg, axial_distance_mm, extent_mm, aspect)
+        return axis_camera(a_deg, b_deg, geometry.axial_distance_mm, extent_mm, aspect)
     if view == "whole field":
-        return np.array(FIELD_VIEW["position"]), np.array(FIELD_VIEW["look_at"]), np.array([0.0, 0.0, 1.0])
-    position, look_at = ring_camera(a_deg, b_deg, axial_distance_mm, extent_mm=extent_mm, aspect=aspect)
+        position, look_at = field_camera(aspect)
+    else:
+        position, look_at = ring_camera(a_deg, b_deg, geometry, extent_mm=extent_mm, aspect=aspect)
     return position, look_at, np.array([0.0, 0.0, 1.0])
 
 
@@ -194,6 +235,24 @@ def head_parts(pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) ->
         ),
     )
     return parts
+
+
+@lru_cache(maxsize=8)
+def head_outline(pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) -> tuple[NDArray[np.float64], ...]:
+    """The head's convex outline in the frame of each joint: the vertices of the convex hulls of the
+    fixed parts, of the parts B turns and of the parts A turns (what a View must show of it)."""
+    groups: dict[str, list[trimesh.Trimesh]] = {"": [], "B": [], "B/A": []}
+    for part in head_parts(pivot_to_ball_mm, ball_diameter_mm):
+        groups[part.name.rpartition("/")[0]].append(part.mesh)
+    return tuple(np.asarray(trimesh.util.concatenate(meshes).convex_hull.vertices) for meshes in groups.values())
+
+
+def head_points(a_deg: float, b_deg: float, pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) -> NDArray[np.float64]:
+    """The head's outline (head_outline) with its joints at (A, B), in the scene's frame (mm)."""
+    fixed, b_parts, a_parts = head_outline(float(pivot_to_ball_mm), float(ball_diameter_mm))
+    b_turn = b_joint(b_deg).as_matrix()
+    a_turn = b_turn @ a_joint(a_deg).as_matrix()
+    return np.concatenate([fixed, b_parts @ b_turn.T, a_parts @ a_turn.T])
 
 
 class HeadScene:

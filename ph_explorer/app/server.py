@@ -17,13 +17,14 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+import numpy as np
 import viser
 
 from ph_explorer import paths
 from ph_explorer.app.dataset import Dataset, default_dataset, shipped_scenarios
 from ph_explorer.app.loading import LoadingNotice, open_server
 from ph_explorer.app.render_queue import RenderQueue, RenderStats
-from ph_explorer.app.scene import ring_camera
+from ph_explorer.app.scene import CAMERA_FOV_DEG, ring_camera
 from ph_explorer.app.session import INITIAL_ORIENTATION, Session, Shared
 from ph_explorer.app.study_file import StudyFile, open_study
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
@@ -73,7 +74,8 @@ class ExplorerApp:
         dataset.prepare_in_background()  # the lattices: slider moves stop predicting a few seconds later
         self.server = server if server is not None else open_server(host=host, port=port, verbose=verbose)
         camera = self.server.initial_camera
-        position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry.axial_distance_mm)
+        position, look_at = ring_camera(*INITIAL_ORIENTATION, dataset.campaign.geometry)
+        camera.fov = float(np.radians(CAMERA_FOV_DEG))
         camera.position = tuple(position)
         camera.look_at = tuple(look_at)
         camera.near = 1.0

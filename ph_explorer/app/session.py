@@ -78,7 +78,7 @@ class Session:
         self._moving = False  # sliders being set together (go_to): render once at the end
         self._field_token = 0  # the latest field request; older computations do not draw
         self._closed = False  # the browser left (close)
-        self.camera = ViewCamera(client, lambda: (self.head, self.ring, self.dataset.campaign.geometry.axial_distance_mm))
+        self.camera = ViewCamera(client, lambda: (self.head, self.ring))
         self.following = Following(self._draw_following, shared.renders, FOLLOW_INTERVAL_S, shared.following_stats.rendered)
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
         self._task = WhenResting(self._compute_task, TASK_SETTLE_S, name=f"ph-explorer-task-{client.client_id}")
