@@ -196,7 +196,7 @@ def test_page_loads_and_the_a_slider_turns_the_head(served, tmp_path: Path) -> N
 TEACHING_ONLY = {"Physics": ("button", "Reveal the hidden effect"), "Data": ("checkbox", "Name hidden effects in the report")}
 
 
-def test_a_lab_campaign_uploaded_shows_no_teaching_only_control(served, tmp_path: Path) -> None:
+def test_a_lab_campaign_uploaded_shows_no_teaching_only_control_and_its_verdict_first(served, tmp_path: Path) -> None:
     """Issue 57, item 8: the served teaching scenario (its campaign records a hidden effect) shows
     its teaching-only controls; a lab's campaign uploaded from the Data tab (a CSV, nothing in it
     says it is a scenario) shows none: no control nor text of the Physics and Data tabs offers to
@@ -231,5 +231,26 @@ def test_a_lab_campaign_uploaded_shows_no_teaching_only_control(served, tmp_path
         shown = [texts.nth(i).inner_text() for i in range(texts.count()) if texts.nth(i).is_visible()]
         assert shown == [], (tab, shown)
         page.screenshot(path=str(shots / f"explorer_lab_{tab.lower()}.png"))
+    # Diagnosed: the verdict leads the Physics tab; between Diagnose and Refit nothing speaks of a
+    # candidate that is neither claimed nor suggested; still no teaching-only control.
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=600)
+    session.wait(timeout=300)
+    settled(page)
+    result = session.loop.diagnosis
+    top = page.get_by_role("button", name="Diagnose", exact=True).bounding_box()
+    bottom = page.get_by_role("button", name="Refit the hybrid").bounding_box()
+    paragraphs = page.evaluate(
+        "([low, high, left]) => [...document.querySelectorAll('p')].map(p => [p.getBoundingClientRect(), p.innerText])"
+        ".filter(([r, t]) => r.x > left && r.y > low && r.y < high && r.height > 0 && t.trim()).map(([r, t]) => t)",
+        [top["y"] + top["height"], bottom["y"], top["x"] - 10],
+    )
+    assert paragraphs and paragraphs[0].startswith(f"Verdict: {result.verdict}"), paragraphs
+    spoken = {c.effect for c in (*result.found, *result.suggested)} | {p.effect for c in result.found for p in c.confounded_with}
+    unspoken = [c.effect for c in result.candidates if c.effect not in spoken]
+    assert not [(effect, text) for text in paragraphs for effect in unspoken if re.search(rf"\b{effect}\b", text)], paragraphs
+    assert not page.get_by_role("button", name="Reveal the hidden effect").is_visible()
+    page.screenshot(path=str(shots / "explorer_lab_diagnosed.png"))
     assert not [e for e in errors if "TypeError" in e], errors
     page.close()
