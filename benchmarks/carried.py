@@ -60,7 +60,7 @@ from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, unit_campaign
 from ph_explorer.models.deviation_model import training_mask
-from ph_explorer.models.hybrid import DataModel, HybridModel, fitted_basis, make_data_model, smoother_type
+from ph_explorer.models.hybrid import DataPart, HybridModel, fitted_basis, make_data_part, smoother_type
 from ph_explorer.models.least_squares import Design
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations
@@ -72,30 +72,30 @@ CARRIED_FOLDS = 10
 
 
 def cross_validated_curves(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_part: DataPart = "trilinear"
 ) -> NDArray[np.float64]:
     """Each training ring's out-of-sample curve (n_train, n_pt) um of a hybrid with these effects:
     every ring predicted by the hybrid fitted without it (crossval.cross_val_predict, strict:
     neither its physical terms nor its data part see the ring)."""
     rings = int(train.sum())
     folds = None if rings <= CARRIED_LEAVE_ONE_OUT_MAX else CARRIED_FOLDS
-    predicted = cross_val_predict(lambda: HybridModel(effects, data_model), campaign, train, folds=folds, strict=True)
+    predicted = cross_val_predict(lambda: HybridModel(effects, data_part), campaign, train, folds=folds, strict=True)
     return predicted[train]
 
 
 def cross_validated_errors(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_part: DataPart = "trilinear"
 ) -> NDArray[np.float64]:
     """Each training ring's out-of-sample MAE (um, against the repetition mean) of a hybrid with
     these effects (cross_validated_curves)."""
-    return metrics.ring_mae(cross_validated_curves(effects, campaign, train, data_model), campaign.deviations[train])["mean"]
+    return metrics.ring_mae(cross_validated_curves(effects, campaign, train, data_part), campaign.deviations[train])["mean"]
 
 
 def cross_validated_mae(
-    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_model: DataModel = "trilinear"
+    effects: Sequence[Effect], campaign: Campaign, train: NDArray[np.bool_], data_part: DataPart = "trilinear"
 ) -> float:
     """The mean of cross_validated_errors over the training rings."""
-    return float(cross_validated_errors(effects, campaign, train, data_model).mean())
+    return float(cross_validated_errors(effects, campaign, train, data_part).mean())
 
 
 def gain_beyond_noise(simpler: NDArray[np.float64], fuller: NDArray[np.float64]) -> float:
@@ -136,11 +136,11 @@ def _same(a: Effect, b: Effect) -> bool:
 class Identification:
     """What a campaign's touches identify of candidate terms (see the module docstring)."""
 
-    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None, data_model: DataModel = "trilinear") -> None:
+    def __init__(self, campaign: Campaign, alternatives: Sequence[Effect] | None = None, data_part: DataPart = "trilinear") -> None:
         self.campaign = campaign
         self.touches = campaign_touches(campaign)
         every = np.ones(campaign.n_orientations, dtype=bool)
-        linear = smoother_type(make_data_model(data_model), campaign, every)  # the data part the terms sit beside
+        linear = smoother_type(make_data_part(data_part), campaign, every)  # the data part the terms sit beside
         self.smoother = OutOfSampleSmoother(campaign.orientations, every, linear)
         self.targets = Design(self.smoother.residual(campaign.deviations)[..., None], None)
         self.domain = prediction_domain(campaign)
@@ -337,27 +337,27 @@ def _connected(effects: list[Effect], links: list[tuple[int, int]]) -> list[list
     return sorted(groups.values(), key=lambda g: effects.index(g[0]))
 
 
-def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_model: DataModel = "trilinear") -> bool:
+def plausible_fit(effects: Sequence[Effect], campaign: Campaign, data_part: DataPart = "trilinear") -> bool:
     """Every fitted parameter of the hybrid with these effects within its plausible range."""
     if not effects:
         return True
-    model = HybridModel(effects, data_model).fit(campaign)
+    model = HybridModel(effects, data_part).fit(campaign)
     return not any(e.implausible(p["params"]) for e, p in zip(model.effects, model.effect_parameters()))
 
 
-def fixed_data_part(data_model: DataModel, campaign: Campaign, train: NDArray[np.bool_]) -> DataModel:
+def fixed_data_part(data_part: DataPart, campaign: Campaign, train: NDArray[np.bool_]) -> DataPart:
     """A data part with hyperparameters (the GP's kernel) as the factory of it with them learnt once
     on the training rings, else the data part as given: every fold and every set of terms is then
     cross-validated beside the same smoother, its kernel not re-learnt per fold (as the GP's
     closed-form leave-one-out does: Rasmussen and Williams 2006, section 5.4.2)."""
-    linear = getattr(make_data_model(data_model), "linear_smoother", None)
-    return linear(campaign, train) if linear is not None else data_model
+    linear = getattr(make_data_part(data_part), "linear_smoother", None)
+    return linear(campaign, train) if linear is not None else data_part
 
 
 def carried_effects(
     campaign: Campaign,
     effects: Sequence[Effect],
-    data_model: DataModel = "trilinear",
+    data_part: DataPart = "trilinear",
     train: ArrayLike | None = None,
     identification: Identification | None = None,
 ) -> tuple[list[Effect], list[dict[str, Any]], list[dict[str, Any]], NDArray[np.float64]]:
@@ -374,9 +374,9 @@ def carried_effects(
     out-of-sample curves of the hybrid with the effects kept (cross_validated_curves).
     """
     mask = training_mask(campaign, train)
-    data_model = fixed_data_part(data_model, campaign, mask)
+    data_part = fixed_data_part(data_part, campaign, mask)
     fitted = campaign.subset(mask)
-    check = identification if identification is not None else Identification(fitted, data_model=data_model)
+    check = identification if identification is not None else Identification(fitted, data_part=data_part)
     groups, report = check.groups(effects) if effects else ([], [])
     path: list[dict[str, Any]] = []
     tried: dict[tuple, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}  # labels -> curves, ring errors
@@ -389,7 +389,7 @@ def carried_effects(
         terms = flat(chosen)
         key = tuple(effect_label(e) for e in terms)
         if key not in tried:  # a set reached twice (the data part alone) is cross-validated once
-            curves = cross_validated_curves(terms, campaign, mask, data_model)
+            curves = cross_validated_curves(terms, campaign, mask, data_part)
             tried[key] = curves, metrics.ring_mae(curves, campaign.deviations[mask])["mean"]
             path.append({"effects": list(key), "cv_mae_um": round(float(tried[key][1].mean()), 5)})
         return tried[key][1]
@@ -397,7 +397,7 @@ def carried_effects(
     kept = list(groups)
     current = errors(kept)
     while kept:
-        admissible = plausible_fit(flat(kept), fitted, data_model)
+        admissible = plausible_fit(flat(kept), fitted, data_part)
         trials = [(errors(kept[:i] + kept[i + 1 :]), i) for i in range(len(kept))]
         gains = [gain_beyond_noise(without, current) for without, _ in trials]
         cheapest = int(np.argmin(gains))

@@ -341,7 +341,7 @@ def design_target_over_noise_seeds(
             "ratio": ratio(model),
             "weights": chosen["weights"],
             "mean_curve_gain_in_standard_errors": chosen["mean_curve_gain_in_standard_errors"],
-            "ends": {m.data_model.name: {"kept": chosen[m.data_model.name]["kept"], "ratio": ratio(m)} for m in model.members},
+            "ends": {m.data_part.name: {"kept": chosen[m.data_part.name]["kept"], "ratio": ratio(m)} for m in model.members},
         }
         per_seed.append(row)
         log(

@@ -200,7 +200,7 @@ def with_uncatalogued_lobes(campaign):
 
 def ends(model):
     """The stacked hybrid's members by data part."""
-    return {m.data_model.name: m for m in model.members}
+    return {m.data_part.name: m for m in model.members}
 
 
 def test_when_the_terms_carry_the_orientation_dependence_the_mean_curve_weighs_most(b_two_head) -> None:

@@ -72,7 +72,7 @@ class StackedHybrid(DeviationModel):
 
     def weight_of(self, data_part: str) -> float:
         """The weight of the member whose data part is `data_part` (0 when none)."""
-        return float(sum(w for w, m in zip(self.weights, self.members) if m.data_model.name == data_part))
+        return float(sum(w for w, m in zip(self.weights, self.members) if m.data_part.name == data_part))
 
     def _average(self, parts: list[NDArray[np.float64]]) -> NDArray[np.float64]:
         return np.tensordot(self.weights, np.stack(parts), axes=(0, 0))
@@ -137,11 +137,11 @@ def carried_hybrid(
     details: dict[str, Any] = {}
     parts = tuple(parts)
     made = {p: fixed_data_part(p, campaign, mask) for p in parts}  # the GP's kernel learnt once
-    for data_model in parts:
-        kept[data_model], path, report, curves = carried_effects(campaign, effects, made[data_model], mask)
+    for data_part in parts:
+        kept[data_part], path, report, curves = carried_effects(campaign, effects, made[data_part], mask)
         means.append(curves.mean(axis=1) if curves.ndim == 3 else curves)  # the MAE against the mean is linear in the curves
-        details[data_model] = {
-            "kept": [effect_label(e) for e in kept[data_model]],
+        details[data_part] = {
+            "kept": [effect_label(e) for e in kept[data_part]],
             "cross_validation": path,
             "identifiability": report,
         }
@@ -152,8 +152,8 @@ def carried_hybrid(
     # A tie goes to the interpolation, then to the mean curve: the GP weighs only where it predicts better.
     best = int(np.lexsort((*(-grid[:, i] for i in reversed(range(grid.shape[1]))), cv_mae))[0])
     ends = {p: int(np.flatnonzero(grid[:, i] == 1.0)[0]) for i, p in enumerate(parts)}
-    for data_model, end in ends.items():
-        details[data_model]["cv_mae_um"] = round(float(cv_mae[end]), 5)
+    for data_part, end in ends.items():
+        details[data_part]["cv_mae_um"] = round(float(cv_mae[end]), 5)
     weights = grid[best]
     members = [HybridModel(kept[p], made[p]).fit(campaign.subset(mask)) for p in parts]
     model = StackedHybrid(members, weights)

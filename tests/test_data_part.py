@@ -58,7 +58,7 @@ def test_a_hybrid_with_each_data_part_predicts_the_same_once_saved_and_loaded(tm
         model = HybridModel([B_AXIS(cycles_per_rev=2)], part).fit(subset)
         model.save(tmp_path / part)
         again = HybridModel.load(tmp_path / part)
-        assert again.data_model.name == part
+        assert again.data_part.name == part
         assert np.allclose(again.predict(at), model.predict(at), atol=1e-12)
         assert np.allclose(again.repetition_sigma(at), model.repetition_sigma(at), atol=1e-12)
 
@@ -68,7 +68,7 @@ def test_a_hybrid_without_terms_is_its_data_part_even_given_as_a_model() -> None
     train = ~campaign.holdout_mask()
     given = MeanCurveModel()
     hybrid = HybridModel([], given).fit(campaign, train)
-    assert hybrid.data_model is given and isinstance(HybridModel([], MeanCurveModel).data_model, MeanCurveModel)  # or a factory
+    assert hybrid.data_part is given and isinstance(HybridModel([], MeanCurveModel).data_part, MeanCurveModel)  # or a factory
     touches = campaign_touches(campaign.subset([0, 50, 126]))
     alone = MeanCurveModel().fit(campaign, train)
     assert np.allclose(hybrid.predict_touches(touches), alone.predict_touches(touches), atol=1e-12)

@@ -135,7 +135,7 @@ def test_a_hybrid_with_a_gp_part_finds_a_b_axis_error_beside_it() -> None:
     b_axis = DEFAULT_CATALOG["b_axis_cyclic"]
     campaign = simulate(scenario_with(b_axis(amplitude_arcsec=1.8, phase_deg=40.0, cycles_per_rev=2)), 3)
     hybrid = HybridModel([b_axis(cycles_per_rev=2)], "gp").fit(campaign, ~campaign.holdout_mask())
-    assert hybrid.data_model.name == "gp" and hybrid.smoother_.model_name == "gp"
+    assert hybrid.data_part.name == "gp" and hybrid.smoother_.model_name == "gp"
     (fitted,) = hybrid.effect_parameters()
     assert fitted["params"]["amplitude_arcsec"] == pytest.approx(1.8, rel=0.1)
 

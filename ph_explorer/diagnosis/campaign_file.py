@@ -63,13 +63,11 @@ def diagnose_campaign(
     `nested`, the verdict first (honest_after adds the nested figures)."""
     models = load_models(Path(model)) if isinstance(model, (str, Path)) else model
     baseline = baseline_of(models) if models is not None else None
-    data_model: str | Callable[[], DeviationModel] = check_data_part(data_part)
+    part: str | Callable[[], DeviationModel] = check_data_part(data_part)
     if data_part == "network":
         from ph_explorer.models.network import FourierNetwork  # torch: only when the network is asked for
 
-        def data_model() -> DeviationModel:
+        def part() -> DeviationModel:
             return FourierNetwork(progress=network_progress)
 
-    return diagnose(
-        campaign, add=add, baseline=baseline, data_model=data_model, catalog=catalog, progress=progress, start=start, nested=nested
-    )
+    return diagnose(campaign, add=add, baseline=baseline, data_part=part, catalog=catalog, progress=progress, start=start, nested=nested)

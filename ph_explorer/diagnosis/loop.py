@@ -33,7 +33,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.crossval import held_out_mae, held_out_ring_mae
 from ph_explorer.models.deviation_model import DeviationModel
-from ph_explorer.models.hybrid import DataModel, HybridModel
+from ph_explorer.models.hybrid import DataPart, HybridModel
 
 
 def repetition_sigma(campaign: Campaign, model: HybridModel | None = None) -> float:
@@ -99,7 +99,7 @@ def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, sugge
 def add_effects(
     campaign: Campaign,
     effects: Sequence[Effect],
-    data_model: DataModel = "trilinear",
+    data_part: DataPart = "trilinear",
     progress: Callable[[str, float], None] | None = None,
 ) -> tuple[HybridModel, Step]:
     """Fit the hybrid with these physical effects (each at its own settings) on the campaign and
@@ -109,9 +109,9 @@ def add_effects(
     what its physical terms leave).
     """
     held_out = campaign.holdout_mask()
-    hybrid = HybridModel(list(effects), data_model, progress=progress).fit(campaign, ~held_out)
+    hybrid = HybridModel(list(effects), data_part, progress=progress).fit(campaign, ~held_out)
     floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
-    model = f"hybrid, {hybrid.data_model.name} data part" if effects else hybrid.data_model.name
+    model = f"hybrid, {hybrid.data_part.name} data part" if effects else hybrid.data_part.name
     step = Step(tuple(e.id for e in effects), held_out_mae(hybrid, campaign, held_out), floor, tuple(hybrid.effect_parameters()), model)
     return hybrid, step
 
@@ -121,7 +121,7 @@ def diagnose(
     campaign: Campaign,
     add: Sequence[str] | None = None,
     baseline: DeviationModel | None = None,
-    data_model: DataModel = "trilinear",
+    data_part: DataPart = "trilinear",
     catalog: Catalog = DEFAULT_CATALOG,
     max_steps: int = 3,
     progress: Callable[[str], None] | None = None,
@@ -160,8 +160,8 @@ def diagnose(
     by_id = {e.id: e for e in effects}
 
     if baseline is None:
-        baseline = HybridModel([], data_model).fit(campaign, train)
-        baseline_name = baseline.data_model.name
+        baseline = HybridModel([], data_part).fit(campaign, train)
+        baseline_name = baseline.data_part.name
     else:
         baseline_name = baseline.name
     baseline_mae = held_out_mae(baseline, campaign, held_out)
@@ -197,7 +197,7 @@ def diagnose(
         chosen_steps = [*start, *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) for i in add)]
     hybrid = None
     for count in range(1, len(chosen_steps) + 1):
-        hybrid, step = add_effects(campaign, chosen_steps[:count], data_model)
+        hybrid, step = add_effects(campaign, chosen_steps[:count], data_part)
         steps.append(step)
 
     by_scatter = before.ring_by_scatter if before is not None else np.zeros(campaign.n_orientations, dtype=bool)

@@ -71,7 +71,7 @@ def fitted_columns(columns: NDArray[np.float64], touches: Touches) -> NDArray[np
 
 
 SUBFOLDER = "hybrid"
-DataModel = str | DeviationModel | Callable[[], DeviationModel]
+DataPart = str | DeviationModel | Callable[[], DeviationModel]
 
 
 class HybridModel(DeviationModel):
@@ -82,11 +82,11 @@ class HybridModel(DeviationModel):
     def __init__(
         self,
         effects: Sequence[Effect] = (),
-        data_model: DataModel = "trilinear",
+        data_part: DataPart = "trilinear",
         progress: Callable[[str, float], None] | None = None,
     ) -> None:
         self.effects = list(effects)  # each at its own settings (e.g. cycles per revolution)
-        self.data_model: DeviationModel = make_data_model(data_model)
+        self.data_part: DeviationModel = make_data_part(data_part)
         self.coefficients_: NDArray[np.float64] = np.zeros(0)
         self.geometry: Geometry = DEFAULT_GEOMETRY
         self.progress = progress
@@ -141,7 +141,7 @@ class HybridModel(DeviationModel):
         self.geometry = campaign.geometry
         self.n_points = campaign.n_points
         touches = campaign_touches(campaign)
-        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_model, campaign, mask))
+        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_part, campaign, mask))
         self.fit_targets_ = Design(self.smoother_.residual(campaign.deviations)[..., None], None)
         if self.effects:
             self._report("physical terms", 0.0)
@@ -155,7 +155,7 @@ class HybridModel(DeviationModel):
             remainder = campaign.deviations
         self._report("data-driven part", 0.3)
         residual_campaign = Campaign(campaign.orientations, remainder, campaign.times_s, campaign.geometry, campaign.check_orientations)
-        self.data_model.fit(residual_campaign, mask)
+        self.data_part.fit(residual_campaign, mask)
         self._report("done", 1.0)
         return self
 
@@ -166,7 +166,7 @@ class HybridModel(DeviationModel):
         physical coefficients is corrected through the smoother, exact for the trilinear part.
         """
         touches = campaign_touches(campaign.subset(rings))
-        data = self.data_model.predict(touches.orientations, n_points=touches.shape[2])[:, None, :]
+        data = self.data_part.predict(touches.orientations, n_points=touches.shape[2])[:, None, :]
         fitted_here = self.smoother_ is not None and self.smoother_.weights.shape[0] == campaign.n_orientations
         if not fitted_here:
             raise ValueError("predict_held_out needs the hybrid fitted on this campaign (fit, not load)")
@@ -185,7 +185,7 @@ class HybridModel(DeviationModel):
             self.progress(stage, fraction)
 
     def predict_touches(self, touches: Touches) -> NDArray[np.float64]:
-        data = self.data_model.predict(touches.orientations, n_points=touches.shape[2])
+        data = self.data_part.predict(touches.orientations, n_points=touches.shape[2])
         return self.physical_part(touches) + data[:, None, :]
 
     def predict(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
@@ -196,17 +196,17 @@ class HybridModel(DeviationModel):
         return self.predict_touches(touch_kinematics(o, geometry))[:, 0, :]
 
     def repetition_sigma(self, orientations: ArrayLike, n_points: int | None = None) -> NDArray[np.float64]:
-        return self.data_model.repetition_sigma(orientations, n_points)
+        return self.data_part.repetition_sigma(orientations, n_points)
 
     # -- files -----------------------------------------------------------------------------------
     def save(self, directory: str | Path) -> Path:
         # Its own subfolder, so that a hybrid saved beside trained models never overwrites their files.
         directory = Path(directory) / SUBFOLDER
         directory.mkdir(parents=True, exist_ok=True)
-        self.data_model.save(directory)
+        self.data_part.save(directory)
         path = directory / "hybrid.json"
         record = {
-            "data_model": self.data_model.name,
+            "data_part": self.data_part.name,
             "geometry": self.geometry.as_dict(),
             "effects": [
                 {"id": e.id, "settings": e.settings(), "params": p["params"]} for e, p in zip(self.effects, self.effect_parameters())
@@ -227,8 +227,8 @@ class HybridModel(DeviationModel):
         if unknown:
             raise InputError(f"effect {unknown[0]!r} is not in the catalog (give its --effects file)", file=str(directory))
         effects = [catalog[e["id"]](**e["settings"]) for e in record["effects"]]
-        model = cls(effects, record["data_model"])
-        model.data_model = type(model.data_model).load(directory)
+        model = cls(effects, record.get("data_part", record.get("data_model")))  # "data_model": a folder saved before 2026-11-29
+        model.data_part = type(model.data_part).load(directory)
         model.geometry = Geometry(**record["geometry"])
         model.n_points = model.geometry.points_per_circle
         model.coefficients_ = np.asarray(record["coefficients"], dtype=float)
@@ -237,23 +237,23 @@ class HybridModel(DeviationModel):
         return model
 
 
-def smoother_type(data_model: DeviationModel, campaign: Campaign, train: NDArray[np.bool_]) -> ModelFactory:
+def smoother_type(data_part: DeviationModel, campaign: Campaign, train: NDArray[np.bool_]) -> ModelFactory:
     """The linear model whose out-of-sample weights stand for the data part in the physical fit: the
     data part itself when it is linear in its data (trilinear, mean curve), or its linear smoother
     when it has one (a Gaussian process with its kernel fixed, learnt now on the campaign), else the
     trilinear model (for the network, its nearest linear stand-in)."""
-    if isinstance(data_model, TrilinearModel):
-        return type(data_model)
-    linear = getattr(data_model, "linear_smoother", None)
+    if isinstance(data_part, TrilinearModel):
+        return type(data_part)
+    linear = getattr(data_part, "linear_smoother", None)
     return linear(campaign, train) if linear is not None else TrilinearModel
 
 
-def make_data_model(data_model: DataModel) -> DeviationModel:
+def make_data_part(data_part: DataPart) -> DeviationModel:
     """The data-driven part: a model, a factory of one (e.g. a network with a progress bar), or its name."""
-    if isinstance(data_model, DeviationModel):
-        return data_model
-    if callable(data_model):
-        return data_model()
-    if data_model not in MODEL_TYPES:
-        raise ValueError(f"unknown data-driven model {data_model!r} ({' or '.join(MODEL_TYPES)})")
-    return model_class(data_model)()
+    if isinstance(data_part, DeviationModel):
+        return data_part
+    if callable(data_part):
+        return data_part()
+    if data_part not in MODEL_TYPES:
+        raise ValueError(f"unknown data-driven model {data_part!r} ({' or '.join(MODEL_TYPES)})")
+    return model_class(data_part)()

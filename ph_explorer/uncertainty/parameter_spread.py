@@ -70,7 +70,7 @@ def parameter_spread(hybrid: HybridModel, campaign: Campaign) -> ParameterSpread
     rings = np.flatnonzero(hybrid.smoother_.train)
     without = least_squares.jackknife(hybrid.fit_design_, hybrid.fit_targets_, rings, hybrid.ridge_)
     absorbed: list[TrilinearModel] = []
-    if isinstance(hybrid.data_model, TrilinearModel):
+    if isinstance(hybrid.data_part, TrilinearModel):
         train = campaign.subset(rings)
         basis = hybrid.physical_basis(campaign_touches(train)).mean(axis=1)  # (n, N, c)
         absorbed = [TrilinearModel().fit(Campaign(train.orientations, basis[:, None, :, j])) for j in range(basis.shape[-1])]
