@@ -28,7 +28,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
-from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_lines, rings_that_decide
+from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_words, rings_that_decide
 from ph_explorer.twin import simulate, twin_scenario
 
 
@@ -164,7 +164,7 @@ class PhysicsLoop:
         self.decision = decision
         self.proposed = np.array([[r["A_deg"], r["B_deg"]] for r in decision.rings]).reshape(-1, 2)
         twin = twin_scenario(ds.campaign, self.catalog)
-        p.show_decision(decision_lines(decision, DECIDE_BUDGET), twin is not None)
+        p.show_decision(decision_words(decision, DECIDE_BUDGET), twin is not None)
         if decision.rings and twin is None:
             p.decision.content += (
                 "\n\n_Measure them on your CMM (**Download rings.csv** gives them to a CMM program), "

@@ -19,6 +19,7 @@ from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
 from ph_explorer.figures.diagnosis_text import chosen_text, nested_summary, report_sections, shared_text, signature_text, step_label
+from ph_explorer.planning.deciding import DecisionWords
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -298,14 +299,13 @@ class PhysicsPanel:
         self.decision.content = ""
         self.measure.visible = self.download_rings.visible = False
 
-    def show_decision(self, lines: list[str], measurable: bool) -> None:
-        """The rings that would decide (planning.deciding.decision_lines); Measure them when the twin can."""
-        head, rings = lines[0], [line for line in lines[1:] if line[:4].strip().rstrip(".").isdigit()]
-        rest = [line for line in lines[1:] if line not in rings]
-        listed = "\n".join(" ".join(line.split()) for line in rings)  # "1. A10 B-20 tells ...": a numbered list
-        self.decision.content = f"**{head}**\n\n{listed}\n\n" + "\n\n".join(rest) if rings else "\n\n".join([f"**{head}**", *rest])
-        self.measure.visible = bool(rings) and measurable
-        self.download_rings.visible = bool(rings)
+    def show_decision(self, words: DecisionWords, measurable: bool) -> None:
+        """The rings that would decide (planning.deciding.decision_words); Measure them when the twin can."""
+        listed = "\n".join(" ".join(line.split()) for line in words.rings)  # "1. A10 B-20 tells ...": a numbered list
+        rest = [*words.undecided, *([words.time] if words.time else [])]
+        self.decision.content = "\n\n".join([f"**{words.head}**", *([listed] if listed else []), *rest])
+        self.measure.visible = bool(words.rings) and measurable
+        self.download_rings.visible = bool(words.rings)
 
     def _candidate_caption(self, candidate: Candidate) -> str:
         # Short: its parameters +- U are in the table under the plot.

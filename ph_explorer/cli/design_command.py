@@ -89,7 +89,7 @@ def decide_command(
     from ph_explorer.io import read_campaign
     from ph_explorer.io.rings import rings_csv_text
     from ph_explorer.io.writer import atomic_write
-    from ph_explorer.planning.deciding import decision_lines, rings_that_decide
+    from ph_explorer.planning.deciding import decision_words, rings_that_decide
 
     campaign = read_campaign(Path(data), geometry or {})
     start = []
@@ -108,7 +108,8 @@ def decide_command(
     if json_output:
         print(json.dumps(report, allow_nan=False))
         return 0
-    lines = [f"{Path(data).name}: verdict {result.verdict}; " + decision_lines(decision, budget)[0], *decision_lines(decision, budget)[1:]]
+    words = decision_words(decision, budget).lines()
+    lines = [f"{Path(data).name}: verdict {result.verdict}; " + words[0], *words[1:]]
     if out is not None and decision.rings:
         lines[-1] += f"; written to {out}"
     print("\n".join(lines))

@@ -311,21 +311,35 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
     )
 
 
-def decision_lines(decision: Decision, budget: int) -> list[str]:
-    """The decision in words: a head line, one line a ring in measuring order, a line per question
-    no ring decides, and the CMM time."""
-    if decision.rings:
-        lines = [f"{len(decision.rings)} rings that decide, in this order:"]
-    else:
-        lines = [decision.note or "no ring decides what is open"]
-    lines += [f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings]
+@dataclass(frozen=True)
+class DecisionWords:
+    """The decision in words, by part: a head line, one line a ring in measuring order, a line per
+    question no ring decides, and the CMM time (None without rings)."""
+
+    head: str
+    rings: tuple[str, ...]
+    undecided: tuple[str, ...]
+    time: str | None
+
+    def lines(self) -> list[str]:
+        return [self.head, *self.rings, *self.undecided, *([self.time] if self.time is not None else [])]
+
+
+def decision_words(decision: Decision, budget: int) -> DecisionWords:
+    """The decision in words (DecisionWords); the command line prints its lines, the explorer lays out its parts."""
+    head = (
+        f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
+    )
+    rings = tuple(f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings)
+    undecided = []
     for label, expected in decision.expected.items():
         if not expected["decided_by_rings"]:
             other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
-            lines.append(
+            undecided.append(
                 f"{label}: no {budget} rings of this stylus decide it (the test over rings would pass "
                 f"{100 * expected['power']:.0f} % of the time with them, {100 * DECIDING_POWER:.0f} % decides){other}"
             )
+    time = None
     if decision.rings:
-        lines.append(f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note)
-    return lines
+        time = f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note
+    return DecisionWords(head, rings, tuple(undecided), time)
