@@ -18,6 +18,7 @@ import datetime
 import json
 import os
 import platform
+import sys
 import tempfile
 import time
 from collections.abc import Iterator
@@ -60,6 +61,7 @@ SECTIONS = (
     "scale",
     "diagnosis_calibration",
     "population",
+    "population_unknown",
     "verdict_speed",
     "deciding",
     "hidden_effects",
@@ -214,13 +216,16 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
 # imports) would cost more than they save, and the test suite runs the quick run beside its other
 # tests on the same cores.
 QUICK_WORKERS = 1
-TASK_SECTIONS = ("diagnosis_calibration", "population", "hidden_effects", "uncertainty_coverage", "peers")
+TASK_SECTIONS = ("diagnosis_calibration", "population", "population_unknown", "hidden_effects", "uncertainty_coverage", "peers")
 LATENCY_TARGET_MS = 50.0
 SERVER_TARGET_MS = 2.0
 
 
-def run_task_sections(client: Any, sections: list[str], quick: bool, results: dict[str, Any], stamp: dict[str, str]) -> None:
-    """The sections whose diagnoses are tasks on the client's workers."""
+def run_task_sections(
+    client: Any, sections: list[str], quick: bool, results: dict[str, Any], stamp: dict[str, str], unknown: dict[str, Any] | None = None
+) -> None:
+    """The sections whose diagnoses are tasks on the client's workers; unknown: the unknown-shape
+    population's families and heads a family (None: its defaults)."""
     if "diagnosis_calibration" in sections:
         # false alarms, stability, coverage, power (issue 13)
         with section("diagnosis calibration", "diagnosis_calibration", results):
@@ -231,6 +236,12 @@ def run_task_sections(client: Any, sections: list[str], quick: bool, results: di
 
         with section("population", "population", results):
             results["population"] = population.run(client, quick=quick, log=log)
+    if "population_unknown" in sections:
+        # effects no catalog holds, in families (issue 55)
+        from benchmarks import unknown_population
+
+        with section("population: effects no catalog holds", "population_unknown", results):
+            results["population_unknown"] = unknown_population.run(client, quick=quick, log=log, **(unknown or {}))
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         from benchmarks import hidden_effects
@@ -281,7 +292,19 @@ def main(argv: list[str] | None = None) -> int:
         help=f"run only these sections (comma-separated: {', '.join(SECTIONS)}) and update them in OUT/results.json",
     )
     parser.add_argument("--scheduler", default=None, help="run the sections' many diagnoses on this Dask scheduler (tcp://HOST:PORT)")
+    parser.add_argument("--unknown-families", default=None, help="population_unknown: these families only (comma-separated)")
+    parser.add_argument("--unknown-count", type=int, default=None, help="population_unknown: heads a family (> 0)")
     args = parser.parse_args(argv)
+    # Population options checked before anything runs or is written: one line, exit 2.
+    from benchmarks.unknown_population import checked_options
+    from ph_explorer.errors import InputError
+
+    try:
+        families, count = checked_options(args.unknown_families, args.unknown_count)
+    except InputError as error:
+        print(error.line(), file=sys.stderr)
+        return 2
+    unknown = {"families": families, "count": count}
     out: Path = args.out
     if args.replot:
         write_plots(json.loads((out / "results.json").read_text()), out)
@@ -325,7 +348,7 @@ def main(argv: list[str] | None = None) -> int:
         if set(sections) & set(TASK_SECTIONS):
             in_process = quick and args.scheduler is None
             client = stack.enter_context(dask_client(args.scheduler, QUICK_WORKERS if quick else None, in_process))
-        run_task_sections(client, sections, quick, results, stamp)
+        run_task_sections(client, sections, quick, results, stamp, unknown)
 
     if "verdict_speed" in sections:
         # one diagnosis at a time with nothing else running: the command and the explorer's click (issue 28, item 5)

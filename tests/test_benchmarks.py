@@ -115,7 +115,7 @@ def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> No
 QUICK_GROUPS = {
     "data_efficiency": ("data_efficiency", "peers", "deciding", "verdict_speed"),
     "speed": ("speed", "scale"),
-    "diagnoses": ("diagnosis_calibration", "population"),
+    "diagnoses": ("diagnosis_calibration", "population", "population_unknown"),
     "hidden_effects": ("hidden_effects", "uncertainty_coverage"),
     "large_campaign": ("large_campaign",),
     "fleet": ("fleet",),
@@ -342,7 +342,18 @@ def check_peers(results: dict) -> None:
     }
 
 
+def check_population_unknown(results: dict) -> None:
+    """Issue 55's unknown shapes: each family's heads diagnosed, the shares with their intervals."""
+    unknown = results["population_unknown"]
+    assert unknown["mode"] == "quick" and unknown["heads"] == 2 and set(unknown["by_family"]) == {"step", "bad_ring"}
+    for summary in [unknown["all"], *unknown["by_family"].values()]:
+        for key in ("none", "catalog_name", "honest"):
+            assert summary[key]["of"] >= 1 and len(summary[key]["ci95"]) == 2, key
+    assert unknown["errors"] == [] and unknown["commit"] and unknown["targets"]["none_max"] == 0.10
+
+
 CHECKS = {
+    "population_unknown": check_population_unknown,
     "data_efficiency": check_data_efficiency,
     "speed": check_speed,
     "scale": check_scale,
@@ -371,7 +382,18 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
     since each section's own quick run is test_a_quick_run_writes_its_sections_keys_and_plots."""
     import contextlib
 
-    from benchmarks import calibration, deciding, fleet, hidden_effects, large_campaign, peers, population, run, uncertainty_coverage
+    from benchmarks import (
+        calibration,
+        deciding,
+        fleet,
+        hidden_effects,
+        large_campaign,
+        peers,
+        population,
+        run,
+        uncertainty_coverage,
+        unknown_population,
+    )
 
     called: list[tuple[str, bool]] = []
 
@@ -385,6 +407,7 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
     for module, name in [
         (calibration, "diagnosis_calibration"),
         (population, "population"),
+        (unknown_population, "population_unknown"),
         (hidden_effects, "hidden_effects"),
         (uncertainty_coverage, "uncertainty_coverage"),
         (peers, "peers"),
@@ -453,6 +476,21 @@ def test_only_updates_its_sections_and_keeps_the_rest(tmp_path: Path) -> None:
     )
     assert bad.returncode == 2 and "--only: unknown section 'nonsense'" in bad.stderr
     assert json.loads((tmp_path / "results.json").read_text()) == previous
+
+
+def test_a_population_option_out_of_range_is_one_line_and_nothing_written(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """Issue 55: a family that does not exist, or a count <= 0: one line naming the option, exit 2, nothing written."""
+    from benchmarks.run import main
+
+    previous = {"date": "2000-01-01", "population_unknown": {"old": True}}
+    (tmp_path / "results.json").write_text(json.dumps(previous))
+    for options, option in ((["--unknown-families", "step,wobble"], "--unknown-families"), (["--unknown-count", "0"], "--unknown-count")):
+        assert main(["--only", "population_unknown", "--out", str(tmp_path), *options]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"option {option}:"), err
+    assert json.loads((tmp_path / "results.json").read_text()) == previous and sorted(p.name for p in tmp_path.iterdir()) == [
+        "results.json"
+    ]
 
 
 def test_a_material_candidate_the_diagnosis_leaves_unclaimed_is_carried_for_prediction(paper, monkeypatch) -> None:

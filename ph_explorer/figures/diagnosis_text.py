@@ -159,6 +159,7 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
     fit = f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)" if with_fit else ""
     told = [p for p in candidate.confounded_with if p.told_apart]
+    fit = fit if with_fit else " (its fit: the table below)"
     lines = [f"{effect_label(effect)}{fit}."] if with_fit or candidate.untold or told or candidate.rival_setting else []
     partners = [untold_text(candidate.effect, candidate.untold, actions)] if candidate.untold else []
     partners += [f"{p.effect} shares {percent(p.shared)} of it, yet the rings tell them apart ({test_text(p.test)})." for p in told]
@@ -171,7 +172,7 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
         )
     if (rival := candidate.rival_setting) is not None:
         settings.append(
-            f"the rings cannot tell it from {settings_text(effect, [rival.settings])} ({test_text(rival.test)}); {actions['decide']} gives the rings that would"
+            f"the rings cannot tell it from {settings_text(effect, [rival.settings])} ({test_text(rival.test)}); the rings that would: {actions['decide']}"
         )
     if settings:
         lines.append("  " + "; ".join(settings) + ".")
@@ -190,7 +191,7 @@ def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str
     if measurements:
         decide = f"measuring {' or '.join(measurements)} would separate them"
     else:
-        decide = f"no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share; {actions['decide']} says whether more rings decide, with their power"
+        decide = f"no measurement tried (rings near A0 = 0, off-grid rings, a reversed scan, a longer stylus) lowers what they share; whether more rings would decide, and with what power: {actions['decide']}"
     return f"or {shared}: these rings cannot tell them apart; {decide}."
 
 
