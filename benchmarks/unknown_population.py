@@ -27,9 +27,11 @@ import numpy as np
 from benchmarks.calibration import clopper_pearson, code_version, commit, share
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, within_noise
 from ph_explorer.errors import InputError
+from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.task_runner import run_tasks
-from ph_explorer.twin.random_heads import design_of
+from ph_explorer.twin.random_heads import design_of, random_campaign
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -37,6 +39,8 @@ if TYPE_CHECKING:
 COUNT_PER_FAMILY, QUICK_COUNT_PER_FAMILY = 25, 1
 QUICK_FAMILIES = ("step", "bad_ring")
 FIRST_SEED = 550_000
+CALIBRATION_SEED, CALIBRATION_HEADS, QUICK_CALIBRATION_HEADS = 900_000, 300, 2  # population.py's tolerance heads
+TRIED = (1.5, 2.0, 2.5, 3.0, 4.0)  # check-ring tolerances whose cost and power are measured
 TARGETS = {"none_max": 0.10, "catalog_name_max": 0.02, "per_family_min_heads": 20}
 
 
@@ -82,7 +86,28 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "check_ratio_max": round(float(np.max(check)), 3) if check else None,
         "failing_rings": sum(bool(ring.exceeds) for ring in result.rings),
         "failing_check_rings": sum(bool(ring.exceeds) for ring in result.rings if ring.held_out),
+        "check_exceedance": check_exceedance(result.within_noise["baseline"]),
         "signature_first": None if first is None else first["variable"],
+    }
+
+
+def check_exceedance(test: Any) -> float | None:
+    """The baseline's check rings as a group over what noise gives (within_noise.NoiseTest.check_exceedance)."""
+    value = None if test is None else test.check_exceedance
+    return None if value is None else round(float(value), 4)
+
+
+def healthy_exceedance(seed: int) -> dict[str, Any]:
+    """A healthy head's baseline check-ring group statistic over its noise level (the calibration of CHECK_TOLERANCE)."""
+    campaign = random_campaign(seed)
+    train = ~campaign.holdout_mask()
+    smoother = OutOfSampleSmoother(campaign.orientations, train)
+    test = within_noise(smoother.residual(campaign.deviations), smoother.weights, campaign.deviations, held_out=~train)
+    return {
+        "seed": seed,
+        "design": design_of(seed),
+        "check_exceedance": check_exceedance(test),
+        "lattice_fails": None if test is None else test.fails,
     }
 
 
@@ -118,6 +143,26 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def tolerance_figures(healthy: list[dict[str, Any]], unknown: list[dict[str, Any]]) -> dict[str, Any]:
+    """At each tolerance tried, the share of healthy heads whose check rings fail as a group (the
+    cost) and of unknown-shape heads whose verdict is `none` yet whose check rings fail (what it catches)."""
+    quiet = [r for r in unknown if r["verdict"] == "none"]
+    return {
+        "used": CHECK_TOLERANCE,
+        "healthy_heads": len(healthy),
+        "healthy_fails": {str(t): rate(sum(r["check_exceedance"] > t for r in healthy), len(healthy)) for t in TRIED},
+        "healthy_fails_alone": {
+            str(t): rate(sum(r["check_exceedance"] > t and not r["lattice_fails"] for r in healthy), len(healthy)) for t in TRIED
+        },
+        "unknown_none_caught": {str(t): rate(sum(r["check_exceedance"] > t for r in quiet), len(quiet)) for t in TRIED},
+        "healthy_exceedance_quantiles": {
+            str(q): round(float(np.quantile([r["check_exceedance"] for r in healthy], q)), 3) for q in (0.5, 0.9, 0.95, 0.98, 0.99)
+        }
+        if healthy
+        else {},
+    }
+
+
 def run(
     client: Client,
     quick: bool = False,
@@ -147,6 +192,10 @@ def run(
         "seconds_per_diagnosis": {"median": float(np.median([r["seconds"] for r in records if "seconds" in r] or [0.0]))},
         "run_seconds": round(time.perf_counter() - started, 1),
     }
+    # CHECK_TOLERANCE over healthy heads of their own seeds (the within-noise tolerance's calibration heads).
+    seeds = list(range(CALIBRATION_SEED, CALIBRATION_SEED + (QUICK_CALIBRATION_HEADS if quick else CALIBRATION_HEADS)))
+    healthy = [r for r in run_tasks(client, healthy_exceedance, seeds).results if r["check_exceedance"] is not None]
+    out["check_tolerance"] = tolerance_figures(healthy, [r for r in records if r.get("check_exceedance") is not None])
     overall = out["all"]
     log(
         f"  none {overall['none']['count']}/{overall['none']['of']}, catalog name {overall['catalog_name']['count']}/{overall['catalog_name']['of']}"

@@ -22,6 +22,7 @@ from .page_peers import peers
 from .page_population import population
 from .page_scale import scale
 from .page_speed import speed
+from .page_unknown import unknown
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 RESULTS = ROOT / "benchmarks" / "results.json"
@@ -64,6 +65,7 @@ SECTIONS: dict[str, Callable[[Mapping[str, Any], Plots], str]] = {
     "scale": lambda r, p: scale(r),
     "diagnosis_calibration": calibration,
     "population": lambda r, p: population(r),
+    "population_unknown": lambda r, p: unknown(r),
     "deciding": lambda r, p: deciding(r),
     "hidden_effects": lambda r, p: hidden_effects(r),
     "uncertainty_coverage": lambda r, p: coverage(r),

@@ -31,7 +31,7 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
     mean, within = design.apply_each(least_squares.jackknife(design, search.targets, np.arange(campaign.n_orientations)))
     changing = 0.0 if within is None else within
     residual = search.residual - mean[:, None, :] - changing
-    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed)
+    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed, held_out=~search.train)
 
 
 # A candidate that is not material on the check rings is still taken when it brings at least this
@@ -140,7 +140,7 @@ def choose_effects(
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
-    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed)
+    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed, held_out=~search.train)
     chain = list(start)
     current = within_noise_after(search, campaign, chain, seed) if chain else before
     after = current if chain else None

@@ -33,6 +33,12 @@ WITHIN_HARMONICS = (2, 8)  # the low harmonics where systematic repetition diffe
 MEAN_TOLERANCE = 2.0  # a ring's mean residual may hold as much systematic error as noise
 RING_LEVEL = 0.01  # a ring exceeds below this p-value
 FALSE_ALARM = 0.02  # the campaign fails with at most this probability on pure noise (see below)
+# The check rings as a group (docs/methods/within_noise.md, "The check rings as a group"): their
+# pooled mean statistic, the worst left out, against CHECK_TOLERANCE times what noise gives, at
+# CHECK_LEVEL; at least CHECK_MIN_RINGS of them.
+CHECK_TOLERANCE = 2.0
+CHECK_LEVEL = 0.01
+CHECK_MIN_RINGS = 3
 
 
 @dataclass
@@ -50,6 +56,17 @@ class NoiseTest:
     # its repetitions (harmonics WITHIN_HARMONICS): which of the two makes a ring exceed.
     ring_p_mean: NDArray[np.float64] | None = None
     ring_p_within: NDArray[np.float64] | None = None
+    # The check rings as a group: their pooled statistic (the worst left out) and the level pure
+    # noise exceeds with probability CHECK_LEVEL; None without enough check rings.
+    check_statistic: float | None = None
+    check_noise_level: float | None = None
+
+    @property
+    def check_exceedance(self) -> float | None:
+        """The check rings' pooled statistic over what noise gives at CHECK_LEVEL: the group fails above CHECK_TOLERANCE."""
+        if self.check_statistic is None or not self.check_noise_level:
+            return None
+        return self.check_statistic / self.check_noise_level
 
     @property
     def ring_exceeds(self) -> NDArray[np.bool_]:
@@ -80,13 +97,16 @@ class NoiseTest:
             "mean_tolerance": self.tolerance,
             "false_alarm_rate": FALSE_ALARM,
             "rings": self.rings,
+            "check_statistic": None if self.check_statistic is None else round(self.check_statistic, 4),
+            "check_noise_level": None if self.check_noise_level is None else round(self.check_noise_level, 4),
         } | {key: None if (values := getattr(self, key)) is None else [float(v) for v in values] for key in RING_P_VALUES}
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> NoiseTest:
         rings = {key: None if data.get(key) is None else np.array(data[key], dtype=float) for key in RING_P_VALUES}
         figures = (data["failing_rings"], data["statistic"], data["critical"], data["p_value"], data["fails"], data["mean_tolerance"])
-        return cls(rings["ring_p_value"], *figures, rings["ring_p_mean"], rings["ring_p_within"])
+        check = (data.get("check_statistic"), data.get("check_noise_level"))
+        return cls(rings["ring_p_value"], *figures, rings["ring_p_mean"], rings["ring_p_within"], *check)
 
 
 RING_P_VALUES = ("ring_p_value", "ring_p_mean", "ring_p_within")  # each ring's, in the JSON
@@ -212,6 +232,7 @@ def within_noise(
     seed: int = 0,
     null: NoiseNull | None = None,
     tolerance: float = MEAN_TOLERANCE,
+    held_out: NDArray[np.bool_] | None = None,
 ) -> NoiseTest | None:
     """The test (docs/methods/within_noise.md) of an out-of-sample residual (n_o, n_rep, n_pt).
 
@@ -220,7 +241,7 @@ def within_noise(
     repetitions leave). None for a campaign of one repetition: without a repetition spread there
     is no noise to compare with. null: noise_null of the same rings and smoother, when it is
     already drawn (its tolerance is then the test's); tolerance: MEAN_TOLERANCE unless a
-    calibration tries another.
+    calibration tries another; held_out: the check rings, also judged as a group.
     """
     n_o, n_rep, n_pt = residual.shape
     if n_rep < 2:
@@ -230,10 +251,31 @@ def within_noise(
     mean_residual = residual.mean(axis=1)
     # within: the low-harmonic share of each ring's scatter, against its exact null.
     share = low_harmonic_share(residual - mean_residual[:, None])
-    return _judged(mean_residual, within_p_value(share, n_rep, n_pt), weights, null)
+    return _judged(mean_residual, within_p_value(share, n_rep, n_pt), weights, null, held_out)
 
 
-def _judged(mean_residual: NDArray[np.float64], p_within: NDArray[np.float64], weights: NDArray[np.float64], null: NoiseNull) -> NoiseTest:
+def check_group(
+    mean_stat: NDArray[np.float64], null_stat: NDArray[np.float64], held_out: NDArray[np.bool_] | None
+) -> tuple[float | None, float | None]:
+    """The check rings as a group: their mean statistics, each over its mean under noise, summed
+    with the worst left out (no single ring decides), and the same sum's (1 - CHECK_LEVEL) quantile
+    over the null's draws; (None, None) without CHECK_MIN_RINGS check rings."""
+    if held_out is None or int(np.sum(held_out)) < CHECK_MIN_RINGS:
+        return None, None
+    scale = np.maximum(null_stat[held_out].mean(axis=1), 1e-300)
+    observed = mean_stat[held_out] / scale
+    drawn = null_stat[held_out] / scale[:, None]
+    noise = drawn.sum(axis=0) - drawn.max(axis=0)
+    return float(observed.sum() - observed.max()), float(np.quantile(noise, 1.0 - CHECK_LEVEL, method="higher"))
+
+
+def _judged(
+    mean_residual: NDArray[np.float64],
+    p_within: NDArray[np.float64],
+    weights: NDArray[np.float64],
+    null: NoiseNull,
+    held_out: NDArray[np.bool_] | None = None,
+) -> NoiseTest:
     """The test from each ring's repetition-mean residual (n_o, n_pt) and scatter p-value (n_o,)."""
     null_stat, tolerance = null.null_stat, null.tolerance
     tolerated = tolerance * null_stat
@@ -249,7 +291,8 @@ def _judged(mean_residual: NDArray[np.float64], p_within: NDArray[np.float64], w
     p_undone = _upper_p((undone**2).mean(axis=-1), tolerated)
     statistic = float(np.delete(_excess(_combined(p_undone, p_within)), worst).sum())
     p_value = float((1.0 + (null.null_statistic >= statistic).sum()) / (STATISTIC_DRAWS + 1.0))
-    return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance, p_mean, p_within)
+    check = check_group(mean_stat, null_stat, held_out)
+    return NoiseTest(ring_p, failing, statistic, null.critical, p_value, statistic > null.critical, tolerance, p_mean, p_within, *check)
 
 
 class ScaledWithinNoise:
