@@ -40,7 +40,7 @@ COUNT_PER_FAMILY, QUICK_COUNT_PER_FAMILY = 25, 1
 QUICK_FAMILIES = ("step", "bad_ring")
 FIRST_SEED = 550_000
 CALIBRATION_SEED, CALIBRATION_HEADS, QUICK_CALIBRATION_HEADS = 900_000, 300, 2  # population.py's tolerance heads
-TRIED = (1.5, 2.0, 2.5, 3.0, 4.0)  # check-ring tolerances whose cost and power are measured
+TRIED = (1.25, 1.5, 2.0, 2.5, 3.0)  # check-ring tolerances whose cost and power are measured
 TARGETS = {"none_max": 0.10, "catalog_name_max": 0.02, "per_family_min_heads": 20}
 
 

@@ -121,3 +121,27 @@ def test_the_nulls_counts_from_one_sort_are_the_comparisons_counts(null_stat, to
 
     direct = (tolerance * null_stat[:, None, :] >= null_stat[..., None]).sum(axis=-1)
     np.testing.assert_array_equal(_count_at_least(tolerance * null_stat, null_stat), direct)
+
+
+def test_check_rings_that_fail_together_are_not_outvoted_by_a_lattice_within_noise():
+    """Issue 55: a healthy head's lattice within noise, its check rings each at 1.5-2x their floor
+    (no one of them far off alone): the campaign statistic alone passes (it was the whole test
+    before: `none`), the check rings as a group do not, and the verdict is not `none`."""
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.twin.random_heads import random_campaign
+
+    campaign = random_campaign(7, "paper")
+    assert diagnose(campaign, nested=False).verdict == "none"
+    check = np.flatnonzero(campaign.holdout_mask())
+    rng = np.random.default_rng(3)
+    theta = np.radians(np.arange(campaign.n_points) * 360.0 / campaign.n_points)
+    mean_sigma = ring_sigma(campaign.deviations)[check] / np.sqrt(campaign.n_repetitions)
+    for ring, sigma in zip(check, mean_sigma):  # a form of rms 1.25 sigma of the mean
+        lobes, phase = rng.integers(3, 7), rng.uniform(0, 2 * np.pi)
+        campaign.deviations[ring] += np.sqrt(2.0) * 1.25 * sigma * np.cos(lobes * theta + phase)
+    result = diagnose(campaign, nested=False)
+    test = result.within_noise["baseline"]
+    ratios = [ring.ratio for ring in result.rings if ring.held_out]
+    assert 1.4 < np.median(ratios) and max(ratios) < 2.0, ratios
+    assert not test.rings_fail and test.check_rings_fail and test.fails
+    assert result.verdict != "none"

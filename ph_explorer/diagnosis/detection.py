@@ -52,7 +52,7 @@ class DetectionLimits:
             return math.inf
         mean, within = design.apply(np.ones(1))
         # The spread only draws the test's null, which is given: the campaign's as it is.
-        test = ScaledWithinNoise(self.search.residual, mean, within, self.search.smoother.weights, self.null)
+        test = ScaledWithinNoise(self.search.residual, mean, within, self.search.smoother.weights, self.null, ~self.search.train)
         if test(0.0).fails:
             return 0.0
         low, high = 0.0, 2.0**-20

@@ -36,7 +36,7 @@ FALSE_ALARM = 0.02  # the campaign fails with at most this probability on pure n
 # The check rings as a group (docs/methods/within_noise.md, "The check rings as a group"): their
 # pooled mean statistic, the worst left out, against CHECK_TOLERANCE times what noise gives, at
 # CHECK_LEVEL; at least CHECK_MIN_RINGS of them.
-CHECK_TOLERANCE = 2.0
+CHECK_TOLERANCE = 1.5
 CHECK_LEVEL = 0.01
 CHECK_MIN_RINGS = 3
 
@@ -50,7 +50,7 @@ class NoiseTest:
     statistic: float  # how far the rings but the worst exceed their noise, summed (see within_noise)
     critical: float  # the statistic pure noise exceeds with probability FALSE_ALARM
     p_value: float  # chance that pure noise gives at least this statistic
-    fails: bool
+    rings_fail: bool  # the statistic is above the critical value
     tolerance: float = MEAN_TOLERANCE  # the systematic error a ring's mean may hold, times its noise
     # Each ring's p-value of its repetition mean (against the tolerance) and of the scatter between
     # its repetitions (harmonics WITHIN_HARMONICS): which of the two makes a ring exceed.
@@ -60,6 +60,19 @@ class NoiseTest:
     # noise exceeds with probability CHECK_LEVEL; None without enough check rings.
     check_statistic: float | None = None
     check_noise_level: float | None = None
+
+    @property
+    def check_rings_fail(self) -> bool:
+        """The check rings fail together: their pooled statistic is above CHECK_TOLERANCE times its noise level."""
+        exceedance = self.check_exceedance
+        return exceedance is not None and exceedance > CHECK_TOLERANCE
+
+    @property
+    def fails(self) -> bool:
+        """The model fails the test: the rings (the worst left out) or the check rings as a group
+        exceed their noise. A crowd of lattice rings within noise does not outvote check rings
+        that fail together."""
+        return self.rings_fail or self.check_rings_fail
 
     @property
     def check_exceedance(self) -> float | None:
@@ -89,6 +102,9 @@ class NoiseTest:
         """The test as JSON: its figures, and each ring's p-values (from_json reads them back)."""
         return {
             "fails": self.fails,
+            "rings_fail": self.rings_fail,
+            "check_rings_fail": self.check_rings_fail,
+            "check_tolerance": CHECK_TOLERANCE,
             "failing_rings": self.failing_rings,
             "statistic": round(self.statistic, 4),
             "critical": round(self.critical, 4),
@@ -104,7 +120,7 @@ class NoiseTest:
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> NoiseTest:
         rings = {key: None if data.get(key) is None else np.array(data[key], dtype=float) for key in RING_P_VALUES}
-        figures = (data["failing_rings"], data["statistic"], data["critical"], data["p_value"], data["fails"], data["mean_tolerance"])
+        figures = (data["failing_rings"], data["statistic"], data["critical"], data["p_value"], data["rings_fail"], data["mean_tolerance"])
         check = (data.get("check_statistic"), data.get("check_noise_level"))
         return cls(rings["ring_p_value"], *figures, rings["ring_p_mean"], rings["ring_p_within"], *check)
 
@@ -307,10 +323,12 @@ class ScaledWithinNoise:
         added_within: NDArray[np.float64] | None,
         weights: NDArray[np.float64],
         null: NoiseNull,
+        held_out: NDArray[np.bool_] | None = None,
     ) -> None:
-        """added_mean (n_o, n_pt): the part the same in every repetition; added_within (n_o, n_rep, n_pt) or None: the part that changes."""
+        """added_mean (n_o, n_pt): the part the same in every repetition; added_within (n_o, n_rep, n_pt) or None: the part that changes;
+        held_out: the check rings, judged as a group too."""
         _, self.n_rep, self.n_pt = residual.shape
-        self.weights, self.null = weights, null
+        self.weights, self.null, self.held_out = weights, null, held_out
         self.mean_residual = residual.mean(axis=1)
         self.added_mean = added_mean if added_within is None else added_mean + added_within.mean(axis=1)
         scatter = residual - self.mean_residual[:, None]
@@ -327,7 +345,7 @@ class ScaledWithinNoise:
             powers = np.array([1.0, factor, factor**2])
             share = (powers @ self.low_power) / np.maximum(powers @ self.all_power, 1e-300)
             p_within = within_p_value(share, self.n_rep, self.n_pt)
-        return _judged(self.mean_residual + factor * self.added_mean, p_within, self.weights, self.null)
+        return _judged(self.mean_residual + factor * self.added_mean, p_within, self.weights, self.null, self.held_out)
 
 
 def _count_at_least(reference: NDArray[np.float64], values: NDArray[np.float64]) -> NDArray[np.float64]:

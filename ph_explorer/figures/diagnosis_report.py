@@ -19,6 +19,7 @@ import numpy as np
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.study import Study
+from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
 from ph_explorer.figures.diagnosis_text import chosen_text, report_sections, ring_reason, signature_text, step_label
@@ -103,17 +104,19 @@ def _noise_tests(record: Diagnosis) -> list[str]:
         test = record.within_noise.get(key)
         if test is None:
             continue
+        together = "—" if test.check_exceedance is None else f"{test.check_exceedance:.2f}"
         rows.append(
             f"<tr><td>{_e(model)}</td><td>{test.failing_rings}</td><td>{test.statistic:.1f}</td><td>{test.critical:.1f}</td>"
-            f"<td>{test.p_value:.3g}</td><td class='t'>{'fails' if test.fails else 'within noise'}</td></tr>"
+            f"<td>{test.p_value:.3g}</td><td>{together}</td><td class='t'>{'fails' if test.fails else 'within noise'}</td></tr>"
         )
     if not rows:
         return ["<p>One repetition: no repetition spread, so 'within noise' could not be tested.</p>"]
     return [
         "<h3>Within-noise test</h3><table><tr><th>model</th><th>rings beyond their noise</th><th>statistic</th>"
-        "<th>critical value</th><th>p</th><th>campaign</th></tr>" + "".join(rows) + "</table>",
+        "<th>critical value</th><th>p</th><th>check rings together</th><th>campaign</th></tr>" + "".join(rows) + "</table>",
         '<p class="note">The statistic sums how far the rings exceed their noise (all but the worst); the campaign fails above '
-        "the critical value (false-alarm rate 2 %).</p>",
+        f"the critical value (false-alarm rate 2 %), or when the check rings together (the worst left out) exceed {CHECK_TOLERANCE:g} "
+        "times what their noise gives at 1 %.</p>",
     ]
 
 

@@ -17,7 +17,7 @@ from typing import Literal
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step
-from ph_explorer.diagnosis.within_noise import FALSE_ALARM
+from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
 
 Detail = Literal["short", "full"]
@@ -126,8 +126,16 @@ def campaign_test_line(result: Diagnosis) -> str:
     outcome = "fails" if test.fails else "is within noise"
     return (
         f"Within-noise test, {model}: the campaign {outcome} ({test.failing_rings} of {test.rings} rings exceed their noise; "
-        f"statistic {test.statistic:.1f}, critical {test.critical:.1f}, p = {test.p_value:.3g}, false-alarm rate {100 * FALSE_ALARM:.0f} %)."
+        f"statistic {test.statistic:.1f}, critical {test.critical:.1f}, p = {test.p_value:.3g}, false-alarm rate {100 * FALSE_ALARM:.0f} %"
+        + (f"; {check_group_text(test)}" if test.check_exceedance is not None else "")
+        + ")."
     )
+
+
+def check_group_text(test: NoiseTest) -> str:
+    """'the check rings together 1.3x their noise level, within (fail above 2)'."""
+    verdict = "fail" if test.check_rings_fail else "within"
+    return f"the check rings together {test.check_exceedance:.1f}x their noise level, {verdict} (fail above {CHECK_TOLERANCE:g})"
 
 
 def next_step(result: Diagnosis, actions: dict[str, str]) -> str:
