@@ -59,7 +59,7 @@ def report_sections(
     actions = ACTIONS[front]
     claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
     sections = [
-        Section("verdict", verdict_headline(result), tuple(verdict_lines(result, actions))),
+        Section("verdict", verdict_headline(result, catalog, front == "explorer"), tuple(verdict_lines(result, actions))),
         Section("why", "Why", tuple(why_lines(result))),
         Section("claims", "Found", claims),
         Section(
@@ -89,8 +89,26 @@ def report_text(result: Diagnosis, catalog: Catalog, detail: Detail = "short") -
 # -- the verdict -------------------------------------------------------------------------------------
 
 
-def verdict_headline(result: Diagnosis) -> str:
-    return f"Verdict: {result.verdict} - {VERDICTS[result.verdict]}."
+def verdict_headline(result: Diagnosis, catalog: Catalog, pairs_only: bool = False) -> str:
+    """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...'; a claim the rings
+    cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
+    pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
+    named = "; ".join(claim_name(c, result, catalog) for c in result.found if c.untold or not pairs_only)
+    return f"Verdict: {result.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[result.verdict]}."
+
+
+def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str:
+    """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
+    settings = {c.effect: c.settings for c in result.candidates}
+
+    def label(effect: str, at: dict) -> str:
+        return effect_label(catalog[effect]().with_settings(**at)) if effect in catalog else effect
+
+    name = label(candidate.effect, candidate.settings)
+    if not candidate.untold:
+        return name
+    partners = " or ".join(label(p.effect, settings.get(p.effect, {})) for p in candidate.untold)
+    return f"{name} or {partners} (these rings cannot tell)"
 
 
 def verdict_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
