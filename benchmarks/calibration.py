@@ -201,6 +201,11 @@ def share(k: int, n: int) -> float:
     return round(k / n, 4) if n else None  # type: ignore[return-value]
 
 
+def rate(k: int, n: int) -> dict[str, Any]:
+    """A share as results.json holds it: {"count", "of", "share", "ci95"} (Clopper-Pearson)."""
+    return {"count": k, "of": n, "share": share(k, n), "ci95": clopper_pearson(k, n)}
+
+
 def finds(record: dict[str, Any], effect: str = "b_axis_cyclic", cycles: float = POWER_CYCLES) -> dict[str, Any] | None:
     """The found entry of this effect at these cycles per revolution, if the diagnosis found it."""
     if record["verdict"] not in ("missing", "partial"):

@@ -58,7 +58,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchmarks.calibration import clopper_pearson, code_version, commit, share
+from benchmarks.calibration import code_version, commit, rate
 from benchmarks.click import run as explorer_click
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
 from ph_explorer.diagnosis import diagnose
@@ -328,10 +328,6 @@ def spread(counts: list[int]) -> dict[str, Any]:
     if not counts:
         return {"median": None, "p90": None, "max": None, "of": 0}
     return {"median": float(np.median(counts)), "p90": float(np.quantile(counts, 0.9)), "max": int(max(counts)), "of": len(counts)}
-
-
-def rate(k: int, n: int) -> dict[str, Any]:
-    return {"count": k, "of": n, "share": share(k, n), "ci95": clopper_pearson(k, n)}
 
 
 def figures(records: list[dict[str, Any]]) -> dict[str, Any]:

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchmarks.calibration import clopper_pearson, code_version, commit, share
+from benchmarks.calibration import code_version, commit, rate
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, within_noise
@@ -115,10 +115,6 @@ def catalog_name(record: dict[str, Any]) -> bool:
     """`missing` with a catalog effect claimed for the unknown part (beside a hidden catalog effect: any other claim)."""
     companion = (record["truth"].get("catalog") or {}).get("id")
     return record["verdict"] == "missing" and any(effect != companion for effect in record["found"])
-
-
-def rate(k: int, n: int) -> dict[str, Any]:
-    return {"count": k, "of": n, "share": share(k, n), "ci95": clopper_pearson(k, n)}
 
 
 def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
