@@ -183,12 +183,15 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
     """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
     cannot tell it from, in one voice, and the settings they cannot exclude."""
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
-    fit = f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)" if with_fit else ""
+    fit = (
+        f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)"
+        if with_fit
+        else " (its fit: the table below)"
+    )
     told = [p for p in candidate.confounded_with if p.told_apart]
-    fit = fit if with_fit else " (its fit: the table below)"
     lines = [f"{effect_label(effect)}{fit}."] if with_fit or candidate.untold or told or candidate.rival_setting else []
     partners = [untold_text(candidate.effect, candidate.untold, actions)] if candidate.untold else []
-    partners += [f"{p.effect} shares {percent(p.shared)} of it, yet the rings tell them apart ({test_text(p.test)})." for p in told]
+    partners += [told_text(candidate.effect, p) for p in told]
     if partners:
         lines.append("  " + " ".join(partners))
     settings = []
@@ -238,7 +241,7 @@ def partner_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
         for partner in candidate.confounded_with:
             if partner.told_apart:
-                lines.append(f"{shared_text(candidate.effect, partner)}, yet the rings tell them apart: {test_text(partner.test)}.")
+                lines.append(told_text(candidate.effect, partner))
             elif partner.told_apart is False:
                 lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner], actions)}")
             else:
@@ -252,6 +255,11 @@ def shared_text(effect: str, partner: Partner) -> str:
     """'93 % of what this campaign shows of X is also explained by Y' (the largest squared canonical
     correlation of their columns over the touches)."""
     return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {partner.effect}"
+
+
+def told_text(effect: str, partner: Partner) -> str:
+    """A partner the rings tell the effect from: what they share, and the rings' test."""
+    return f"{shared_text(effect, partner)}, yet the rings tell them apart: {test_text(partner.test)}."
 
 
 def test_text(test: PairTest) -> str:
