@@ -247,17 +247,9 @@ class PhysicsPanel:
         status.content = text
 
     def show_diagnosis(self, result: Diagnosis) -> None:
-        floor, base = result.noise_floor_um, result.baseline_mae_um
-        n_check, n_fail = int(result.held_out.sum()), int(result.failing.sum())
-        test = result.within_noise["baseline"]
-        campaign = "" if test is None else f"; the campaign test, which no single ring decides, {'fails' if test.fails else 'passes'}"
-        self.summary.content = (
-            f"**Rings that exceed their noise:** {n_fail} of {len(result.failing)} orientations "
-            f"(out of sample, the within-noise test at the ring level, 1 %{campaign}; the Map tab names them, worst first). "
-            f"On the {n_check} check rings the {result.baseline_model} baseline has MAE "
-            f"**{base['mean']:.3f} um** vs the mean (floor {floor['mean']:.3f}) and **{base['single']:.3f} um** vs "
-            f"single repetitions (floor {floor['single']:.3f}).\n\n**Candidate effects**, best first:"
-        )
+        # The rings that fail and the baseline's figures are the report's (why, where it fails, the
+        # tests, under "More" below the candidates): not worded again here.
+        self.summary.content = "**Candidate effects**, best first:"
         self.candidates.content = candidates_html(result.candidates, self.catalog)
         # The report's order (figures.diagnosis_text), in the explorer's words: the verdict and what
         # to do next, the claims' untold partners (their fit is in the table below), the
