@@ -162,6 +162,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
         for c in result.found
     ]
     record["suggested"] = [c.effect for c in result.suggested]
+    record["suspect_rings"] = [[r.a_deg, r.b_deg] for r in result.suspect_rings]
     record["suggested_settings"] = [{k: float(v) for k, v in c.settings.items()} for c in result.suggested]
     record["background"] = background_of(campaign)
     record["not_needed"] = [c.effect for c in result.not_needed]
@@ -340,6 +341,8 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         "false_alarm": rate(sum(alarm(r) for r in healthy), len(healthy)),
         "any_verdict_but_none": rate(sum(r["verdict"] != "none" for r in healthy), len(healthy)),
         "true_background_findings": rate(sum(names_only_background(r) for r in healthy), len(healthy)),
+        # a ring named as measured badly on a head measured well (diagnosis.suspect)
+        "suspect_named": rate(sum(bool(r.get("suspect_rings")) for r in healthy), len(healthy)),
         "verdicts": dict(Counter(r["verdict"] for r in healthy)),
         "by_design": {
             d: rate(sum(alarm(r) for r in healthy if r["design"] == d), sum(r["design"] == d for r in healthy))

@@ -310,9 +310,9 @@ def main(argv: list[str] | None = None) -> int:
         write_plots(json.loads((out / "results.json").read_text()), out)
         return 0
     only = [name.strip() for name in args.only.split(",") if name.strip()]
-    unknown = [name for name in only if name not in SECTIONS]
-    if unknown:
-        parser.error(f"--only: unknown section {unknown[0]!r} (sections: {', '.join(SECTIONS)})")
+    not_sections = [name for name in only if name not in SECTIONS]
+    if not_sections:
+        parser.error(f"--only: unknown section {not_sections[0]!r} (sections: {', '.join(SECTIONS)})")
     sections = only or list(SECTIONS)
     if only and not (out / "results.json").is_file():
         parser.error(f"--only: {out / 'results.json'} does not exist (--only updates the sections of a previous run there)")

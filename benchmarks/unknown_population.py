@@ -9,7 +9,13 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 - catalog_name: `missing` with a catalog effect named for the unknown part (for a shape beside a
   hidden catalog effect: any claim but that effect);
 - honest: `unexplained`, `partial` or `suggested`;
+- none_silent: `none` with no ring named as measured badly either (diagnosis.suspect);
+- suspect_named: a ring named as measured badly; bad_ring_named: a bad-ring head's own ring named,
+  over its family's heads and as many more of seeds of their own;
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees.
+
+The suspect test's thresholds are measured on heads of their own seeds (SUSPECT_SEEDS): healthy
+heads with a ring named, and bad-ring heads with theirs named, at each SUSPECT_ALONE tried.
 
 The verdicts are what the code says today; the issue's targets (none <= 10 %, a catalog name
 <= 2 %) are stated beside them, not tuned to.
@@ -27,6 +33,7 @@ import numpy as np
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, within_noise
 from ph_explorer.errors import InputError
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -39,9 +46,14 @@ if TYPE_CHECKING:
 COUNT_PER_FAMILY, QUICK_COUNT_PER_FAMILY = 25, 1
 QUICK_FAMILIES = ("step", "bad_ring")
 FIRST_SEED = 550_000
+BAD_RING_SEED = 560_000  # the bad-ring heads beyond the families' turn (>= 50 in all)
 CALIBRATION_SEED, CALIBRATION_HEADS, QUICK_CALIBRATION_HEADS = 900_000, 300, 2  # population.py's tolerance heads
 TRIED = (1.25, 1.5, 2.0, 2.5, 3.0)  # check-ring tolerances whose cost and power are measured
-TARGETS = {"none_max": 0.10, "catalog_name_max": 0.02, "per_family_min_heads": 20}
+TARGETS = {"none_max": 0.10, "catalog_name_max": 0.02, "per_family_min_heads": 20, "bad_ring_named_min": 0.95}
+# The suspect test's calibration heads (diagnosis.suspect): seeds of their own, the thresholds tried.
+SUSPECT_SEEDS = {"healthy": 910_000, "bad_ring": 920_000}
+SUSPECT_HEADS, QUICK_SUSPECT_HEADS = {"healthy": 300, "bad_ring": 100}, {"healthy": 2, "bad_ring": 2}
+TRIED_ALONE = (2.5, 3.0, 3.5, 4.0, 5.0)
 
 
 def checked_options(families: str | None, count: int | None) -> tuple[list[str] | None, int | None]:
@@ -60,13 +72,16 @@ def checked_options(families: str | None, count: int | None) -> tuple[list[str] 
 
 
 def jobs(families: Sequence[str], count: int) -> list[dict[str, Any]]:
-    """count heads of each family, the families in turn, each head its own seed."""
-    return [{"seed": FIRST_SEED + i, "family": families[i % len(families)]} for i in range(count * len(families))]
+    """count heads of each family, the families in turn, each head its own seed; with bad_ring,
+    as many more bad-ring heads (seeds of their own: only bad_ring_named reads them)."""
+    turn = [{"seed": FIRST_SEED + i, "family": families[i % len(families)]} for i in range(count * len(families))]
+    more = [{"seed": BAD_RING_SEED + i, "family": "bad_ring", "extra": True} for i in range(count if "bad_ring" in families else 0)]
+    return turn + more
 
 
 def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
     """One head diagnosed; a compact record of what was hidden and what the diagnosis said."""
-    record: dict[str, Any] = {"seed": job["seed"], "family": job["family"]}
+    record: dict[str, Any] = {"seed": job["seed"], "family": job["family"], "extra": job.get("extra", False)}
     try:
         head = unknown_shape_head(job["seed"], job["family"])
         started = time.perf_counter()
@@ -82,6 +97,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "verdict": result.verdict,
         "found": [c.effect for c in result.found],
         "suggested": [c.effect for c in result.suggested],
+        "suspect_rings": [[r.a_deg, r.b_deg] for r in result.suspect_rings],
         "check_ratio_mean": round(float(np.mean(check)), 3) if check else None,
         "check_ratio_max": round(float(np.max(check)), 3) if check else None,
         "failing_rings": sum(bool(ring.exceeds) for ring in result.rings),
@@ -111,6 +127,57 @@ def healthy_exceedance(seed: int) -> dict[str, Any]:
     }
 
 
+def truth_ring_named(record: dict[str, Any]) -> bool:
+    """A badly measured ring's head: that ring is among the suspect rings."""
+    truth = record["truth"]
+    return [truth["a_deg"], truth["b_deg"]] in record.get("suspect_rings", [])
+
+
+def silent_none(record: dict[str, Any]) -> bool:
+    """`none` with no ring named either: the tool says nothing of what the campaign holds."""
+    return record["verdict"] == "none" and not record.get("suspect_rings")
+
+
+def suspect_standing(job: dict[str, Any]) -> dict[str, Any]:
+    """A calibration head's suspect rings at each threshold tried (diagnosis.suspect), and its bad ring's index."""
+    if job["kind"] == "healthy":
+        campaign, bad = random_campaign(job["seed"]), None
+    else:
+        head = unknown_shape_head(job["seed"], "bad_ring")
+        campaign, truth = head.campaign, head.truth
+        at = (campaign.orientations == [truth["a_deg"], truth["b_deg"]]).all(axis=1)
+        bad = int(np.flatnonzero(at)[0])
+    standing = ring_standing(campaign)
+    named = {str(k): [] if standing is None else np.flatnonzero(standing.suspect(alone=k)).tolist() for k in TRIED_ALONE}
+    return {
+        "seed": job["seed"],
+        "kind": job["kind"],
+        "bad": bad,
+        "check_ring": bad is not None and bool(campaign.holdout_mask()[bad]),
+        "named": named,
+    }
+
+
+def suspect_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """At each SUSPECT_ALONE tried: healthy heads with a ring named (the cost), bad-ring heads with their ring named."""
+    healthy = [r for r in records if r["kind"] == "healthy"]
+    bad = [r for r in records if r["kind"] == "bad_ring"]
+    return {
+        "used": {
+            "excess": SUSPECT_EXCESS,
+            "alone": SUSPECT_ALONE,
+            "quiet": SUSPECT_QUIET,
+            "level": SUSPECT_LEVEL,
+            "max_rings": SUSPECT_MAX,
+        },
+        "healthy_seeds": [SUSPECT_SEEDS["healthy"], SUSPECT_SEEDS["healthy"] + len(healthy) - 1] if healthy else [],
+        "bad_ring_seeds": [SUSPECT_SEEDS["bad_ring"], SUSPECT_SEEDS["bad_ring"] + len(bad) - 1] if bad else [],
+        "healthy_named": {k: rate(sum(bool(r["named"][k]) for r in healthy), len(healthy)) for k in map(str, TRIED_ALONE)},
+        "bad_ring_named": {k: rate(sum(r["bad"] in r["named"][k] for r in bad), len(bad)) for k in map(str, TRIED_ALONE)},
+        "bad_check_rings": sum(r["check_ring"] for r in bad),
+    }
+
+
 def catalog_name(record: dict[str, Any]) -> bool:
     """`missing` with a catalog effect claimed for the unknown part (beside a hidden catalog effect: any other claim)."""
     companion = (record["truth"].get("catalog") or {}).get("id")
@@ -126,14 +193,18 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "none": rate(sum(r["verdict"] == "none" for r in group), len(group)),
             "catalog_name": rate(sum(catalog_name(r) for r in group), len(group)),
             "honest": rate(sum(r["verdict"] in ("unexplained", "partial", "suggested") for r in group), len(group)),
+            "none_silent": rate(sum(silent_none(r) for r in group), len(group)),
+            "suspect_named": rate(sum(bool(r.get("suspect_rings")) for r in group), len(group)),
             "verdicts": dict(Counter(r["verdict"] for r in group)),
             "check_ratio_median": round(float(np.median(ratios)), 3) if ratios else None,
         }
 
-    judged = [r for r in records if r["verdict"] != "error"]
+    judged = [r for r in records if r["verdict"] != "error" and not r["extra"]]
     by_family = {family: [r for r in judged if r["family"] == family] for family in dict.fromkeys(r["family"] for r in records)}
+    bad = [r for r in records if r["verdict"] != "error" and r["family"] == "bad_ring"]
     return {
         "all": summary(judged),
+        "bad_ring_named": rate(sum(truth_ring_named(r) for r in bad), len(bad)),
         "by_family": {family: summary(group) for family, group in by_family.items()},
         "errors": [{"seed": r["seed"], "family": r["family"], "error": r["error"]} for r in records if r["verdict"] == "error"],
     }
@@ -191,6 +262,10 @@ def run(
     # CHECK_TOLERANCE over healthy heads of their own seeds (the within-noise tolerance's calibration heads).
     seeds = list(range(CALIBRATION_SEED, CALIBRATION_SEED + (QUICK_CALIBRATION_HEADS if quick else CALIBRATION_HEADS)))
     healthy = [r for r in run_tasks(client, healthy_exceedance, seeds).results if r["check_exceedance"] is not None]
+    # The suspect test's thresholds over healthy and bad-ring heads of their own seeds.
+    n_suspect = QUICK_SUSPECT_HEADS if quick else SUSPECT_HEADS
+    calibration = [{"seed": SUSPECT_SEEDS[kind] + i, "kind": kind} for kind in SUSPECT_SEEDS for i in range(n_suspect[kind])]
+    out["suspect_calibration"] = suspect_figures(run_tasks(client, suspect_standing, calibration).results)
     out["check_tolerance"] = tolerance_figures(healthy, [r for r in records if r.get("check_exceedance") is not None])
     overall = out["all"]
     log(

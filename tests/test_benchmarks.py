@@ -345,10 +345,14 @@ def check_peers(results: dict) -> None:
 def check_population_unknown(results: dict) -> None:
     """Issue 55's unknown shapes: each family's heads diagnosed, the shares with their intervals."""
     unknown = results["population_unknown"]
-    assert unknown["mode"] == "quick" and unknown["heads"] == 2 and set(unknown["by_family"]) == {"step", "bad_ring"}
+    # one head a family in turn, and one more bad-ring head (its seeds of its own) for bad_ring_named
+    assert unknown["mode"] == "quick" and unknown["heads"] == 3 and set(unknown["by_family"]) == {"step", "bad_ring"}
     for summary in [unknown["all"], *unknown["by_family"].values()]:
-        for key in ("none", "catalog_name", "honest"):
+        for key in ("none", "catalog_name", "honest", "none_silent", "suspect_named"):
             assert summary[key]["of"] >= 1 and len(summary[key]["ci95"]) == 2, key
+    assert unknown["all"]["none"]["of"] == 2 and unknown["bad_ring_named"]["of"] == 2
+    calibration = unknown["suspect_calibration"]
+    assert set(calibration["healthy_named"]) == set(calibration["bad_ring_named"]) and calibration["used"]["max_rings"] >= 1
     assert unknown["errors"] == [] and unknown["commit"] and unknown["targets"]["none_max"] == 0.10
 
 

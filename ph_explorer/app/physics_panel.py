@@ -18,7 +18,8 @@ from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, S
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
-from ph_explorer.figures.diagnosis_text import chosen_text, nested_summary, report_sections, shared_text, signature_text, step_label
+from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
+from ph_explorer.figures.history_text import chosen_text, nested_summary, step_label
 from ph_explorer.planning.deciding import DecisionWords
 
 

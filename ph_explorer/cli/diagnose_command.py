@@ -33,7 +33,8 @@ def diagnose_command(
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
     from ph_explorer.diagnosis.loop import honest_after
     from ph_explorer.diagnosis.study import Study, study_campaign
-    from ph_explorer.figures.diagnosis_text import nested_lines, report_text
+    from ph_explorer.figures.diagnosis_text import report_text
+    from ph_explorer.figures.history_text import nested_lines
 
     if detail not in DETAILS:
         raise InputError(f"unknown detail {detail!r} ({', '.join(DETAILS)})", option="--detail")

@@ -12,6 +12,7 @@ from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, honest_aft
 from ph_explorer.diagnosis.nested import NESTED_FOLDS, nested_after
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step, Verdict
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.suspect import SuspectRing, suspect_rings
 from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "NoiseTest",
     "Ring",
     "Step",
+    "SuspectRing",
     "Verdict",
     "add_effects",
     "choose_effects",
@@ -38,4 +40,5 @@ __all__ = [
     "within_noise",
     "rank_candidates",
     "repetition_sigma",
+    "suspect_rings",
 ]

@@ -26,6 +26,7 @@ from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
+from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.diagnosis.telling_apart import tell_apart
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
@@ -141,6 +142,9 @@ def diagnose(
     start: effects already in the model, each at its settings (a resumed study's chain): the
     search continues from them, and the steps begin with them.
     """
+    # Rings measured badly are named and left out of the fit and of the claims.
+    suspects = suspect_rings(campaign, seed)
+    campaign = without_suspects(campaign, suspects)
     held_out = campaign.holdout_mask()
     train = ~held_out
     if train.sum() < 4:
@@ -230,6 +234,7 @@ def diagnose(
         reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
         chain=tuple(chosen_steps),
         started_from=len(start),
+        suspect_rings=suspects,
         hybrid=hybrid,
     )
     if nested:
@@ -250,4 +255,5 @@ def honest_after(
     if not result.found:
         return None
     start = result.chain[: result.started_from]  # the effects the search started from
+    campaign = without_suspects(campaign, result.suspect_rings)
     return nested_after(campaign, [cls() for cls in catalog.candidates().values()], start, max_steps, seed)

@@ -19,6 +19,7 @@ from ph_explorer.diagnosis.candidates import (
     Candidate,
     rounded,
 )
+from ph_explorer.diagnosis.suspect import SuspectRing
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.models.hybrid import HybridModel
@@ -161,12 +162,13 @@ class Diagnosis:
     signature: tuple[dict[str, Any], ...]  # what is left, in the head's variables (partial, unexplained)
     within_noise: dict[str, NoiseTest | None]  # "baseline" and "after" (the effects found); None: untestable
     steps: tuple[Step, ...]
-    rings: tuple[Ring, ...]  # every ring, in the campaign's order
+    rings: tuple[Ring, ...]  # every ring but the suspect ones, in the campaign's order
     # The rankings after each step of the search (before each next step, and after the last).
     reranked: tuple[tuple[Candidate, ...], ...] = ()
     nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
     chain: tuple[Effect, ...] = ()  # the last step's effects, at their settings
     started_from: int = 0  # how many of them were in the model before this run (a resumed study)
+    suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
     # The last step's fitted model: the process's, never in the JSON.
     hybrid: HybridModel | None = field(default=None, compare=False, repr=False)
 
@@ -238,6 +240,7 @@ class Diagnosis:
             "steps": [s.to_json() for s in self.steps],
             "chain": [{"effect": e.id, "settings": {k: float(v) for k, v in e.settings().items()}} for e in self.chain],
             "started_from": self.started_from,
+            "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "where_it_fails": [r.to_json() for r in self.rings if r.exceeds],
             "rings": [r.to_json() for r in self.rings],
         }
@@ -265,6 +268,7 @@ class Diagnosis:
             steps=tuple(Step.from_json(s) for s in data["steps"]),
             chain=tuple(catalog[e["effect"]]().with_settings(**e["settings"]) for e in data["chain"]),
             started_from=data["started_from"],
+            suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             rings=tuple(Ring.from_json(r) for r in data["rings"]),
         )
 

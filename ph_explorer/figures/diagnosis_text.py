@@ -16,9 +16,11 @@ from typing import Literal
 
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner
-from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step
+from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Ring
+from ph_explorer.diagnosis.suspect import SUSPECT_LEVEL, SuspectRing
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
+from ph_explorer.figures.history_text import history_lines
 
 Detail = Literal["short", "full"]
 Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
@@ -112,12 +114,27 @@ def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str
 
 
 def verdict_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
-    """Under the headline: a resumed study, and what to do next."""
-    lines = []
+    """Under the headline: the rings to remeasure, a resumed study, and what to do next."""
+    lines = [suspect_text(ring) for ring in result.suspect_rings]
     if result.started_from:
         already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
         lines.append(f"Resumed with {already} in the model; the search continued from there.")
-    return lines + ["Next: " + next_step(result, actions)]
+    remeasure = ""
+    if result.suspect_rings:
+        named = ", ".join(orientation_label(r.a_deg, r.b_deg) for r in result.suspect_rings)
+        remeasure = f"remeasure {named} and diagnose again; of the other rings: "
+    return lines + ["Next: " + remeasure + next_step(result, actions)]
+
+
+def suspect_text(ring: SuspectRing) -> str:
+    """'Remeasure A45 B40 (left out of the fit and the claims): ...' (diagnosis.suspect)."""
+    where = f"Remeasure {orientation_label(ring.a_deg, ring.b_deg)} (left out of the fit and the claims): "
+    if ring.reason == "fails alone":
+        return where + (
+            f"{ring.ratio:.1f}x its floor out of sample while the rings predicting it stay within "
+            f"{max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring measured badly, or an error at this orientation alone."
+        )
+    return where + f"its repetitions disagree beyond noise (scatter test p = {ring.p_scatter:.2g}, level {SUSPECT_LEVEL:g} over the rings)."
 
 
 def why_lines(result: Diagnosis) -> list[str]:
@@ -372,46 +389,3 @@ def ranking_lines(candidates: Sequence[Candidate], catalog: Catalog) -> list[str
             + (f"  ({c.note})" if c.note and c.status != "not significant" else "")
         )
     return lines
-
-
-# -- the error history -------------------------------------------------------------------------------
-
-
-def step_label(step: Step, name: Callable[[str], str] = str) -> str:
-    """'baseline (trilinear)' or '+ b_axis_cyclic (hybrid, trilinear data part)': one step of the history."""
-    if not step.added:
-        return f"baseline ({step.model})" if step.model else "baseline"
-    return name("+ " + " + ".join(step.added) + (f" ({step.model})" if step.model else ""))
-
-
-def mae_text(mae: dict[str, float], floor: dict[str, float]) -> str:
-    return f"mean {mae['mean']:.3f} (floor {floor['mean']:.3f})   single {mae['single']:.3f} (floor {floor['single']:.3f})"
-
-
-def history_lines(steps: Sequence[Step], nested: NestedAfter | None) -> list[str]:
-    """Each step's check-ring MAE and floor, then the honest after (nested_lines)."""
-    lines = [f"{step_label(step):50s} {mae_text(step.mae_um, step.noise_floor_um)}" for step in steps]
-    return lines + (nested_lines(nested) if nested is not None else [])
-
-
-def nested_summary(nested: NestedAfter) -> str:
-    """The honest after in one sentence: what the nested cross-validation measures."""
-    return (
-        f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
-        f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):"
-    )
-
-
-def nested_lines(nested: NestedAfter) -> list[str]:
-    """The nested cross-validation's lines: the error history's last."""
-    return [
-        nested_summary(nested),
-        f"{'  before':50s} " + mae_text(nested.before_um, nested.noise_floor_um),
-        f"{'  after':50s} " + mae_text(nested.after_um, nested.noise_floor_um),
-        f"  chosen in the folds: {chosen_text(nested)}",
-    ]
-
-
-def chosen_text(nested: NestedAfter, name: Callable[[str], str] = str) -> str:
-    """'b_axis_cyclic 22 cycles/rev (5 of 5), ...': what the folds chose, each with how many folds."""
-    return ", ".join(f"{name(label)} ({n} of {nested.folds})" for label, n in nested.chosen_counts().items()) or "nothing"

@@ -1,0 +1,50 @@
+"""The error history in words, for the renderer of the diagnosis record (figures.diagnosis_text):
+each step's check-ring MAE against its floor, then the honest after of the nested cross-validation.
+Method: docs/diagnosis.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+from ph_explorer.diagnosis.results import NestedAfter, Step
+
+
+def step_label(step: Step, name: Callable[[str], str] = str) -> str:
+    """'baseline (trilinear)' or '+ b_axis_cyclic (hybrid, trilinear data part)': one step of the history."""
+    if not step.added:
+        return f"baseline ({step.model})" if step.model else "baseline"
+    return name("+ " + " + ".join(step.added) + (f" ({step.model})" if step.model else ""))
+
+
+def mae_text(mae: dict[str, float], floor: dict[str, float]) -> str:
+    return f"mean {mae['mean']:.3f} (floor {floor['mean']:.3f})   single {mae['single']:.3f} (floor {floor['single']:.3f})"
+
+
+def history_lines(steps: Sequence[Step], nested: NestedAfter | None) -> list[str]:
+    """Each step's check-ring MAE and floor, then the honest after (nested_lines)."""
+    lines = [f"{step_label(step):50s} {mae_text(step.mae_um, step.noise_floor_um)}" for step in steps]
+    return lines + (nested_lines(nested) if nested is not None else [])
+
+
+def nested_summary(nested: NestedAfter) -> str:
+    """The honest after in one sentence: what the nested cross-validation measures."""
+    return (
+        f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
+        f"cross-validation over the {nested.rings} training rings, trilinear data part; the check rings above took part in the choice):"
+    )
+
+
+def nested_lines(nested: NestedAfter) -> list[str]:
+    """The nested cross-validation's lines: the error history's last."""
+    return [
+        nested_summary(nested),
+        f"{'  before':50s} " + mae_text(nested.before_um, nested.noise_floor_um),
+        f"{'  after':50s} " + mae_text(nested.after_um, nested.noise_floor_um),
+        f"  chosen in the folds: {chosen_text(nested)}",
+    ]
+
+
+def chosen_text(nested: NestedAfter, name: Callable[[str], str] = str) -> str:
+    """'b_axis_cyclic 22 cycles/rev (5 of 5), ...': what the folds chose, each with how many folds."""
+    return ", ".join(f"{name(label)} ({n} of {nested.folds})" for label, n in nested.chosen_counts().items()) or "nothing"

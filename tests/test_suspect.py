@@ -1,0 +1,83 @@
+"""Rings measured badly (issue 55, item 5): named, left out of the fit and the claims, never silently `none`."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.figures.diagnosis_text import report_sections
+from ph_explorer.twin.random_heads import random_campaign
+
+SEED = 7  # a healthy head of the paper's design (test_within_noise: its verdict is `none`)
+
+
+def chipped(campaign, ring: int, amplitude_um: float = 0.8, lobes: int = 3):
+    """The campaign with one ring measured with a chipped contact: a form in every repetition."""
+    deviations = campaign.deviations.copy()
+    theta = np.radians(np.arange(campaign.n_points) * 360.0 / campaign.n_points)
+    deviations[ring] += amplitude_um * np.cos(lobes * theta + 0.4)
+    return replace(campaign, deviations=deviations)
+
+
+@pytest.fixture(scope="module")
+def healthy():
+    return random_campaign(SEED, "paper")
+
+
+@pytest.fixture(scope="module")
+def ring(healthy) -> int:
+    """A training ring inside the lattice (not on its edge): A45 B40 when measured."""
+    train = np.flatnonzero(~healthy.holdout_mask())
+    o = healthy.orientations[train]
+    return int(train[np.argmin(np.abs(o[:, 0] - 45.0) + np.abs(o[:, 1] - 40.0))])
+
+
+def test_a_badly_measured_ring_is_named_and_the_heads_verdict_is_unchanged(healthy, ring):
+    """One training ring with a 0.8 um 3-lobe form in every repetition: it is the one suspect ring,
+    named beside the verdict with its figures; the verdict and the candidates are those of the
+    head measured well; the record round-trips it."""
+    plain = diagnose(healthy, nested=False)
+    assert not plain.suspect_rings
+    result = diagnose(chipped(healthy, ring), nested=False)
+    (suspect,) = result.suspect_rings
+    assert (suspect.a_deg, suspect.b_deg) == tuple(healthy.orientations[ring])
+    assert suspect.reason == "fails alone" and suspect.ratio > 3.0
+    assert result.verdict == plain.verdict == "none"
+    assert len(result.rings) == len(plain.rings) - 1  # left out of everything the record judges
+    alone = diagnose(without_suspects(healthy, result.suspect_rings), nested=False)  # the head measured well, less that ring
+    assert [c.effect for c in result.candidates] == [c.effect for c in alone.candidates]
+    verdict = next(s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict")
+    label = f"A{suspect.a_deg:g} B{suspect.b_deg:g}"
+    assert verdict.lines[0].startswith(f"Remeasure {label}") and label in verdict.lines[-1]
+    data = json.loads(json.dumps(result.to_json()))
+    assert data["suspect_rings"][0]["reason"] == "fails alone"
+    assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_ring_whose_repetitions_disagree_is_named(healthy, ring):
+    """A stylus knocked between repetitions of one ring: half its repetitions carry a 2-lobe form
+    the others do not (its mean stays near its neighbours'); it is named by its scatter."""
+    bad = chipped(healthy, ring, amplitude_um=0.0)
+    theta = np.radians(np.arange(healthy.n_points) * 360.0 / healthy.n_points)
+    half = healthy.n_repetitions // 2
+    bad.deviations[ring, :half] += 0.3 * np.cos(2 * theta)
+    bad.deviations[ring, half:] -= 0.3 * np.cos(2 * theta)
+    (suspect,) = suspect_rings(bad)
+    assert suspect.reason == "repetitions disagree" and suspect.p_scatter < 1e-6
+
+
+def test_an_effect_of_the_head_is_not_a_suspect_ring(healthy):
+    """Many rings failing together are a pattern of the head, not rings measured badly: a strong
+    error of one axis names no suspect ring."""
+    from ph_explorer.kinematics import campaign_touches
+
+    effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=3.0, phase_deg=20.0, cycles_per_rev=5.0)
+    added = effect.forward(campaign_touches(healthy), np.random.default_rng(0))
+    assert suspect_rings(replace(healthy, deviations=healthy.deviations + added)) == ()
