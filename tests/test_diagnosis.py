@@ -688,3 +688,24 @@ def test_an_untold_pair_is_named_as_a_pair_in_the_verdict_line(diagnoses):
     # A claim told from its partners is named alone.
     alone = report_sections(diagnoses[("head_3", True)], DEFAULT_CATALOG)[0].title
     assert alone.startswith("Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found") and " or " not in alone
+
+
+@pytest.mark.slow
+def test_the_verdict_says_what_rings_can_decide_before_offering_them(diagnoses):
+    """Issue 55 (never a dead end): near the vertical the B line's offset and its tilt are one pair no
+    ring of this stylus decides; the next step says so (the name stays a pair) instead of sending the
+    user to rings that answer "no ring decides"; where rings decide (head_6), it offers them."""
+    from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
+
+    for name, decided in (("near_vertical", False), ("head_6", True)):
+        result = diagnoses[(name, True)]
+        decision = rings_that_decide(simulate(load_scenario(name)), result, DEFAULT_CATALOG, DECIDE_BUDGET)
+        (verdict,) = [s for s in report_sections(result, DEFAULT_CATALOG, decision=decision) if s.key == "verdict"]
+        step = verdict.lines[-1]
+        assert step.startswith("Next: ") and bool(decision.rings) == decided
+        if decided:
+            assert f"measure the {len(decision.rings)} rings that would decide" in step and "--decide" in step
+        else:
+            assert "name stays a pair" in step and "--decide" not in step
+            pair = {result.found[0].effect, *(partner.effect for partner in result.found[0].untold)}
+            assert len(pair) == 2 and all(effect in step for effect in pair)

@@ -14,9 +14,12 @@ UNKNOWN_INTRO = """\
 ([the families and their distributions](methods/random_heads.md#unknown-shapes)), sized by what it
 does to the check rings (1 to 3 noise floors), diagnosed as a user would. **none**: the verdict
 says the campaign is within noise, the shape unseen; **catalog name**: `missing` with a catalog
-effect named for the unknown part; **honest**: `unexplained`, `partial` or `suggested`. Each share
-with its 95 % interval; the check rings' error over their floor is what a user sees. The targets
-(none at most {none_max}, a catalog name at most {name_max}) are those of issue 55, not yet met.
+effect named for the unknown part; **honest**: `unexplained`, `partial` or `suggested`; **silent
+none**: `none` with no ring named as measured badly either; **ring named**: a ring named as
+measured badly ([suspect rings](methods/suspect_rings.md)). Each share with its 95 % interval; the
+check rings' error over their floor is what a user sees. The targets (none at most {none_max}, a
+catalog name at most {name_max}, a bad ring named on at least {bad_min} of its heads) are those of
+issue 55.
 """
 
 
@@ -25,11 +28,32 @@ def unknown(results: Mapping[str, Any]) -> str:
     targets = u.get("targets") or {}
 
     rows = [
-        [family, share_of(s.get("none")), share_of(s.get("catalog_name")), share_of(s.get("honest")), num(s.get("check_ratio_median"))]
+        [family, *(share_of(s.get(key)) for key in KEYS), num(s.get("check_ratio_median"))]
         for family, s in [("all", u.get("all") or {}), *(u.get("by_family") or {}).items()]
     ]
-    intro = UNKNOWN_INTRO.format(none_max=pct(targets.get("none_max")), name_max=pct(targets.get("catalog_name_max")))
-    head = ["family", "none", "catalog name", "honest", "check rings / floor (median)"]
+    intro = UNKNOWN_INTRO.format(
+        none_max=pct(targets.get("none_max")), name_max=pct(targets.get("catalog_name_max")), bad_min=pct(targets.get("bad_ring_named_min"))
+    )
+    head = ["family", "none", "catalog name", "honest", "silent none", "ring named", "check rings / floor (median)"]
     return (
-        intro + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n" + table(head, rows) + "\n"
+        intro
+        + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"
+        + table(head, rows)
+        + suspect_text(u)
+    )
+
+
+KEYS = ("none", "catalog_name", "honest", "none_silent", "suspect_named")
+
+
+def suspect_text(u: Mapping[str, Any]) -> str:
+    """The bad-ring heads' rings named, and the suspect test's calibration heads (diagnosis.suspect)."""
+    calibration = u.get("suspect_calibration") or {}
+    used = str((calibration.get("used") or {}).get("alone"))
+    return (
+        f"\nA badly measured ring named on its head: {share_of(u.get('bad_ring_named'))} (its family's heads and as many more). "
+        f"The suspect test's own calibration heads (seeds {calibration.get('healthy_seeds')} healthy, "
+        f"{calibration.get('bad_ring_seeds')} with a bad ring, {num(calibration.get('bad_check_rings'))} of them on a check ring, "
+        f"which is never named): a ring named on healthy heads {share_of((calibration.get('healthy_named') or {}).get(used))}, "
+        f"the bad ring named {share_of((calibration.get('bad_ring_named') or {}).get(used))}.\n"
     )

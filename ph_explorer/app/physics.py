@@ -128,7 +128,9 @@ class PhysicsLoop:
         if ds.campaign is not self.current().campaign:
             return  # the data changed meanwhile: this diagnosis is about data no longer shown
         self.diagnosis = result
-        p.show_diagnosis(result)
+        # What rings can decide of what the verdict leaves open, said with the verdict (a second or so).
+        self.decision = rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET) if result.leaves_open else None
+        p.show_diagnosis(result, self.decision)
         if p.evidence_of.visible:
             p.evidence_of.value = p.evidence_of.options[0]
             self.show_evidence(p.evidence_of.value)
@@ -158,7 +160,7 @@ class PhysicsLoop:
             p.decision.content = "_Diagnose first: the rings to measure answer what its verdict leaves open._"
             return
         p.decision.content = "_finding the rings that would decide…_"
-        decision = rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET)
+        decision = self.decision or rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET)
         if ds.campaign is not self.current().campaign:
             return
         self.decision = decision

@@ -20,7 +20,7 @@ from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
 from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, nested_summary, step_label
-from ph_explorer.planning.deciding import DecisionWords
+from ph_explorer.planning.deciding import Decision, DecisionWords
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -247,7 +247,8 @@ class PhysicsPanel:
         bar.visible = False
         status.content = text
 
-    def show_diagnosis(self, result: Diagnosis) -> None:
+    def show_diagnosis(self, result: Diagnosis, decision: Decision | None = None) -> None:
+        """The verdict and what to do next (with the rings that would decide, when found), the candidates, More."""
         # The rings that fail and the baseline's figures are the report's (why, where it fails, the
         # tests, under "More" below the candidates): not worded again here.
         self.summary.content = "**Candidate effects**, best first:"
@@ -255,7 +256,7 @@ class PhysicsPanel:
         # The report's order (figures.diagnosis_text), in the explorer's words: the verdict and what
         # to do next, the claims' untold partners (their fit is in the table below), the
         # suggestions; why, where it fails, the tests, every partner and the teaching text under "More".
-        short = {s.key: s for s in report_sections(result, self.catalog, front="explorer")}
+        short = {s.key: s for s in report_sections(result, self.catalog, front="explorer", decision=decision)}
         full = report_sections(result, self.catalog, "full", front="explorer")
         headline = short["verdict"].title
         lines = [line for key in ("claims", "suggested") if key in short for line in short[key].lines]
@@ -288,7 +289,9 @@ class PhysicsPanel:
         self.evidence_of.visible = bool(options)
         self.fit.content = fit_html(result, self.catalog)
         self.results_folder.visible = True
-        self.decide.visible = result.leaves_open  # else nothing to decide: the loop keeps its place on the page
+        # Only when rings would decide something (the verdict says what they cannot): never a button
+        # that answers that no ring decides; else the loop keeps its place on the page.
+        self.decide.visible = result.leaves_open and (decision is None or bool(decision.rings))
         self.decision.content = ""
         self.measure.visible = self.download_rings.visible = False
 

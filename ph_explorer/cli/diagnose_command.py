@@ -35,6 +35,7 @@ def diagnose_command(
     from ph_explorer.diagnosis.study import Study, study_campaign
     from ph_explorer.figures.diagnosis_text import report_text
     from ph_explorer.figures.history_text import nested_lines
+    from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
 
     if detail not in DETAILS:
         raise InputError(f"unknown detail {detail!r} ({', '.join(DETAILS)})", option="--detail")
@@ -68,7 +69,9 @@ def diagnose_command(
     # The report up to the error history as soon as the verdict stands; the nested figures, its last
     # lines, when they are measured (the same text as one print at the end).
     if not json_output:
-        print(report_text(result, catalog, detail), end="", flush=True)
+        # What rings can decide of what the verdict leaves open, said with the verdict (design --decide lists them).
+        decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET) if result.leaves_open else None
+        print(report_text(result, catalog, detail, decision), end="", flush=True)
     with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
         bar.add_task("measuring the chosen effects on rings that took no part in choosing them", total=None)
         result = result.with_nested(honest_after(campaign, result, catalog))

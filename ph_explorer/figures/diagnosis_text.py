@@ -21,6 +21,7 @@ from ph_explorer.diagnosis.suspect import SUSPECT_LEVEL, SuspectRing
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
 from ph_explorer.figures.history_text import history_lines
+from ph_explorer.planning.deciding import DECIDING_POWER, Decision
 
 Detail = Literal["short", "full"]
 Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
@@ -53,15 +54,21 @@ class Section:
 
 
 def report_sections(
-    result: Diagnosis, catalog: Catalog, detail: Detail = "short", name: Callable[[str], str] = str, front: Front = "command line"
+    result: Diagnosis,
+    catalog: Catalog,
+    detail: Detail = "short",
+    name: Callable[[str], str] = str,
+    front: Front = "command line",
+    decision: Decision | None = None,
 ) -> list[Section]:
     """The report in reading order (module docstring); `name` writes text naming effects (a
     teaching report's letters, figures.diagnosis_report.EffectNames.text); `front`: whose actions
-    the next step names (the explorer shows a claim's fit in its own table, not in a line)."""
+    the next step names (the explorer shows a claim's fit in its own table, not in a line);
+    `decision`: the rings that would decide what the verdict leaves open, when found (next_step)."""
     actions = ACTIONS[front]
     claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
     sections = [
-        Section("verdict", verdict_headline(result, catalog, front == "explorer"), tuple(verdict_lines(result, actions))),
+        Section("verdict", verdict_headline(result, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))),
         Section("why", "Why", tuple(why_lines(result))),
         Section("claims", "Found", claims),
         Section(
@@ -82,9 +89,10 @@ def report_sections(
     return [Section(s.key, name(s.title), tuple(name(line) for line in s.lines)) for s in sections if s.lines or s.key == "verdict"]
 
 
-def report_text(result: Diagnosis, catalog: Catalog, detail: Detail = "short") -> str:
+def report_text(result: Diagnosis, catalog: Catalog, detail: Detail = "short", decision: Decision | None = None) -> str:
     """The report as plain text (the command line's): each section's title, its lines indented."""
-    blocks = ["\n".join([section.title, *(f"  {line}" for line in section.lines)]) for section in report_sections(result, catalog, detail)]
+    sections = report_sections(result, catalog, detail, decision=decision)
+    blocks = ["\n".join([section.title, *(f"  {line}" for line in section.lines)]) for section in sections]
     return "\n\n".join(blocks) + "\n"
 
 
@@ -113,7 +121,7 @@ def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str
     return f"{name} or {partners} (these rings cannot tell)"
 
 
-def verdict_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
+def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> list[str]:
     """Under the headline: the rings to remeasure, a resumed study, and what to do next."""
     lines = [suspect_text(ring) for ring in result.suspect_rings]
     if result.started_from:
@@ -123,7 +131,7 @@ def verdict_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
     if result.suspect_rings:
         named = ", ".join(orientation_label(r.a_deg, r.b_deg) for r in result.suspect_rings)
         remeasure = f"remeasure {named} and diagnose again; of the other rings: "
-    return lines + ["Next: " + remeasure + next_step(result, actions)]
+    return lines + ["Next: " + remeasure + next_step(result, actions, decision)]
 
 
 def suspect_text(ring: SuspectRing) -> str:
@@ -173,11 +181,18 @@ def check_group_text(test: NoiseTest) -> str:
     return f"the check rings together {test.check_exceedance:.1f}x their noise level, {verdict} (fail above {CHECK_TOLERANCE:g})"
 
 
-def next_step(result: Diagnosis, actions: dict[str, str]) -> str:
-    """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions."""
+def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
+    """What to do next, by verdict and by what the diagnosis leaves open, with the front end's
+    actions; with the decision found, what rings can decide and what they cannot (never a button
+    that answers that no ring decides)."""
     if result.leaves_open:
         what = "confirm the suggestion" if result.suggested and not result.found else "decide what these rings cannot tell"
-        return f"measure the rings that would {what} ({actions['decide']})."
+        if decision is None:
+            return f"measure the rings that would {what} ({actions['decide']})."
+        undecided = undecided_text(decision)
+        rest = "the rest" if undecided else "what these rings leave open"
+        measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
+        return f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
     return {
         "none": "nothing is missing that this campaign shows; a model of it is within noise.",
         "missing": actions["add"] + ".",
@@ -185,6 +200,21 @@ def next_step(result: Diagnosis, actions: dict[str, str]) -> str:
         "partial": f"add the effects found, then look at what is left: an effect outside the catalog ({actions['own']}) may explain it.",
         "unexplained": f"no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature ({actions['own']}).",
     }[result.verdict]
+
+
+def undecided_text(decision: Decision) -> str:
+    """What rings cannot decide, each question with what else would (or that its name stays a pair)."""
+    undecided = [(label, q) for label, q in decision.expected.items() if not q["decided_by_rings"]]
+    return " ".join(
+        f"No {decision.budget} rings of this stylus decide {label.replace(' vs ', ' or ')} "
+        f"(their test over rings would pass {100 * q['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides): "
+        + (
+            f"{q['separated_by']} would."
+            if q.get("separated_by")
+            else "no measurement tried here separates them, so the name stays a pair."
+        )
+        for label, q in undecided
+    )
 
 
 def left_line(result: Diagnosis) -> str:

@@ -21,6 +21,7 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, RivalSetting
 from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.diagnosis.suspect import without_suspects
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -67,6 +68,7 @@ class Decision:
     minutes: float | None  # estimated CMM time from the campaign's own touch and move times; None without times
     questions: list[str] = field(default_factory=list)
     note: str = ""
+    budget: int = 0  # the most rings it could propose
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -260,7 +262,9 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
     """Up to `budget` new rings that decide the diagnosis's questions (module docstring)."""
     asked = questions_of(result, catalog)
     if not asked:
-        return Decision([], {}, 0.0, note="nothing to decide: every claimed candidate is told from its partners, none is only suggested")
+        note = "nothing to decide: every claimed candidate is told from its partners, none is only suggested"
+        return Decision([], {}, 0.0, note=note, budget=budget)
+    campaign = without_suspects(campaign, result.suspect_rings)  # the rings the diagnosis judged
     pool = distinct_rings(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
     # Within the measured A0 range: beyond it the data model extrapolates, and what a ring would
     # show of a term is the extrapolation's as much as the term's.
@@ -308,6 +312,7 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         None if per_ring is None else per_ring * len(entries),
         [q.label for q in asked],
         "" if per_ring is not None else "no touch times in the campaign: the CMM time cannot be estimated",
+        budget,
     )
 
 
