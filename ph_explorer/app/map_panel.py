@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 
 from ph_explorer.app.panels import NO_CHOICE, orientation_label
 from ph_explorer.diagnosis.results import Ring
-from ph_explorer.figures.diagnosis_text import exceeding_text
 from ph_explorer.figures.orientation_map import MapFigure, map_svg, ranked_rings
+from ph_explorer.figures.ring_text import exceeding_text
 
 MAX_FAILING_BUTTONS = 10  # the worst rings get a button each; the map's verdict shows the rest
 

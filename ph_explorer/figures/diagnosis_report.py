@@ -22,9 +22,10 @@ from ph_explorer.diagnosis.study import Study
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
-from ph_explorer.figures.diagnosis_text import report_sections, ring_reason, signature_text
+from ph_explorer.figures.diagnosis_text import report_sections, signature_text
 from ph_explorer.figures.history_text import chosen_text, step_label
 from ph_explorer.figures.orientation_map import MapFigure
+from ph_explorer.figures.ring_text import ring_reason
 
 MAX_FAILING_LISTED = 15  # the worst failing rings named; the map's colours show every ring
 

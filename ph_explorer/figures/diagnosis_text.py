@@ -16,11 +16,11 @@ from typing import Literal
 
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner
-from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Ring
-from ph_explorer.diagnosis.suspect import SUSPECT_LEVEL, SuspectRing
+from ph_explorer.diagnosis.results import VERDICTS, Diagnosis
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
 from ph_explorer.figures.history_text import history_lines
+from ph_explorer.figures.ring_text import suspect_text, worst_ring_lines
 from ph_explorer.planning.deciding import DECIDING_POWER, Decision
 
 Detail = Literal["short", "full"]
@@ -132,17 +132,6 @@ def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision
         named = ", ".join(orientation_label(r.a_deg, r.b_deg) for r in result.suspect_rings)
         remeasure = f"remeasure {named} and diagnose again; of the other rings: "
     return lines + ["Next: " + remeasure + next_step(result, actions, decision)]
-
-
-def suspect_text(ring: SuspectRing) -> str:
-    """'Remeasure A45 B40 (left out of the fit and the claims): ...' (diagnosis.suspect)."""
-    where = f"Remeasure {orientation_label(ring.a_deg, ring.b_deg)} (left out of the fit and the claims): "
-    if ring.reason == "fails alone":
-        return where + (
-            f"{ring.ratio:.1f}x its floor out of sample while the rings predicting it stay within "
-            f"{max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring measured badly, or an error at this orientation alone."
-        )
-    return where + f"its repetitions disagree beyond noise (scatter test p = {ring.p_scatter:.2g}, level {SUSPECT_LEVEL:g} over the rings)."
 
 
 def why_lines(result: Diagnosis) -> list[str]:
@@ -336,33 +325,6 @@ def signature_text(entry: dict) -> str:
 
 
 # -- rings, tests, candidates ------------------------------------------------------------------------
-
-
-def exceeding_text(count: int) -> str:
-    """'1 ring exceeds its noise', '3 rings exceed their noise'."""
-    return "1 ring exceeds its noise" if count == 1 else f"{count} rings exceed their noise"
-
-
-def ring_reason(ring: Ring) -> str:
-    """By which of the ring test's two statistics the ring exceeds (docs/methods/within_noise.md)."""
-    return "by the scatter between its repetitions (harmonics 2-8)" if ring.by_scatter else "by its repetition mean"
-
-
-def worst_ring_lines(result: Diagnosis, limit: int | None) -> list[str]:
-    """How many rings exceed their noise, then the worst (all when limit is None), each with the test that flagged it."""
-    if not result.tested:
-        return ["One repetition: no ring can be tested against its noise."]
-    rings = result.failing_rings()
-    worst = f"; the worst {limit}, by out-of-sample MAE over its own floor:" if limit is not None and len(rings) > limit else "."
-    lines = [
-        f"Under the baseline {len(rings)} of {len(result.rings)} rings exceed their noise, out of sample (the within-noise test of each ring, level 1 %){worst}"
-    ]
-    for ring in rings[:limit]:
-        kind = "check ring" if ring.held_out else "leave-one-out"
-        lines.append(
-            f"{orientation_label(ring.a_deg, ring.b_deg)} ({kind}): MAE {ring.mae_um['mean']:.3f} um, {ring.ratio:.1f}x its floor; exceeds {ring_reason(ring)}"
-        )
-    return lines
 
 
 def test_lines(result: Diagnosis, catalog: Catalog) -> list[str]:

@@ -1,0 +1,48 @@
+"""Rings in words, for the renderer of the diagnosis record (figures.diagnosis_text): the rings
+that exceed their noise, worst first, with the test that flagged each, and the suspect rings to
+remeasure. Method: docs/diagnosis.md.
+"""
+
+from __future__ import annotations
+
+from ph_explorer.campaign import orientation_label
+from ph_explorer.diagnosis.results import Diagnosis, Ring
+from ph_explorer.diagnosis.suspect import SUSPECT_LEVEL, SuspectRing
+
+
+def suspect_text(ring: SuspectRing) -> str:
+    """'Remeasure A45 B40 (left out of the fit and the claims): ...' (diagnosis.suspect)."""
+    where = f"Remeasure {orientation_label(ring.a_deg, ring.b_deg)} (left out of the fit and the claims): "
+    if ring.reason == "fails alone":
+        return where + (
+            f"{ring.ratio:.1f}x its floor out of sample while the rings predicting it stay within "
+            f"{max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring measured badly, or an error at this orientation alone."
+        )
+    return where + f"its repetitions disagree beyond noise (scatter test p = {ring.p_scatter:.2g}, level {SUSPECT_LEVEL:g} over the rings)."
+
+
+def exceeding_text(count: int) -> str:
+    """'1 ring exceeds its noise', '3 rings exceed their noise'."""
+    return "1 ring exceeds its noise" if count == 1 else f"{count} rings exceed their noise"
+
+
+def ring_reason(ring: Ring) -> str:
+    """By which of the ring test's two statistics the ring exceeds (docs/methods/within_noise.md)."""
+    return "by the scatter between its repetitions (harmonics 2-8)" if ring.by_scatter else "by its repetition mean"
+
+
+def worst_ring_lines(result: Diagnosis, limit: int | None) -> list[str]:
+    """How many rings exceed their noise, then the worst (all when limit is None), each with the test that flagged it."""
+    if not result.tested:
+        return ["One repetition: no ring can be tested against its noise."]
+    rings = result.failing_rings()
+    worst = f"; the worst {limit}, by out-of-sample MAE over its own floor:" if limit is not None and len(rings) > limit else "."
+    lines = [
+        f"Under the baseline {len(rings)} of {len(result.rings)} rings exceed their noise, out of sample (the within-noise test of each ring, level 1 %){worst}"
+    ]
+    for ring in rings[:limit]:
+        kind = "check ring" if ring.held_out else "leave-one-out"
+        lines.append(
+            f"{orientation_label(ring.a_deg, ring.b_deg)} ({kind}): MAE {ring.mae_um['mean']:.3f} um, {ring.ratio:.1f}x its floor; exceeds {ring_reason(ring)}"
+        )
+    return lines
