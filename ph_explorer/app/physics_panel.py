@@ -19,7 +19,7 @@ from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
 from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
-from ph_explorer.figures.history_text import chosen_text, nested_summary, step_label
+from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.planning.deciding import Decision, DecisionWords
 
 
@@ -78,7 +78,8 @@ def nested_markdown(nested: NestedAfter) -> str:
     table = ["| | vs mean, um | vs single, um |", "|---|---|---|"] + [
         f"| {name} | {f['mean']:.3f} | {f['single']:.3f} |" for name, f in rows
     ]
-    return "\n\n".join([nested_summary(nested), "\n".join(table), f"Chosen in the folds: {chosen_text(nested)}."])
+    gain = [gain_text(nested)[:1].upper() + gain_text(nested)[1:] + "."] if nested.gain is not None else []
+    return "\n\n".join([nested_summary(nested), "\n".join(table), f"Chosen in the folds: {chosen_text(nested)}.", *gain])
 
 
 def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: int = 8) -> str:

@@ -7,8 +7,9 @@ NESTED_FOLDS folds at random (seeded); for each fold the whole search (choose_ef
 ranking, within-noise tests, the chain) runs on the campaign without that fold's rings, the hybrid
 with the chain it chose is fitted on the remaining training rings, and the fold's rings are
 predicted. Beside it, the model the step started from, fitted on the same rings, predicts the
-same rings: "before" and "after" on rings that neither the fit nor the choice saw. The folds' models
-take the trilinear data part whatever the diagnosis's (NESTED_DATA_PART).
+same rings: "before" and "after" on rings that neither the fit nor the choice saw, and each ring's
+gain tested over rings as a claim is (diagnosis.replication). The folds' models take the
+trilinear data part whatever the diagnosis's (NESTED_DATA_PART).
 """
 
 from __future__ import annotations
@@ -22,7 +23,9 @@ from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.fitted_bases import FittedBases
+from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import NestedAfter
+from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect, effect_label
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
@@ -75,11 +78,17 @@ def nested_after(
     chosen = [r[3] for r in results]
     rings = np.concatenate(predicted)
     measured = campaign.deviations[rings]
+    before_all, after_all = np.concatenate(before), np.concatenate(after)
+    # Each predicted ring's fall in squared error over its touches, in its own noise variances: the
+    # replication test over rings, on rings that took no part in the choice (issue 55).
+    fall = ((measured - before_all) ** 2).sum(axis=(1, 2)) - ((measured - after_all) ** 2).sum(axis=(1, 2))
+    gain = fall / np.maximum(ring_sigma(measured) ** 2, 1e-300)
     return NestedAfter(
         folds=folds,
         rings=int(rings.size),
-        before_um=metrics.mae(np.concatenate(before), measured),
-        after_um=metrics.mae(np.concatenate(after), measured),
+        before_um=metrics.mae(before_all, measured),
+        after_um=metrics.mae(after_all, measured),
         noise_floor_um=metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions),
         chosen=tuple(tuple(fold) for fold in chosen),
+        gain=replication(gain, np.zeros(gain.size, dtype=bool), seed=seed),
     )

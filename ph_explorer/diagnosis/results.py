@@ -19,6 +19,7 @@ from ph_explorer.diagnosis.candidates import (
     Candidate,
     rounded,
 )
+from ph_explorer.diagnosis.replication import Replication
 from ph_explorer.diagnosis.suspect import SuspectRing
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
@@ -78,6 +79,16 @@ class NestedAfter:
     after_um: dict[str, float]  # MAE with the effects each fold's search chose
     noise_floor_um: dict[str, float]
     chosen: tuple[tuple[str, ...], ...] = ()  # per fold, the effects chosen ("id 22/rev")
+    # The replication test over the predicted rings of their fall in error from before to after;
+    # None in a record written before it was measured.
+    gain: Replication | None = None
+
+    @property
+    def gain_holds(self) -> bool:
+        """The effects chosen in the folds lower the error of rings that took no part in choosing
+        them, replicated over those rings. Reported beside the claims, never a reason to withdraw
+        one: it lacks power where the interpolator follows an effect (docs/diagnosis.md)."""
+        return self.gain is None or self.gain.replicated
 
     def chosen_counts(self) -> dict[str, int]:
         """How many folds chose each effect, in the order first chosen."""
@@ -95,12 +106,14 @@ class NestedAfter:
             "after_um": rounded(self.after_um),
             "noise_floor_um": rounded(self.noise_floor_um),
             "chosen": [list(fold) for fold in self.chosen],
+            "gain": None if self.gain is None else self.gain.as_dict(),
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> NestedAfter:
         figures = {k: {r: _number(v) for r, v in data[k].items()} for k in ("before_um", "after_um", "noise_floor_um")}
-        return cls(data["folds"], data["rings"], **figures, chosen=tuple(tuple(fold) for fold in data.get("chosen", [])))
+        gain = None if data.get("gain") is None else Replication.from_json(data["gain"])
+        return cls(data["folds"], data["rings"], **figures, chosen=tuple(tuple(fold) for fold in data.get("chosen", [])), gain=gain)
 
 
 RING_TEST = "the within-noise test of one ring (level 1 %)"

@@ -42,7 +42,18 @@ def nested_lines(nested: NestedAfter) -> list[str]:
         f"{'  before':50s} " + mae_text(nested.before_um, nested.noise_floor_um),
         f"{'  after':50s} " + mae_text(nested.after_um, nested.noise_floor_um),
         f"  chosen in the folds: {chosen_text(nested)}",
+        *([f"  {gain_text(nested)}"] if nested.gain is not None else []),
     ]
+
+
+def gain_text(nested: NestedAfter) -> str:
+    """The nested gain's test over rings: whether the fall in error replicates on rings that took no part in choosing."""
+    gain = nested.gain
+    test = (
+        f"sign-flip p = {gain.p_value:.3g}, {gain.p_without_top:.3g} without the top ring; {gain.rings_gaining} of {gain.rings} rings gain"
+    )
+    verdict = "replicated" if nested.gain_holds else "not replicated on these rings (the check rings above carry the claims)"
+    return f"the fall in error on these rings, tested over them ({test}): {verdict}"
 
 
 def chosen_text(nested: NestedAfter, name: Callable[[str], str] = str) -> str:
