@@ -163,6 +163,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
     ]
     record["suggested"] = [c.effect for c in result.suggested]
     record["suspect_rings"] = [[r.a_deg, r.b_deg] for r in result.suspect_rings]
+    record["outliers_named"] = bool(result.touch_outliers is not None and result.touch_outliers.named)
     record["suggested_settings"] = [{k: float(v) for k, v in c.settings.items()} for c in result.suggested]
     record["background"] = background_of(campaign)
     record["not_needed"] = [c.effect for c in result.not_needed]
@@ -343,6 +344,8 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         "true_background_findings": rate(sum(names_only_background(r) for r in healthy), len(healthy)),
         # a ring named as measured badly on a head measured well (diagnosis.suspect)
         "suspect_named": rate(sum(bool(r.get("suspect_rings")) for r in healthy), len(healthy)),
+        # touch outliers named on a head whose touch noise is Gaussian or Student-t 3-5 dof (diagnosis.touch_outliers)
+        "outliers_named": rate(sum(bool(r.get("outliers_named")) for r in healthy), len(healthy)),
         "verdicts": dict(Counter(r["verdict"] for r in healthy)),
         "by_design": {
             d: rate(sum(alarm(r) for r in healthy if r["design"] == d), sum(r["design"] == d for r in healthy))

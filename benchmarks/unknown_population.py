@@ -9,7 +9,8 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 - catalog_name: `missing` with a catalog effect named for the unknown part (for a shape beside a
   hidden catalog effect: any claim but that effect);
 - honest: `unexplained`, `partial` or `suggested`;
-- none_silent: `none` with no ring named as measured badly either (diagnosis.suspect);
+- none_silent: `none` with no ring named as measured badly (diagnosis.suspect) and no touch
+  outliers named (diagnosis.touch_outliers) either; outliers_named: touch outliers named;
 - suspect_named: a ring named as measured badly; bad_ring_named: a bad-ring head's own ring named,
   over its family's heads and as many more of seeds of their own;
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees.
@@ -98,6 +99,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "found": [c.effect for c in result.found],
         "suggested": [c.effect for c in result.suggested],
         "suspect_rings": [[r.a_deg, r.b_deg] for r in result.suspect_rings],
+        "outliers_named": bool(result.touch_outliers is not None and result.touch_outliers.named),
         "check_ratio_mean": round(float(np.mean(check)), 3) if check else None,
         "check_ratio_max": round(float(np.max(check)), 3) if check else None,
         "failing_rings": sum(bool(ring.exceeds) for ring in result.rings),
@@ -134,8 +136,8 @@ def truth_ring_named(record: dict[str, Any]) -> bool:
 
 
 def silent_none(record: dict[str, Any]) -> bool:
-    """`none` with no ring named either: the tool says nothing of what the campaign holds."""
-    return record["verdict"] == "none" and not record.get("suspect_rings")
+    """`none` with no ring named and no touch outliers named either: the tool says nothing of what the campaign holds."""
+    return record["verdict"] == "none" and not record.get("suspect_rings") and not record.get("outliers_named")
 
 
 def suspect_standing(job: dict[str, Any]) -> dict[str, Any]:
@@ -195,6 +197,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "honest": rate(sum(r["verdict"] in ("unexplained", "partial", "suggested") for r in group), len(group)),
             "none_silent": rate(sum(silent_none(r) for r in group), len(group)),
             "suspect_named": rate(sum(bool(r.get("suspect_rings")) for r in group), len(group)),
+            "outliers_named": rate(sum(bool(r.get("outliers_named")) for r in group), len(group)),
             "verdicts": dict(Counter(r["verdict"] for r in group)),
             "check_ratio_median": round(float(np.median(ratios)), 3) if ratios else None,
         }

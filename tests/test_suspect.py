@@ -81,3 +81,20 @@ def test_an_effect_of_the_head_is_not_a_suspect_ring(healthy):
     effect = DEFAULT_CATALOG["b_axis_cyclic"](amplitude_arcsec=3.0, phase_deg=20.0, cycles_per_rev=5.0)
     added = effect.forward(campaign_touches(healthy), np.random.default_rng(0))
     assert suspect_rings(replace(healthy, deviations=healthy.deviations + added)) == ()
+
+
+def test_touch_outliers_beyond_what_touch_noise_gives_are_named_beside_the_verdict(healthy):
+    """Debris: 1.5 % of the touches read 2 um off (about 10 robust sigmas of this head's noise): named
+    with their share and the rings that hold most; the head measured well names none."""
+    from ph_explorer.diagnosis.touch_outliers import touch_outliers
+
+    assert not touch_outliers(healthy).named
+    rng = np.random.default_rng(5)
+    hit = rng.uniform(size=healthy.deviations.shape) < 0.015
+    dirty = replace(healthy, deviations=healthy.deviations + 2.0 * hit * rng.choice([-1.0, 1.0], size=hit.shape))
+    outliers = touch_outliers(dirty)
+    assert outliers.named and outliers.count >= 0.9 * hit.sum() and outliers.largest_um > 1.8
+    result = diagnose(dirty, nested=False)
+    (verdict,) = [s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict"]
+    assert any(line.startswith("Touch outliers: ") and "Clean the stylus" in line for line in verdict.lines)
+    assert json.loads(json.dumps(result.to_json()))["touch_outliers"]["named"] is True

@@ -155,7 +155,8 @@ def verdict_rates(results: Mapping[str, Any]) -> str:
 
     own = {
         "none": f"false alarms on healthy heads {share_of(get(pop, 'healthy', 'false_alarm'))}; same verdict on another noise draw {share_of(pop.get('stability'))}; "
-        f"a ring named as measured badly on healthy heads {share_of(get(pop, 'healthy', 'suspect_named'))}",
+        f"a ring named as measured badly on healthy heads {share_of(get(pop, 'healthy', 'suspect_named'))}, touch outliers named "
+        f"{share_of(get(pop, 'healthy', 'outliers_named'))}",
         "missing": f"the hidden catalog effect found {share_of(get(pop, 'catalog_effect', 'found'))}; its parameters within U "
         f"{share_of(get(pop, 'catalog_effect', 'truth_within_u'))}; an effect in no catalog called missing {share_of(get(pop, 'outside_catalog', 'missing'))}",
         "suggested": "no claim; `design --decide` proposes the rings that would confirm or refute it",

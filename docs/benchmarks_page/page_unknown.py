@@ -15,8 +15,9 @@ UNKNOWN_INTRO = """\
 does to the check rings (1 to 3 noise floors), diagnosed as a user would. **none**: the verdict
 says the campaign is within noise, the shape unseen; **catalog name**: `missing` with a catalog
 effect named for the unknown part; **honest**: `unexplained`, `partial` or `suggested`; **silent
-none**: `none` with no ring named as measured badly either; **ring named**: a ring named as
-measured badly ([suspect rings](methods/suspect_rings.md)). Each share with its 95 % interval; the
+none**: `none` with no ring named as measured badly and no touch outliers named either; **ring
+named**: a ring named as measured badly ([suspect rings](methods/suspect_rings.md)); **outliers
+named**: touch outliers named. Each share with its 95 % interval; the
 check rings' error over their floor is what a user sees. The targets (none at most {none_max}, a
 catalog name at most {name_max}, a bad ring named on at least {bad_min} of its heads) are those of
 issue 55.
@@ -34,7 +35,7 @@ def unknown(results: Mapping[str, Any]) -> str:
     intro = UNKNOWN_INTRO.format(
         none_max=pct(targets.get("none_max")), name_max=pct(targets.get("catalog_name_max")), bad_min=pct(targets.get("bad_ring_named_min"))
     )
-    head = ["family", "none", "catalog name", "honest", "silent none", "ring named", "check rings / floor (median)"]
+    head = ["family", "none", "catalog name", "honest", "silent none", "ring named", "outliers named", "check rings / floor (median)"]
     return (
         intro
         + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"
@@ -43,7 +44,7 @@ def unknown(results: Mapping[str, Any]) -> str:
     )
 
 
-KEYS = ("none", "catalog_name", "honest", "none_silent", "suspect_named")
+KEYS = ("none", "catalog_name", "honest", "none_silent", "suspect_named", "outliers_named")
 
 
 def suspect_text(u: Mapping[str, Any]) -> str:

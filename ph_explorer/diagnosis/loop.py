@@ -28,6 +28,7 @@ from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.diagnosis.telling_apart import tell_apart
+from ph_explorer.diagnosis.touch_outliers import touch_outliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -142,7 +143,9 @@ def diagnose(
     start: effects already in the model, each at its settings (a resumed study's chain): the
     search continues from them, and the steps begin with them.
     """
-    # Rings measured badly are named and left out of the fit and of the claims.
+    # Touches read far off are named (the fit takes them as they are); rings measured badly are
+    # named and left out of the fit and of the claims.
+    outliers = touch_outliers(campaign)
     suspects = suspect_rings(campaign, seed)
     campaign = without_suspects(campaign, suspects)
     held_out = campaign.holdout_mask()
@@ -235,6 +238,7 @@ def diagnose(
         chain=tuple(chosen_steps),
         started_from=len(start),
         suspect_rings=suspects,
+        touch_outliers=outliers,
         hybrid=hybrid,
     )
     if nested:

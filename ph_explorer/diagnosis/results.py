@@ -21,6 +21,7 @@ from ph_explorer.diagnosis.candidates import (
 )
 from ph_explorer.diagnosis.replication import Replication
 from ph_explorer.diagnosis.suspect import SuspectRing
+from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.models.hybrid import HybridModel
@@ -182,6 +183,7 @@ class Diagnosis:
     chain: tuple[Effect, ...] = ()  # the last step's effects, at their settings
     started_from: int = 0  # how many of them were in the model before this run (a resumed study)
     suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
+    touch_outliers: TouchOutliers | None = None  # touches read far off (None: too few repetitions to tell)
     # The last step's fitted model: the process's, never in the JSON.
     hybrid: HybridModel | None = field(default=None, compare=False, repr=False)
 
@@ -254,6 +256,7 @@ class Diagnosis:
             "chain": [{"effect": e.id, "settings": {k: float(v) for k, v in e.settings().items()}} for e in self.chain],
             "started_from": self.started_from,
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
+            "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
             "where_it_fails": [r.to_json() for r in self.rings if r.exceeds],
             "rings": [r.to_json() for r in self.rings],
         }
@@ -282,6 +285,7 @@ class Diagnosis:
             chain=tuple(catalog[e["effect"]]().with_settings(**e["settings"]) for e in data["chain"]),
             started_from=data["started_from"],
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
+            touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
             rings=tuple(Ring.from_json(r) for r in data["rings"]),
         )
 

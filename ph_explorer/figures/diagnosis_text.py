@@ -20,7 +20,7 @@ from ph_explorer.diagnosis.results import VERDICTS, Diagnosis
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
 from ph_explorer.figures.history_text import history_lines
-from ph_explorer.figures.ring_text import suspect_text, worst_ring_lines
+from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
 from ph_explorer.planning.deciding import DECIDING_POWER, Decision
 
 Detail = Literal["short", "full"]
@@ -124,6 +124,8 @@ def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str
 def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> list[str]:
     """Under the headline: the rings to remeasure, a resumed study, and what to do next."""
     lines = [suspect_text(ring) for ring in result.suspect_rings]
+    if result.touch_outliers is not None and result.touch_outliers.named:
+        lines.append(outliers_text(result.touch_outliers))
     if result.started_from:
         already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
         lines.append(f"Resumed with {already} in the model; the search continued from there.")

@@ -1,6 +1,6 @@
 """Rings in words, for the renderer of the diagnosis record (figures.diagnosis_text): the rings
-that exceed their noise, worst first, with the test that flagged each, and the suspect rings to
-remeasure. Method: docs/diagnosis.md.
+that exceed their noise, worst first, with the test that flagged each, the suspect rings to
+remeasure and the touch outliers. Method: docs/diagnosis.md.
 """
 
 from __future__ import annotations
@@ -8,6 +8,7 @@ from __future__ import annotations
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.results import Diagnosis, Ring
 from ph_explorer.diagnosis.suspect import SUSPECT_LEVEL, SuspectRing
+from ph_explorer.diagnosis.touch_outliers import OUTLIER_SHARE, OUTLIER_Z, TouchOutliers
 
 
 def suspect_text(ring: SuspectRing) -> str:
@@ -19,6 +20,17 @@ def suspect_text(ring: SuspectRing) -> str:
             f"{max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring measured badly, or an error at this orientation alone."
         )
     return where + f"its repetitions disagree beyond noise (scatter test p = {ring.p_scatter:.2g}, level {SUSPECT_LEVEL:g} over the rings)."
+
+
+def outliers_text(outliers: TouchOutliers) -> str:
+    """'Touch outliers: 1.7 % of the touches ...' (diagnosis.touch_outliers)."""
+    most = ", ".join(f"{orientation_label(a, b)} ({n})" for a, b, n in outliers.rings)
+    return (
+        f"Touch outliers: {100 * outliers.share:.2f} % of the touches ({outliers.count} of {outliers.touches}) read more than "
+        f"{OUTLIER_Z:g} robust sigmas off their point's other repetitions, up to {outliers.largest_um:.2f} um; healthy touch "
+        f"noise gives at most {100 * OUTLIER_SHARE:.1f} %: debris or a sticking trigger. Clean the stylus and the ring; "
+        f"most are on {most}. The fit takes them as they are."
+    )
 
 
 def exceeding_text(count: int) -> str:
