@@ -351,6 +351,13 @@ def check_population_unknown(results: dict) -> None:
         for key in ("none", "catalog_name", "honest", "none_silent", "suspect_named"):
             assert summary[key]["of"] >= 1 and len(summary[key]["ci95"]) == 2, key
     assert unknown["all"]["none"]["of"] == 2 and unknown["bad_ring_named"]["of"] == 2
+    multi = unknown["multi_effect"]
+    assert (
+        multi["heads"] == 1
+        and multi["errors"] == []
+        and multi["all_found"]["of"] == 1
+        and set(multi["by_kind"]) == {"pair", "triple", "harmonics"}
+    )
     calibration = unknown["suspect_calibration"]
     assert set(calibration["healthy_named"]) == set(calibration["bad_ring_named"]) and calibration["used"]["max_rings"] >= 1
     assert unknown["errors"] == [] and unknown["commit"] and unknown["targets"]["none_max"] == 0.10

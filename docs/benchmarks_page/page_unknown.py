@@ -41,10 +41,25 @@ def unknown(results: Mapping[str, Any]) -> str:
         + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"
         + table(head, rows)
         + suspect_text(u)
+        + multi_text(u)
     )
 
 
 KEYS = ("none", "catalog_name", "honest", "none_silent", "suspect_named", "outliers_named")
+
+
+def multi_text(u: Mapping[str, Any]) -> str:
+    """Heads with several catalog effects at once: every effect found, by kind."""
+    multi = u.get("multi_effect") or {}
+    if not multi:
+        return ""
+    kinds = ", ".join(f"{kind} {share_of(r)}" for kind, r in (multi.get("by_kind") or {}).items())
+    return (
+        f"\n**Several catalog effects at once** ({num(multi.get('heads'))} heads, two or three effects each, or two settings of one "
+        f"axis error; benchmarks/multi_effects.py): every effect claimed with its settings on {share_of(multi.get('all_found'))} "
+        f"(target at least {pct((u.get('targets') or {}).get('multi_all_found_min'))}); by kind: {kinds}; of all their effects, "
+        f"{share_of(multi.get('each_effect_found'))} claimed.\n"
+    )
 
 
 def suspect_text(u: Mapping[str, Any]) -> str:

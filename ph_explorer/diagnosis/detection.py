@@ -116,10 +116,16 @@ def head_with_effect(
 
 
 def hidden_effect_of(
-    seed: int, effect_id: str, strength: float | None = None, design: str | None = None, catalog: Catalog = DEFAULT_CATALOG
+    seed: int,
+    effect_id: str,
+    strength: float | None = None,
+    design: str | None = None,
+    catalog: Catalog = DEFAULT_CATALOG,
+    draw: int = 1,
 ) -> tuple[Effect, float]:
     """(effect, strength): the effect head_with_effect hides in the head of `seed`. Settings are
-    redrawn until its amplitudes stay within their plausible ranges."""
+    redrawn until its amplitudes stay within their plausible ranges; `draw`: another draw of its
+    settings and strength on the same head (a second effect, or a second setting of one)."""
     if effect_id not in catalog:
         error = catalog.unknown(effect_id, column=None)
         error.option = "--hidden-effect"
@@ -127,7 +133,7 @@ def hidden_effect_of(
     cls = catalog[effect_id]
     if not cls.candidate or not cls.amplitudes():
         raise InputError(f"effect {effect_id!r} has no amplitude to set at a strength", option="--hidden-effect")
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 1]))
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(draw)]))
     strength = float(rng.uniform(1.0, 3.0)) if strength is None else float(strength)
     if not (np.isfinite(strength) and strength > 0):
         raise InputError(f"must be a positive number, got {strength:g}", option="--strength")
