@@ -192,6 +192,25 @@ def test_page_loads_and_the_a_slider_turns_the_head(served, tmp_path: Path) -> N
     assert (shots / "explorer_after_a_slider.png").stat().st_size > 10_000
 
 
+def uploaded(page, session, path: Path) -> None:
+    """The campaign CSV uploaded as a user does: the Data tab's upload button, the file chooser."""
+    with page.expect_file_chooser() as chooser:
+        page.get_by_role("button", name="Upload a campaign CSV").click()
+    chooser.value.set_files(str(path))
+    assert wait_for(lambda: path.name in session.data_panel.source.content, timeout=300), session.data_panel.message.content
+    session.wait(timeout=120)
+
+
+def diagnosed(page, session):
+    """Diagnose clicked on the Physics tab; the diagnosis once its verdict shows and the page stands still."""
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=600)
+    session.wait(timeout=300)
+    settled(page)
+    return session.loop.diagnosis
+
+
 # The teaching-only controls (issue 57, item 8): the Physics tab's Reveal and the Data tab's report option.
 TEACHING_ONLY = {"Physics": ("button", "Reveal the hidden effect"), "Data": ("checkbox", "Name hidden effects in the report")}
 
@@ -216,11 +235,7 @@ def test_a_lab_campaign_uploaded_shows_no_teaching_only_control_and_its_verdict_
 
     # The lab's CSV, uploaded as a user does: Data tab, its upload button, the file chooser.
     lab = write_campaign(lobing_campaign(seed=6, n_repetitions=3), tmp_path / "lab.csv")
-    with page.expect_file_chooser() as chooser:
-        page.get_by_role("button", name="Upload a campaign CSV").click()
-    chooser.value.set_files(str(lab))
-    assert wait_for(lambda: "lab.csv" in session.data_panel.source.content, timeout=300), session.data_panel.message.content
-    session.wait(timeout=120)
+    uploaded(page, session, lab)
     page.get_by_text("uploaded lab.csv", exact=False).first.wait_for(timeout=30_000)
     teaching = re.compile(r"reveal|hidden effect", re.IGNORECASE)
     for tab, (role, name) in TEACHING_ONLY.items():
@@ -233,12 +248,7 @@ def test_a_lab_campaign_uploaded_shows_no_teaching_only_control_and_its_verdict_
         page.screenshot(path=str(shots / f"explorer_lab_{tab.lower()}.png"))
     # Diagnosed: the verdict leads the Physics tab; between Diagnose and Refit nothing speaks of a
     # candidate that is neither claimed nor suggested; still no teaching-only control.
-    page.get_by_role("tab", name="Physics").click()
-    page.get_by_role("button", name="Diagnose", exact=True).click()
-    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=600)
-    session.wait(timeout=300)
-    settled(page)
-    result = session.loop.diagnosis
+    result = diagnosed(page, session)
     top = page.get_by_role("button", name="Diagnose", exact=True).bounding_box()
     bottom = page.get_by_role("button", name="Refit the hybrid").bounding_box()
     paragraphs = page.evaluate(
@@ -276,17 +286,8 @@ def test_a_badly_measured_ring_is_named_under_the_verdict_in_the_explorer(served
     page, session = open_page(served, errors)
     page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
     page.get_by_role("tab", name="Data").click()
-    with page.expect_file_chooser() as chooser:
-        page.get_by_role("button", name="Upload a campaign CSV").click()
-    chooser.value.set_files(str(lab))
-    assert wait_for(lambda: "chipped.csv" in session.data_panel.source.content, timeout=300), session.data_panel.message.content
-    session.wait(timeout=120)
-    page.get_by_role("tab", name="Physics").click()
-    page.get_by_role("button", name="Diagnose", exact=True).click()
-    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=600)
-    session.wait(timeout=300)
-    settled(page)
-    result = session.loop.diagnosis
+    uploaded(page, session, lab)
+    result = diagnosed(page, session)
     assert [(r.a_deg, r.b_deg) for r in result.suspect_rings] == [(45.0, 40.0)] and result.verdict == "none"
     named = page.get_by_text("Remeasure A45 B40", exact=False).first
     named.wait_for(state="visible", timeout=30_000)
