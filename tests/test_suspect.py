@@ -12,6 +12,7 @@ from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.figures.diagnosis_text import report_sections
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -56,6 +57,11 @@ def test_a_badly_measured_ring_is_named_and_the_heads_verdict_is_unchanged(healt
     verdict = next(s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict")
     label = f"A{suspect.a_deg:g} B{suspect.b_deg:g}"
     assert verdict.lines[0].startswith(f"Remeasure {label}") and label in verdict.lines[-1]
+    # The error map: every measured ring at its own place, the suspect one as its own verdict.
+    figures = diagnosis_figures(result, healthy.orientations)
+    verdict = figures["diagnosis: ring verdict (within-noise test)"].values
+    assert len(verdict) == healthy.n_orientations and verdict[ring] == 2 and np.isfinite(verdict).all()
+    assert figures["diagnosis: out-of-sample MAE / its floor"].values[ring] == pytest.approx(suspect.ratio)
     data = json.loads(json.dumps(result.to_json()))
     assert data["suspect_rings"][0]["reason"] == "fails alone"
     assert Diagnosis.from_json(data).to_json() == data

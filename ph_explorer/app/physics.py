@@ -135,7 +135,7 @@ class PhysicsLoop:
             p.evidence_of.value = p.evidence_of.options[0]
             self.show_evidence(p.evidence_of.value)
         # The diagnosis's per-ring figures join this browser's map (its out-of-sample error over the floor, each ring's verdict).
-        self.show(ds.with_figures(diagnosis_figures(result)))
+        self.show(ds.with_figures(diagnosis_figures(result, ds.campaign.orientations)))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
             self.steps = list(result.steps[: 1 + len(start)])
             self.refitted = None  # a new history: no refit of it yet

@@ -15,8 +15,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.campaign import Campaign, orientation_label, orientation_match
 from ph_explorer.diagnosis.results import RING_VERDICTS, VERDICTS, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.study import Study
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE
@@ -290,18 +291,30 @@ def reveal_section(campaign: Campaign, catalog: Catalog, study: Study | None) ->
     ]
 
 
-def diagnosis_figures(result: Diagnosis) -> dict[str, MapFigure]:
-    """The diagnosis's per-ring figures for the error map: out-of-sample MAE over its floor, and
-    each ring's verdict (no verdict where the test could not run: one repetition)."""
-    ratio = result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"]
-    tested = result.tested
-    verdict = result.failing.astype(float) if tested else np.full(len(result.failing), np.nan)
+def diagnosis_figures(result: Diagnosis, orientations: ArrayLike | None = None) -> dict[str, MapFigure]:
+    """The diagnosis's per-ring figures for the error map, at `orientations` (the campaign's; default:
+    the rings the diagnosis judged): out-of-sample MAE over its floor, and each ring's verdict (no
+    verdict where the test could not run: one repetition); a suspect ring, left out, is its own verdict."""
+    suspects = result.suspect_rings
+    judged = [(r.a_deg, r.b_deg) for r in result.rings]
+    where = np.asarray(judged if orientations is None else orientations, dtype=float).reshape(-1, 2)
+    ratio_of = np.concatenate([result.out_of_sample_mae_um["mean"] / result.out_of_sample_floor_um["mean"], [s.ratio for s in suspects]])
+    failing = result.failing.astype(float) if result.tested else np.full(len(result.rings), np.nan)
+    verdict_of = np.concatenate([failing, np.full(len(suspects), float(len(RING_VERDICTS)))])
+    match = orientation_match(where, judged + [(s.a_deg, s.b_deg) for s in suspects])
+    found = match.any(axis=1)
+    at = match.argmax(axis=1)
+    ratio = np.where(found, ratio_of[at] if len(ratio_of) else np.nan, np.nan)
+    verdict = np.where(found, verdict_of[at] if len(verdict_of) else np.nan, np.nan)
     return {
         "diagnosis: out-of-sample MAE / its floor": MapFigure(
             ratio, "x floor", "each ring's out-of-sample MAE over its own floor; training rings leave-one-out, check rings by the baseline"
         ),
         "diagnosis: ring verdict (within-noise test)": MapFigure(
-            verdict, "", "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual", RING_VERDICTS
+            verdict,
+            "",
+            "each ring's within-noise test (ring level 1 %) on the baseline's out-of-sample residual; a ring measured badly is left out",
+            (*RING_VERDICTS, "measured badly: left out, remeasure"),
         ),
     }
 

@@ -178,7 +178,7 @@ def _campaign_section(campaign: Campaign, source: str, models: Mapping[str, Devi
 def _map_section(campaign: Campaign, check: NDArray[np.bool_], current: tuple[float, float], diagnosis: Diagnosis | None) -> list[str]:
     figures: list[tuple[str, MapFigure]] = []
     if diagnosis is not None:
-        figures += list(diagnosis_figures(diagnosis).items())[:1]  # each ring's out-of-sample MAE over its own floor
+        figures += list(diagnosis_figures(diagnosis, campaign.orientations).items())[:1]  # each ring's out-of-sample MAE over its own floor
     figures.append(
         ("measured RONt", MapFigure(ron_t(campaign.mean_curves()), "um", "peak to valley of the measured mean curve (ISO 12181)"))
     )
