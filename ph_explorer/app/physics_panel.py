@@ -78,7 +78,8 @@ def nested_markdown(nested: NestedAfter) -> str:
     table = ["| | vs mean, um | vs single, um |", "|---|---|---|"] + [
         f"| {name} | {f['mean']:.3f} | {f['single']:.3f} |" for name, f in rows
     ]
-    gain = [gain_text(nested)[:1].upper() + gain_text(nested)[1:] + "."] if nested.gain is not None else []
+    said = gain_text(nested) if nested.gain is not None else ""
+    gain = [said[:1].upper() + said[1:] + "."] if said else []
     return "\n\n".join([nested_summary(nested), "\n".join(table), f"Chosen in the folds: {chosen_text(nested)}.", *gain])
 
 

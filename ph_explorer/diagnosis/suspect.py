@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import metrics
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.diagnosis.within_noise import kept_null, low_harmonic_share, ring_sigma, within_p_value
 from ph_explorer.models.crossval import OutOfSampleSmoother
 
@@ -77,20 +77,20 @@ class RingStanding:
     neighbours: NDArray[np.float64]  # (n_o,) the most a ring predicting it exceeds, its share undone
     p_scatter: NDArray[np.float64]  # (n_o,) the scatter test's p-value of its repetitions
     ratio: NDArray[np.float64]  # (n_o,) its out-of-sample MAE (repetition mean) over its own floor
-    train: NDArray[np.bool_]  # (n_o,) a training ring on the lattice: the only rings judged
+    judged: NDArray[np.bool_]  # (n_o,) a training ring on the lattice: the only rings judged
     training_rings: int  # all training rings, on the lattice or off it
 
     def suspect(self, excess: float = SUSPECT_EXCESS, alone: float = SUSPECT_ALONE, level: float = SUSPECT_LEVEL) -> NDArray[np.bool_]:
         """The suspect rings at these thresholds; none when more than SUSPECT_MAX stand out or too few training rings would be left."""
         fails_alone = self.fails_alone(excess, alone)
-        suspect = fails_alone | (self.train & (self.p_scatter < level / len(self.train)))
+        suspect = fails_alone | (self.judged & (self.p_scatter < level / len(self.judged)))
         if suspect.sum() > SUSPECT_MAX or self.training_rings - suspect.sum() < MIN_TRAINING_KEPT:
             return np.zeros_like(suspect)
         return suspect
 
     def fails_alone(self, excess: float = SUSPECT_EXCESS, alone: float = SUSPECT_ALONE) -> NDArray[np.bool_]:
         quiet = self.neighbours <= SUSPECT_QUIET
-        return self.train & quiet & (self.excess > excess) & (self.excess > alone * np.maximum(self.neighbours, 1.0))
+        return self.judged & quiet & (self.excess > excess) & (self.excess > alone * np.maximum(self.neighbours, 1.0))
 
 
 def ring_standing(campaign: Campaign, seed: int = 0) -> RingStanding | None:
@@ -152,6 +152,4 @@ def without_suspects(campaign: Campaign, suspects: Sequence[SuspectRing]) -> Cam
     """The campaign without its suspect rings (the diagnosis's fit and claims leave them out)."""
     if not suspects:
         return campaign
-    at = np.array([[s.a_deg, s.b_deg] for s in suspects])
-    keep = ~(np.abs(campaign.orientations[:, None, :] - at[None]) < 1e-9).all(axis=-1).any(axis=1)
-    return campaign.subset(keep)
+    return campaign.subset(~orientation_match(campaign.orientations, [(s.a_deg, s.b_deg) for s in suspects]).any(axis=1))
