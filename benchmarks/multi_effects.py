@@ -6,7 +6,8 @@ of three kinds, in turn: two different catalog effects (`pair`), three (`triple`
 of one axis error of a cycles-per-revolution scan (`harmonics`, e.g. B 15/rev and 17/rev: a beat).
 Each effect is drawn as the one-effect heads' are (diagnosis.detection.hidden_effect_of: settings
 from its scan, 1-3x its own detection limit on this head alone), each draw its own. A head is
-judged `all_found` when every effect it holds is claimed with its id and settings.
+judged `all_found` when every effect it holds is claimed (found_each: as the catalog-effect heads
+are judged, an untold pair holding it counts), and `all_found_exactly` with its id and settings.
 """
 
 from __future__ import annotations
@@ -71,7 +72,16 @@ def multi_effect_head(seed: int) -> MultiEffectHead:
     raise RuntimeError(f"no {kind} of effects reaches its strength on seed {seed} nor its replacements")
 
 
-def found_each(effects: list[Effect], found: list[dict[str, Any]]) -> list[bool]:
-    """For each effect the head holds: claimed with its id and its settings."""
-    claims = [(f["effect"], {k: float(v) for k, v in f["settings"].items()}) for f in found]
-    return [(e.id, {k: float(v) for k, v in e.settings().items()}) in claims for e in effects]
+def found_each(effects: list[Effect], found: list[dict[str, Any]], exact: bool = False) -> list[bool]:
+    """For each effect the head holds: claimed with its id at its settings or at settings the claim
+    cannot exclude, or claimed as an effect confounded with it at its settings (the population's
+    catalog-effect rule: an untold pair holds the truth); exact: only its id at its own settings."""
+
+    def holds(effect: Effect, claim: dict[str, Any]) -> bool:
+        settings = {k: float(v) for k, v in effect.settings().items()}
+        if exact:
+            return claim["effect"] == effect.id and claim["settings"] == settings
+        at = claim["settings"] == settings or settings in claim.get("not_excluded", [])
+        return at and (claim["effect"] == effect.id or effect.id in claim.get("confounded_with", []))
+
+    return [any(holds(effect, claim) for claim in found) for effect in effects]

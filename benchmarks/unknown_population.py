@@ -16,7 +16,9 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees.
 
 MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_effects.py): the
-share on which every effect is claimed with its settings, by kind (pair, triple, harmonics).
+share on which every effect is claimed (multi_effects.found_each: as catalog-effect heads are
+judged, an untold pair holding it counts; all_found_exactly: its id at its settings), by kind
+(pair, triple, harmonics).
 
 The suspect test's thresholds are measured on heads of their own seeds (SUSPECT_SEEDS): healthy
 heads with a ring named, and bad-ring heads with theirs named, at each SUSPECT_ALONE tried.
@@ -122,8 +124,16 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
         result = diagnose(head.campaign, nested=False)
     except Exception as error:  # recorded, never lost
         return record | {"verdict": "error", "error": f"{type(error).__name__}: {error}"}
-    found = [{"effect": c.effect, "settings": {k: float(v) for k, v in c.settings.items()}} for c in result.found]
-    each = found_each(head.effects, found)
+    found = [
+        {
+            "effect": c.effect,
+            "settings": {k: float(v) for k, v in c.settings.items()},
+            "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
+            "confounded_with": [o.effect for o in c.confounded_with],
+        }
+        for c in result.found
+    ]
+    each, exactly = found_each(head.effects, found), found_each(head.effects, found, exact=True)
     return record | {
         "kind": head.kind,
         "head_seed": head.head_seed,
@@ -134,6 +144,7 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
         "suggested": [c.effect for c in result.suggested],
         "found_each": each,
         "all_found": all(each),
+        "all_found_exactly": all(exactly),
     }
 
 
@@ -143,6 +154,7 @@ def multi_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "heads": len(records),
         "all_found": rate(sum(r["all_found"] for r in judged), len(judged)),
+        "all_found_exactly": rate(sum(r["all_found_exactly"] for r in judged), len(judged)),
         "by_kind": {
             kind: rate(sum(r["all_found"] for r in judged if r["kind"] == kind), sum(r["kind"] == kind for r in judged)) for kind in KINDS
         },

@@ -17,7 +17,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
-from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -100,6 +100,82 @@ def next_found(
     return ranked, None
 
 
+def claimed_together(
+    ranked: Sequence[Candidate],
+    current: NoiseTest | None,
+    search: CandidateSearch,
+    campaign: Campaign,
+    chain: Sequence[Effect],
+    by_id: dict[str, Effect],
+    seed: int = 0,
+) -> tuple[list[Candidate], list[Candidate], list[Candidate], NoiseTest | None] | None:
+    """Two effects that only replicate together (two harmonics of one axis's error: a beat), taken
+    where one at a time stalls (docs/diagnosis.md, step 2): the best candidate beyond noise, the
+    best beyond noise with it in the model, and the first again with the second in it (its setting
+    refitted). Taken when each is beyond noise beside the other, their gain together is replicated
+    over rings and material (the check rings' error, or rings brought within noise), and each one's
+    own gain beside the other is replicated too, so that no passenger rides on its partner.
+    Returns (the ranking it started from, the ranking with the first in the model, both holding
+    the claims; the two claims; the test with both), None when none is taken."""
+    if current is None or not current.fails:
+        return None
+    seen = [c for c in ranked if c.beyond_noise or c.significant]
+    if not seen:
+        return None
+    start = list(chain)
+    first = seen[0]
+    step = rank_candidates(search, list(by_id.values()), fixed=search.design([*start, by_id[first.effect].with_settings(**first.settings)]))
+    same = (first.effect, first.settings)
+    second = next((c for c in step if (c.beyond_noise or c.significant) and (c.effect, c.settings) != same), None)
+    if second is None:
+        return None
+    # The first refitted beside the second, and the second beside that (one pass of backfitting).
+    first = rank_candidates(
+        search, [by_id[first.effect]], fixed=search.design([*start, by_id[second.effect].with_settings(**second.settings)])
+    )[0]
+    pair = [by_id[first.effect].with_settings(**first.settings)]
+    second = rank_candidates(search, [by_id[second.effect]], fixed=search.design([*start, *pair]))[0]
+    pair.append(by_id[second.effect].with_settings(**second.settings))
+    if (
+        not all(c.beyond_noise or c.significant for c in (first, second))
+        or pair[0].settings() == pair[1].settings()
+        and pair[0].id == pair[1].id
+    ):
+        return None
+    test = within_noise_after(search, campaign, [*start, *pair], seed)
+    before = search.design(start) if start else None
+    reduction = search.check_reduction(search.design([*start, *pair]), search.check_residual(before))
+    brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
+    if reduction < MATERIAL_REDUCTION and (test is None or test.failing_rings > current.failing_rings - brought):
+        return None
+    noise = ring_sigma(campaign.deviations) ** 2
+    check = ~search.train
+    both = search.design([*start, *pair])
+    determined = all(determined_size(c.params, c.params_u, by_id[c.effect].amplitudes()) for c in (first, second))
+    together = replication(ring_gains(search.residual, before, both, search.targets, noise), check, determined, seed)
+    # Each one's own gain beside the other.
+    alone = [
+        replication(ring_gains(search.residual, search.design([*start, pair[1 - i]]), both, search.targets, noise), check, True, seed)
+        for i in range(2)
+    ]
+    if not (together.replicated and all(r.replicated for r in alone)):
+        return None
+    names = [first.name, second.name]
+    claims = [
+        replace(
+            c,
+            significant=True,
+            suggested=False,
+            replication=together,
+            note=f"claimed together with {names[1 - i]}: alone, neither is replicated over rings",
+        )
+        for i, c in enumerate((first, second))
+    ]
+    ranked = [claims[0] if c.effect == claims[0].effect else c for c in ranked]
+    step = [claims[1] if c.effect == claims[1].effect else c for c in step]
+    return ranked, step, claims, test
+
+
 @dataclass
 class Choice:
     """What the search chose on one campaign: the tests before and after, and every ranking."""
@@ -149,7 +225,17 @@ def choose_effects(
     while rankings[-1] and len(found) < max_steps:
         rankings[-1], taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
         if taken is None:
-            break
+            together = (
+                claimed_together(rankings[-1], current, search, campaign, chain, by_id, seed) if len(found) + 2 <= max_steps else None
+            )
+            if together is None:
+                break
+            rankings[-1], step, pair, current = together
+            found += pair
+            after = current
+            chain += [by_id[c.effect].with_settings(**c.settings) for c in pair]
+            rankings += [step, rank_candidates(search, effects, fixed=search.design(chain), progress=progress)]
+            continue
         pick, current = taken
         after = current
         found.append(pick)

@@ -183,10 +183,18 @@ def diagnose(
     candidates = choice.candidates
     if chain:
         candidates = settle_presence(candidates, choice.remaining, [c.effect for c in choice.found])
-    candidates = confounding(search, candidates, by_id)
-    candidates = tell_apart(search, candidates, [c.effect for c in choice.found], by_id, start, seed)
-    learnt = {id(old): new for old, new in zip(choice.candidates, candidates)}
-    rankings = [candidates, *choice.rankings[1:]]
+    # Each claim with the partners this campaign cannot tell it from and the settings the rings
+    # cannot exclude, in the ranking it was taken from (ranking k has the chain's first k effects
+    # beyond `start` in the model); the first ranking's every candidate with its partners.
+    rankings, learnt = [], {}
+    for k, ranking in enumerate([candidates, *choice.rankings[1:]]):
+        taken = [c.effect for c in choice.found] if k == 0 else [c.effect for c in choice.found if any(c is r for r in ranking)]
+        if k == 0 or taken:
+            told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: len(start) + k], seed)
+            learnt |= {id(old): new for old, new in zip(ranking, told)}
+            ranking = told
+        rankings.append(ranking)
+    candidates = rankings[0]
     found = tuple(learnt.get(id(c), c) for c in choice.found)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []

@@ -1,0 +1,43 @@
+"""Two effects that only replicate together are claimed together (diagnosis.choice.claimed_together):
+two harmonics of the B axis's angular error, a beat, where one at a time stalls at a suggestion."""
+
+from __future__ import annotations
+
+import pytest
+
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.effects.axes import BAxisCyclic
+from ph_explorer.twin.random_heads import random_campaign
+
+
+@pytest.fixture(scope="module")
+def beat():
+    # B 19/rev at 1.1" and 38/rev at 0.45" on a random head of another probe geometry (its seed's
+    # own background and noise law): alone, neither harmonic's gain is replicated over rings.
+    hidden = [
+        BAxisCyclic(amplitude_arcsec=-1.1058, phase_deg=359.763, cycles_per_rev=19),
+        BAxisCyclic(amplitude_arcsec=0.4538, phase_deg=303.4, cycles_per_rev=38),
+    ]
+    campaign = random_campaign(580025, "other_geometry", hidden)
+    return campaign, diagnose(campaign, nested=False)
+
+
+def test_two_harmonics_of_one_axis_are_both_claimed(beat) -> None:
+    _, result = beat
+    assert result.verdict == "missing"
+    claimed = sorted((c.effect, c.settings["cycles_per_rev"]) for c in result.found)
+    assert claimed == [("b_axis_cyclic", 19), ("b_axis_cyclic", 38)]
+    # ... together: each note says so, and their joint gain is the replication each carries.
+    assert all(c.note.startswith("claimed together with") and c.replication.replicated for c in result.found)
+    # Each amplitude within its expanded uncertainty of the truth's (the sign convention: either).
+    truth = {19: 1.1058, 38: 0.4538}
+    for c in result.found:
+        fitted, u = abs(c.params["amplitude_arcsec"]), c.params_u["amplitude_arcsec"]
+        assert abs(fitted - truth[c.settings["cycles_per_rev"]]) <= u
+
+
+def test_one_harmonic_alone_is_not_claimed_with_a_passenger() -> None:
+    one = random_campaign(580025, "other_geometry", [BAxisCyclic(amplitude_arcsec=-1.6, phase_deg=359.763, cycles_per_rev=19)])
+    result = diagnose(one, nested=False)
+    assert [(c.effect, c.settings["cycles_per_rev"]) for c in result.found] == [("b_axis_cyclic", 19)]
+    assert not any(c.note.startswith("claimed together") for c in result.found)
