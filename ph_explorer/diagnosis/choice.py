@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
+from ph_explorer.diagnosis.form import form_breaks
 from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
@@ -53,6 +54,8 @@ def replicated(
     after = search.design([*chain, effect])
     gain = ring_gains(search.residual, before, after, search.targets, ring_sigma(search.campaign.deviations) ** 2)
     test = replication(gain, ~search.train, determined_size(candidate.params, candidate.params_u, effect.amplitudes()), seed)
+    if test.replicated:  # ... and its form holds over the head (diagnosis.form)
+        test = replace(test, form_breaks=form_breaks(search, effect, chain, seed))
     if test.replicated:
         return replace(candidate, replication=test)
     o = search.campaign.orientations
@@ -159,6 +162,8 @@ def claimed_together(
         for i in range(2)
     ]
     if not (together.replicated and all(r.replicated for r in alone)):
+        return None
+    if any(form_breaks(search, pair[i], [*start, pair[1 - i]], seed) is not None for i in range(2)):
         return None
     names = [first.name, second.name]
     claims = [

@@ -11,7 +11,7 @@ is significant, still is without its most influential ring, and the effect's siz
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -30,6 +30,24 @@ MIN_FLIP_RINGS = 7
 MIN_T_RINGS = 3  # fewer rings than this are no replication at all
 
 
+@dataclass(frozen=True)
+class FormBreak:
+    """A claim's parameters that differ between the rings below and above `split_at` of a variable
+    (diagnosis.form): its signature is the head's, its form is not."""
+
+    variable: str  # "A" or "B" (the orientation's, deg) or "time" (s)
+    split_at: float
+    p_value: float
+    p_without_top: float
+
+    def words(self) -> str:
+        unit = " s" if self.variable == "time" else " deg"
+        return (
+            f"its parameters differ between the rings with {self.variable} below and above {self.split_at:g}{unit} "
+            f"(p = {self.p_value:.3g} over rings): the error has its signature, not its form"
+        )
+
+
 @dataclass
 class Replication:
     """The evidence over rings for one candidate (see the module docstring)."""
@@ -42,10 +60,12 @@ class Replication:
     lattice_gain: float  # mean gain of the lattice rings (left out one at a time)
     carried_by: list[int] = field(default_factory=list)  # the rings that gain most (indices)
     determined: bool = True  # an amplitude beyond its expanded uncertainty (k = 2)
+    form_breaks: FormBreak | None = None  # its parameters differ over the head (diagnosis.form)
 
     @property
     def replicated(self) -> bool:
-        return self.p_value < REPLICATION_LEVEL and self.p_without_top < REPLICATION_LEVEL and self.determined
+        significant = self.p_value < REPLICATION_LEVEL and self.p_without_top < REPLICATION_LEVEL
+        return significant and self.determined and self.form_breaks is None
 
     def reasons(self) -> list[str]:
         """Why the claim is not replicated, in words ([] when it is)."""
@@ -57,6 +77,8 @@ class Replication:
             out.append(f"it rests on one ring: without it p = {self.p_without_top:.3g}")
         if not self.determined:
             out.append("no amplitude exceeds its expanded uncertainty")
+        if self.form_breaks is not None:
+            out.append(self.form_breaks.words())
         return out
 
     def as_dict(self) -> dict[str, Any]:
@@ -71,6 +93,7 @@ class Replication:
             "carried_by": self.carried_by,
             "determined": self.determined,
             "level": REPLICATION_LEVEL,
+            "form_breaks": None if self.form_breaks is None else {f.name: getattr(self.form_breaks, f.name) for f in fields(FormBreak)},
         }
 
     @classmethod
@@ -84,6 +107,7 @@ class Replication:
             *gains,
             list(data["carried_by"]),
             data["determined"],
+            FormBreak(**data["form_breaks"]) if data.get("form_breaks") else None,
         )
 
 

@@ -1,0 +1,62 @@
+"""A claim's form must hold across the head (diagnosis.form): an error with a catalog effect's
+signature but parameters that change over the head is suggested, never claimed."""
+
+from __future__ import annotations
+
+import json
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.effects.axes import BAxisCyclic
+from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.figures.diagnosis_text import report_sections
+from ph_explorer.twin.random_heads import random_campaign
+
+SEED = 7  # a healthy head of the paper's design (test_within_noise: its verdict is `none`)
+
+
+class CoupledB(Effect):
+    """Test-only: a B-axis cyclic angular error whose size grows with A (nil at A0, full at A90),
+    as a bearing preloaded by the A axis's position would give; no catalog holds it."""
+
+    candidate: ClassVar[bool] = False
+    id, name = "test_coupled_b", "A B-axis cyclic error whose size grows with A"
+    parameters = (
+        Parameter("amplitude_arcsec", "arcsec", 1.0, "its size at A90", plausible=(0.0, 6.0)),
+        Parameter("cycles_per_rev", "cycles/rev", 12.0, "cycles per turn of B"),
+    )
+
+    def forward(self, touches, rng):
+        size = self.params["amplitude_arcsec"] * joint_angle_deg(touches, "A") / 90.0
+        error = size * np.sin(self.params["cycles_per_rev"] * np.radians(joint_angle_deg(touches, "B")))
+        return np.broadcast_to(error * rotation_deviation_um_per_arcsec(touches, "B"), touches.shape).copy()
+
+
+@pytest.fixture(scope="module")
+def coupled() -> Diagnosis:
+    return diagnose(random_campaign(SEED, "paper", [CoupledB(amplitude_arcsec=1.5, cycles_per_rev=12)]), nested=False)
+
+
+def test_an_error_whose_size_depends_on_the_other_axis_is_not_claimed(coupled) -> None:
+    # Without the form test the B-axis 12/rev cyclic error was claimed (`missing`) on this head.
+    assert coupled.verdict != "missing" and not coupled.found
+    suggested = next(c for c in coupled.suggested if c.effect == "b_axis_cyclic")
+    assert suggested.settings == {"cycles_per_rev": 12}
+    breaks = suggested.replication.form_breaks
+    assert breaks is not None and breaks.variable == "A" and breaks.p_value < 0.05 / 3
+    words = " ".join(line for s in report_sections(coupled, DEFAULT_CATALOG, detail="full") for line in s.lines)
+    assert "its parameters differ between the rings with A below and above" in words
+    data = json.loads(json.dumps(coupled.to_json()))
+    assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_constant_error_of_the_same_signature_keeps_its_claim() -> None:
+    result = diagnose(random_campaign(SEED, "paper", [BAxisCyclic(amplitude_arcsec=1.0, phase_deg=0.0, cycles_per_rev=12)]), nested=False)
+    assert result.verdict == "missing"
+    claim = next(c for c in result.found if c.effect == "b_axis_cyclic")
+    assert claim.settings == {"cycles_per_rev": 12} and claim.replication.form_breaks is None
