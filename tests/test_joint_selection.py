@@ -7,6 +7,7 @@ import pytest
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects.axes import BAxisCyclic
+from ph_explorer.effects.motions import AAxisRadialMotion, BAxisTiltMotion
 from ph_explorer.twin.random_heads import random_campaign
 
 
@@ -41,3 +42,25 @@ def test_one_harmonic_alone_is_not_claimed_with_a_passenger() -> None:
     result = diagnose(one, nested=False)
     assert [(c.effect, c.settings["cycles_per_rev"]) for c in result.found] == [("b_axis_cyclic", 19)]
     assert not any(c.note.startswith("claimed together") for c in result.found)
+
+
+def test_a_setting_chosen_before_a_later_effect_is_refitted_beside_it() -> None:
+    # Three effects on a coarse lattice: the A-axis radial motion 11/rev was taken at 13/rev while
+    # the B-axis tilt motion was still missing; scanned again beside it, it moves.
+    hidden = [
+        BAxisTiltMotion(
+            about_x_amplitude_arcsec=-0.5054,
+            about_x_phase_deg=26.93,
+            about_y_amplitude_arcsec=0.5054,
+            about_y_phase_deg=28.80,
+            cycles_per_rev=10,
+        ),
+        AAxisRadialMotion(y_amplitude_um=0.4143, y_phase_deg=43.0, z_amplitude_um=0.4143, z_phase_deg=44.85, cycles_per_rev=11),
+        BAxisCyclic(amplitude_arcsec=-2.7388, phase_deg=273.69, cycles_per_rev=32),
+    ]
+    result = diagnose(random_campaign(580006, "coarse", hidden), nested=False)
+    radial = next(c for c in result.found if c.effect == "a_axis_radial_motion")
+    assert radial.note == "its setting refitted beside the other effects (was 13)"
+    # ... to a setting whose set of those the rings cannot exclude holds the truth.
+    assert radial.settings == {"cycles_per_rev": 11} or {"cycles_per_rev": 11} in radial.settings_not_excluded
+    assert sorted(c.effect for c in result.found) == ["a_axis_radial_motion", "b_axis_cyclic", "b_axis_tilt_motion"]

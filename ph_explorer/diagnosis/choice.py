@@ -181,6 +181,47 @@ def claimed_together(
     return ranked, step, claims, test
 
 
+def refitted(
+    search: CandidateSearch,
+    chain: list[Effect],
+    found: list[Candidate],
+    rankings: list[list[Candidate]],
+    by_id: dict[str, Effect],
+    seed: int = 0,
+) -> bool:
+    """Each effect taken, its setting scanned again with every other effect of the chain in the
+    model (a selection with refits): a setting chosen while a later effect was still missing (a
+    period between two harmonics, one off beside another axis's error) moves to the best one
+    beside the others, when the claim at it is replicated over rings and of its form beside
+    them. chain, found and the ranking each came from are changed in place; True when any moved."""
+    moved = False
+    first = len(chain) - len(found)  # the effects the search started from are not refitted
+    noise = ring_sigma(search.campaign.deviations) ** 2
+    for j, claim in enumerate(found):
+        k = first + j
+        others = chain[:k] + chain[k + 1 :]
+        again = rank_candidates(search, [by_id[claim.effect]], fixed=search.design(others) if others else None)[0]
+        taken = any(e.id == again.effect and e.settings() == again.settings for e in others)
+        if again.settings == claim.settings or not again.beyond_noise or taken:
+            continue
+        effect = by_id[claim.effect].with_settings(**again.settings)
+        before = search.design(others) if others else None
+        gain = ring_gains(search.residual, before, search.design([*others, effect]), search.targets, noise)
+        test = replication(gain, ~search.train, determined_size(again.params, again.params_u, effect.amplitudes()), seed)
+        if test.replicated:
+            test = replace(test, form_breaks=form_breaks(search, effect, others, seed))
+        if not test.replicated:
+            continue
+        was = ", ".join(f"{v:g}" for v in claim.settings.values())
+        new = replace(
+            again, significant=True, suggested=False, replication=test, note=f"its setting refitted beside the other effects (was {was})"
+        )
+        for ranking in rankings:
+            ranking[:] = [new if c is claim else c for c in ranking]
+        found[j], chain[k], moved = new, effect, True
+    return moved
+
+
 @dataclass
 class Choice:
     """What the search chose on one campaign: the tests before and after, and every ranking."""
@@ -237,14 +278,15 @@ def choose_effects(
                 break
             rankings[-1], step, pair, current = together
             found += pair
-            after = current
             chain += [by_id[c.effect].with_settings(**c.settings) for c in pair]
-            rankings += [step, rank_candidates(search, effects, fixed=search.design(chain), progress=progress)]
-            continue
-        pick, current = taken
+            rankings.append(step)
+        else:
+            pick, current = taken
+            found.append(pick)
+            chain.append(by_id[pick.effect].with_settings(**pick.settings))
+        if len(found) > 1 and refitted(search, chain, found, rankings, by_id, seed):
+            current = within_noise_after(search, campaign, chain, seed)
         after = current
-        found.append(pick)
-        chain.append(by_id[pick.effect].with_settings(**pick.settings))
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
         rankings.append(rank_candidates(search, effects, fixed=search.design(chain), progress=progress))
