@@ -152,6 +152,12 @@ class Candidate:
         return "not significant" if self.tested else "not tested"
 
     @property
+    def form_broken(self) -> bool:
+        """Its gain over rings is there, but its parameters differ over the head (diagnosis.form):
+        no ring decides it, for no catalog effect has the head's form."""
+        return self.replication is not None and self.replication.form_breaks is not None
+
+    @property
     def untold(self) -> tuple[Partner, ...]:
         """The partners the rings were asked about and do not tell it from."""
         return tuple(p for p in self.confounded_with if p.told_apart is False)

@@ -178,7 +178,9 @@ def diagnose(
     search, before, chain = choice.search, choice.before, choice.chain
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
-    verdict = decide(before, choice.after, bool(chain), bool(flagged_in(choice.rankings, "suggested")))
+    # A suggestion whose form breaks over the head is no catalog effect the rings could confirm.
+    open_suggestion = any(not c.form_broken for c in flagged_in(choice.rankings, "suggested"))
+    verdict = decide(before, choice.after, bool(chain), open_suggestion)
     # What the search learnt of its first ranking, each stage returning new candidates.
     candidates = choice.candidates
     if chain:

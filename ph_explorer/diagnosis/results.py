@@ -34,6 +34,7 @@ VERDICTS: dict[Verdict, str] = {
     "none": "the campaign's within-noise test passes: what the model leaves of every ring but the worst is what its noise explains",
     "missing": "catalog effects found, replicated over rings, and with them the model is within noise",
     "suggested": "the model fails beyond noise; a catalog effect may explain it, but its gain is not replicated over rings",
+    # A candidate whose gain is replicated but whose form breaks over the head explains nothing: `unexplained`.
     "partial": "catalog effects found, but the model still fails beyond noise with them",
     "unexplained": "the model fails beyond noise and no plausible catalog effect explains it",
 }
@@ -229,8 +230,13 @@ class Diagnosis:
         """Whether rings could decide something this diagnosis leaves open: a claimed or suggested
         candidate its rings do not tell from a confounded partner, a claim from its rival setting,
         or a suggested one (planning.deciding)."""
-        untold = any(c.untold for c in (*self.found, *self.suggested))
-        return bool(self.suggested) or untold or any(c.rival_setting is not None for c in self.found)
+        untold = any(c.untold for c in (*self.found, *self.open_suggestions))
+        return bool(self.open_suggestions) or untold or any(c.rival_setting is not None for c in self.found)
+
+    @property
+    def open_suggestions(self) -> tuple[Candidate, ...]:
+        """The suggestions more rings could confirm: all but those whose form breaks over the head."""
+        return tuple(c for c in self.suggested if not c.form_broken)
 
     def failing_rings(self) -> list[Ring]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their

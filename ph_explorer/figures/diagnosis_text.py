@@ -177,7 +177,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
     actions; with the decision found, what rings can decide and what they cannot (never a button
     that answers that no ring decides)."""
     if result.leaves_open:
-        what = "confirm the suggestion" if result.suggested and not result.found else "decide what these rings cannot tell"
+        what = "confirm the suggestion" if result.open_suggestions and not result.found else "decide what these rings cannot tell"
         if decision is None:
             return f"measure the rings that would {what} ({actions['decide']})."
         undecided = undecided_text(decision)
@@ -264,9 +264,10 @@ def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str
 
 def suggestion_lines(result: Diagnosis, catalog: Catalog, limit: int | None) -> list[str]:
     """Each suggestion with its parameters and why it is not claimed (the first `limit`, all when None)."""
+    confirm = "More rings where it predicts the largest difference would confirm or refute it."
+    own = "No catalog effect has this form: the head's error has a shape of its own (see what is left in its own variables)."
     lines = [
-        f"{c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)}); {c.note}. "
-        "More rings where it predicts the largest difference would confirm or refute it."
+        f"{c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)}); {c.note}. {own if c.form_broken else confirm}"
         for c in result.suggested[:limit]
     ]
     more = len(result.suggested) - len(lines)

@@ -90,7 +90,7 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
             ranked.setdefault(c.effect, c)
     out: list[Question] = []
     asked: set[frozenset[str]] = set()  # a pair once, whichever of the two asks
-    for candidate in [*result.found, *result.suggested]:
+    for candidate in [*result.found, *result.open_suggestions]:
         effect = fitted_effect(candidate, catalog)
         for partner in candidate.untold:
             other = ranked.get(partner.effect)
