@@ -14,7 +14,8 @@ from ph_explorer.twin.random_heads import random_campaign
 @pytest.fixture(scope="module")
 def beat():
     # B 19/rev at 1.1" and 38/rev at 0.45" on a random head of another probe geometry (its seed's
-    # own background and noise law): alone, neither harmonic's gain is replicated over rings.
+    # own background and noise law): one at a time, the search stopped at B 19/rev suggested, its
+    # gain over rings not significant.
     hidden = [
         BAxisCyclic(amplitude_arcsec=-1.1058, phase_deg=359.763, cycles_per_rev=19),
         BAxisCyclic(amplitude_arcsec=0.4538, phase_deg=303.4, cycles_per_rev=38),

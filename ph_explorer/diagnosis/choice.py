@@ -17,7 +17,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
-from ph_explorer.diagnosis.replication import determined_size, replication, ring_gains
+from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, rank_candidates
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
@@ -44,18 +44,22 @@ RINGS_BROUGHT_WITHIN = 2
 SHARE_BROUGHT_WITHIN = 0.25
 
 
+def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], fitted: Candidate, seed: int = 0) -> Replication:
+    """The test a claim passes, the effect added to `chain`: its gain replicated over rings with its
+    size determined by `fitted`'s parameters (diagnosis.replication), and its form holding over
+    the head (diagnosis.form)."""
+    before = search.design(chain) if chain else None
+    gain = ring_gains(search.residual, before, search.design([*chain, effect]), search.targets, ring_sigma(search.campaign.deviations) ** 2)
+    test = replication(gain, ~search.train, determined_size(fitted.params, fitted.params_u, effect.amplitudes()), seed)
+    return replace(test, form_breaks=form_breaks(search, effect, chain, seed)) if test.replicated else test
+
+
 def replicated(
     search: CandidateSearch, candidate: Candidate, chain: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0
 ) -> Candidate:
     """The candidate with its gain's test over rings (diagnosis.replication); when it is not
     replicated, marked suggested, with why and the rings that carry it."""
-    effect = by_id[candidate.effect].with_settings(**candidate.settings)
-    before = search.design(chain) if chain else None
-    after = search.design([*chain, effect])
-    gain = ring_gains(search.residual, before, after, search.targets, ring_sigma(search.campaign.deviations) ** 2)
-    test = replication(gain, ~search.train, determined_size(candidate.params, candidate.params_u, effect.amplitudes()), seed)
-    if test.replicated:  # ... and its form holds over the head (diagnosis.form)
-        test = replace(test, form_breaks=form_breaks(search, effect, chain, seed))
+    test = claim_test(search, by_id[candidate.effect].with_settings(**candidate.settings), chain, candidate, seed)
     if test.replicated:
         return replace(candidate, replication=test)
     o = search.campaign.orientations
@@ -156,14 +160,10 @@ def claimed_together(
     both = search.design([*start, *pair])
     determined = all(determined_size(c.params, c.params_u, by_id[c.effect].amplitudes()) for c in (first, second))
     together = replication(ring_gains(search.residual, before, both, search.targets, noise), check, determined, seed)
-    # Each one's own gain beside the other.
-    alone = [
-        replication(ring_gains(search.residual, search.design([*start, pair[1 - i]]), both, search.targets, noise), check, True, seed)
-        for i in range(2)
-    ]
-    if not (together.replicated and all(r.replicated for r in alone)):
+    if not together.replicated:
         return None
-    if any(form_breaks(search, pair[i], [*start, pair[1 - i]], seed) is not None for i in range(2)):
+    # Each one a claim beside the other: its own gain replicated, its form holding.
+    if not all(claim_test(search, pair[i], [*start, pair[1 - i]], c, seed).replicated for i, c in enumerate((first, second))):
         return None
     names = [first.name, second.name]
     claims = [
@@ -172,7 +172,7 @@ def claimed_together(
             significant=True,
             suggested=False,
             replication=together,
-            note=f"claimed together with {names[1 - i]}: alone, neither is replicated over rings",
+            note=f"claimed together with {names[1 - i]}: one at a time, the search took neither",
         )
         for i, c in enumerate((first, second))
     ]
@@ -196,7 +196,6 @@ def refitted(
     them. chain, found and the ranking each came from are changed in place; True when any moved."""
     moved = False
     first = len(chain) - len(found)  # the effects the search started from are not refitted
-    noise = ring_sigma(search.campaign.deviations) ** 2
     for j, claim in enumerate(found):
         k = first + j
         others = chain[:k] + chain[k + 1 :]
@@ -205,11 +204,7 @@ def refitted(
         if again.settings == claim.settings or not again.beyond_noise or taken:
             continue
         effect = by_id[claim.effect].with_settings(**again.settings)
-        before = search.design(others) if others else None
-        gain = ring_gains(search.residual, before, search.design([*others, effect]), search.targets, noise)
-        test = replication(gain, ~search.train, determined_size(again.params, again.params_u, effect.amplitudes()), seed)
-        if test.replicated:
-            test = replace(test, form_breaks=form_breaks(search, effect, others, seed))
+        test = claim_test(search, effect, others, again, seed)
         if not test.replicated:
             continue
         was = ", ".join(f"{v:g}" for v in claim.settings.values())
