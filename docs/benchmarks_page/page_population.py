@@ -145,27 +145,51 @@ def verdict_rates(results: Mapping[str, Any]) -> str:
     pop = results.get("population") or {}
     if not pop:
         return "*No population run in benchmarks/results.json yet.*\n"
+    unknown = results.get("population_unknown") or {}
     groups = {"healthy": "healthy heads", "catalog_effect": "one catalog effect hidden", "outside_catalog": "one effect in no catalog"}
     counts = {g: get(pop, g, "verdicts") or {} for g in groups}
+    if unknown:
+        groups |= {"unknown_shape": "one shape no catalog holds (families)", "multi_effect": "two or three catalog effects"}
+        counts |= {"unknown_shape": get(unknown, "all", "verdicts") or {}, "multi_effect": get(unknown, "multi_effect", "verdicts") or {}}
     totals = {g: sum(counts[g].values()) for g in groups}
 
     def cell(group: str, verdict: str) -> str:
         k, n = counts[group].get(verdict, 0), totals[group]
         return f"{k} of {n} ({pct(k / n if n else None)})"
 
+    every = get(unknown, "all") or {}
     own = {
         "none": f"false alarms on healthy heads {share_of(get(pop, 'healthy', 'false_alarm'))}; same verdict on another noise draw {share_of(pop.get('stability'))}; "
         f"a ring named as measured badly on healthy heads {share_of(get(pop, 'healthy', 'suspect_named'))}, touch outliers named "
-        f"{share_of(get(pop, 'healthy', 'outliers_named'))}",
+        f"{share_of(get(pop, 'healthy', 'outliers_named'))}"
+        + (
+            f"; on heads with a shape no catalog holds, `none` {share_of(every.get('none'))}, of which with nothing named (no ring to "
+            f"remeasure, no touch outliers) {share_of(every.get('none_silent'))}; a badly measured ring named {share_of(unknown.get('bad_ring_named'))}"
+            if unknown
+            else ""
+        ),
         "missing": f"the hidden catalog effect found {share_of(get(pop, 'catalog_effect', 'found'))}; its parameters within U "
-        f"{share_of(get(pop, 'catalog_effect', 'truth_within_u'))}; an effect in no catalog called missing {share_of(get(pop, 'outside_catalog', 'missing'))}",
+        f"{share_of(get(pop, 'catalog_effect', 'truth_within_u'))}; an effect in no catalog called missing {share_of(get(pop, 'outside_catalog', 'missing'))}"
+        + (
+            f"; a catalog effect named for a shape no catalog holds {share_of(every.get('catalog_name'))}; every effect of a head "
+            f"with two or three claimed {share_of(get(unknown, 'multi_effect', 'all_found'))}"
+            if unknown
+            else ""
+        ),
         "suggested": "no claim; `design --decide` proposes the rings that would confirm or refute it",
         "partial": "its found effect counts as found in the row above; what is left is read in the signature",
-        "unexplained": f"the signature's first variable of the right joint {share_of(get(pop, 'outside_catalog', 'signature_right_first'))}",
+        "unexplained": f"the signature's first variable of the right joint {share_of(get(pop, 'outside_catalog', 'signature_right_first'))}; "
+        "also the verdict when every suggestion's form breaks over the head",
     }
     rows = [[f"`{v}`", *(cell(g, v) for g in groups), own[v]] for v in ("none", "missing", "suggested", "partial", "unexplained")]
     note = (
         f"\nMeasured by the benchmark [population](benchmarks.md#population) on commit {pop.get('commit') or pop.get('code_sha256')} "
-        f"({pop.get('mode')} run); intervals are 95 % Clopper-Pearson.\n"
+        f"({pop.get('mode')} run)"
+        + (
+            f", and its part with shapes no catalog holds on commit {unknown.get('commit') or unknown.get('code_sha256')}"
+            if unknown
+            else ""
+        )
+        + "; intervals are 95 % Clopper-Pearson.\n"
     )
     return table(["verdict", *groups.values(), "its own figure"], rows) + note
