@@ -54,6 +54,11 @@ def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect],
     return replace(test, form_breaks=form_breaks(search, effect, chain, seed)) if test.replicated else test
 
 
+def scanned_beside(search: CandidateSearch, effect: Effect, others: Sequence[Effect]) -> Candidate:
+    """The effect's scan judged on its own null with `others` in the model: its best setting there."""
+    return rank_candidates(search, [effect], fixed=search.design(others) if others else None)[0]
+
+
 def replicated(
     search: CandidateSearch, candidate: Candidate, chain: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0
 ) -> Candidate:
@@ -137,11 +142,9 @@ def claimed_together(
     if second is None:
         return None
     # The first refitted beside the second, and the second beside that (one pass of backfitting).
-    first = rank_candidates(
-        search, [by_id[first.effect]], fixed=search.design([*start, by_id[second.effect].with_settings(**second.settings)])
-    )[0]
+    first = scanned_beside(search, by_id[first.effect], [*start, by_id[second.effect].with_settings(**second.settings)])
     pair = [by_id[first.effect].with_settings(**first.settings)]
-    second = rank_candidates(search, [by_id[second.effect]], fixed=search.design([*start, *pair]))[0]
+    second = scanned_beside(search, by_id[second.effect], [*start, *pair])
     pair.append(by_id[second.effect].with_settings(**second.settings))
     if (
         not all(c.beyond_noise or c.significant for c in (first, second))
@@ -151,15 +154,14 @@ def claimed_together(
         return None
     test = within_noise_after(search, campaign, [*start, *pair], seed)
     before = search.design(start) if start else None
-    reduction = search.check_reduction(search.design([*start, *pair]), search.check_residual(before))
+    both = search.design([*start, *pair])
+    reduction = search.check_reduction(both, search.check_residual(before))
     brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
     if reduction < MATERIAL_REDUCTION and (test is None or test.failing_rings > current.failing_rings - brought):
         return None
     noise = ring_sigma(campaign.deviations) ** 2
-    check = ~search.train
-    both = search.design([*start, *pair])
     determined = all(determined_size(c.params, c.params_u, by_id[c.effect].amplitudes()) for c in (first, second))
-    together = replication(ring_gains(search.residual, before, both, search.targets, noise), check, determined, seed)
+    together = replication(ring_gains(search.residual, before, both, search.targets, noise), ~search.train, determined, seed)
     if not together.replicated:
         return None
     # Each one a claim beside the other: its own gain replicated, its form holding.
@@ -199,7 +201,7 @@ def refitted(
     for j, claim in enumerate(found):
         k = first + j
         others = chain[:k] + chain[k + 1 :]
-        again = rank_candidates(search, [by_id[claim.effect]], fixed=search.design(others) if others else None)[0]
+        again = scanned_beside(search, by_id[claim.effect], others)
         taken = any(e.id == again.effect and e.settings() == again.settings for e in others)
         if again.settings == claim.settings or not again.beyond_noise or taken:
             continue
