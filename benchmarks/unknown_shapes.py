@@ -18,6 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from benchmarks.multi_effects import REPLACEMENT_STRIDE, REPLACEMENTS
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.detection import hidden_effect_of
@@ -302,6 +303,15 @@ def at_visibility(shape: _Unknown, campaign: Campaign, visibility: float) -> _Un
     return type(shape)(**{k: v * factor if k in SIZED else v for k, v in shape.params.items()})
 
 
+def plausible(shape: _Unknown) -> bool:
+    """Whether its size lies within its family's plausible range (and is not nothing)."""
+    sized = [p for p in shape.parameters if p.name in SIZED]
+    return all(p.admits(shape.params[p.name]) and shape.params[p.name] > 0 for p in sized)
+
+
+DRAWS = 50  # draws of a family's shape tried on one head before it is replaced by the seed's next
+
+
 def catalog_companion(seed: int, rng: np.random.Generator, design: str) -> tuple[Effect, float]:
     """A catalog effect at 1-3x its detection limit on this head (hidden_effect_of), the first of
     ON_TOP_CATALOG in a drawn order that reaches it within its plausible range."""
@@ -323,22 +333,32 @@ class UnknownHead:
 
 
 def unknown_shape_head(seed: int, family: str | None = None, design: str | None = None) -> UnknownHead:
-    """The random head of `seed` with one shape of `family` (drawn from the seed when None)."""
+    """The random head of `seed` with one shape of `family` (drawn from the seed when None). A shape
+    that would need an implausible size to be seen on the head's design is no head of the world a
+    method could be asked about: its other parameters are drawn again (DRAWS times), then the
+    head is replaced by the next of the seed's stream (multi_effects' REPLACEMENTS)."""
     if family is not None and family not in FAMILIES:
         raise InputError(f"no family {family!r} ({', '.join(FAMILIES)})", option="--unknown-families")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 55]))
     family = family if family is not None else str(rng.choice(list(FAMILIES)))
-    design = design_of(seed, design)
-    plain = random_campaign(seed, design)  # the head alone: where its check rings are, its noise
     cls = FAMILIES[family] or AXIS_FAMILIES[int(rng.integers(len(AXIS_FAMILIES)))]
-    shape = drawn_shape(cls, rng, plain.orientations)
     visibility = float(rng.uniform(*VISIBILITY))
-    if cls not in (BadRing, TouchOutliers):
-        shape = at_visibility(shape, plain, visibility)
-    hidden: list[Effect] = [shape]
-    truth: dict[str, Any] = {"id": shape.id, "family": cls.family, **shape.params, "visibility": visibility}
-    if family == "on_top_of_catalog":
-        companion, strength = catalog_companion(seed, rng, design)
-        hidden.append(companion)
-        truth["catalog"] = {"id": companion.id, **companion.params, "strength": strength}
-    return UnknownHead(random_campaign(seed, design, hidden), family, truth)
+    for head in (int(seed) + REPLACEMENT_STRIDE * k for k in range(REPLACEMENTS)):
+        drawn_design = design_of(head, design)
+        plain = random_campaign(head, drawn_design)  # the head alone: where its check rings are, its noise
+        for _ in range(DRAWS):
+            shape = drawn_shape(cls, rng, plain.orientations)
+            if cls not in (BadRing, TouchOutliers):
+                shape = at_visibility(shape, plain, visibility)
+            if plausible(shape):
+                break
+        else:
+            continue
+        hidden: list[Effect] = [shape]
+        truth: dict[str, Any] = {"id": shape.id, "family": cls.family, **shape.params, "visibility": visibility, "head_seed": head}
+        if family == "on_top_of_catalog":
+            companion, strength = catalog_companion(head, rng, drawn_design)
+            hidden.append(companion)
+            truth["catalog"] = {"id": companion.id, **companion.params, "strength": strength}
+        return UnknownHead(random_campaign(head, drawn_design, hidden), family, truth)
+    raise RuntimeError(f"no {cls.family} shape is visible at a plausible size on seed {seed} nor its replacements")

@@ -44,8 +44,10 @@ def coupled() -> Diagnosis:
 
 def test_an_error_whose_size_depends_on_the_other_axis_is_not_claimed(coupled) -> None:
     # Without the form test the B-axis 12/rev cyclic error was claimed (`missing`) on this head;
-    # with it, no catalog effect explains the failure, and no ring would confirm one.
-    assert coupled.verdict == "unexplained" and not coupled.found and not coupled.leaves_open
+    # with it, no catalog effect explains the failure, and no ring would confirm one. What holds
+    # it is a shape (diagnosis.shapes): the B axis's angular positioning as a function of B.
+    assert coupled.verdict == "uncatalogued" and not coupled.found and not coupled.leaves_open
+    assert coupled.claimed_shapes[0].group == "b_angular"
     suggested = next(c for c in coupled.suggested if c.effect == "b_axis_cyclic")
     assert suggested.settings == {"cycles_per_rev": 12}
     breaks = suggested.replication.form_breaks

@@ -29,7 +29,8 @@ def test_the_loop_closes_on_an_effect_in_no_catalog(tmp_path):
     lacking = Catalog([cls for cls in BUILTIN_EFFECTS if cls.axis != "B"])
 
     first = diagnose(campaign, catalog=lacking)
-    assert first.verdict == "unexplained" and first.within_noise["baseline"].fails
+    assert first.verdict == "uncatalogued" and first.within_noise["baseline"].fails and not first.found
+    assert first.claimed_shapes[0].group == "b_angular"  # a shape no catalog holds, on the right axis
     top = next(entry for entry in first.signature if entry["significant"])
     assert (top["variable"], top["kind"], top["cycles_per_rev"]) == ("b_joint_deg", "periodic", 22)
     assert "b_joint_deg periodic, 22 cycles/rev" in report_text(first, lacking)

@@ -180,8 +180,17 @@ def verdict_rates(results: Mapping[str, Any]) -> str:
         "partial": "its found effect counts as found in the row above; what is left is read in the signature",
         "unexplained": f"the signature's first variable of the right joint {share_of(get(pop, 'outside_catalog', 'signature_right_first'))}; "
         "also the verdict when every suggestion's form breaks over the head",
+        "uncatalogued": f"a shape claimed on healthy heads {share_of(get(pop, 'healthy', 'shape_claimed'))}, in place of a hidden "
+        f"catalog effect {share_of(get(pop, 'catalog_effect', 'shape_in_place'))}"
+        + (
+            f"; on heads with a shape no catalog holds, the shape on its group {share_of(every.get('shape_right'))}, a wrong one "
+            f"{share_of(every.get('shape_wrong'))}"
+            if unknown
+            else ""
+        ),
     }
-    rows = [[f"`{v}`", *(cell(g, v) for g in groups), own[v]] for v in ("none", "missing", "suggested", "partial", "unexplained")]
+    verdicts = ("none", "missing", "suggested", "partial", "unexplained", "uncatalogued")
+    rows = [[f"`{v}`", *(cell(g, v) for g in groups), own[v]] for v in verdicts]
     note = (
         f"\nMeasured by the benchmark [population](benchmarks.md#population) on commit {pop.get('commit') or pop.get('code_sha256')} "
         f"({pop.get('mode')} run)"

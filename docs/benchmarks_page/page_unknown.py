@@ -21,6 +21,14 @@ named**: touch outliers named. Each share with its 95 % interval; the
 check rings' error over their floor is what a user sees. The targets (none at most {none_max}, a
 catalog name at most {name_max}, a bad ring named on at least {bad_min} of its heads) are those of
 issue 55.
+
+**Shapes** ([what no catalog holds](methods/shapes.md), issue 56): **shape right**: a shape claimed
+on the group that holds the head's shape (its axis's angular positioning; the probe's lobes in time
+for a probe that changes), or with that group among those the rings cannot tell, over the heads
+whose shape a group holds; **shape wrong**: a shape claimed that does not hold it (any shape on a
+bad-ring or outlier head); **after the shape**: of the heads with a shape claimed, the share whose
+check rings' MAE (against the mean) is within {after} of their floor once it is added, and the
+median check rings / floor before and after.
 """
 
 
@@ -28,18 +36,32 @@ def unknown(results: Mapping[str, Any]) -> str:
     u = results.get("population_unknown", {})
     targets = u.get("targets") or {}
 
-    rows = [
-        [family, *(share_of(s.get(key)) for key in KEYS), num(s.get("check_ratio_median"))]
-        for family, s in [("all", u.get("all") or {}), *(u.get("by_family") or {}).items()]
+    groups = [("all", u.get("all") or {}), *(u.get("by_family") or {}).items()]
+    rows = [[family, *(share_of(s.get(key)) for key in KEYS), num(s.get("check_ratio_median"))] for family, s in groups]
+    shape_rows = [
+        [
+            family,
+            share_of(s.get("shape_right")),
+            share_of(s.get("shape_wrong")),
+            share_of(s.get("after_shape_within")),
+            f"{num(s.get('before_ratio_median_where_claimed'))} -> {num(s.get('after_shape_ratio_median'))}",
+        ]
+        for family, s in groups
+        if "shape_right" in s
     ]
     intro = UNKNOWN_INTRO.format(
-        none_max=pct(targets.get("none_max")), name_max=pct(targets.get("catalog_name_max")), bad_min=pct(targets.get("bad_ring_named_min"))
+        none_max=pct(targets.get("none_max")),
+        name_max=pct(targets.get("catalog_name_max")),
+        bad_min=pct(targets.get("bad_ring_named_min")),
+        after=f"{targets.get('after_shape_within', 1.25)}x",
     )
     head = ["family", "none", "catalog name", "honest", "silent none", "ring named", "outliers named", "check rings / floor (median)"]
+    shapes = ["family", "shape right", "shape wrong", "after the shape, within", "check rings / floor where claimed"]
     return (
         intro
         + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"
         + table(head, rows)
+        + ("\n" + table(shapes, shape_rows) if shape_rows else "")
         + suspect_text(u)
         + multi_text(u)
     )

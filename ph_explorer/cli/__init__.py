@@ -229,7 +229,9 @@ def _diagnose(
     ],
     model: Annotated[Optional[Path], typer.Option(help="A trained model folder to start from.")] = None,
     add: Annotated[Optional[str], typer.Option(help="Effects to add, 'ID[,ID]' (default: the best candidate, if any).")] = None,
-    effects: Annotated[Optional[Path], typer.Option(help="A Python file defining your own effects.")] = None,
+    effects: Annotated[
+        Optional[Path], typer.Option(help="A Python file defining your own effects, or a shapes file (.toml) from --export-shapes.")
+    ] = None,
     data_part: Annotated[
         Optional[str],
         typer.Option(
@@ -263,16 +265,27 @@ def _diagnose(
         Optional[Path],
         typer.Option(help="A fleet's page: this HTML file with the fleet's table, each campaign's own report written beside it."),
     ] = None,
+    export_shapes: Annotated[
+        Optional[Path],
+        typer.Option(
+            "--export-shapes",
+            help="Write the shapes found (what no catalog holds) to this TOML file: read it back with --effects, add one with --add ID.",
+        ),
+    ] = None,
     geometry: dict[str, float] | None = None,
 ) -> None:
     """Find where a model fails, which physical effect is missing, add it and show the error fall."""
     options = {"model": model, "add": add, "effects": effects, "data_part": data_part, "json_output": json_output}
     if len(data) > 1 or scheduler is not None or report is not None or names_many(data[0]):
-        if save is not None or resume is not None:
-            typer.echo(f"option {'--save' if save is not None else '--resume'}: a study is of one campaign; diagnose it alone", err=True)
+        single = {"--save": save, "--resume": resume, "--export-shapes": export_shapes}
+        for name in (name for name, value in single.items() if value is not None):
+            typer.echo(
+                f"option {name}: {'a shapes file' if 'shapes' in name else 'a study'} is of one campaign; diagnose it alone", err=True
+            )
             raise typer.Exit(2)
         _run("diagnose", fleet.fleet_command, specs=data, scheduler=scheduler, report=report, geometry=geometry, **options)
-    _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, save=save, resume=resume, detail=detail, **options)
+    one = {"save": save, "resume": resume, "detail": detail, "export_shapes": export_shapes}
+    _run("diagnose", diagnose.diagnose_command, data=data[0], geometry=geometry, **one, **options)
 
 
 @app.command("effects")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 from rich.console import Console
@@ -10,6 +11,7 @@ from rich.progress import Progress
 
 from ph_explorer.errors import InputError
 from ph_explorer.io import checked_output_file, file_sha256, read_campaign
+from ph_explorer.io.writer import atomic_write
 
 PROGRESS_CONSOLE = Console(stderr=True)  # the bars on stderr: stdout holds the report alone, streamed
 
@@ -27,12 +29,14 @@ def diagnose_command(
     save: Path | None = None,
     resume: Path | None = None,
     detail: str = "short",
+    export_shapes: Path | None = None,
 ) -> int:
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
     with --save or --resume, write the study."""
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
     from ph_explorer.diagnosis.loop import honest_after
     from ph_explorer.diagnosis.study import Study, study_campaign
+    from ph_explorer.effects.error_functions import shapes_file_text
     from ph_explorer.figures.diagnosis_text import report_text
     from ph_explorer.figures.history_text import nested_lines
     from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
@@ -44,6 +48,8 @@ def diagnose_command(
     data_part = check_data_part(data_part or (previous.data_part if previous else "trilinear"))
     if save is not None:
         checked_output_file(save, "--save", "the study", "study.json")
+    if export_shapes is not None:
+        checked_output_file(export_shapes, "--export-shapes", "the shapes file", "shapes.toml")
     ids = parse_add(add, catalog)
     start = previous.effects(catalog) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
@@ -80,6 +86,14 @@ def diagnose_command(
         described = study_campaign(Path(data).name, sha256, campaign)
         effects_file = None if effects is None else str(effects)
         Study.of_run(result, result.chain, described, data_part, effects_file, previous, rings_added=rings_added).save(target)
+    if export_shapes is not None:
+        if result.shapes:
+            atomic_write([(Path(export_shapes), shapes_file_text([shape.table() for shape in result.shapes]))])
+        else:
+            print(
+                f"No shape to export: none was searched or found (the verdict is {result.verdict}); {export_shapes} not written.",
+                file=sys.stderr,
+            )
     if json_output:
         print(json.dumps(result.to_json()))
     elif result.nested is not None:

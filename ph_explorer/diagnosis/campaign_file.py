@@ -23,11 +23,12 @@ def catalog_of(effects: Path | None) -> Catalog:
 
 
 def parse_add(text: str | None, catalog: Catalog) -> list[str] | None:
-    """The effect ids of --add 'ID[,ID]' (None when the option is not given); each must be a candidate."""
+    """The effect ids of --add 'ID[,ID]' (None when the option is not given); each must be addable
+    (a candidate, or a shape of a shapes file)."""
     if text is None:
         return None
     ids = [a.strip() for a in text.split(",") if a.strip()]
-    candidates = catalog.candidates()
+    candidates = catalog.addable()
     if not ids:
         raise InputError(f"names no effect (expected 'ID[,ID]', e.g. {next(iter(candidates))})", option="--add")
     for effect_id in ids:

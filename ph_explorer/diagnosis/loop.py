@@ -25,6 +25,7 @@ from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
+from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.diagnosis.telling_apart import tell_apart
@@ -161,7 +162,7 @@ def diagnose(
     for effect_id in add or []:
         if effect_id not in catalog:
             raise catalog.unknown(effect_id, column=None)
-        if effect_id not in candidates_by_id:
+        if effect_id not in catalog.addable():
             raise InputError(f"effect {effect_id!r} cannot be added to a model: {catalog[effect_id].name} is not systematic")
     effects = [cls() for cls in candidates_by_id.values()]
     by_id = {e.id: e for e in effects}
@@ -200,6 +201,12 @@ def diagnose(
     found = tuple(learnt.get(id(c), c) for c in choice.found)
     # What is left, in the head's own variables, when the catalog does not explain it all.
     left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
+    # ... and a shape for it, an error function of those variables no catalog holds.
+    shapes = (
+        find_shapes(search, chain, choice.after if chain else before, seed) if verdict in ("partial", "unexplained", "suggested") else []
+    )
+    if any(shape.claimed for shape in shapes):
+        verdict = "uncatalogued"
 
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
 
@@ -211,10 +218,17 @@ def diagnose(
     if add is None:
         chosen_steps = chain
     else:
-        chosen_steps = [*start, *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) for i in add)]
+        # A shape of a shapes file is added at its knots (nothing is scanned): the catalog's class.
+        chosen_steps = [
+            *start,
+            *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) if i in by_id else catalog[i]() for i in add),
+        ]
     hybrid = None
     for count in range(1, len(chosen_steps) + 1):
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_part)
+        steps.append(step)
+    if add is None and any(shape.claimed for shape in shapes):  # the shapes claimed, added as one step
+        hybrid, step = add_effects(campaign, [*chosen_steps, *(shape.effect() for shape in shapes if shape.claimed)], data_part)
         steps.append(step)
 
     by_scatter = before.ring_by_scatter if before is not None else np.zeros(campaign.n_orientations, dtype=bool)
@@ -249,6 +263,7 @@ def diagnose(
         started_from=len(start),
         suspect_rings=suspects,
         touch_outliers=outliers,
+        shapes=tuple(shapes),
         hybrid=hybrid,
     )
     if nested:

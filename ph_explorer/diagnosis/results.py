@@ -20,6 +20,7 @@ from ph_explorer.diagnosis.candidates import (
     rounded,
 )
 from ph_explorer.diagnosis.replication import Replication
+from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.diagnosis.suspect import SuspectRing
 from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
@@ -28,7 +29,7 @@ from ph_explorer.models.hybrid import HybridModel
 
 SCHEMA_VERSION = 1  # of the diagnose --json object; a reader refuses another
 
-Verdict = Literal["none", "missing", "suggested", "partial", "unexplained"]
+Verdict = Literal["none", "missing", "suggested", "partial", "unexplained", "uncatalogued"]
 # What the diagnosis can say of a campaign, and what each means.
 VERDICTS: dict[Verdict, str] = {
     "none": "the campaign's within-noise test passes: what the model leaves of every ring but the worst is what its noise explains",
@@ -37,6 +38,10 @@ VERDICTS: dict[Verdict, str] = {
     # A candidate whose gain is replicated but whose form breaks over the head explains nothing: `unexplained`.
     "partial": "catalog effects found, but the model still fails beyond noise with them",
     "unexplained": "the model fails beyond noise and no plausible catalog effect explains it",
+    "uncatalogued": (
+        "the model fails beyond noise where no catalog effect explains it, and an error function of the head's own "
+        "variables does: a shape no catalog holds, replicated over rings"
+    ),
 }
 
 
@@ -185,6 +190,8 @@ class Diagnosis:
     started_from: int = 0  # how many of them were in the model before this run (a resumed study)
     suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
     touch_outliers: TouchOutliers | None = None  # touches read far off (None: too few repetitions to tell)
+    # Shapes no catalog holds (diagnosis.shapes): those claimed, then the best tried and not claimed.
+    shapes: tuple[Shape, ...] = ()
     # The last step's fitted model: the process's, never in the JSON.
     hybrid: HybridModel | None = field(default=None, compare=False, repr=False)
 
@@ -238,6 +245,10 @@ class Diagnosis:
         """The suggestions more rings could confirm: all but those whose form breaks over the head."""
         return tuple(c for c in self.suggested if not c.form_broken)
 
+    @property
+    def claimed_shapes(self) -> tuple[Shape, ...]:
+        return tuple(s for s in self.shapes if s.claimed)
+
     def failing_rings(self) -> list[Ring]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
         out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
@@ -263,6 +274,7 @@ class Diagnosis:
             "started_from": self.started_from,
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
+            "shapes": [shape.to_json() for shape in self.shapes],
             "where_it_fails": [r.to_json() for r in self.rings if r.exceeds],
             "rings": [r.to_json() for r in self.rings],
         }
@@ -292,6 +304,7 @@ class Diagnosis:
             started_from=data["started_from"],
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
+            shapes=tuple(Shape.from_json(shape) for shape in data.get("shapes", [])),
             rings=tuple(Ring.from_json(r) for r in data["rings"]),
         )
 

@@ -17,6 +17,7 @@ from typing import Any
 from ph_explorer.effects.axes import AAxisCyclic, BAxisCyclic, Direction
 from ph_explorer.effects.effect import Effect
 from ph_explorer.effects.environment import Drift, RingForm
+from ph_explorer.effects.error_functions import ErrorFunction, load_shapes
 from ph_explorer.effects.location import AAxisPosition, AAxisSquareness, BAxisOrientation, BAxisPosition
 from ph_explorer.effects.motions import (
     AAxisAxialMotion,
@@ -73,8 +74,12 @@ class Catalog(Mapping[str, type[Effect]]):
         return len(self._classes)
 
     def candidates(self) -> dict[str, type[Effect]]:
-        """The effects a model can add (every one but pure noise), id -> class."""
+        """The effects the diagnosis's search tries (every one but pure noise and shapes), id -> class."""
         return {effect_id: cls for effect_id, cls in self._classes.items() if cls.candidate}
+
+    def addable(self) -> dict[str, type[Effect]]:
+        """The effects a model can add: the candidates and the shapes of a shapes file, id -> class."""
+        return {effect_id: cls for effect_id, cls in self._classes.items() if cls.candidate or issubclass(cls, ErrorFunction)}
 
     def unknown(self, effect_id: str, source: str | None = None, column: str | None = "id") -> InputError:
         """The one-line error for an id this catalog does not hold."""
@@ -92,8 +97,9 @@ class Catalog(Mapping[str, type[Effect]]):
             raise InputError(error.message, file=source, column=error.column) from None
 
     def with_file(self, path: str | Path) -> Catalog:
-        """This catalog plus the Effect subclasses defined in a user's Python file."""
-        found = load_user_effects(path)
+        """This catalog plus the Effect subclasses defined in a user's Python file, or the shapes of a
+        shapes file (.toml, diagnose --export-shapes: data, never code)."""
+        found: list[type[Effect]] = list(load_shapes(path)) if Path(path).suffix.lower() == ".toml" else load_user_effects(path)
         clash = [cls.id for cls in found if cls.id in self._classes and self._classes[cls.id] is not cls]
         if clash:
             raise InputError(f"effect id {clash[0]!r} is already in the catalog", file=str(path))

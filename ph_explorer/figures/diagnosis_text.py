@@ -21,11 +21,14 @@ from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, Noi
 from ph_explorer.effects import Catalog, effect_label, settings_text
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
+from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
 from ph_explorer.planning.deciding import DECIDING_POWER, Decision
 
 Detail = Literal["short", "full"]
 Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
-SectionKey = Literal["verdict", "why", "claims", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"]
+SectionKey = Literal[
+    "verdict", "why", "claims", "shapes", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"
+]
 WORST_SHOWN = 5  # the worst rings named in the short report
 SUGGESTED_SHOWN = 3  # the suggestions listed in the short report
 RERANKED_SHOWN = 5  # rows of each table re-ranked after a step (full detail)
@@ -71,6 +74,7 @@ def report_sections(
         Section("verdict", verdict_headline(result, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))),
         Section("why", "Why", tuple(why_lines(result))),
         Section("claims", "Found", claims),
+        Section("shapes", "Shapes no catalog holds", tuple(line for shape in result.shapes for line in shape_lines(shape))),
         Section(
             "suggested", "Suggested, not claimed", tuple(suggestion_lines(result, catalog, SUGGESTED_SHOWN if detail == "short" else None))
         ),
@@ -103,7 +107,10 @@ def verdict_headline(result: Diagnosis, catalog: Catalog, pairs_only: bool = Fal
     """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...'; a claim the rings
     cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
     pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
-    named = "; ".join(claim_name(c, result, catalog) for c in result.found if c.untold or not pairs_only)
+    named = "; ".join(
+        [claim_name(c, result, catalog) for c in result.found if c.untold or not pairs_only]
+        + [shape_name(shape) for shape in result.claimed_shapes]
+    )
     return f"Verdict: {result.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[result.verdict]}."
 
 
@@ -140,7 +147,7 @@ def why_lines(result: Diagnosis) -> list[str]:
     """Why the verdict: the campaign's within-noise test in one line; for a failure no claim explains,
     what is left in the head's variables and how many catalog fits were implausible."""
     lines = [campaign_test_line(result)]
-    if result.verdict in ("partial", "unexplained"):
+    if result.verdict in ("partial", "unexplained", "uncatalogued"):
         lines.append(left_line(result))
     implausible = [c for c in result.candidates if c.status == "implausible"]
     if result.verdict == "unexplained" and implausible:
@@ -190,6 +197,9 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
         "partial": f"add the effects found, then look at what is left: an effect outside the catalog ({actions['own']}) may explain it.",
         "unexplained": f"no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature ({actions['own']}).",
+        "uncatalogued": "the shape found is added in the error history below; "
+        + "; ".join(f"to pin {shape.id} down, {pin_text(shape)}" for shape in result.claimed_shapes)
+        + ".",
     }[result.verdict]
 
 

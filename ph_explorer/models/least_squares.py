@@ -298,3 +298,53 @@ def choose_ridge(design: Design, targets: Design) -> float:
         if error < best_error * (1.0 - 1e-9):
             best, best_error = ridge, error
     return best
+
+
+class RingDeletion:
+    """Ridge fits of a design with many columns, each ring left out by the hat-matrix identity.
+
+    For columns that are the same in every repetition (no within part), deleting ring j's rows X_j
+    from the normal equations (X'X + ridge I) b = X'y changes its residual to (I - H_jj)^-1 e_j,
+    H_jj = X_j (X'X + ridge I)^-1 X_j': one eigendecomposition of X'X serves every ring and every
+    penalty, where `jackknife` decomposes each ring's own (a shape's hundreds of columns:
+    docs/methods/shapes.md). Rows are weighted by the repetitions as everywhere here.
+    """
+
+    def __init__(self, design: Design, targets: Design) -> None:
+        if design.within is not None:
+            raise ValueError("RingDeletion needs columns that are the same in every repetition")
+        self.n_rep = design.n_rep
+        values, vectors = np.linalg.eigh(design.gram())
+        keep = _kept(values, design.scale, _rows(design))
+        self.values, self.vectors = values[keep], vectors[:, keep]
+        self.z = design.mean @ self.vectors  # (n_o, n_pt, k): each ring's columns in eigen coordinates
+        self.y = targets.mean  # (n_o, n_pt, t)
+        self.u = self.n_rep * np.einsum("opk,opt->kt", self.z, self.y)  # V' X'y
+        within = 0.0 if targets.within is None else (targets.within**2).sum(axis=(1, 2))
+        self.within_squares = np.broadcast_to(within, (self.z.shape[0], self.y.shape[-1]))  # (n_o, t)
+
+    def at(self, ridge: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """(coefficients (c, t), coefficients without each ring (n_o, c) of the first target,
+        each ring's left-out sum of squares over single touches (n_o, t)) at this penalty."""
+        d = 1.0 / (self.values + ridge)
+        b = d[:, None] * self.u  # (k, t)
+        e = self.y - self.z @ b  # (n_o, n_pt, t)
+        hat = self.n_rep * np.einsum("opk,k,oqk->opq", self.z, d, self.z)
+        left_out = np.linalg.solve(np.eye(hat.shape[-1])[None] - hat, e)  # (n_o, n_pt, t)
+        squares = self.n_rep * (left_out**2).sum(axis=1) + self.within_squares
+        without = b[:, 0][None] - self.n_rep * d[None] * np.einsum("opk,op->ok", self.z, left_out[..., 0])
+        return self.vectors @ b, without @ self.vectors.T, squares
+
+    def best_ridge(self, typical: float | None = None) -> float:
+        """The penalty with the least left-out sum of squares of the first target, from none to
+        strong (the grid of choose_ridge)."""
+        typical = float(self.values.sum()) / max(self.vectors.shape[0], 1) if typical is None else typical
+        best, best_error = 0.0, np.inf
+        for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
+            try:
+                error = float(self.at(ridge)[2][:, 0].sum())
+            except np.linalg.LinAlgError:  # a ring that alone determines a direction: unpredictable without a penalty
+                continue
+            if error < best_error * (1.0 - 1e-9):
+                best, best_error = ridge, error
+        return best

@@ -1,0 +1,339 @@
+"""A shape for what no catalog holds: the remainder as error functions of the head's own variables.
+
+When the catalog's claims leave the model failing beyond noise, each group of error functions
+(effects/error_functions.py: the ISO 230-7 component groups of each axis as functions of its joint
+angle, the probe's lobes as functions of time) is fitted on the out-of-sample residual beside the
+chain, with a ridge penalty chosen by leaving rings out, and each ring's gain is measured with that
+ring left out of the fit. The group that gains most is claimed when it is significant as the best
+of the groups (a max-T sign-flip test over rings, `family_test`), its gain holds without its most
+influential ring, and it is material: the check rings' error falls by MATERIAL_REDUCTION, or rings
+are brought within noise. Groups whose gains the rings cannot tell from its own are named beside
+it. Method: docs/methods/shapes.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ph_explorer.diagnosis.candidates import DIGITS
+from ph_explorer.diagnosis.choice import RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN
+from ph_explorer.diagnosis.replication import (
+    REPLICATION_LEVEL,
+    SIGN_FLIPS,
+    Replication,
+    replication,
+    ring_residual_squares,
+    ring_weights,
+)
+from ph_explorer.diagnosis.search import JACKKNIFE_INFLATION, MATERIAL_REDUCTION, CandidateSearch
+from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
+from ph_explorer.effects import Effect
+from ph_explorer.effects.error_functions import SHAPE_GROUPS, ErrorFunction, error_function, value_name
+from ph_explorer.kinematics import Touches
+from ph_explorer.models import least_squares
+from ph_explorer.models.least_squares import Design, RingDeletion
+from ph_explorer.uncertainty.jackknife import COVERAGE_FACTOR, jackknife_parameters
+
+# Knot spacing of a joint angle's error functions (deg): a ring samples its joints every 0.2-1 deg
+# (A sweeps +-6.5 deg over 64 points; B a full turn at A0 = 0, 51 deg at A0 = 15), so the knots,
+# not the touches, bound what a shape resolves: periods down to two knot steps (4 deg of B: 90
+# cycles/rev) where the rings' sweeps leave no wider gap.
+KNOT_STEP_DEG = {"a_joint_deg": 1.0, "b_joint_deg": 2.0}
+FULL_TURN_DEG = 300.0  # a joint sampled over more than this: periodic knots over the whole turn
+TIME_KNOTS = 13  # time: the campaign's span in 12 steps
+MAX_SHAPES = 2
+# A lever below this share of its largest samples nothing (the B axis's angular lever at A0 = 0).
+SAMPLED_LEVER = 0.05
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A shape found (or tried) for what no catalog holds: one group's error functions, tabulated
+    at its knots with their expanded uncertainty (k = 2), and the test it passed or failed."""
+
+    group: str  # error_functions.SHAPE_GROUPS key, e.g. "b_angular"
+    variable: str  # "b_joint_deg", "time_s", ...
+    x: tuple[float, ...]
+    value: tuple[tuple[float, ...], ...]  # per component, in its unit
+    U: tuple[tuple[float, ...], ...]
+    periodic: bool
+    replication: Replication
+    family_p: float  # the family-wise p-value of the best group's gain over rings (family_test)
+    check_reduction: float  # the fall of the check rings' rms error (vs the mean) with it
+    rings_brought_within: int  # rings that exceed their noise before it and not with it
+    claimed: bool
+    untold: tuple[str, ...] = ()  # groups whose gains these rings cannot tell from its own
+    aliasing_deg: float | None = None  # shortest period it resolves (angles), deg
+    period_cycles: float | None = None  # the curve's dominant period, cycles/rev (None: no period dominates)
+    widest_at: float | None = None  # where its band is widest, in the variable's unit
+
+    @property
+    def id(self) -> str:
+        return f"shape_{self.group}"
+
+    @property
+    def words(self) -> str:
+        return SHAPE_GROUPS[self.group].words
+
+    @property
+    def components(self) -> tuple[tuple[str, str], ...]:
+        return SHAPE_GROUPS[self.group].components
+
+    @property
+    def replicated(self) -> bool:
+        """Its gain over rings significant as the best of the groups (family_p), and still without its top ring."""
+        return self.family_p < REPLICATION_LEVEL and self.replication.p_without_top < REPLICATION_LEVEL
+
+    def effect(self) -> ErrorFunction:
+        """The shape as an effect at its fitted values: it can be added to a model like any other."""
+        cls = error_function(self.group, self.x, self.periodic)
+        return cls(**{value_name(s, j): v for (s, _), row in zip(self.components, self.value) for j, v in enumerate(row)})
+
+    def table(self) -> dict[str, Any]:
+        """The shape as a table of the shapes file (effects.error_functions.shapes_file_text)."""
+        return {
+            "id": self.id,
+            "group": self.group,
+            "variable": self.variable,
+            "periodic": self.periodic,
+            "claimed": self.claimed,
+            "x": list(self.x),
+            "component": [
+                {"symbol": symbol, "unit": unit, "value": list(value), "U": list(spread)}
+                for (symbol, unit), value, spread in zip(self.components, self.value, self.U)
+            ],
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "group": self.group,
+            "words": self.words,
+            "variable": self.variable,
+            "components": [{"symbol": s, "unit": u} for s, u in self.components],
+            "x": [round(v, 4) for v in self.x],
+            "value": [[round(v, DIGITS) for v in row] for row in self.value],
+            "U": [[round(v, DIGITS) for v in row] for row in self.U],
+            "periodic": self.periodic,
+            "replicated": self.replicated,
+            "claimed": self.claimed,
+            "replication": self.replication.as_dict(),
+            "family_p": round(self.family_p, 5),
+            "check_reduction": round(self.check_reduction, 4),
+            "rings_brought_within": self.rings_brought_within,
+            "untold": list(self.untold),
+            "aliasing_deg": self.aliasing_deg,
+            "period_cycles_per_rev": self.period_cycles,
+            "widest_at": self.widest_at,
+        }
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> Shape:
+        return cls(
+            data["group"],
+            data["variable"],
+            tuple(float(v) for v in data["x"]),
+            tuple(tuple(float(v) for v in row) for row in data["value"]),
+            tuple(tuple(float(v) for v in row) for row in data["U"]),
+            bool(data["periodic"]),
+            Replication.from_json(data["replication"]),
+            float(data["family_p"]),
+            float(data["check_reduction"]),
+            int(data["rings_brought_within"]),
+            bool(data["claimed"]),
+            tuple(data.get("untold", ())),
+            data.get("aliasing_deg"),
+            data.get("period_cycles_per_rev"),
+            data.get("widest_at"),
+        )
+
+
+def knots(group: str, touches: Touches) -> tuple[tuple[float, ...], bool, float | None]:
+    """(knots, periodic, aliasing limit in deg or None) of a group's functions on these touches.
+
+    A joint angle: knots every KNOT_STEP_DEG over the angles its rings sample with a lever (the
+    whole turn, periodic, when that is more than FULL_TURN_DEG); the aliasing limit is two knot
+    steps, or twice the widest gap the rings' sweeps leave. Time: TIME_KNOTS over the span."""
+    spec = SHAPE_GROUPS[group]
+    variable = spec.variable_of(touches)
+    x = np.broadcast_to(variable.values(touches), touches.shape)[:, 0]  # (n_o, n_pt): the joints repeat
+    if not variable.angle:
+        span = np.broadcast_to(variable.values(touches), touches.shape)
+        return tuple(np.linspace(float(span.min()), float(span.max()), TIME_KNOTS)), False, None
+    lever = np.abs(spec.lever(touches)).max(axis=-1)[:, 0]  # (n_o, n_pt)
+    sampled = np.sort(x[lever > SAMPLED_LEVER * lever.max()])
+    step = KNOT_STEP_DEG[variable.name]
+    if np.ptp(sampled) > FULL_TURN_DEG:
+        count = int(round(360.0 / step))
+        grid = tuple(-180.0 + np.arange(count) * 360.0 / count)
+        gaps = np.diff(np.concatenate([sampled, sampled[:1] + 360.0]))
+        return grid, True, float(2.0 * max(step, gaps.max()))
+    low, high = float(sampled[0]), float(sampled[-1])
+    count = max(int(np.ceil((high - low) / step)) + 1, 2)
+    return tuple(np.linspace(low, high, count)), False, float(2.0 * max(step, np.diff(sampled).max(initial=0.0)))
+
+
+@dataclass
+class _Fit:
+    """One group's fit beside the chain: its effect class, design, coefficients, each ring's left-out fit."""
+
+    effect: ErrorFunction
+    design: Design
+    coefficients: NDArray[np.float64]  # (c,): the group's values at its knots
+    without: NDArray[np.float64]  # (n_o, c_all): every column's coefficient without each ring
+    joint: Design
+    gain: NDArray[np.float64]  # (n_o,) in noise variances
+    aliasing: float | None
+
+
+def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]) -> _Fit:
+    grid, periodic, aliasing = knots(group, search.touches)
+    effect = error_function(group, grid, periodic)()
+    design = Design(search.bases(effect), search.smoother)
+    joint = design if fixed is None else fixed.stacked(design)
+    target = search.targets.first_column()
+    if joint.within is None:
+        deletion = RingDeletion(joint, target)
+        coefficients, without, squares = deletion.at(deletion.best_ridge())
+        coefficients, squares = coefficients[:, 0], squares[:, 0]
+    else:  # columns that change between repetitions (time, or a chain's drift): each ring decomposed
+        ridge = least_squares.choose_ridge(joint, target)
+        coefficients = least_squares.fit(joint, target, ridge)[0][:, 0]
+        without = least_squares.jackknife(joint, target, np.arange(joint.mean.shape[0]), ridge)
+        mean, within = joint.apply_each(without)
+        squares = ((search.residual - mean[:, None, :] - (0.0 if within is None else within)) ** 2).sum(axis=(1, 2))
+    gain = (before - squares) / np.maximum(noise, 1e-300)
+    return _Fit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing)
+
+
+def _left_out_residual(search: CandidateSearch, fit: _Fit) -> NDArray[np.float64]:
+    """What the chain and the group leave of each ring's residual, fitted without that ring."""
+    mean, within = fit.joint.apply_each(fit.without)
+    return search.residual - mean[:, None, :] - (0.0 if within is None else within)
+
+
+def _rms(x: NDArray[np.float64]) -> float:
+    return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
+
+
+def dominant_period(effect: ErrorFunction, weight_x: NDArray[np.float64]) -> float | None:
+    """The cycles per revolution of the sinusoid that explains most of the curve over the angles
+    the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None."""
+    x = np.sort(np.unique(np.round(weight_x, 2)))
+    if x.size < 8:
+        return None
+    curve = effect.function(x)
+    main = curve[:, int(np.argmax((curve**2).sum(axis=0)))]
+    main = main - main.mean()
+    total = float((main**2).sum())
+    if total <= 0:
+        return None
+    cycles = np.arange(1.0, 180.0 + 1e-9, 0.1)
+    phase = np.radians(cycles[:, None] * x[None])
+    basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (m, x, 3)
+    gram = np.einsum("mxi,mxj->mij", basis, basis)
+    dot = np.einsum("mxi,x->mi", basis, main)
+    explained = np.einsum("mi,mi->m", dot, np.linalg.solve(gram + 1e-12 * np.eye(3), dot[..., None])[..., 0])
+    best = int(np.argmax(explained))
+    return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
+
+
+def family_test(gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int = 0) -> tuple[NDArray[np.float64], float]:
+    """Each group's weighted gain over rings, and the family-wise p-value of the largest.
+
+    gains: (groups, n_o), each ring's gain with each group (in noise variances); a group's statistic
+    is the rings' weighted sum of gains (check rings and lattice rings weighing half each, as a
+    claim's), the group that predicts the rings best scoring highest. The null flips every ring's
+    sign in all groups at once, so the largest statistic over the groups is compared with the
+    largest under each flip (Westfall and Young's max-T): the correction for taking the best of
+    correlated groups, exact under the sign-flip null (docs/methods/shapes.md)."""
+    weighted = gains * ring_weights(check)[None]
+    statistics = weighted.sum(axis=1)
+    rng = np.random.default_rng(seed)
+    signs = rng.integers(0, 2, size=(SIGN_FLIPS, gains.shape[1]), dtype=np.int64) * 2.0 - 1.0
+    null = (signs @ weighted.T).max(axis=1)  # (flips,): the best group under each flip
+    observed = float(statistics.max())
+    return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))
+
+
+def find_shapes(
+    search: CandidateSearch,
+    chain: Sequence[Effect],
+    current: NoiseTest | None,
+    seed: int = 0,
+    groups: Sequence[str] | None = None,
+) -> list[Shape]:
+    """The shapes claimed beside the chain, at most MAX_SHAPES, each with the others before it in
+    the model; then the best tried that was not claimed (the module docstring). `current`: the
+    within-noise test of the chain (None: one repetition, nothing is claimed)."""
+    groups = list(groups or SHAPE_GROUPS)
+    if current is None or not current.fails:
+        return []
+    noise = ring_sigma(search.campaign.deviations) ** 2
+    check = ~search.train
+    fixed = search.design(list(chain)) if chain else None
+    out: list[Shape] = []
+    while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
+        before = ring_residual_squares(search.residual, fixed, search.targets)
+        fits = {g: _fit(search, fixed, before, g, noise) for g in groups}
+        statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
+        best = list(fits)[int(np.argmax(statistics))]
+        fit = fits[best]
+        test = replication(fit.gain, check, True, seed)
+        residual = _left_out_residual(search, fit)
+        check_before = search.check_residual(fixed)[0]
+        reduction = 1.0 - _rms(residual[check].mean(axis=1)) / max(_rms(check_before), 1e-300)
+        after = within_noise(residual, search.smoother.weights, search.campaign.deviations, seed, held_out=check)
+        brought = current.failing_rings - (after.failing_rings if after is not None else current.failing_rings)
+        needed = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
+        material = reduction >= MATERIAL_REDUCTION or brought >= needed
+        significant = family_p < REPLICATION_LEVEL and test.p_without_top < REPLICATION_LEVEL
+        # Groups the rings cannot tell from it: their gains not significantly below its own.
+        untold = tuple(
+            g for g in fits if g != best and replication(fit.gain - fits[g].gain, check, True, seed).p_value >= REPLICATION_LEVEL
+        )
+        without = fit.without[:, -fit.design.n_columns :]
+        params, params_u = jackknife_parameters(fit.effect, without, fit.coefficients, k=COVERAGE_FACTOR * JACKKNIFE_INFLATION)
+        n_c = len(SHAPE_GROUPS[best].components)
+        value = np.array([params[p.name] for p in fit.effect.parameters]).reshape(n_c, -1)
+        spread = np.array([params_u[p.name] for p in fit.effect.parameters]).reshape(n_c, -1)
+        fitted = type(fit.effect)(**params)
+        variable = SHAPE_GROUPS[best].variable_of(search.touches)
+        sampled = np.broadcast_to(variable.values(search.touches), search.touches.shape)[:, 0].ravel()
+        shape = Shape(
+            best,
+            variable.name,
+            fit.effect.knots,
+            tuple(tuple(float(v) for v in row) for row in value),
+            tuple(tuple(float(v) for v in row) for row in spread),
+            fit.effect.periodic,
+            test,
+            float(family_p),
+            float(reduction),
+            int(brought),
+            bool(significant and material),
+            untold,
+            fit.aliasing,
+            dominant_period(fitted, sampled) if variable.angle else None,
+            float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
+        )
+        out.append(shape)
+        if not shape.claimed:
+            break
+        fixed = fit.joint
+        current = after
+        groups = [g for g in groups if g != best]
+        if after is None or not after.fails:
+            break
+    return out
+
+
+def claimed(shapes: Sequence[Shape]) -> tuple[Shape, ...]:
+    """The shapes claimed, in the order found."""
+    return tuple(s for s in shapes if s.claimed)

@@ -1,0 +1,324 @@
+"""Error functions: an error motion, or a probe term, as a tabulated function of one variable of the
+touch, for what no catalog holds (docs/methods/shapes.md).
+
+A group is one ISO 230-7 component group of a rotary axis (angular positioning, radial, axial or
+tilt motion) as a function of that axis's joint angle, or the probe's pre-travel lobes as a
+function of time. Each component of the group has its own f(x), piecewise linear through values at
+knots x_0 < ... < x_{K-1} (periodic over a full turn of an angle), multiplied by its lever
+(effect.screw_deviation for an axis's components). The basis columns are the knots' hat functions
+times the levers and the parameters are the values at the knots, so a shape exported as a table
+(x, value, U) and loaded again is the same function. A catalog effect is a sparse special case
+(one harmonic of one group).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from functools import cache
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import tomli_w
+from numpy.typing import NDArray
+
+from ph_explorer.effects.effect import Effect, Evidence, Parameter, full_shape, screw_deviation
+from ph_explorer.effects.motions import ABOUT_X, ABOUT_Y, ABOUT_Z, X, Y, Z
+from ph_explorer.effects.probe import lateral_share
+from ph_explorer.errors import InputError
+from ph_explorer.geometry import wrap_deg
+from ph_explorer.kinematics import Touches
+
+
+def _order_fraction(touches: Touches) -> NDArray[np.float64]:
+    return touches.order / max(int(touches.order.max()), 1)
+
+
+@dataclass(frozen=True)
+class ShapeVariable:
+    """A variable a shape is a function of: its name (the JSON's and the shapes file's), label,
+    unit, and its value at every touch (broadcastable to touches.shape)."""
+
+    name: str
+    label: str
+    unit: str
+    values: Callable[[Touches], NDArray[np.float64]]
+    angle: bool = False
+
+    def available(self, touches: Touches) -> bool:
+        return self.name != "time_s" or touches.times_s is not None
+
+
+SHAPE_VARIABLES: dict[str, ShapeVariable] = {
+    v.name: v
+    for v in (
+        ShapeVariable("a_joint_deg", "A joint angle (deg)", "deg", lambda t: t.a_deg, angle=True),
+        ShapeVariable("b_joint_deg", "B joint angle (deg)", "deg", lambda t: t.b_deg, angle=True),
+        ShapeVariable("time_s", "touch time (s)", "s", lambda t: t.times_s),
+        ShapeVariable("campaign_fraction", "place in the campaign's touch order (0 to 1)", "", _order_fraction),
+    )
+}
+
+
+def _pre_travel_lobes(touches: Touches) -> NDArray[np.float64]:
+    """(n_o, 1, n_pt, 4): cos and sin of 2 and 3 psi times the lateral share sin(beta): the lobes
+    of a probe's pre-travel in the force azimuth (3: its three kinematic seats; 2: a stylus's
+    bending stiffness that differs in two directions), um per um of lobe."""
+    psi = np.radians(touches.psi_deg)[..., None]
+    k = np.array([2.0, 2.0, 3.0, 3.0])
+    trig = np.where(np.arange(4) % 2 == 0, np.cos(k * psi), np.sin(k * psi))
+    return trig * lateral_share(touches)[..., None]
+
+
+@dataclass(frozen=True)
+class ShapeGroup:
+    """One group of error functions: its variable (for an axis: its joint angle), what it is in
+    ISO 230 words, and its components (symbol, unit, lever column)."""
+
+    key: str  # "b_angular": the shape's id is "shape_" + key
+    variable: str  # "b_joint_deg" (the time groups: "time", the touch time or the campaign's order)
+    axis: str | None  # "A", "B", None (the probe)
+    kind: str  # effect.KINDS
+    words: str  # "angular positioning of the B axis"
+    components: tuple[tuple[str, str], ...]  # (symbol, unit) per component
+    plausible: tuple[float, float]  # of each value, in the unit
+    lever: Callable[[Touches], NDArray[np.float64]]  # (n_o, 1, n_pt, n_components)
+
+    def variable_of(self, touches: Touches) -> ShapeVariable:
+        if self.variable == "time":
+            return SHAPE_VARIABLES["time_s" if touches.times_s is not None else "campaign_fraction"]
+        return SHAPE_VARIABLES[self.variable]
+
+
+# Plausible values of an error function: generous bounds of a PH20-class head's residual errors
+# after its own mapping, twice the catalog's cyclic ranges (a step or a dent need not be small
+# where the mapping never looked): 0-6 arcsec for rotations, 0-3 um for translations and lobes.
+ROTATION_PLAUSIBLE_ARCSEC = (0.0, 6.0)
+TRANSLATION_PLAUSIBLE_UM = (0.0, 3.0)
+
+
+def _axis_groups(axis: str) -> list[ShapeGroup]:
+    """The four ISO 230-7 component groups of an axis; columns of its screw (motions.X ... ABOUT_Z)."""
+    a = axis == "A"
+    own, radial, axial, tilt = (ABOUT_X, (Y, Z), X, (ABOUT_Y, ABOUT_Z)) if a else (ABOUT_Z, (X, Y), Z, (ABOUT_X, ABOUT_Y))
+    symbols = {X: "EX", Y: "EY", Z: "EZ", ABOUT_X: "EA", ABOUT_Y: "EB", ABOUT_Z: "EC"}
+
+    def lever(columns: tuple[int, ...]) -> Callable[[Touches], NDArray[np.float64]]:
+        return lambda touches: screw_deviation(touches, axis)[..., list(columns)]
+
+    def group(name: str, kind: str, columns: tuple[int, ...], unit: str, what: str) -> ShapeGroup:
+        plausible = ROTATION_PLAUSIBLE_ARCSEC if unit == "arcsec" else TRANSLATION_PLAUSIBLE_UM
+        components = tuple((symbols[c] + axis, unit) for c in columns)
+        return ShapeGroup(
+            f"{axis.lower()}_{name}",
+            f"{axis.lower()}_joint_deg",
+            axis,
+            kind,
+            f"{what} of the {axis} axis",
+            components,
+            plausible,
+            lever(columns),
+        )
+
+    return [
+        group("angular", "angular_positioning", (own,), "arcsec", "angular positioning"),
+        group("radial", "radial_motion", radial, "um", "radial motion"),
+        group("axial", "axial_motion", (axial,), "um", "axial motion"),
+        group("tilt", "tilt_motion", tilt, "arcsec", "tilt motion"),
+    ]
+
+
+SHAPE_GROUPS: dict[str, ShapeGroup] = {
+    g.key: g
+    for g in (
+        *_axis_groups("A"),
+        *_axis_groups("B"),
+        ShapeGroup(
+            "probe_time",
+            "time",
+            None,
+            "probe",
+            "pre-travel lobes of the probe (2 and 3 per turn of the force azimuth) changing over the campaign",
+            (("cos2psi", "um"), ("sin2psi", "um"), ("cos3psi", "um"), ("sin3psi", "um")),
+            TRANSLATION_PLAUSIBLE_UM,
+            _pre_travel_lobes,
+        ),
+    )
+}
+
+
+def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: bool) -> NDArray[np.float64]:
+    """(..., K): the piecewise linear interpolation weights of x on the knots (each row sums to 1
+    inside the knots' range, 0 outside it); periodic: the knots span a full turn of an angle (deg)."""
+    knots = np.asarray(knots, dtype=float)
+    x = np.asarray(x, dtype=float)[..., None]
+    if periodic:
+        step = 360.0 / knots.size
+        return np.maximum(0.0, 1.0 - np.abs(wrap_deg(x - knots)) / step)
+    gaps = np.diff(knots)
+    left = np.concatenate([gaps[:1], gaps])  # the gap to the knot before (the first's: its next)
+    right = np.concatenate([gaps, gaps[-1:]])
+    d = x - knots
+    inside = (x >= knots[0]) & (x <= knots[-1])
+    return np.where(inside, np.maximum(0.0, 1.0 - np.where(d < 0, -d / left, d / right)), 0.0)
+
+
+class ErrorFunction(Effect):
+    """A group's error functions, tabulated at knots (the module docstring); make its class with
+    `error_function(group, knots, periodic)`."""
+
+    group: ClassVar[ShapeGroup]
+    knots: ClassVar[tuple[float, ...]]
+    periodic: ClassVar[bool]
+    candidate = False  # in no catalog: the diagnosis's shape step proposes it (diagnosis/shapes.py)
+
+    def values(self) -> NDArray[np.float64]:
+        """(n_components, K): each component's value at the knots, in its unit."""
+        return self.coefficients().reshape(len(self.group.components), len(self.knots))
+
+    def function(self, x: ArrayLikeFloat) -> NDArray[np.float64]:
+        """(..., n_components): the functions at x, in their units."""
+        return hat_functions(np.asarray(x, dtype=float), np.array(self.knots), self.periodic) @ self.values().T
+
+    def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
+        variable = self.group.variable_of(touches)
+        hats = hat_functions(variable.values(touches), np.array(self.knots), self.periodic)  # (..., K)
+        lever = self.group.lever(touches)  # (n_o, 1, n_pt, C)
+        columns = lever[..., :, None] * hats[..., None, :]
+        columns = columns.reshape(columns.shape[:-2] + (-1,))
+        names = [p.name for p in self.parameters]
+        if columns.shape[1] == 1:
+            return full_shape(columns, touches), names
+        return columns, names
+
+    def evidence(self, touches: Touches) -> Evidence:
+        variable = self.group.variable_of(touches)
+        largest = int(np.argmax(np.abs(self.values()).max(axis=1)))
+        symbol, unit = self.group.components[largest]
+        return Evidence(
+            variable.label,
+            np.broadcast_to(variable.values(touches), touches.shape),
+            weight=np.broadcast_to(self.group.lever(touches)[..., largest], touches.shape),
+            y_label=f"{symbol} ({unit})",
+        )
+
+
+ArrayLikeFloat = NDArray[np.float64] | float
+
+
+def value_name(symbol: str, index: int) -> str:
+    """The parameter of a component's value at knot `index`: 'ECB_007'."""
+    return f"{symbol}_{index:03d}"
+
+
+@cache
+def error_function(group_key: str, knots: tuple[float, ...], periodic: bool) -> type[ErrorFunction]:
+    """The ErrorFunction class of a group at these knots (made once per group and knots)."""
+    if group_key not in SHAPE_GROUPS:
+        raise InputError(f"no shape group {group_key!r} (known: {', '.join(SHAPE_GROUPS)})", column="group")
+    group = SHAPE_GROUPS[group_key]
+    if len(knots) < 2 or np.any(np.diff(knots) <= 0):
+        raise InputError(f"shape {group_key}: the knots must be at least two and strictly increasing", column="x")
+    parameters = tuple(
+        Parameter(value_name(symbol, j), unit, 0.0, f"{symbol} at {x:g}", plausible=group.plausible)
+        for symbol, unit in group.components
+        for j, x in enumerate(knots)
+    )
+    return type(
+        f"ErrorFunction_{group_key}",
+        (ErrorFunction,),
+        {
+            "id": f"shape_{group_key}",
+            "name": f"{group.words[0].upper()}{group.words[1:]} as a function of {group.variable.replace('_', ' ')}",
+            "axis": group.axis,
+            "kind": group.kind,
+            "symbol": ", ".join(s for s, _ in group.components) if group.axis else "",
+            "group": group,
+            "knots": tuple(float(k) for k in knots),
+            "periodic": bool(periodic),
+            "parameters": parameters,
+            "teaching": f"An error function no catalog holds: {group.words}, tabulated at {len(knots)} knots (docs/methods/shapes.md).",
+        },
+    )
+
+
+# -- the shapes file (docs/formats.md, "The shapes file") --------------------------------------------
+SHAPES_FILE_HEADER = '# Shapes no catalog holds, from ph-explorer diagnose --export-shapes (docs/formats.md, "The shapes file").\n'
+SHAPE_KEYS = ("id", "group", "variable", "periodic", "x", "component")
+COMPONENT_KEYS = ("symbol", "unit", "value", "U")
+
+
+def shapes_file_text(shapes: Sequence[Mapping[str, Any]]) -> str:
+    """The shapes file: one [[shape]] table per shape (id, group, variable, periodic, claimed, x,
+    and a [[shape.component]] per component with its symbol, unit, value and U at the knots)."""
+    return SHAPES_FILE_HEADER + tomli_w.dumps({"shape": [dict(shape) for shape in shapes]})
+
+
+def load_shapes(path: str | Path) -> list[type[ErrorFunction]]:
+    """The shapes of a shapes file as effects, each at its tabulated values (their defaults): addable
+    to a model like any other (--effects FILE.toml, --add ID). A shape with a missing key, an unknown
+    group or variable, knots that do not increase, or values that do not match its knots is one
+    line (the file, the shape's row, what is wrong), and nothing is loaded."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("shapes file not found", file=str(path))
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise InputError(f"not a TOML file: {error}", file=str(path)) from None
+    shapes = data.get("shape")
+    if not isinstance(shapes, list) or not shapes or not all(isinstance(s, dict) for s in shapes):
+        raise InputError("holds no [[shape]] table", file=str(path))
+    out: list[type[ErrorFunction]] = []
+    for row, shape in enumerate(shapes, start=1):
+
+        def bad(message: str, column: str | None = None) -> InputError:
+            return InputError(message, file=str(path), row=row, column=column)
+
+        missing = [key for key in SHAPE_KEYS if key not in shape]
+        if missing:
+            raise bad(f"shape without {missing[0]!r}", missing[0])
+        group = shape["group"]
+        if group not in SHAPE_GROUPS:
+            raise bad(f"unknown group {group!r} (known: {', '.join(SHAPE_GROUPS)})", "group")
+        spec = SHAPE_GROUPS[group]
+        variables = ("time_s", "campaign_fraction") if spec.variable == "time" else (spec.variable,)
+        if shape["variable"] not in variables:
+            raise bad(f"unknown variable {shape['variable']!r} for group {group} (expected {' or '.join(variables)})", "variable")
+        x = _numbers(shape["x"], bad, "x")
+        if x.size < 2 or np.any(np.diff(x) <= 0):
+            raise bad("x must hold at least two knots, strictly increasing", "x")
+        components = shape["component"]
+        symbols = [s for s, _ in spec.components]
+        if not isinstance(components, list) or [c.get("symbol") if isinstance(c, dict) else None for c in components] != symbols:
+            raise bad(f"components must be {', '.join(symbols)}, in that order", "component")
+        values: dict[str, float] = {}
+        for component in components:
+            lacking = [key for key in COMPONENT_KEYS if key not in component]
+            if lacking:
+                raise bad(f"component {component['symbol']} without {lacking[0]!r}", lacking[0])
+            for key in ("value", "U"):
+                numbers = _numbers(component[key], bad, key)
+                if numbers.size != x.size:
+                    raise bad(f"component {component['symbol']}: {numbers.size} {key}s for {x.size} knots", key)
+            values |= {value_name(component["symbol"], j): float(v) for j, v in enumerate(component["value"])}
+        if not isinstance(shape["id"], str) or not shape["id"]:
+            raise bad("id must be a name", "id")
+        if any(cls.id == shape["id"] for cls in out):
+            raise bad(f"id {shape['id']!r} given twice", "id")
+        base = error_function(group, tuple(float(v) for v in x), bool(shape["periodic"]))
+        parameters = tuple(replace(p, default=values[p.name]) for p in base.parameters)
+        needs = frozenset({"touch_times"}) if shape["variable"] == "time_s" else frozenset()
+        out.append(type(f"Loaded_{base.__name__}", (base,), {"id": shape["id"], "parameters": parameters, "needs": needs}))
+    return out
+
+
+def _numbers(value: Any, bad: Callable[[str, str | None], InputError], key: str) -> NDArray[np.float64]:
+    if not isinstance(value, list) or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise bad(f"{key} must be a list of numbers", key)
+    numbers = np.array(value, dtype=float)
+    if not np.all(np.isfinite(numbers)):
+        raise bad(f"{key} holds a value that is not finite", key)
+    return numbers

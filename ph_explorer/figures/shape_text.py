@@ -1,0 +1,59 @@
+"""A shape no catalog holds in words (diagnosis.shapes.Shape): its name, its lines in the report,
+and where more rings would pin it down. Method: docs/methods/shapes.md."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ph_explorer.diagnosis.replication import REPLICATION_LEVEL
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION
+from ph_explorer.diagnosis.shapes import Shape
+from ph_explorer.effects.error_functions import SHAPE_GROUPS, SHAPE_VARIABLES
+
+
+def shape_name(shape: Shape) -> str:
+    """'angular positioning of the B axis as a function of the B joint angle' (or its untold groups)."""
+    name = f"{shape.words} as a function of the {shape_variable_words(shape)}"
+    if not shape.untold:
+        return name
+    return f"{name}, or {' or '.join(SHAPE_GROUPS[g].words for g in shape.untold)} (these rings cannot tell)"
+
+
+def shape_variable_words(shape: Shape) -> str:
+    return SHAPE_VARIABLES[shape.variable].label.split(" (")[0]
+
+
+def pin_text(shape: Shape) -> str:
+    """Where more rings would narrow its band: the variable's value where the band is widest."""
+    unit = SHAPE_VARIABLES[shape.variable].unit
+    return f"measure rings whose {shape_variable_words(shape)} passes {shape.widest_at:.4g}{(' ' + unit) if unit else ''}, where its band is widest"
+
+
+def shape_lines(shape: Shape) -> list[str]:
+    """A shape: what it is, its size with U (k = 2), its period and the aliasing limit, its test."""
+    values, spread = np.array(shape.value), np.array(shape.U)
+    peak = np.unravel_index(int(np.argmax(np.abs(values))), values.shape)
+    symbol, unit = shape.components[peak[0]]
+    test = shape.replication
+    status = "claimed" if shape.claimed else "not claimed"
+    if shape.claimed:
+        why = ""
+    elif shape.family_p >= REPLICATION_LEVEL:
+        why = f" (its gain over rings is not significant as the best of the groups tried: p = {shape.family_p:.3g})"
+    elif test.p_without_top >= REPLICATION_LEVEL:
+        why = f" (it rests on one ring: without it p = {test.p_without_top:.3g})"
+    else:
+        why = f" (not material: the check rings' error falls less than {f'{100 * MATERIAL_REDUCTION:.0f} %'} and it brings too few rings within noise)"
+    lines = [
+        f"{shape_name(shape)}: {status}{why}.",
+        f"  Largest {symbol} {values[peak]:+.3g} +- {spread[peak]:.2g} {unit} (k = 2) at {shape.x[peak[1]]:.4g}; "
+        f"check rings' error {'-' if shape.check_reduction >= 0 else '+'}{100 * abs(shape.check_reduction):.0f} %, "
+        f"{shape.rings_brought_within} rings brought within noise; gain over rings p = {shape.family_p:.3g} as the best of the groups "
+        f"(without its top ring {test.p_without_top:.3g}).",
+    ]
+    if shape.aliasing_deg is not None:
+        period = f"its curve is mostly {shape.period_cycles:g} cycles/rev; " if shape.period_cycles is not None else ""
+        lines.append(
+            f"  {period}these rings resolve periods down to {shape.aliasing_deg:.3g} deg ({360.0 / shape.aliasing_deg:.0f} cycles/rev): shorter ones alias."
+        )
+    return lines
