@@ -224,8 +224,14 @@ def _rms(x: NDArray[np.float64]) -> float:
 
 def dominant_period(effect: ErrorFunction, weight_x: NDArray[np.float64]) -> float | None:
     """The cycles per revolution of the sinusoid that explains most of the curve over the angles
-    the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None."""
-    x = np.sort(np.unique(np.round(weight_x, 2)))
+    the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None.
+    The curve is linear between its knots: it is read at the knots and half-way between them."""
+    knots = np.array(effect.knots)
+    grid = np.sort(np.concatenate([knots, 0.5 * (knots[1:] + knots[:-1])]))
+    sampled = np.unique(weight_x)
+    at = np.clip(np.searchsorted(sampled, grid), 1, sampled.size - 1)
+    nearest = np.minimum(np.abs(grid - sampled[at - 1]), np.abs(grid - sampled[at]))
+    x = grid[nearest <= np.diff(knots).max() / 2]  # where touches sample the curve
     if x.size < 8:
         return None
     curve = effect.function(x)

@@ -319,7 +319,8 @@ class RingDeletion:
         self.values, self.vectors = values[keep], vectors[:, keep]
         self.z = design.mean @ self.vectors  # (n_o, n_pt, k): each ring's columns in eigen coordinates
         self.y = targets.mean  # (n_o, n_pt, t)
-        self.u = self.n_rep * np.einsum("opk,opt->kt", self.z, self.y)  # V' X'y
+        n_o, n_pt, k = self.z.shape
+        self.u = self.n_rep * self.z.reshape(-1, k).T @ self.y.reshape(n_o * n_pt, -1)  # V' X'y
         within = 0.0 if targets.within is None else (targets.within**2).sum(axis=(1, 2))
         self.within_squares = np.broadcast_to(within, (self.z.shape[0], self.y.shape[-1]))  # (n_o, t)
 
@@ -329,10 +330,10 @@ class RingDeletion:
         d = 1.0 / (self.values + ridge)
         b = d[:, None] * self.u  # (k, t)
         e = self.y - self.z @ b  # (n_o, n_pt, t)
-        hat = self.n_rep * np.einsum("opk,k,oqk->opq", self.z, d, self.z)
+        hat = self.n_rep * np.matmul(self.z * d, self.z.transpose(0, 2, 1))  # (n_o, n_pt, n_pt): batched BLAS
         left_out = np.linalg.solve(np.eye(hat.shape[-1])[None] - hat, e)  # (n_o, n_pt, t)
         squares = self.n_rep * (left_out**2).sum(axis=1) + self.within_squares
-        without = b[:, 0][None] - self.n_rep * d[None] * np.einsum("opk,op->ok", self.z, left_out[..., 0])
+        without = b[:, 0][None] - self.n_rep * d[None] * np.matmul(self.z.transpose(0, 2, 1), left_out[..., :1])[..., 0]
         return self.vectors @ b, without @ self.vectors.T, squares
 
     def best_ridge(self, typical: float | None = None) -> float:
