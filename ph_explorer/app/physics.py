@@ -198,8 +198,10 @@ class PhysicsLoop:
         p, ds = self.panel, self.current()
         ids = p.selected_effects()
         scanned = {c.effect: c for c in (self.diagnosis.candidates if self.diagnosis is not None else [])}
-        # At the settings the diagnosis found (e.g. 22 cycles per revolution), else the effect's own.
-        ticked = [self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
+        shapes = {shape.id: shape.effect() for shape in (self.diagnosis.shapes if self.diagnosis is not None else ())}
+        # At the settings the diagnosis found (e.g. 22 cycles per revolution), else the effect's own;
+        # a shape at its knots.
+        ticked = [shapes[i] if i in shapes else self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
         # A study's chain stays in the model; a ticked effect already in it (same settings) is not added twice.
         chain = list(self.chain) if self.study_open else []
         in_chain = {effect_label(e) for e in chain}
@@ -223,7 +225,15 @@ class PhysicsLoop:
         self.refitted = effects  # the next save's chain, the report's model
         self.steps.append(step)
         p.show_history(self.steps)
-        fitted = "; ".join(f"{e['effect']}: {self.catalog[e['effect']].parameters_text(e['params'])}" for e in step.params)
+        fitted = "; ".join(
+            f"{e['effect']}: "
+            + (
+                self.catalog[e["effect"]].parameters_text(e["params"])
+                if e["effect"] in self.catalog
+                else f"its {len(e['params'])} values refitted"
+            )
+            for e in step.params
+        )
         p.done(f"Refitted: {fitted or label}.", refit=True)  # its error: the fall line and the history under it
         p.keep_in_view("Check-ring MAE:")
         # No physical term ticked: the hybrid would be the baseline again; draw no separate curve.

@@ -16,10 +16,12 @@ from ph_explorer.app.accessibility import bring_into_view
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step
 from ph_explorer.diagnosis.search import CONFOUNDED
+from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg
 from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
+from ph_explorer.figures.shape_text import shape_svg
 from ph_explorer.planning.deciding import Decision, DecisionWords
 
 
@@ -134,6 +136,8 @@ class PhysicsPanel:
         self.status = gui.add_markdown("")
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.verdict = gui.add_markdown("")
+        # A shape no catalog holds (diagnosis.shapes): its curve against its variable, with its band.
+        self.shape_chart = gui.add_html("", visible=False)
         # When the rings cannot decide (a confounded pair, a suggestion): the rings that would, on
         # the map as crosses; the twin measures them for a teaching scenario.
         self.decide = gui.add_button(
@@ -189,9 +193,10 @@ class PhysicsPanel:
         )
         self.study_status = gui.add_markdown("")
 
-    def _place_effects(self, found: set[str], names: dict[str, str] | None = None) -> None:
+    def _place_effects(self, found: set[str], shapes: Sequence[Shape] = ()) -> None:
         """A checkbox per catalog effect, labelled by its id (its accessible name): the found ones in
-        the open folder, the rest in the collapsed one; what was ticked stays ticked."""
+        the open folder, the rest in the collapsed one; what was ticked stays ticked. The shapes
+        claimed (what no catalog holds) join the found ones: ticked and refitted like them."""
         ticked = {e for e, box in self.effects.items() if box.value}
         for box in self.effects.values():
             box.remove()
@@ -202,7 +207,11 @@ class PhysicsPanel:
                     if (effect_id in found) == wanted:
                         hint = f"{cls.name}: " + ("found by the diagnosis; " if wanted else "") + "add it to the hybrid's physical terms"
                         self.effects[effect_id] = self.gui.add_checkbox(effect_id, effect_id in ticked, hint=hint)
-        self.found_folder.visible = bool(found)
+        with self.found_folder:
+            for shape in shapes:
+                hint = f"a shape no catalog holds: {shape.words}; add it to the hybrid's physical terms"
+                self.effects[shape.id] = self.gui.add_checkbox(shape.id, shape.id in ticked, hint=hint)
+        self.found_folder.visible = bool(found) or bool(shapes)
 
     def clear(self) -> None:
         """New data: the diagnosis and history of the old data no longer apply."""
@@ -222,7 +231,8 @@ class PhysicsPanel:
         ):
             handle.content = ""
         self.decide.visible = self.measure.visible = self.download_rings.visible = False
-        self.candidates.content = self.evidence.content = self.fit.content = ""
+        self.candidates.content = self.evidence.content = self.fit.content = self.shape_chart.content = ""
+        self.shape_chart.visible = False
         self.progress.visible = self.refit_progress.visible = False
         self.results_folder.visible = self.history.visible = False
         self.evidence_of.options = (NO_CHOICE,)
@@ -261,7 +271,7 @@ class PhysicsPanel:
         short = {s.key: s for s in report_sections(result, self.catalog, front="explorer", decision=decision)}
         full = report_sections(result, self.catalog, "full", front="explorer")
         headline = short["verdict"].title
-        lines = [line for key in ("claims", "suggested") if key in short for line in short[key].lines]
+        lines = [line for key in ("claims", "shapes", "suggested") if key in short for line in short[key].lines]
         shown = [short[key] for key in ("why", "worst_rings") if key in short] + [
             s for s in full if s.key in ("tests", "partners", "teaching")
         ]
@@ -271,7 +281,9 @@ class PhysicsPanel:
         self.verdict.content = "\n\n".join([f"**{headline}** {' '.join(short['verdict'].lines)}", *lines])
         self.keep_in_view("Verdict:")
         self.verdict_more.content = "\n\n".join(more) + "\n\n" + verdicts_markdown(result.verdict)
-        self._place_effects({c.effect for c in result.found})
+        self._place_effects({c.effect for c in result.found}, result.claimed_shapes)
+        self.shape_chart.content = shape_svg(result.shapes[0]) if result.shapes else ""
+        self.shape_chart.visible = bool(result.shapes)
         # What is left (the signature) first, then each candidate's evidence, by the label shown in the dropdown.
         self.evidence_items = {}
         for entry in result.signature:

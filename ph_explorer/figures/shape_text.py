@@ -1,5 +1,5 @@
-"""A shape no catalog holds in words (diagnosis.shapes.Shape): its name, its lines in the report,
-and where more rings would pin it down. Method: docs/methods/shapes.md."""
+"""A shape no catalog holds in words and drawn (diagnosis.shapes.Shape): its name, its lines in the
+report, where more rings would pin it down, and its curve with its band. Method: docs/methods/shapes.md."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ from ph_explorer.diagnosis.replication import REPLICATION_LEVEL
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION
 from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects.error_functions import SHAPE_GROUPS, SHAPE_VARIABLES
+from ph_explorer.figures.charts import line_chart_svg
 
 
 def shape_name(shape: Shape) -> str:
@@ -57,3 +58,22 @@ def shape_lines(shape: Shape) -> list[str]:
             f"  {period}these rings resolve periods down to {shape.aliasing_deg:.3g} deg ({360.0 / shape.aliasing_deg:.0f} cycles/rev): shorter ones alias."
         )
     return lines
+
+
+# Each component's curve, and its band (k = 2) in a lighter shade of the same colour.
+SHAPE_COLORS = (("#1f77b4", "#9ecae1"), ("#d62728", "#f4a6a6"), ("#2ca02c", "#a1d99b"), ("#9467bd", "#cbb7e3"))
+
+
+def shape_svg(shape: Shape) -> str:
+    """The shape's curve against its variable with its band (k = 2), one colour per component, in
+    the spirit of ISO 230-7's error-motion plots (the same chart in the explorer and the report)."""
+    x = np.array(shape.x)
+    series = []
+    for (symbol, _), value, spread, (dark, light) in zip(shape.components, shape.value, shape.U, SHAPE_COLORS):
+        value, spread = np.array(value), np.array(spread)
+        series += [(symbol, value, dark), (f"{symbol} + U", value + spread, light), (f"{symbol} - U", value - spread, light)]
+    units = sorted({unit for _, unit in shape.components})
+    status = "claimed" if shape.claimed else "not claimed"
+    return line_chart_svg(
+        x, series, f"Shape ({status}): {shape.words}", SHAPE_VARIABLES[shape.variable].label, f"error ({', '.join(units)})"
+    )
