@@ -1,0 +1,76 @@
+"""Issue 56's explorer line: a shape no catalog holds, found, drawn, added and the error falling, in a
+real headless Chromium at 1440x900, driven by labels.
+
+The user uploads a campaign of a head whose B axis has a 48-tooth gear's error (beyond the
+catalog's scan of 1-40 cycles/rev), diagnoses it (`uncatalogued`: the B axis's angular positioning
+as a function of the B joint angle, its curve drawn with its band under the verdict), ticks the
+shape in "Effects found", refits, and reads the check-ring error fall; the hybrid joins Tables
+1-3. A screenshot of each step goes to docs/shapes_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+from fake_browser import wait_for
+from test_browser_loop import CHROMIUM, colour_census, in_view, settled, step_shot, walk_in_chromium
+from test_shapes import SEED, FineGearB
+
+from ph_explorer.io.writer import write_campaign
+from ph_explorer.twin.random_heads import random_campaign
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
+    pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium", allow_module_level=True)
+
+
+def add_a_shape(page, session, shots: Path) -> None:
+    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
+    data = write_campaign(random_campaign(SEED, "paper", [FineGearB()]), Path(tempfile.mkdtemp()) / "fine_gear.csv")
+    page.get_by_role("tab", name="Data").click()
+    with page.expect_file_chooser() as chooser:
+        page.get_by_role("button", name="Upload a campaign CSV").click()
+    chooser.value.set_files(str(data))
+    assert wait_for(lambda: "fine_gear.csv" in session.data_panel.source.content, timeout=600)
+    session.wait(timeout=300)
+
+    # 1. Diagnose: no catalog effect explains it, a shape does; its curve is drawn under the verdict.
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
+    session.wait(timeout=300)
+    verdict = session.physics.verdict.content
+    assert "Verdict: uncatalogued - angular positioning of the B axis" in verdict, verdict
+    in_view(page.get_by_text("Verdict: uncatalogued", exact=False).first, "the verdict")
+    chart = page.locator('svg[aria-label^="chart Shape (claimed): angular positioning of the B axis"]').first
+    chart.scroll_into_view_if_needed()  # the panel scrolls to it (under the verdict's lines), never the page
+    in_view(chart, "the shape's curve")
+    assert page.evaluate("() => window.scrollY") == 0
+    inked, colours = colour_census(chart.screenshot())
+    assert inked >= 1500 and colours >= 3, (inked, colours)  # drawn: its curve and its band, not an empty frame
+    step_shot(page, shots, "shapes_1_found")
+
+    # 2. Tick the shape, refit: the check rings' error falls, and the hybrid joins Tables 1-3.
+    tables_before = session.tables.markdown.content
+    box = page.get_by_role("checkbox", name="shape_b_angular")
+    box.scroll_into_view_if_needed()
+    in_view(box, "the shape's checkbox")
+    box.check()
+    page.get_by_role("button", name="Refit the hybrid").click()
+    assert wait_for(lambda: len(session.loop.steps) >= 2 and "Refitted" in session.physics.refit_status.content, timeout=600)
+    session.wait(timeout=300)
+    settled(page)
+    last, first = session.loop.steps[-1], session.loop.steps[0]
+    assert last.added == ("shape_b_angular",) and last.mae_um["mean"] < 0.8 * first.mae_um["mean"]
+    assert wait_for(lambda: session.tables.markdown.content != tables_before and "hybrid" in session.tables.markdown.content, timeout=60)
+    in_view(page.get_by_text("Check-ring MAE:", exact=False).first, "the error fall")
+    step_shot(page, shots, "shapes_2_added")
+
+
+def test_a_shape_is_found_drawn_added_and_the_error_falls_at_1440x900() -> None:
+    shots = walk_in_chromium(add_a_shape, "shapes_")
+    assert len(list(shots.glob("shapes_*.png"))) == 2
