@@ -1,5 +1,6 @@
-"""docs/walkthrough_unknown_effect.md, run: an effect in no catalog -> unexplained, with its
-signature -> the user's own effect written from it -> missing, the error at the floor."""
+"""docs/walkthrough_unknown_effect.md, run: an effect in no catalog -> a shape and its signature ->
+the user's own effect written from it -> missing, the error at the floor; and
+docs/walkthrough_shape.md: a shape found, exported, added, every figure it quotes as printed."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import re
 from pathlib import Path
 
 import pytest
+from command_line import run_cli
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import BUILTIN_EFFECTS, Catalog
@@ -44,3 +46,30 @@ def test_the_loop_closes_on_an_effect_in_no_catalog(tmp_path):
     assert amplitude == pytest.approx(1.0, rel=0.1)
     final = second.steps[-1]
     assert final.mae_um["mean"] <= 1.3 * final.noise_floor_um["mean"]
+
+
+SHAPE_WALKTHROUGH = WALKTHROUGH.parent / "walkthrough_shape.md"
+
+
+def quoted_blocks(path: Path, language: str) -> list[str]:
+    """The walk-through's code blocks of one language, unindented as a user would copy them."""
+    blocks = re.findall(rf"```{language}\n(.*?)```", path.read_text(encoding="utf-8"), flags=re.S)
+    return ["\n".join(line[3:] if line.startswith("   ") else line for line in block.splitlines()) + "\n" for block in blocks]
+
+
+@pytest.mark.slow
+def test_the_shape_walkthrough_says_what_the_commands_print(tmp_path, monkeypatch):
+    # Step 1 as printed makes the campaign; steps 2 and 4 run the commands it prints, and every
+    # figure the page quotes is what they print.
+    monkeypatch.chdir(tmp_path)
+    exec(compile(quoted_blocks(SHAPE_WALKTHROUGH, "python")[0], "walkthrough_shape.md", "exec"), {})
+    first, again = (run_cli(*command.split()[1:]) for command in quoted_blocks(SHAPE_WALKTHROUGH, "bash"))
+    assert first.returncode == 0 and again.returncode == 0, first.stderr + again.stderr
+    for line in quoted_blocks(SHAPE_WALKTHROUGH, "text")[0].splitlines():
+        if line.strip() and "..." not in line:
+            assert " ".join(line.split()) in " ".join(first.stdout.split()), line
+    assert "b_joint_deg periodic, 30 cycles/rev" in first.stdout and "75 of 135 rings exceed their noise" in first.stdout
+    for report in (first.stdout, again.stdout):
+        assert "baseline (trilinear)                               mean 0.131" in report
+        assert "+ shape_b_angular (hybrid, trilinear data part)    mean 0.071 (floor 0.056)" in report
+    assert "b_axis_cyclic (amplitude" in first.stdout and "it rests on one ring" in first.stdout
