@@ -113,6 +113,17 @@ def population(results: Mapping[str, Any]) -> str:
             f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} and max {num(get(speed, 'targets', 'verdict_max_s'), 's')}, "
             f"nested {num(get(speed, 'targets', 'nested_s'), 's')}: {holds(speed.get('holds'))}.\n"
         )
+        shape = speed.get("shape_campaign") or {}
+        if shape.get("command_verdict_s"):
+            tail += (
+                f"\nA campaign with a shape no catalog holds ({shape.get('campaign')}; verdict `{shape.get('verdict')}`): the command "
+                f"prints its verdict {num(get(shape, 'command_verdict_s', 'median'), 's')} after launch (median; max "
+                f"{num(get(shape, 'command_verdict_s', 'max'), 's')}), the verdict waiting for the shapes it rests on; in one process "
+                f"the search takes {num(get(shape, 'in_process_s', 'search'), 's')}, the signature of what is left "
+                f"{num(get(shape, 'in_process_s', 'signature'), 's')}, the shapes {num(get(shape, 'in_process_s', 'shapes'), 's')}, "
+                f"the whole {num(get(shape, 'in_process_s', 'total'), 's')}. Target (issue 56): the verdict at most "
+                f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} (median): {holds(shape.get('holds'))}.\n"
+            )
     tolerance = pop.get("tolerance") or {}
     if tolerance:
         tail += (
