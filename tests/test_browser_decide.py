@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import CHROMIUM, chart_drawn, in_view, step_shot, walk_in_chromium
+from test_browser_loop import CHROMIUM, chart_drawn, diagnosed, in_view, step_shot, walk_in_chromium
 
 from ph_explorer.io.rings import read_rings
 
@@ -38,11 +38,7 @@ def decide(page, session, shots: Path) -> None:
     measured = session.dataset.campaign.n_orientations
 
     # 1. Diagnose: the claim cannot be told from its partner on these rings.
-    page.get_by_role("tab", name="Physics").click()
-    page.get_by_role("button", name="Diagnose", exact=True).click()
-    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
-    session.wait(timeout=300)
-    before = session.physics.verdict.content
+    before = diagnosed(page, session)
     assert "cannot tell them apart" in before, before
     in_view(page.get_by_text("cannot tell them apart", exact=False).first, "the untold pair")
     step_shot(page, shots, "decide_1_diagnosed")

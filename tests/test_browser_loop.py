@@ -204,6 +204,15 @@ def scene_label_boxes(session, canvas: dict) -> list[tuple[str, float, float, fl
     return boxes
 
 
+def diagnosed(page, session) -> str:
+    """Physics -> Diagnose, as a user clicks them; the verdict's text once it is shown."""
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_role("button", name="Diagnose", exact=True).click()
+    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
+    session.wait(timeout=300)
+    return session.physics.verdict.content
+
+
 def step_shot(page, shots: Path, name: str) -> None:
     no_scroll(page)
     settled(page)

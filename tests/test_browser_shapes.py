@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import CHROMIUM, colour_census, in_view, settled, step_shot, walk_in_chromium
+from test_browser_loop import CHROMIUM, colour_census, diagnosed, in_view, settled, step_shot, walk_in_chromium
 from test_shapes import SEED, FineGearB
 
 from ph_explorer.io.writer import write_campaign
@@ -39,11 +39,7 @@ def add_a_shape(page, session, shots: Path) -> None:
     session.wait(timeout=300)
 
     # 1. Diagnose: no catalog effect explains it, a shape does; its curve is drawn under the verdict.
-    page.get_by_role("tab", name="Physics").click()
-    page.get_by_role("button", name="Diagnose", exact=True).click()
-    assert wait_for(lambda: session.loop.diagnosis is not None and "Verdict" in session.physics.verdict.content, timeout=900)
-    session.wait(timeout=300)
-    verdict = session.physics.verdict.content
+    verdict = diagnosed(page, session)
     assert "Verdict: uncatalogued - angular positioning of the B axis" in verdict, verdict
     in_view(page.get_by_text("Verdict: uncatalogued", exact=False).first, "the verdict")
     chart = page.locator('svg[aria-label^="chart Shape (claimed): angular positioning of the B axis"]').first
