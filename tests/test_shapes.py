@@ -188,3 +188,20 @@ def test_a_bad_shapes_file_is_one_line_and_nothing_is_loaded(exported, tmp_path,
     done = run_cli("diagnose", "--data", data, "--effects", bad, "--add", "shape_b_angular")
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and done.stdout == "" and len(lines) == 1 and lines[0].startswith(f"{bad}, {what}")
+
+
+def test_a_study_saves_the_shape_and_resumes_with_it_in_the_model(exported, tmp_path) -> None:
+    data, _ = exported
+    study = tmp_path / "study.json"
+    saved = run_cli("diagnose", "--data", data, "--save", study)
+    assert saved.returncode == 0, saved.stderr
+    link = json.loads(study.read_text())["chain"][-1]
+    assert link["effect"] == "shape_b_angular" and link["shape"]["group"] == "b_angular"
+    resumed = run_cli("diagnose", "--data", data, "--resume", study, "--json")
+    assert resumed.returncode == 0, resumed.stderr
+    again = json.loads(resumed.stdout)
+    # It starts from the shape (in the model from the first step on), and does not claim its group again.
+    assert again["started_from"] == 1 and again["chain"][0]["effect"] == "shape_b_angular"
+    assert all(step["added"][:1] == ["shape_b_angular"] for step in again["steps"][1:])
+    assert not any(s["claimed"] and s["group"] == "b_angular" for s in again["shapes"])
+    assert Diagnosis.from_json(again).to_json() == again

@@ -85,7 +85,7 @@ def diagnose_command(
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
         effects_file = None if effects is None else str(effects)
-        Study.of_run(result, result.chain, described, data_part, effects_file, previous, rings_added=rings_added).save(target)
+        Study.of_run(result, result.model_effects, described, data_part, effects_file, previous, rings_added=rings_added).save(target)
     if export_shapes is not None:
         if result.shapes:
             atomic_write([(Path(export_shapes), shapes_file_text([shape.table() for shape in result.shapes]))])

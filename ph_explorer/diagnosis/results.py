@@ -25,6 +25,7 @@ from ph_explorer.diagnosis.suspect import SuspectRing
 from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.effects.error_functions import ErrorFunction, shape_class
 from ph_explorer.models.hybrid import HybridModel
 
 SCHEMA_VERSION = 1  # of the diagnose --json object; a reader refuses another
@@ -249,6 +250,12 @@ class Diagnosis:
     def claimed_shapes(self) -> tuple[Shape, ...]:
         return tuple(s for s in self.shapes if s.claimed)
 
+    @property
+    def model_effects(self) -> tuple[Effect, ...]:
+        """The effects of the last step's model: the chain, then the shapes claimed and added as a step."""
+        added = self.steps[-1].added if self.steps else ()
+        return (*self.chain, *(shape.effect() for shape in self.claimed_shapes if shape.id in added[len(self.chain) :]))
+
     def failing_rings(self) -> list[Ring]:
         """The rings that exceed their noise (the within-noise test), worst first: by how far their
         out-of-sample MAE is above its own floor, not by their roundness (a round ring may be badly predicted)."""
@@ -270,7 +277,7 @@ class Diagnosis:
             "within_noise": {k: None if t is None else t.as_dict() for k, t in self.within_noise.items()},
             "nested_after": None if self.nested is None else self.nested.to_json(),
             "steps": [s.to_json() for s in self.steps],
-            "chain": [{"effect": e.id, "settings": {k: float(v) for k, v in e.settings().items()}} for e in self.chain],
+            "chain": [chain_entry(e) for e in self.chain],
             "started_from": self.started_from,
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
@@ -300,13 +307,32 @@ class Diagnosis:
             within_noise={k: None if t is None else NoiseTest.from_json(t) for k, t in data["within_noise"].items()},
             nested=None if data["nested_after"] is None else NestedAfter.from_json(data["nested_after"]),
             steps=tuple(Step.from_json(s) for s in data["steps"]),
-            chain=tuple(catalog[e["effect"]]().with_settings(**e["settings"]) for e in data["chain"]),
+            chain=tuple(chain_effect(e, catalog) for e in data["chain"]),
             started_from=data["started_from"],
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
             shapes=tuple(Shape.from_json(shape) for shape in data.get("shapes", [])),
             rings=tuple(Ring.from_json(r) for r in data["rings"]),
         )
+
+
+def chain_entry(effect: Effect) -> dict[str, Any]:
+    """A chain's effect in a record or a study: its id and settings; a shape also its table (its knots
+    and values: it is in no catalog)."""
+    entry: dict[str, Any] = {"effect": effect.id, "settings": {k: float(v) for k, v in effect.settings().items()}}
+    return entry | ({"shape": effect.table()} if isinstance(effect, ErrorFunction) else {})
+
+
+def chain_effect(entry: Mapping[str, Any], catalog: Catalog) -> Effect:
+    """The effect of a chain entry (chain_entry): from the catalog at its settings, or a shape from its
+    table; ValueError when the table is not one."""
+
+    def bad(message: str, column: str | None = None) -> ValueError:
+        return ValueError(f"chain entry {entry.get('effect')!r}, {column}: {message}")
+
+    if "shape" in entry:
+        return shape_class(entry["shape"], bad)()
+    return catalog[entry["effect"]]().with_settings(**entry["settings"])
 
 
 def flagged_in(rankings: Sequence[Sequence[Candidate]], flag: str) -> tuple[Candidate, ...]:

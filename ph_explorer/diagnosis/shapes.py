@@ -97,18 +97,7 @@ class Shape:
 
     def table(self) -> dict[str, Any]:
         """The shape as a table of the shapes file (effects.error_functions.shapes_file_text)."""
-        return {
-            "id": self.id,
-            "group": self.group,
-            "variable": self.variable,
-            "periodic": self.periodic,
-            "claimed": self.claimed,
-            "x": list(self.x),
-            "component": [
-                {"symbol": symbol, "unit": unit, "value": list(value), "U": list(spread)}
-                for (symbol, unit), value, spread in zip(self.components, self.value, self.U)
-            ],
-        }
+        return self.effect().table(self.claimed, np.array(self.U)) | {"variable": self.variable}
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -278,8 +267,10 @@ def find_shapes(
     """The shapes claimed beside the chain, at most MAX_SHAPES, each with the others before it in
     the model; then the best tried that was not claimed (the module docstring). `current`: the
     within-noise test of the chain (None: one repetition, nothing is claimed)."""
-    groups = list(groups or SHAPE_GROUPS)
-    if current is None or not current.fails:
+    # A group already in the model (a resumed study's shape) is not searched again.
+    held = {effect.group.key for effect in chain if isinstance(effect, ErrorFunction)}
+    groups = [g for g in (groups or SHAPE_GROUPS) if g not in held]
+    if current is None or not current.fails or not groups:
         return []
     noise = ring_sigma(search.campaign.deviations) ** 2
     check = ~search.train

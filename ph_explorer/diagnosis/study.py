@@ -17,8 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Step
+from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Step, chain_effect, chain_entry
 from ph_explorer.effects import Catalog, Effect, effect_label
+from ph_explorer.effects.error_functions import shape_class
 from ph_explorer.errors import InputError
 from ph_explorer.io import read_json_object, write_json_object
 
@@ -40,9 +41,11 @@ class ChainLink:
     settings: dict[str, float]
     params: dict[str, float] = field(default_factory=dict)
     params_u: dict[str, float] = field(default_factory=dict)
+    shape: dict[str, Any] | None = None  # a shape's table (its knots and values: it is in no catalog)
 
     def to_json(self) -> dict[str, Any]:
-        return {"effect": self.effect, "settings": self.settings, "params": self.params, "params_u": self.params_u}
+        out = {"effect": self.effect, "settings": self.settings, "params": self.params, "params_u": self.params_u}
+        return out | ({"shape": self.shape} if self.shape is not None else {})
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,8 @@ class Study:
         for index, effect in enumerate(chain):
             settings = {k: float(v) for k, v in effect.settings().items()}
             params = joint[index]["params"] if index < len(joint) else {}
-            links.append(ChainLink(effect.id, settings, params, uncertainty.get((effect.id, _key(settings)), {})))
+            shape = chain_entry(effect).get("shape")
+            links.append(ChainLink(effect.id, settings, params, uncertainty.get((effect.id, _key(settings)), {}), shape))
         started_from = 0 if previous is None else len(previous.chain)
         date = datetime.datetime.now().isoformat(timespec="seconds")
         run = Run(date, started_from, tuple(effect_label(e) for e in chain[started_from:]), result.verdict, tuple(rings_added))
@@ -178,8 +182,9 @@ class Study:
         )
 
     def effects(self, catalog: Catalog) -> list[Effect]:
-        """The effects of the chain, each at its settings, from the catalog (parse checked them)."""
-        return [catalog[link.effect]().with_settings(**link.settings) for link in self.chain]
+        """The effects of the chain, each at its settings, from the catalog, or a shape from its table
+        (parse checked them)."""
+        return [chain_effect(link.to_json(), catalog) for link in self.chain]
 
     def rings_added_on(self, sha256: str, data: str, merges: Sequence[dict[str, Any]] = ()) -> list[dict[str, Any]]:
         """A study continues on the campaign it was made on (the same bytes), or on a merge of it with
@@ -212,6 +217,12 @@ def _link(entry: Any, where: str, source: str, catalog: Catalog, effects_file: s
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise InputError(f"setting {name!r} must be a number, got {value!r}", file=source, column=where)
     effect_id = entry["effect"]
+    if "shape" in entry:  # a shape no catalog holds: its table, checked as a shapes file's
+        shape = shape_class(
+            entry["shape"], lambda message, key=None: InputError(f"shape {effect_id!r}: {message}", file=source, column=where)
+        )
+        params, params_u = entry.get("params") or {}, entry.get("params_u") or {}
+        return ChainLink(shape.id, {}, dict(params), dict(params_u), dict(entry["shape"]))
     if effect_id not in catalog.candidates():
         hint = f" (the study was made with --effects {effects_file})" if effects_file else ""
         raise InputError(f"effect {effect_id!r} is not a candidate of the catalog{hint}", file=source, column=where)

@@ -174,6 +174,29 @@ class ErrorFunction(Effect):
     periodic: ClassVar[bool]
     candidate = False  # in no catalog: the diagnosis's shape step proposes it (diagnosis/shapes.py)
 
+    variable: ClassVar[str | None] = None  # the variable a shapes file named (the time group: time_s or campaign_fraction)
+
+    def table(self, claimed: bool = True, spread: NDArray[np.float64] | None = None) -> dict[str, Any]:
+        """This shape as a table of the shapes file (shapes_file_text; a study's chain holds it too):
+        its values at its knots, and their U (k = 2; zeros when not given)."""
+        values = self.values()
+        spread = np.zeros_like(values) if spread is None else np.asarray(spread, dtype=float)
+        variable = self.variable or (
+            "time_s" if "touch_times" in self.needs else "campaign_fraction" if self.group.variable == "time" else self.group.variable
+        )
+        return {
+            "id": self.id,
+            "group": self.group.key,
+            "variable": variable,
+            "periodic": self.periodic,
+            "claimed": claimed,
+            "x": list(self.knots),
+            "component": [
+                {"symbol": symbol, "unit": unit, "value": [float(v) for v in row], "U": [float(u) for u in band]}
+                for (symbol, unit), row, band in zip(self.group.components, values, spread)
+            ],
+        }
+
     def values(self) -> NDArray[np.float64]:
         """(n_components, K): each component's value at the knots, in its unit."""
         return self.coefficients().reshape(len(self.group.components), len(self.knots))
@@ -274,45 +297,54 @@ def load_shapes(path: str | Path) -> list[type[ErrorFunction]]:
     out: list[type[ErrorFunction]] = []
     for row, shape in enumerate(shapes, start=1):
 
-        def bad(message: str, column: str | None = None) -> InputError:
+        def bad(message: str, column: str | None = None, row: int = row) -> InputError:
             return InputError(message, file=str(path), row=row, column=column)
 
-        missing = [key for key in SHAPE_KEYS if key not in shape]
-        if missing:
-            raise bad(f"shape without {missing[0]!r}", missing[0])
-        group = shape["group"]
-        if group not in SHAPE_GROUPS:
-            raise bad(f"unknown group {group!r} (known: {', '.join(SHAPE_GROUPS)})", "group")
-        spec = SHAPE_GROUPS[group]
-        variables = ("time_s", "campaign_fraction") if spec.variable == "time" else (spec.variable,)
-        if shape["variable"] not in variables:
-            raise bad(f"unknown variable {shape['variable']!r} for group {group} (expected {' or '.join(variables)})", "variable")
-        x = _numbers(shape["x"], bad, "x")
-        if x.size < 2 or np.any(np.diff(x) <= 0):
-            raise bad("x must hold at least two knots, strictly increasing", "x")
-        components = shape["component"]
-        symbols = [s for s, _ in spec.components]
-        if not isinstance(components, list) or [c.get("symbol") if isinstance(c, dict) else None for c in components] != symbols:
-            raise bad(f"components must be {', '.join(symbols)}, in that order", "component")
-        values: dict[str, float] = {}
-        for component in components:
-            lacking = [key for key in COMPONENT_KEYS if key not in component]
-            if lacking:
-                raise bad(f"component {component['symbol']} without {lacking[0]!r}", lacking[0])
-            for key in ("value", "U"):
-                numbers = _numbers(component[key], bad, key)
-                if numbers.size != x.size:
-                    raise bad(f"component {component['symbol']}: {numbers.size} {key}s for {x.size} knots", key)
-            values |= {value_name(component["symbol"], j): float(v) for j, v in enumerate(component["value"])}
-        if not isinstance(shape["id"], str) or not shape["id"]:
-            raise bad("id must be a name", "id")
-        if any(cls.id == shape["id"] for cls in out):
-            raise bad(f"id {shape['id']!r} given twice", "id")
-        base = error_function(group, tuple(float(v) for v in x), bool(shape["periodic"]))
-        parameters = tuple(replace(p, default=values[p.name]) for p in base.parameters)
-        needs = frozenset({"touch_times"}) if shape["variable"] == "time_s" else frozenset()
-        out.append(type(f"Loaded_{base.__name__}", (base,), {"id": shape["id"], "parameters": parameters, "needs": needs}))
+        cls = shape_class(shape, bad)
+        if any(other.id == cls.id for other in out):
+            raise bad(f"id {cls.id!r} given twice", "id")
+        out.append(cls)
     return out
+
+
+def shape_class(shape: Mapping[str, Any], bad: Callable[..., InputError]) -> type[ErrorFunction]:
+    """The effect class of one table of the shapes file (a study's chain holds the same table), at
+    its tabulated values; bad(message, key) makes the error line of a table that is not one."""
+    missing = [key for key in SHAPE_KEYS if key not in shape]
+    if missing:
+        raise bad(f"shape without {missing[0]!r}", missing[0])
+    group = shape["group"]
+    if group not in SHAPE_GROUPS:
+        raise bad(f"unknown group {group!r} (known: {', '.join(SHAPE_GROUPS)})", "group")
+    spec = SHAPE_GROUPS[group]
+    variables = ("time_s", "campaign_fraction") if spec.variable == "time" else (spec.variable,)
+    if shape["variable"] not in variables:
+        raise bad(f"unknown variable {shape['variable']!r} for group {group} (expected {' or '.join(variables)})", "variable")
+    x = _numbers(shape["x"], bad, "x")
+    if x.size < 2 or np.any(np.diff(x) <= 0):
+        raise bad("x must hold at least two knots, strictly increasing", "x")
+    components = shape["component"]
+    symbols = [s for s, _ in spec.components]
+    if not isinstance(components, list) or [c.get("symbol") if isinstance(c, dict) else None for c in components] != symbols:
+        raise bad(f"components must be {', '.join(symbols)}, in that order", "component")
+    values: dict[str, float] = {}
+    for component in components:
+        lacking = [key for key in COMPONENT_KEYS if key not in component]
+        if lacking:
+            raise bad(f"component {component['symbol']} without {lacking[0]!r}", lacking[0])
+        for key in ("value", "U"):
+            numbers = _numbers(component[key], bad, key)
+            if numbers.size != x.size:
+                raise bad(f"component {component['symbol']}: {numbers.size} {key}s for {x.size} knots", key)
+        values |= {value_name(component["symbol"], j): float(v) for j, v in enumerate(component["value"])}
+    if not isinstance(shape["id"], str) or not shape["id"]:
+        raise bad("id must be a name", "id")
+    base = error_function(group, tuple(float(v) for v in x), bool(shape["periodic"]))
+    parameters = tuple(replace(p, default=values[p.name]) for p in base.parameters)
+    needs = frozenset({"touch_times"}) if shape["variable"] == "time_s" else frozenset()
+    return type(
+        f"Loaded_{base.__name__}", (base,), {"id": shape["id"], "parameters": parameters, "needs": needs, "variable": shape["variable"]}
+    )
 
 
 def _numbers(value: Any, bad: Callable[[str, str | None], InputError], key: str) -> NDArray[np.float64]:
