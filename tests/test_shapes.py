@@ -205,3 +205,11 @@ def test_a_study_saves_the_shape_and_resumes_with_it_in_the_model(exported, tmp_
     assert all(step["added"][:1] == ["shape_b_angular"] for step in again["steps"][1:])
     assert not any(s["claimed"] and s["group"] == "b_angular" for s in again["shapes"])
     assert Diagnosis.from_json(again).to_json() == again
+
+
+def test_the_effects_command_lists_a_shapes_file_in_one_line(exported) -> None:
+    _, shapes = exported
+    done = run_cli("effects", "--effects", shapes)
+    assert done.returncode == 0, done.stderr
+    line = next(line for line in done.stdout.splitlines() if line.startswith("shape_b_angular"))
+    assert "ECB at 180 knots 0-6" in line and "ECB_001" not in line

@@ -4,6 +4,7 @@ and with a campaign, what its design lets head touches see of each (diagnosis/id
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -69,8 +70,17 @@ def _confounded(row: dict[str, Any]) -> str:
 
 
 def _parameters(row: dict[str, Any]) -> str:
-    out = []
+    out: list[str] = []
+    runs: dict[str, int] = {}  # a shape's values at its knots (ECB_000 ... ECB_179): one entry per component
     for p in row["parameters"]:
+        knot = re.fullmatch(r"(.+)_(\d{3})", p["name"])
+        if knot and p["plausible"] is not None:
+            symbol = knot.group(1)
+            if symbol in runs:
+                runs[symbol] += 1
+                out[-1] = f"{symbol} at {runs[symbol]} knots {p['plausible'][0]:g}-{p['plausible'][1]:g}"
+                continue
+            runs[symbol] = 1
         if p["name"] in row["scan"]:
             low, high, _ = row["scan"][p["name"]]
             out.append(f"{p['name']} scanned {low:g}-{high:g}")
