@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 import tomli_w
 from command_line import run_cli
+from fake_browser import open_session, wait_for
 
+from ph_explorer.app.server import build_server
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.shapes import family_test
@@ -213,3 +215,26 @@ def test_the_effects_command_lists_a_shapes_file_in_one_line(exported) -> None:
     assert done.returncode == 0, done.stderr
     line = next(line for line in done.stdout.splitlines() if line.startswith("shape_b_angular"))
     assert "ECB at 180 knots 0-6" in line and "ECB_001" not in line
+
+
+def test_serve_with_a_shapes_file_offers_the_shape_to_tick_and_refit(exported) -> None:
+    # `serve --effects shapes.toml`: the file's shape is in every browser's "Effects in the hybrid";
+    # ticked and refitted, it joins the model as in the command line's --add.
+    data, shapes = exported
+    explorer = build_server(data=data, port=0, effects=shapes)
+    try:
+        fake, session = open_session(explorer)
+        try:
+            assert "shape_b_angular" in session.physics.effects
+            session.physics.effects["shape_b_angular"].value = True
+            before = len(session.jobs)
+            fake.click("Refit the hybrid")
+            assert wait_for(lambda: len(session.jobs) > before)
+            session.wait(timeout=300)
+            assert session.loop.steps[-1].added == ("shape_b_angular",)
+            assert session.loop.steps[-1].mae_um["mean"] < session.loop.steps[0].mae_um["mean"]
+        finally:
+            session.wait(timeout=60)
+            fake.close()
+    finally:
+        explorer.stop()

@@ -203,12 +203,13 @@ class PhysicsPanel:
         self.effects = {}
         for folder, wanted in ((self.found_folder, True), (self.other_folder, False)):
             with folder:
-                for effect_id, cls in self.catalog.candidates().items():
-                    if (effect_id in found) == wanted:
+                # Every addable effect: the catalog's candidates and the shapes of a file (serve --effects shapes.toml).
+                for effect_id, cls in self.catalog.addable().items():
+                    if (effect_id in found or any(shape.id == effect_id for shape in shapes)) == wanted:
                         hint = f"{cls.name}: " + ("found by the diagnosis; " if wanted else "") + "add it to the hybrid's physical terms"
                         self.effects[effect_id] = self.gui.add_checkbox(effect_id, effect_id in ticked, hint=hint)
         with self.found_folder:
-            for shape in shapes:
+            for shape in (shape for shape in shapes if shape.id not in self.effects):
                 hint = f"a shape no catalog holds: {shape.words}; add it to the hybrid's physical terms"
                 self.effects[shape.id] = self.gui.add_checkbox(shape.id, shape.id in ticked, hint=hint)
         self.found_folder.visible = bool(found) or bool(shapes)
