@@ -179,6 +179,7 @@ class _Fit:
     joint: Design
     gain: NDArray[np.float64]  # (n_o,) in noise variances
     aliasing: float | None
+    squares: NDArray[np.float64]  # (n_o,): each ring's left-out sum of squares with it (the next group's "before")
 
 
 def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]) -> _Fit:
@@ -198,7 +199,7 @@ def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float
         mean, within = joint.apply_each(without)
         squares = ((search.residual - mean[:, None, :] - (0.0 if within is None else within)) ** 2).sum(axis=(1, 2))
     gain = (before - squares) / np.maximum(noise, 1e-300)
-    return _Fit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing)
+    return _Fit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, squares)
 
 
 def _left_out_residual(search: CandidateSearch, fit: _Fit) -> NDArray[np.float64]:
@@ -276,8 +277,11 @@ def find_shapes(
     check = ~search.train
     fixed = search.design(list(chain)) if chain else None
     out: list[Shape] = []
+    # Each ring's left-out sum of squares before the next group: the chain's (as a claim's), then
+    # with the shapes claimed, as their ridge fit left it (an unpenalised refit of hundreds of
+    # columns would overfit, and every next group would seem to gain).
+    before = ring_residual_squares(search.residual, fixed, search.targets)
     while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
-        before = ring_residual_squares(search.residual, fixed, search.targets)
         fits = {g: _fit(search, fixed, before, g, noise) for g in groups}
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         best = list(fits)[int(np.argmax(statistics))]
@@ -323,14 +327,9 @@ def find_shapes(
         out.append(shape)
         if not shape.claimed:
             break
-        fixed = fit.joint
+        fixed, before = fit.joint, fit.squares
         current = after
         groups = [g for g in groups if g != best]
         if after is None or not after.fails:
             break
     return out
-
-
-def claimed(shapes: Sequence[Shape]) -> tuple[Shape, ...]:
-    """The shapes claimed, in the order found."""
-    return tuple(s for s in shapes if s.claimed)
