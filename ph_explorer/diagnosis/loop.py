@@ -199,13 +199,13 @@ def diagnose(
         rankings.append(ranking)
     candidates = rankings[0]
     found = tuple(learnt.get(id(c), c) for c in choice.found)
-    # What is left, in the head's own variables, when the catalog does not explain it all.
-    left = signature(search, fixed=search.design(chain) if chain else None) if verdict in ("partial", "unexplained", "suggested") else []
-    # ... and a shape for it, an error function of those variables no catalog holds.
-    shapes = (
-        find_shapes(search, chain, choice.after if chain else before, seed) if verdict in ("partial", "unexplained", "suggested") else []
-    )
-    if any(shape.claimed for shape in shapes):
+    # What is left, in the head's own variables, when the catalog does not explain it all, and a
+    # shape for it: an error function of those variables no catalog holds.
+    unexplained = verdict in ("partial", "unexplained", "suggested")
+    left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
+    shapes = find_shapes(search, chain, choice.after if chain else before, seed) if unexplained else []
+    shape_effects = [shape.effect() for shape in shapes if shape.claimed]
+    if shape_effects:
         verdict = "uncatalogued"
 
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
@@ -227,8 +227,8 @@ def diagnose(
     for count in range(1, len(chosen_steps) + 1):
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_part)
         steps.append(step)
-    if add is None and any(shape.claimed for shape in shapes):  # the shapes claimed, added as one step
-        hybrid, step = add_effects(campaign, [*chosen_steps, *(shape.effect() for shape in shapes if shape.claimed)], data_part)
+    if add is None and shape_effects:  # the shapes claimed, added as one step
+        hybrid, step = add_effects(campaign, [*chosen_steps, *shape_effects], data_part)
         steps.append(step)
 
     by_scatter = before.ring_by_scatter if before is not None else np.zeros(campaign.n_orientations, dtype=bool)

@@ -47,9 +47,6 @@ class ShapeVariable:
     values: Callable[[Touches], NDArray[np.float64]]
     angle: bool = False
 
-    def available(self, touches: Touches) -> bool:
-        return self.name != "time_s" or touches.times_s is not None
-
 
 SHAPE_VARIABLES: dict[str, ShapeVariable] = {
     v.name: v

@@ -273,6 +273,11 @@ def jackknife(design: Design, targets: Design, rings: NDArray[np.int64], ridge: 
     return _ridge_coefficients(_without_rings(design, targets.first_column(), np.asarray(rings, dtype=np.intp)), ridge)
 
 
+def ridge_grid(typical: float) -> list[float]:
+    """The penalties tried, from none to strong: 1e-6 to 1 times a typical diagonal of X'X."""
+    return [0.0] + [typical * 10.0**k for k in range(-6, 1)]
+
+
 def choose_ridge(design: Design, targets: Design) -> float:
     """The ridge penalty with the least leave-one-ring-out error, from none to strong.
 
@@ -291,7 +296,7 @@ def choose_ridge(design: Design, targets: Design) -> float:
     typical = float(np.trace(gram)) / max(gram.shape[0], 1)
     left_out = _without_rings(design, target, used)  # one eigendecomposition per ring serves every penalty
     best, best_error = 0.0, np.inf
-    for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
+    for ridge in ridge_grid(typical):
         coef = _ridge_coefficients(left_out, ridge)
         fitted = np.einsum("ui,uij,uj->u", coef, ring_gram[used], coef)
         error = float(np.sum(ring_total[used] - 2.0 * np.einsum("ui,ui->u", coef, ring_dot[used]) + fitted))
@@ -337,11 +342,10 @@ class RingDeletion:
         return self.vectors @ b, without @ self.vectors.T, squares
 
     def best_ridge(self, typical: float | None = None) -> float:
-        """The penalty with the least left-out sum of squares of the first target, from none to
-        strong (the grid of choose_ridge)."""
+        """The penalty with the least left-out sum of squares of the first target (ridge_grid, as choose_ridge)."""
         typical = float(self.values.sum()) / max(self.vectors.shape[0], 1) if typical is None else typical
         best, best_error = 0.0, np.inf
-        for ridge in [0.0] + [typical * 10.0**k for k in range(-6, 1)]:
+        for ridge in ridge_grid(typical):
             try:
                 error = float(self.at(ridge)[2][:, 0].sum())
             except np.linalg.LinAlgError:  # a ring that alone determines a direction: unpredictable without a penalty
