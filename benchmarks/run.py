@@ -62,6 +62,7 @@ SECTIONS = (
     "diagnosis_calibration",
     "population",
     "population_unknown",
+    "adaptive_campaign",
     "verdict_speed",
     "deciding",
     "hidden_effects",
@@ -216,7 +217,15 @@ def run_speed(quick: bool, results: dict[str, Any], with_scale: bool) -> None:
 # imports) would cost more than they save, and the test suite runs the quick run beside its other
 # tests on the same cores.
 QUICK_WORKERS = 1
-TASK_SECTIONS = ("diagnosis_calibration", "population", "population_unknown", "hidden_effects", "uncertainty_coverage", "peers")
+TASK_SECTIONS = (
+    "diagnosis_calibration",
+    "population",
+    "population_unknown",
+    "adaptive_campaign",
+    "hidden_effects",
+    "uncertainty_coverage",
+    "peers",
+)
 LATENCY_TARGET_MS = 50.0
 SERVER_TARGET_MS = 2.0
 
@@ -242,6 +251,12 @@ def run_task_sections(
 
         with section("population: effects no catalog holds", "population_unknown", results):
             results["population_unknown"] = unknown_population.run(client, quick=quick, log=log, **(unknown or {}))
+    if "adaptive_campaign" in sections:
+        # measure until you know: the adaptive campaign against the full one, same heads (issue 58)
+        from benchmarks import adaptive
+
+        with section("adaptive campaign", "adaptive_campaign", results):
+            results["adaptive_campaign"] = adaptive.run(client, quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         from benchmarks import hidden_effects

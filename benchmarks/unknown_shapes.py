@@ -28,7 +28,8 @@ from ph_explorer.geometry import wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.twin.random_heads import design_of, random_campaign
+from ph_explorer.twin import Scenario
+from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
 
 VISIBILITY = (1.0, 3.0)  # the shape's out-of-sample rms at the check rings, in noise floors (vs the mean)
 
@@ -330,6 +331,7 @@ class UnknownHead:
     campaign: Campaign
     family: str
     truth: dict[str, Any]  # the unknown shape's id and parameters, its visibility, its catalog companion (on top)
+    scenario: Scenario | None = None  # the head, to measure it at other rings (benchmarks/adaptive.py)
 
 
 def unknown_shape_head(seed: int, family: str | None = None, design: str | None = None) -> UnknownHead:
@@ -360,5 +362,5 @@ def unknown_shape_head(seed: int, family: str | None = None, design: str | None 
             companion, strength = catalog_companion(head, rng, drawn_design)
             hidden.append(companion)
             truth["catalog"] = {"id": companion.id, **companion.params, "strength": strength}
-        return UnknownHead(random_campaign(head, drawn_design, hidden), family, truth)
+        return UnknownHead(random_campaign(head, drawn_design, hidden), family, truth, random_head(head, drawn_design, hidden))
     raise RuntimeError(f"no {cls.family} shape is visible at a plausible size on seed {seed} nor its replacements")

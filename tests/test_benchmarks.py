@@ -119,6 +119,7 @@ QUICK_GROUPS = {
     "hidden_effects": ("hidden_effects", "uncertainty_coverage"),
     "large_campaign": ("large_campaign",),
     "fleet": ("fleet",),
+    "adaptive": ("adaptive_campaign",),
 }
 PLOTS = {"data_efficiency": "data_efficiency.png", "speed": "speed.png", "diagnosis_calibration": "calibration.png", "peers": "peers.png"}
 
@@ -363,7 +364,21 @@ def check_population_unknown(results: dict) -> None:
     assert unknown["errors"] == [] and unknown["commit"] and unknown["targets"]["none_max"] == 0.10
 
 
+def check_adaptive_campaign(results: dict) -> None:
+    """Issue 58: one head of each kind measured adaptively and in full, judged on the same rings."""
+    adaptive = results["adaptive_campaign"]
+    assert adaptive["mode"] == "quick" and adaptive["commit"] and adaptive["targets"]["median_rings_max"] == 20
+    for kind in ("healthy", "catalog_effect", "unknown_shape"):
+        figures = adaptive[kind]
+        assert figures["heads"] == 1 and figures["rings"]["median"] >= 10 and figures["full_rings"]["median"] > figures["rings"]["median"]
+        assert figures["minutes"]["median"] < figures["full_minutes"]["median"]
+        for key in ("stopped", "mae_within_ratio", "verdict_agreement", "claims_agreement", "claims_in_head"):
+            assert figures[key]["of"] == 1 and len(figures[key]["ci95"]) == 2, key
+        assert figures["mae_ratio_median"] > 0 and figures["adaptive_over_floor_median"] > 0
+
+
 CHECKS = {
+    "adaptive_campaign": check_adaptive_campaign,
     "population_unknown": check_population_unknown,
     "data_efficiency": check_data_efficiency,
     "speed": check_speed,
@@ -394,6 +409,7 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
     import contextlib
 
     from benchmarks import (
+        adaptive,
         calibration,
         deciding,
         fleet,
@@ -416,6 +432,7 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
         return ran
 
     for module, name in [
+        (adaptive, "adaptive_campaign"),
         (calibration, "diagnosis_calibration"),
         (population, "population"),
         (unknown_population, "population_unknown"),

@@ -11,6 +11,7 @@ rings). Method: docs/methods/deciding.md.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -258,9 +259,10 @@ def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple
     return [], each_ring, power
 
 
-def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, budget: int) -> Decision:
-    """Up to `budget` new rings that decide the diagnosis's questions (module docstring)."""
-    asked = questions_of(result, catalog)
+def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, budget: int, skip: Collection[str] = ()) -> Decision:
+    """Up to `budget` new rings that decide the diagnosis's questions (module docstring), but those
+    labelled in `skip` (asked before, their rings measured: an adaptive campaign asks once)."""
+    asked = [q for q in questions_of(result, catalog) if q.label not in skip]
     if not asked:
         note = "nothing to decide: every claimed candidate is told from its partners, none is only suggested"
         return Decision([], {}, 0.0, note=note, budget=budget)

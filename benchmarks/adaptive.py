@@ -1,0 +1,186 @@
+"""The adaptive campaign against the full one, over the population's heads (issue 58).
+
+Each head is one of the population's (benchmarks/population.py: healthy and catalog-effect heads of
+their seeds; benchmarks/unknown_population.py: unknown-shape heads, the families in turn). On its
+twin, ph_explorer.planning.adaptive runs plan, measure, diagnose, next until a plan stops (no
+budget: it stops when it knows, or when no lattice ring is left to add). The full paper-style
+campaign of the same head is what the population diagnosed. Both are judged on EVALUATION_RINGS
+rings of their own: drawn from the head's seed off both campaigns' grids (A0 not a multiple of 5
+deg), measured at EVALUATION_REPETITIONS repetitions after the campaign. Per kind, with 95 %
+intervals:
+
+- rings and minutes at the machine to the stop (median, 90th percentile), and the full campaign's;
+- the evaluation rings' MAE against their mean at the stop (the last diagnosis's hybrid, or its
+  data part when it found nothing) over the full campaign's trilinear model's: the share of heads
+  at most 1.1x (the issue's target: >= 90 %), and the median ratio; each against the floor;
+- the verdict at the stop against the full campaign's (the same word), the same claims, and
+  claims in the head (every effect claimed is one the head holds: its background's or the hidden one;
+  a sparse campaign's data part interpolates less of the background, whose effects then show).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from benchmarks.calibration import code_version, commit, rate
+from benchmarks.population import FIRST_SEED, head_of
+from benchmarks.unknown_population import FIRST_SEED as UNKNOWN_SEED
+from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
+from ph_explorer import metrics
+from ph_explorer.campaign import orientation_match
+from ph_explorer.diagnosis import diagnose
+from ph_explorer.models.hybrid import HybridModel
+from ph_explorer.models.trilinear import TrilinearModel
+from ph_explorer.planning.adaptive import adaptive_campaign
+from ph_explorer.task_runner import run_tasks
+from ph_explorer.twin import simulate
+from ph_explorer.twin.random_heads import random_campaign
+
+if TYPE_CHECKING:
+    from dask.distributed import Client
+
+COUNT, QUICK_COUNT = 100, 1  # heads of each kind
+KINDS = ("healthy", "catalog_effect", "unknown_shape")
+EVALUATION_RINGS, EVALUATION_REPETITIONS = 10, 10
+RECORDS = Path(__file__).with_name("adaptive_records.json")
+TARGETS = {"median_rings_max": 20, "mae_ratio": 1.1, "mae_within_ratio_min": 0.90, "verdict_agreement_min": 0.90}
+
+
+def head(job: dict[str, Any]) -> tuple[Any, Any]:
+    """(the head's scenario, its full campaign as the population diagnosed it)."""
+    if job["kind"] == "unknown_shape":
+        unknown = unknown_shape_head(job["seed"], job["family"])
+        return unknown.scenario, unknown.campaign
+    scenario, truth = head_of({"group": "healthy" if job["kind"] == "healthy" else "catalog_effect", "seed": job["seed"]})
+    seed = job["seed"] if truth is None else truth["head_seed"]
+    return scenario, random_campaign(seed, None, scenario.effects[-1:] if truth is not None else ())
+
+
+def evaluation_rings(seed: int, known: np.ndarray) -> np.ndarray:
+    """EVALUATION_RINGS reachable orientations off every grid the campaigns use (A0 not a multiple
+    of 5 deg, B0 not of 10 deg), none measured by the full campaign."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 58]))
+    out: list[list[float]] = []
+    while len(out) < EVALUATION_RINGS:
+        a, b = float(rng.integers(3, 88)), float(rng.integers(-179, 180))
+        if a % 5 == 0 or b % 10 == 0 or orientation_match(np.array([[a, b]]), known).any() or [a, b] in out:
+            continue
+        out.append([a, b])
+    return np.array(out)
+
+
+def mae_vs_mean(model: Any, rings: np.ndarray, mean: np.ndarray) -> float:
+    return float(np.mean(np.abs(model.predict(rings, mean.shape[-1]) - mean)))
+
+
+def one_head(job: dict[str, Any]) -> dict[str, Any]:
+    """The head's adaptive campaign and its full one, judged on the same evaluation rings."""
+    scenario, full = head(job)
+    rings = evaluation_rings(job["seed"], full.orientations)
+    after = replace(scenario.at_rings(rings), repetitions=EVALUATION_REPETITIONS)
+    evaluation = simulate(after)
+    mean = evaluation.deviations.mean(axis=1)
+    floor = metrics.noise_floor(evaluation.noise_sigma_um(), EVALUATION_REPETITIONS)["mean"]
+    started = time.perf_counter()
+    full_result = diagnose(full, nested=False)
+    full_seconds = time.perf_counter() - started
+    trilinear = TrilinearModel().fit(full, ~full.holdout_mask())
+    started = time.perf_counter()
+    run = adaptive_campaign(scenario)
+    adaptive_seconds = time.perf_counter() - started
+    last = run.results[-1]
+    model = last.hybrid or HybridModel([]).fit(run.campaign, ~run.campaign.holdout_mask())
+    return {
+        **job,
+        "full": {
+            "rings": full.n_orientations,
+            "minutes": round(float(np.ptp(scenario.times_s())) / 60.0, 1),  # at the head's cadence, times in its CSV or not
+            "verdict": full_result.verdict,
+            "found": sorted(c.effect for c in full_result.found),
+            "trilinear_mae_um": round(mae_vs_mean(trilinear, rings, mean), 5),
+            "seconds": round(full_seconds, 2),
+        },
+        "adaptive": {
+            "rings": run.campaign.n_orientations,
+            "check_rings": int(run.campaign.holdout_mask().sum()),
+            "plans": len(run.plans),
+            "minutes": round(run.plans[-1].spent_minutes, 1),
+            "stopped": run.stopped,
+            "reason": run.plans[-1].reason,
+            "verdict": last.verdict,
+            "found": sorted(c.effect for c in last.found),
+            "mae_um": round(mae_vs_mean(model, rings, mean), 5),
+            "rings_by_plan": [len(p.rings) for p in run.plans],
+            "seconds": round(adaptive_seconds, 2),
+        },
+        "floor_um": round(float(floor), 5),
+        "in_head": sorted({effect.id for effect in scenario.effects}),
+    }
+
+
+def jobs(count: int) -> list[dict[str, Any]]:
+    families = list(FAMILIES)
+    out = [{"kind": "healthy", "seed": FIRST_SEED["healthy"] + i} for i in range(count)]
+    out += [{"kind": "catalog_effect", "seed": FIRST_SEED["catalog_effect"] + i} for i in range(count)]
+    out += [{"kind": "unknown_shape", "seed": UNKNOWN_SEED + i, "family": families[i % len(families)]} for i in range(count)]
+    return out
+
+
+def quantile(values: list[float], q: float) -> float:
+    return round(float(np.quantile(values, q)), 1) if values else float("nan")
+
+
+def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for kind in KINDS:
+        group = [r for r in records if r["kind"] == kind and "adaptive" in r]
+        if not group:
+            continue
+        rings = [r["adaptive"]["rings"] for r in group]
+        minutes = [r["adaptive"]["minutes"] for r in group]
+        ratio = [r["adaptive"]["mae_um"] / r["full"]["trilinear_mae_um"] for r in group]
+        out[kind] = {
+            "heads": len(group),
+            "rings": {"median": quantile(rings, 0.5), "p90": quantile(rings, 0.9)},
+            "minutes": {"median": quantile(minutes, 0.5), "p90": quantile(minutes, 0.9)},
+            "full_rings": {"median": quantile([r["full"]["rings"] for r in group], 0.5)},
+            "full_minutes": {"median": quantile([r["full"]["minutes"] for r in group], 0.5)},
+            "stopped": rate(sum(r["adaptive"]["stopped"] for r in group), len(group)),
+            "mae_within_ratio": rate(sum(x <= TARGETS["mae_ratio"] for x in ratio), len(group)),
+            "mae_ratio_median": round(float(np.median(ratio)), 3),
+            "adaptive_over_floor_median": round(float(np.median([r["adaptive"]["mae_um"] / r["floor_um"] for r in group])), 3),
+            "trilinear_over_floor_median": round(float(np.median([r["full"]["trilinear_mae_um"] / r["floor_um"] for r in group])), 3),
+            "verdict_agreement": rate(sum(r["adaptive"]["verdict"] == r["full"]["verdict"] for r in group), len(group)),
+            "claims_agreement": rate(sum(r["adaptive"]["found"] == r["full"]["found"] for r in group), len(group)),
+            # a claim of an effect the head holds (its background's or the one hidden in it) is no false claim
+            "claims_in_head": rate(sum(set(r["adaptive"]["found"]) <= set(r["in_head"]) for r in group), len(group)),
+        }
+    return out
+
+
+def run(client: Client, quick: bool = False, log: Callable[[str], None] = print, count: int | None = None) -> dict[str, Any]:
+    """The heads as tasks on the client's workers; the results["adaptive_campaign"] object."""
+    started = time.perf_counter()
+    code, checkout = code_version(), commit()
+    todo = jobs(count or (QUICK_COUNT if quick else COUNT))
+    log(f"  {len(todo)} heads, each measured adaptively and in full, on {len(client.scheduler_info()['workers'])} workers")
+    records = run_tasks(client, one_head, todo).results
+    if not quick:  # each head's record beside results.json (the quick run keeps the last full run's)
+        RECORDS.write_text(json.dumps({"code_sha256": code, "records": records}, separators=(",", ":")) + "\n")
+    return {
+        "mode": "quick" if quick else "full",
+        "code_sha256": code,
+        "commit": checkout,
+        "targets": TARGETS,
+        "evaluation": {"rings": EVALUATION_RINGS, "repetitions": EVALUATION_REPETITIONS},
+        **figures(records),
+        "records": RECORDS.name,
+        "run_seconds": round(time.perf_counter() - started, 1),
+    }

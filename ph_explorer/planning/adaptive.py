@@ -1,0 +1,375 @@
+"""Measure until you know: the first rings of a head one knows nothing about, the next rings from
+what its diagnosis leaves open, and a stated reason to stop.
+
+- First rings (`first_rings`): START_RINGS lattice rings designed for the catalog's effects and
+  the data part (planning.ring_design), START_CHECK_RINGS check rings off the lattice as far as
+  possible from them and from each other, each ring measured `repetitions_for(sigma)` times.
+- Next rings (`next_rings`), in this order: the rings that decide what the diagnosis leaves open
+  (planning.deciding: an untold pair, a suggestion to confirm), measured as check rings; lattice
+  rings where the data part is farthest from every measured ring (its band is widest there); and
+  fresh check rings where the model has not been tested.
+- Stop when you know: the verdict is `none` or `missing` (every claim replicated over rings, the
+  model within noise at its rings and at its check rings as a group), no ring decides a question
+  left open (a question asked once, its rings measured, and still open is one no ring decides), no
+  ring is named as measured badly, and what the model misses at the check rings is within the
+  tolerance (unseen_error_um, its 95 % upper bound); else at the budget, or when no lattice ring
+  is left to add.
+
+Time at the machine: a ring is its repetitions of n touches plus a move each (Cadence; the
+campaign's own median ring when it has touch times). Method: docs/planning.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy import stats
+
+from ph_explorer.campaign import Campaign, orientation_keys, orientation_label, orientation_match
+from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog
+from ph_explorer.errors import InputError
+from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
+from ph_explorer.kinematics import campaign_touches
+from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.hybrid import HybridModel
+from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
+from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations, distinct_rings, propose_rings
+from ph_explorer.twin import Scenario, simulate
+
+START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
+START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
+NEXT_DATA_RINGS = 3  # lattice rings a step adds for the data part
+NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
+CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off the lattice
+# Repetitions: enough that a ring's mean curve holds at most MEAN_NOISE_UM of touch noise (1 sigma),
+# and at least MIN_REPETITIONS (two estimate the noise; a third lets the test of the scatter between
+# repetitions see drift). The paper's 10 buy a floor sqrt(10/4) = 1.6x lower at 2.5x the time.
+MEAN_NOISE_UM = 0.1
+MIN_REPETITIONS = 3
+PAPER_REPETITIONS = 10  # the paper's: what the model misses at an unseen ring may be what its ring mean could not see
+TP20_SIGMA_UM = 0.175  # the TP20's repeatability per touch, 1 sigma (docs/twin.md)
+
+
+@dataclass(frozen=True)
+class Cadence:
+    """How long the machine takes: seconds per touch and per move between circles (the twin's defaults)."""
+
+    touch_s: float = 2.0
+    move_s: float = 8.0
+
+    def ring_minutes(self, repetitions: int, n_points: int) -> float:
+        """Minutes of one ring: its repetitions of n_points touches, a move before each."""
+        return repetitions * (n_points * self.touch_s + self.move_s) / 60.0
+
+
+@dataclass(frozen=True)
+class PlannedRing:
+    """A ring to measure and why; check rings are held out of every fit."""
+
+    a_deg: float
+    b_deg: float
+    reason: str
+    check: bool
+
+    def to_json(self) -> dict[str, Any]:
+        return {"A_deg": self.a_deg, "B_deg": self.b_deg, "reason": self.reason, "check": self.check}
+
+
+@dataclass(frozen=True)
+class Plan:
+    """The rings to measure next (in this order), or the reason to stop, and the time they take."""
+
+    rings: tuple[PlannedRing, ...]
+    stop: bool
+    reason: str
+    minutes: float  # at the machine, for these rings
+    repetitions: int
+    measured_rings: int = 0
+    spent_minutes: float = 0.0  # at the machine so far
+    budget_minutes: float | None = None
+    verdict: str | None = None  # the diagnosis the plan answers (None: no data yet)
+    questions: tuple[str, ...] = ()  # what its rings that decide are to decide (planning.deciding)
+    unseen_um: tuple[float, float, float] | None = None  # missed at unseen rings: estimate, 95 % upper, tolerance
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "rings": [ring.to_json() for ring in self.rings],
+            "stop": self.stop,
+            "reason": self.reason,
+            "minutes": round(self.minutes, 1),
+            "repetitions": self.repetitions,
+            "measured_rings": self.measured_rings,
+            "spent_minutes": round(self.spent_minutes, 1),
+            "budget_minutes": self.budget_minutes,
+            "verdict": self.verdict,
+            "questions": list(self.questions),
+            "unseen_error_um": None if self.unseen_um is None else dict(zip(("estimate", "upper95", "tolerance"), self.unseen_um)),
+        }
+
+    def lines(self) -> list[str]:
+        """The plan in words: the head line, one line a ring, the time."""
+        so_far = f" after {self.measured_rings} rings ({self.spent_minutes:.0f} min)" if self.measured_rings else ""
+        if self.stop:
+            return [f"stop{so_far}: {self.reason}"]
+        head = f"measure {len(self.rings)} rings{so_far}, {self.repetitions} repetitions each, in this order: {self.reason}"
+        rings = [
+            f"{k:>3}. {orientation_label(r.a_deg, r.b_deg):<12} {'check' if r.check else 'fit  '}  {r.reason}"
+            for k, r in enumerate(self.rings, start=1)
+        ]
+        budget = "" if self.budget_minutes is None else f" of a budget of {self.budget_minutes:g}"
+        return [head, *rings, f"about {self.minutes:.0f} minutes at the machine ({self.spent_minutes + self.minutes:.0f}{budget} in all)"]
+
+
+def repetitions_for(sigma_um: float) -> int:
+    """Repetitions per ring for a probe of this repeatability (module docstring)."""
+    if not (math.isfinite(sigma_um) and sigma_um > 0):
+        raise InputError(f"must be a positive number of um, got {sigma_um!r}", option="--sigma-um")
+    return max(MIN_REPETITIONS, math.ceil((sigma_um / MEAN_NOISE_UM) ** 2 - 1e-9))
+
+
+def _angles_deg(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Angles (deg) between the stylus directions of orientations a (n, 2) and b (m, 2): (n, m)."""
+    da, db = stylus_direction(a[:, 0], a[:, 1]), stylus_direction(b[:, 0], b[:, 1])
+    return np.degrees(np.arccos(np.clip(da @ db.T, -1.0, 1.0)))
+
+
+def check_rings(known: NDArray[np.float64], count: int, geometry: Geometry) -> NDArray[np.float64]:
+    """`count` reachable rings off the lattice, each as far (in stylus direction) from every ring
+    known and chosen before it as the pool allows: the model is tested where it has not been."""
+    pool = candidate_orientations(geometry, CHECK_A_STEP_DEG, CHECK_B_STEP_DEG)
+    on_lattice = np.isclose(np.mod(pool[:, 0], A_STEP_DEG), 0.0) & np.isclose(np.mod(pool[:, 1], B_STEP_DEG), 0.0)
+    pool = pool[~on_lattice & (pool[:, 0] > 0)]
+    nearest = _angles_deg(pool, known).min(axis=1) if len(known) else np.full(len(pool), 180.0)
+    chosen: list[int] = []
+    for _ in range(min(count, len(pool))):
+        pick = int(np.argmax(nearest))
+        chosen.append(pick)
+        nearest = np.minimum(nearest, _angles_deg(pool, pool[pick : pick + 1])[:, 0])
+    return pool[chosen]
+
+
+def first_rings(
+    budget_minutes: float | None = None,
+    geometry: Geometry = DEFAULT_GEOMETRY,
+    sigma_um: float = TP20_SIGMA_UM,
+    cadence: Cadence = Cadence(),
+    catalog: Catalog = DEFAULT_CATALOG,
+) -> Plan:
+    """The first rings of a head one knows nothing about (module docstring); InputError when they
+    do not fit the budget."""
+    repetitions = repetitions_for(sigma_um)
+    design = propose_rings(START_RINGS, geometry=geometry, catalog=catalog.values()).orientations
+    checks = check_rings(design, START_CHECK_RINGS, geometry)
+    minutes = (len(design) + len(checks)) * cadence.ring_minutes(repetitions, geometry.points_per_circle)
+    if budget_minutes is not None and minutes > budget_minutes:
+        raise InputError(
+            f"{budget_minutes:g} minutes is less than the first {len(design)} rings and {len(checks)} check rings take "
+            f"at {repetitions} repetitions ({minutes:.0f} min)",
+            option="--budget-minutes",
+        )
+    rings = [
+        PlannedRing(float(a), float(b), "designed: the catalog's effects identifiable, the data part covered", False) for a, b in design
+    ]
+    rings += [PlannedRing(float(a), float(b), "check ring: tests the model where no ring is near", True) for a, b in checks]
+    reason = "the first rings of a head nothing is known about"
+    return Plan(tuple(rings), False, reason, minutes, repetitions, budget_minutes=budget_minutes)
+
+
+def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Up to `count` lattice rings for the data part, each the node farthest (in stylus direction)
+    from every ring measured or planned: (orientations, their distances, deg).
+
+    The lattice must keep every training ring (campaign.lattice_axes keeps an A or B value shared
+    by at least half as many rings as the most common one): a node is taken at a B value no
+    training ring holds (a second ring at one B would drop every B held once), and a node in an A
+    row none holds comes with a second one in that row."""
+    train = campaign.orientations[~campaign.holdout_mask()]
+    nodes = distinct_rings(candidate_orientations(campaign.geometry), np.concatenate([campaign.orientations, taken]))
+    nodes = nodes[nodes[:, 0] > 0]
+    b_key = orientation_keys(np.mod(nodes[:, 1] + 180.0, 360.0))
+    free = ~np.isin(b_key, orientation_keys(np.mod(train[:, 1] + 180.0, 360.0)))
+    rows = set(orientation_keys(train[:, 0]).tolist())
+    known = np.concatenate([campaign.orientations, taken])
+    nearest = _angles_deg(nodes, known).min(axis=1)
+    chosen: list[int] = []
+    while len(chosen) < count and free.any():
+        pick = int(np.flatnonzero(free)[np.argmax(nearest[free])])
+        row = orientation_keys(nodes[pick : pick + 1, 0])[0]
+        partners = np.flatnonzero(free & (orientation_keys(nodes[:, 0]) == row) & (b_key != b_key[pick]))
+        if row not in rows and (not partners.size or len(chosen) + 2 > max(count, 2)):
+            free[pick] = False  # a new row needs two rings: none to pair it with, or no room for both
+            continue
+        for k in [pick] if row in rows else [pick, int(partners[np.argmax(nearest[partners])])]:
+            chosen.append(k)
+            free &= b_key != b_key[k]
+            nearest = np.minimum(nearest, _angles_deg(nodes, nodes[k : k + 1])[:, 0])
+        rows.add(row)
+    distance = _angles_deg(nodes[chosen], known).min(axis=1) if chosen else np.zeros(0)
+    return nodes[chosen], distance
+
+
+def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float]:
+    """What the diagnosed model misses at rings it never saw, in um rms: at each check ring, the
+    mean square of its repetition mean's residual less what touch noise puts there (sigma^2 / R for
+    the ring, and for the rings the data part predicts it from, times their weights' squares);
+    the mean over check rings and its one-sided 95 % upper bound (a t quantile over the rings)."""
+    held_out = np.flatnonzero(campaign.holdout_mask())
+    model = result.hybrid or HybridModel([]).fit(campaign, ~campaign.holdout_mask())
+    checks = campaign.subset(held_out)
+    residual = (checks.deviations - model.predict_touches(campaign_touches(checks))).mean(axis=1)
+    # The touch noise in a residual: the ring's own mean's, and that of the training rings' means the
+    # data part predicts it from (their weights' squares).
+    neighbours = (OutOfSampleSmoother(campaign.orientations, ~campaign.holdout_mask()).weights[held_out] ** 2).sum(axis=1)
+    excess = (residual**2).mean(axis=1) - (1.0 + neighbours) * campaign.noise_sigma_um() ** 2 / campaign.n_repetitions
+    mean = float(excess.mean())
+    error = float(excess.std(ddof=1) / math.sqrt(excess.size)) if excess.size > 1 else math.inf
+    upper = mean + float(stats.t.ppf(0.95, max(excess.size - 1, 1))) * error
+    return math.sqrt(max(mean, 0.0)), math.sqrt(max(upper, 0.0))
+
+
+def campaign_minutes(campaign: Campaign, cadence: Cadence = Cadence()) -> float:
+    """Minutes at the machine the campaign took: its first touch to its last (with touch times),
+    else its rings at the cadence."""
+    if campaign.times_s is not None:
+        return float(campaign.times_s.max() - campaign.times_s.min()) / 60.0
+    return campaign.n_orientations * cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
+
+
+def next_rings(
+    campaign: Campaign,
+    result: Diagnosis,
+    budget_minutes: float | None = None,
+    catalog: Catalog = DEFAULT_CATALOG,
+    cadence: Cadence = Cadence(),
+    asked: Collection[str] = (),
+    tolerance_um: float | None = None,
+) -> Plan:
+    """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the
+    questions earlier plans asked (Plan.questions): their rings are measured, and a question they
+    did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
+    unseen rings (default: the touch noise of a PAPER_REPETITIONS-repetition ring mean)."""
+    spent = campaign_minutes(campaign, cadence)
+    per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
+    sigma = campaign.noise_sigma_um()
+    tolerance = tolerance_um if tolerance_um is not None else sigma / math.sqrt(PAPER_REPETITIONS)
+    unseen, unseen_upper = unseen_error_um(campaign, result)
+    decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET, skip=asked)
+    done: dict[str, Any] = {"repetitions": campaign.n_repetitions, "measured_rings": campaign.n_orientations, "spent_minutes": spent}
+    done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(decision.questions)}
+    done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
+    known_well = unseen_upper <= tolerance
+    if result.verdict in ("none", "missing") and not decision.rings and not result.suspect_rings and known_well:
+        left = questions_of(result, catalog)
+        settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
+        claims = "every claim replicated over rings" if result.found else "no effect beyond noise"
+        reason = (
+            f"you know: {claims}; {settled}; at unseen rings the model misses {unseen:.3f} um "
+            f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
+        )
+        return Plan((), True, reason, 0.0, **done)
+    # A ring named as measured badly is measured again first, in its role (it replaces the old one).
+    held_out = campaign.holdout_mask()
+    again = [
+        PlannedRing(s.a_deg, s.b_deg, f"measured badly ({s.reason}, {s.ratio:.1f}x its floor): measure it again", bool(held_out[k]))
+        for s in result.suspect_rings
+        for k in np.flatnonzero(orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1))[:1]
+    ]
+    suspect = np.array([[r.a_deg, r.b_deg] for r in again]).reshape(-1, 2)
+    rings = again + [
+        PlannedRing(r["A_deg"], r["B_deg"], r["reason"], True)
+        for r in decision.rings
+        if not orientation_match(np.array([[r["A_deg"], r["B_deg"]]]), suspect).any()
+    ]
+    planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
+    data, distance = data_rings(campaign, NEXT_DATA_RINGS, planned)
+    if not len(data) and not rings:
+        reason = (
+            f"no lattice ring is left to add (a ring a B value, as the trilinear's lattice keeps them) and no ring decides "
+            f"what is open: the verdict stays {result.verdict}; at unseen rings the model misses {unseen:.3f} um "
+            f"(95 % up to {unseen_upper:.3f} um, the tolerance {tolerance:.3f} um)"
+        )
+        return Plan((), True, reason, 0.0, **done)
+    rings += [
+        PlannedRing(float(a), float(b), f"the data part's widest gap: {near:.0f} deg from the nearest ring", False)
+        for (a, b), near in zip(data, distance)
+    ]
+    known = np.concatenate([campaign.orientations, np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)])
+    rings += [
+        PlannedRing(float(a), float(b), "a fresh check ring: the model where it has not been tested", True)
+        for a, b in check_rings(known, NEXT_CHECK_RINGS, campaign.geometry)
+    ]
+    if budget_minutes is not None:
+        affordable = int(max(budget_minutes - spent, 0.0) // per_ring)
+        if affordable == 0:
+            return Plan((), True, f"the budget: {spent:.0f} of {budget_minutes:g} minutes spent, the verdict {result.verdict}", 0.0, **done)
+        rings = rings[:affordable]
+    if result.verdict not in ("none", "missing"):
+        why = f"the verdict is {result.verdict}"
+    elif decision.rings or again:
+        why = "questions left open" if decision.rings else "a ring measured badly"
+    else:
+        why = f"at unseen rings the model misses up to {unseen_upper:.3f} um (95 %), more than the tolerance {tolerance:.3f} um"
+    return Plan(tuple(rings), False, why, len(rings) * per_ring, **done)
+
+
+@dataclass(frozen=True)
+class AdaptiveRun:
+    """A closed loop on the twin: each plan, the diagnosis that answered it, and the last campaign."""
+
+    plans: tuple[Plan, ...]
+    results: tuple[Diagnosis, ...]  # results[k] answers plans[k] (the last plan is the stop or the step cap)
+    campaign: Campaign
+
+    @property
+    def stopped(self) -> bool:
+        return self.plans[-1].stop
+
+
+def measured_plan(scenario: Scenario, plan: Plan, after: Scenario | None = None) -> tuple[Scenario, Campaign]:
+    """The twin's head measured at the plan's rings, after the last touch of `after` (a scenario
+    measured before), its check rings named as check orientations: (its scenario, its campaign)."""
+    rings = np.array([[r.a_deg, r.b_deg] for r in plan.rings])
+    checks = np.array([[r.a_deg, r.b_deg] for r in plan.rings if r.check]).reshape(-1, 2)
+    measured = replace((after or scenario).at_rings(rings), repetitions=plan.repetitions, check_orientations=checks)
+    if after is None:
+        measured = replace(measured, start_s=0.0)
+    return measured, simulate(measured)
+
+
+def adaptive_campaign(
+    scenario: Scenario,
+    budget_minutes: float | None = None,
+    catalog: Catalog = DEFAULT_CATALOG,
+    max_plans: int = 12,
+    sigma_um: float = TP20_SIGMA_UM,
+    diagnose: Callable[[Campaign], Diagnosis] | None = None,
+    progress: Callable[[Plan, Diagnosis], None] | None = None,
+) -> AdaptiveRun:
+    """Plan, measure on the twin, diagnose, plan the next, until a plan stops (or max_plans)."""
+    from ph_explorer.diagnosis import diagnose as run_diagnosis
+    from ph_explorer.io.merge import merged_campaign
+
+    judge = diagnose or (lambda campaign: run_diagnosis(campaign, catalog=catalog, nested=False))
+    cadence = Cadence(scenario.touch_s, scenario.move_s)
+    plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog)
+    last, campaign = measured_plan(scenario, plan)
+    plans: list[Plan] = [plan]
+    results: list[Diagnosis] = []
+    while True:
+        result = judge(campaign)
+        results.append(result)
+        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, asked=[q for p in plans for q in p.questions])
+        plans.append(plan)
+        if progress is not None:
+            progress(plan, result)
+        if plan.stop or len(plans) > max_plans:
+            break
+        last, more = measured_plan(scenario, plan, last)
+        campaign = merged_campaign(campaign, more, replace=True)[0]  # a ring measured again replaces the old one
+    return AdaptiveRun(tuple(plans), tuple(results), campaign)
