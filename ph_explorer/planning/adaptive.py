@@ -3,7 +3,7 @@ what its diagnosis leaves open, and a stated reason to stop.
 
 - First rings (`first_rings`): START_RINGS lattice rings designed for the catalog's effects and
   the data part (planning.ring_design), START_CHECK_RINGS check rings off the lattice as far as
-  possible from them and from each other, each ring measured `repetitions_for(sigma)` times.
+  possible from them and from each other, each ring measured `repetitions_for(sigma, tolerance)` times.
 - Next rings (`next_rings`), in this order: the rings that decide what the diagnosis leaves open
   (planning.deciding: an untold pair, a suggestion to confirm), measured as check rings; lattice
   rings where the data part is farthest from every measured ring (its band is widest there); and
@@ -47,10 +47,11 @@ START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out
 NEXT_DATA_RINGS = 3  # lattice rings a step adds for the data part
 NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
 CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off the lattice
-# Repetitions: enough that a ring's mean curve holds at most MEAN_NOISE_UM of touch noise (1 sigma),
-# and at least MIN_REPETITIONS (two estimate the noise; a third lets the test of the scatter between
-# repetitions see drift). The paper's 10 buy a floor sqrt(10/4) = 1.6x lower at 2.5x the time.
-MEAN_NOISE_UM = 0.1
+# The tolerance: what the model may miss at a ring it never saw, um rms. By default the touch noise
+# of a PAPER_REPETITIONS-repetition ring mean: the model then predicts an unseen ring as well as the
+# paper's campaign measures it. Each ring is measured so that its mean holds no more noise than the
+# tolerance (at least MIN_REPETITIONS: two estimate the noise, a third lets the test of the scatter
+# between repetitions see drift); the rings then buy what repetitions cannot.
 MIN_REPETITIONS = 3
 PAPER_REPETITIONS = 10  # the paper's: what the model misses at an unseen ring may be what its ring mean could not see
 TP20_SIGMA_UM = 0.175  # the TP20's repeatability per touch, 1 sigma (docs/twin.md)
@@ -126,11 +127,18 @@ class Plan:
         return [head, *rings, f"about {self.minutes:.0f} minutes at the machine ({self.spent_minutes + self.minutes:.0f}{budget} in all)"]
 
 
-def repetitions_for(sigma_um: float) -> int:
-    """Repetitions per ring for a probe of this repeatability (module docstring)."""
-    if not (math.isfinite(sigma_um) and sigma_um > 0):
-        raise InputError(f"must be a positive number of um, got {sigma_um!r}", option="--sigma-um")
-    return max(MIN_REPETITIONS, math.ceil((sigma_um / MEAN_NOISE_UM) ** 2 - 1e-9))
+def default_tolerance_um(sigma_um: float) -> float:
+    """What the model may miss at an unseen ring by default: the noise of a paper-style ring mean."""
+    return sigma_um / math.sqrt(PAPER_REPETITIONS)
+
+
+def repetitions_for(sigma_um: float, tolerance_um: float | None = None) -> int:
+    """Repetitions per ring for a probe of this repeatability: its ring mean's noise within the tolerance."""
+    for value, option in ((sigma_um, "--sigma-um"), (tolerance_um, "--tolerance-um")):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"must be a positive number of um, got {value!r}", option=option)
+    tolerance = default_tolerance_um(sigma_um) if tolerance_um is None else tolerance_um
+    return max(MIN_REPETITIONS, math.ceil((sigma_um / tolerance) ** 2 - 1e-9))
 
 
 def _angles_deg(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -160,10 +168,11 @@ def first_rings(
     sigma_um: float = TP20_SIGMA_UM,
     cadence: Cadence = Cadence(),
     catalog: Catalog = DEFAULT_CATALOG,
+    tolerance_um: float | None = None,
 ) -> Plan:
     """The first rings of a head one knows nothing about (module docstring); InputError when they
     do not fit the budget."""
-    repetitions = repetitions_for(sigma_um)
+    repetitions = repetitions_for(sigma_um, tolerance_um)
     design = propose_rings(START_RINGS, geometry=geometry, catalog=catalog.values()).orientations
     checks = check_rings(design, START_CHECK_RINGS, geometry)
     minutes = (len(design) + len(checks)) * cadence.ring_minutes(repetitions, geometry.points_per_circle)
@@ -181,36 +190,67 @@ def first_rings(
     return Plan(tuple(rings), False, reason, minutes, repetitions, budget_minutes=budget_minutes)
 
 
-def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Up to `count` lattice rings for the data part, each the node farthest (in stylus direction)
-    from every ring measured or planned: (orientations, their distances, deg).
+def _lattice_kept(counts: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """(..., values) rings per value of an angle -> (...): campaign.lattice_axes keeps every value
+    held (a value shared by at least half as many rings as the most common one, and by two)."""
+    top = counts.max(axis=-1, keepdims=True)
+    return ((counts == 0) | (counts >= np.maximum(2.0, 0.5 * top)) | (top < 2)).all(axis=-1)
 
-    The lattice must keep every training ring (campaign.lattice_axes keeps an A or B value shared
-    by at least half as many rings as the most common one): a node is taken at a B value no
-    training ring holds (a second ring at one B would drop every B held once), and a node in an A
-    row none holds comes with a second one in that row."""
+
+def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Lattice rings for the data part, each the node farthest (in stylus direction) from every ring
+    measured or planned: (orientations, their distances, deg).
+
+    The trilinear model's lattice must keep every training ring (campaign.lattice_axes keeps an A or
+    B value shared by at least half as many rings as the most common one, and by two when one is):
+    up to `count` rings are taken one at a time where that holds, or two at once (a new A row); when
+    no ring or pair keeps it (every B value held once: a second ring at one would drop the others),
+    every B value takes one more ring at once."""
     train = campaign.orientations[~campaign.holdout_mask()]
-    nodes = distinct_rings(candidate_orientations(campaign.geometry), np.concatenate([campaign.orientations, taken]))
-    nodes = nodes[nodes[:, 0] > 0]
-    b_key = orientation_keys(np.mod(nodes[:, 1] + 180.0, 360.0))
-    free = ~np.isin(b_key, orientation_keys(np.mod(train[:, 1] + 180.0, 360.0)))
-    rows = set(orientation_keys(train[:, 0]).tolist())
     known = np.concatenate([campaign.orientations, taken])
-    nearest = _angles_deg(nodes, known).min(axis=1)
+    nodes = distinct_rings(candidate_orientations(campaign.geometry), known)
+    nodes = nodes[nodes[:, 0] > 0]
+    keys = [np.stack([orientation_keys(o[:, 0]), orientation_keys(np.mod(o[:, 1] + 180.0, 360.0))], axis=1) for o in (train, nodes)]
+    counts, onehot = [], []
+    for angle in (0, 1):  # each node as one-hot over the values of its angle, and the training rings' counts
+        values, index = np.unique(np.concatenate([keys[0][:, angle], keys[1][:, angle]]), return_inverse=True)
+        counts.append(np.bincount(index[: len(train)], minlength=values.size).astype(float))
+        onehot.append(np.eye(values.size)[index[len(train) :]])
+    nearest = _angles_deg(nodes, known).min(axis=1) if len(known) else np.full(len(nodes), 180.0)
+    free = np.ones(len(nodes), dtype=bool)
     chosen: list[int] = []
+
+    def take(k: int) -> None:
+        nonlocal nearest
+        chosen.append(k)
+        free[k] = False
+        counts[0], counts[1] = counts[0] + onehot[0][k], counts[1] + onehot[1][k]
+        nearest = np.minimum(nearest, _angles_deg(nodes, nodes[k : k + 1])[:, 0])
+
     while len(chosen) < count and free.any():
-        pick = int(np.flatnonzero(free)[np.argmax(nearest[free])])
-        row = orientation_keys(nodes[pick : pick + 1, 0])[0]
-        partners = np.flatnonzero(free & (orientation_keys(nodes[:, 0]) == row) & (b_key != b_key[pick]))
-        if row not in rows and (not partners.size or len(chosen) + 2 > max(count, 2)):
-            free[pick] = False  # a new row needs two rings: none to pair it with, or no room for both
-            continue
-        for k in [pick] if row in rows else [pick, int(partners[np.argmax(nearest[partners])])]:
-            chosen.append(k)
-            free &= b_key != b_key[k]
-            nearest = np.minimum(nearest, _angles_deg(nodes, nodes[k : k + 1])[:, 0])
-        rows.add(row)
-    distance = _angles_deg(nodes[chosen], known).min(axis=1) if chosen else np.zeros(0)
+        single = free & _lattice_kept(counts[0] + onehot[0]) & _lattice_kept(counts[1] + onehot[1])
+        pair = free[:, None] & free[None, :] & ~np.eye(len(nodes), dtype=bool) & (len(chosen) + 2 <= count)
+        pair &= _lattice_kept(counts[0] + onehot[0][:, None] + onehot[0][None]) & _lattice_kept(
+            counts[1] + onehot[1][:, None] + onehot[1][None]
+        )
+        best_single = nearest[single].max() if single.any() else -1.0
+        pair_score = np.where(pair, np.minimum(nearest[:, None], nearest[None, :]), -1.0)
+        if best_single < 0 and pair_score.max() < 0:
+            break
+        if best_single >= pair_score.max():
+            take(int(np.flatnonzero(single)[np.argmax(nearest[single])]))
+        else:
+            i, j = np.unravel_index(int(np.argmax(pair_score)), pair_score.shape)
+            take(int(i))
+            take(int(j))
+    if not chosen and free.any():  # every B value one ring more, each where the data part is farthest
+        for b in np.flatnonzero(counts[1] > 0):
+            at = free & (onehot[1][:, b] > 0)
+            if at.any():
+                take(int(np.flatnonzero(at)[np.argmax(nearest[at])]))
+        if not (_lattice_kept(counts[0]) and _lattice_kept(counts[1])):
+            chosen = []
+    distance = _angles_deg(nodes[chosen], known).min(axis=1) if chosen and len(known) else np.zeros(len(chosen))
     return nodes[chosen], distance
 
 
@@ -253,11 +293,10 @@ def next_rings(
     """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the
     questions earlier plans asked (Plan.questions): their rings are measured, and a question they
     did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
-    unseen rings (default: the touch noise of a PAPER_REPETITIONS-repetition ring mean)."""
+    unseen rings (default_tolerance_um of the campaign's own noise)."""
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
-    sigma = campaign.noise_sigma_um()
-    tolerance = tolerance_um if tolerance_um is not None else sigma / math.sqrt(PAPER_REPETITIONS)
+    tolerance = tolerance_um if tolerance_um is not None else default_tolerance_um(campaign.noise_sigma_um())
     unseen, unseen_upper = unseen_error_um(campaign, result)
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET, skip=asked)
     done: dict[str, Any] = {"repetitions": campaign.n_repetitions, "measured_rings": campaign.n_orientations, "spent_minutes": spent}
@@ -295,20 +334,26 @@ def next_rings(
             f"(95 % up to {unseen_upper:.3f} um, the tolerance {tolerance:.3f} um)"
         )
         return Plan((), True, reason, 0.0, **done)
-    rings += [
-        PlannedRing(float(a), float(b), f"the data part's widest gap: {near:.0f} deg from the nearest ring", False)
-        for (a, b), near in zip(data, distance)
+    batch = len(data) > NEXT_DATA_RINGS
+    gap = "every B value one ring more (the lattice keeps them so)" if batch else "the data part's widest gap"
+    fitted = [
+        PlannedRing(float(a), float(b), f"{gap}: {near:.0f} deg from the nearest ring", False) for (a, b), near in zip(data, distance)
     ]
-    known = np.concatenate([campaign.orientations, np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)])
-    rings += [
+    known = np.concatenate([campaign.orientations, planned, data])
+    checks = [
         PlannedRing(float(a), float(b), "a fresh check ring: the model where it has not been tested", True)
         for a, b in check_rings(known, NEXT_CHECK_RINGS, campaign.geometry)
     ]
     if budget_minutes is not None:
+        # Within the budget: the rings measured again and those that decide first, the lattice rings
+        # whole or none (a part of them could drop rings from the lattice), then the check rings.
         affordable = int(max(budget_minutes - spent, 0.0) // per_ring)
         if affordable == 0:
             return Plan((), True, f"the budget: {spent:.0f} of {budget_minutes:g} minutes spent, the verdict {result.verdict}", 0.0, **done)
         rings = rings[:affordable]
+        fitted = fitted if len(rings) + len(fitted) <= affordable else []
+        checks = checks[: max(affordable - len(rings) - len(fitted), 0)]
+    rings += fitted + checks
     if result.verdict not in ("none", "missing"):
         why = f"the verdict is {result.verdict}"
     elif decision.rings or again:
@@ -348,6 +393,7 @@ def adaptive_campaign(
     catalog: Catalog = DEFAULT_CATALOG,
     max_plans: int = 12,
     sigma_um: float = TP20_SIGMA_UM,
+    tolerance_um: float | None = None,
     diagnose: Callable[[Campaign], Diagnosis] | None = None,
     progress: Callable[[Plan, Diagnosis], None] | None = None,
 ) -> AdaptiveRun:
@@ -357,14 +403,15 @@ def adaptive_campaign(
 
     judge = diagnose or (lambda campaign: run_diagnosis(campaign, catalog=catalog, nested=False))
     cadence = Cadence(scenario.touch_s, scenario.move_s)
-    plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog)
+    plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog, tolerance_um)
     last, campaign = measured_plan(scenario, plan)
     plans: list[Plan] = [plan]
     results: list[Diagnosis] = []
     while True:
         result = judge(campaign)
         results.append(result)
-        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, asked=[q for p in plans for q in p.questions])
+        asked = [q for p in plans for q in p.questions]
+        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, asked, tolerance_um)
         plans.append(plan)
         if progress is not None:
             progress(plan, result)
