@@ -316,10 +316,34 @@ def _design(
         typer.Option("--decide", help="With --data: the rings that decide what its diagnosis cannot (confounded or suggested candidates)."),
     ] = False,
     out: Annotated[
-        Optional[Path], typer.Option(help="With --decide: write the rings as a CSV (A_deg,B_deg,order,reason) for a CMM program.")
+        Optional[Path],
+        typer.Option(
+            help="With --decide, --start or --next: write the rings as a CSV (A_deg,B_deg,order,reason[,check]) for a CMM program."
+        ),
     ] = None,
     study: Annotated[
         Optional[Path], typer.Option(help="With --decide: continue this study (its chain in the model), as diagnose --resume does.")
+    ] = None,
+    start: Annotated[
+        bool, typer.Option("--start", help="Measure until you know: the first rings (and check rings) of a head with no data.")
+    ] = False,
+    next_rings: Annotated[
+        bool, typer.Option("--next", help="With --data: the next rings of an adaptive campaign, or the stop and why.")
+    ] = False,
+    budget_minutes: Annotated[
+        Optional[float], typer.Option(help="With --start or --next: the time at the machine the whole campaign may take.")
+    ] = None,
+    tolerance_um: Annotated[
+        Optional[float],
+        typer.Option(
+            help="With --start or --next: what the model may miss at unseen rings, um rms (default: a 10-repetition ring mean's noise)."
+        ),
+    ] = None,
+    sigma_um: Annotated[
+        Optional[float], typer.Option(help="With --start: the probe's repeatability per touch, um (default: the TP20's 0.175).")
+    ] = None,
+    after: Annotated[
+        Optional[Path], typer.Option(help="With --next: the last plan's JSON (--json), whose questions are not asked again.")
     ] = None,
     effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
     json_output: JsonOpt = False,
@@ -327,8 +351,11 @@ def _design(
 ) -> None:
     """Which rings to measure and in what order: the catalog's effects identifiable (D-optimal on their
     bases at the head touches) and the data part covered (space filling); with --data, the next rings;
-    with --decide, the rings that decide between the diagnosis's candidates."""
+    with --decide, the rings that decide between the diagnosis's candidates; with --start, then --next,
+    an adaptive campaign that measures until the answer is known."""
     options = {"data": data, "decide": decide, "out": out, "study": study, "effects": effects_file, "json_output": json_output}
+    options |= {"start": start, "next_rings": next_rings, "budget_minutes": budget_minutes, "tolerance_um": tolerance_um}
+    options |= {"sigma_um": sigma_um, "after": after}
     _run("design", design.design_command, budget=budget, geometry=geometry, **options)
 
 

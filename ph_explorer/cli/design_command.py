@@ -6,6 +6,7 @@ reduce the uncertainty of what it has measured."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +25,27 @@ def design_command(
     decide: bool = False,
     out: Path | None = None,
     study: Path | None = None,
+    start: bool = False,
+    next_rings: bool = False,
+    budget_minutes: float | None = None,
+    tolerance_um: float | None = None,
+    sigma_um: float | None = None,
+    after: Path | None = None,
 ) -> int:
     """Print the proposed rings in measuring order, as text or one JSON object."""
     catalog = DEFAULT_CATALOG.with_file(effects) if effects is not None else DEFAULT_CATALOG
     if budget is not None and budget < 1:
         raise InputError(f"must be at least 1, got {budget}", option="--budget")
+    adaptive = {"--budget-minutes": budget_minutes, "--tolerance-um": tolerance_um, "--sigma-um": sigma_um, "--after": after}
+    if start or next_rings:
+        if start and next_rings:
+            raise InputError("plans either the first rings (--start) or the next ones (--next with --data), not both", option="--start")
+        if decide or budget is not None:
+            raise InputError("--start and --next plan their own rings: give --budget-minutes, not --budget or --decide", option="--budget")
+        return plan_command(start, data, catalog, json_output, geometry, out, adaptive)
+    given = [option for option, value in adaptive.items() if value is not None]
+    if given:
+        raise InputError("is for an adaptive campaign: give --start, or --next with --data", option=given[0])
     if decide:
         return decide_command(DECIDE_BUDGET if budget is None else budget, data, catalog, json_output, geometry, out, study)
     if study is not None:
@@ -114,3 +131,72 @@ def decide_command(
         lines[-1] += f"; written to {out}"
     print("\n".join(lines))
     return 0
+
+
+def plan_command(
+    start: bool,
+    data: Path | None,
+    catalog: Any,
+    json_output: bool,
+    geometry: dict[str, float] | None,
+    out: Path | None,
+    options: dict[str, Any],
+) -> int:
+    """design --start / --next (planning.adaptive): the first rings of a head with no data, or the
+    next rings of a measured campaign (diagnosed first, without the nested figures), or the stop."""
+    budget, tolerance, sigma, after = (options[k] for k in ("--budget-minutes", "--tolerance-um", "--sigma-um", "--after"))
+    for value, option in ((budget, "--budget-minutes"), (tolerance, "--tolerance-um"), (sigma, "--sigma-um")):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise InputError(f"must be a positive number, got {value:g}", option=option)
+    from ph_explorer.io.rings import rings_csv_text
+    from ph_explorer.io.writer import atomic_write
+    from ph_explorer.planning import adaptive
+
+    if start:
+        if data is not None or after is not None:
+            raise InputError(
+                "plans a head with no data: to plan from a measured campaign give --next", option="--data" if data else "--after"
+            )
+        try:
+            shape = Geometry(**{**DEFAULT_GEOMETRY.as_dict(), **(geometry or {})})
+        except ValueError as error:
+            raise InputError(str(error), option="--pivot-to-ball-mm") from error
+        plan = adaptive.first_rings(budget, shape, sigma or adaptive.TP20_SIGMA_UM, catalog=catalog, tolerance_um=tolerance)
+    else:
+        if data is None:
+            raise InputError("plans from a measured campaign: give --data FILE.csv (--start plans a head with no data)", option="--next")
+        if sigma is not None:
+            raise InputError("is for --start: with data the campaign's own repetitions say the noise", option="--sigma-um")
+        from ph_explorer.diagnosis import diagnose
+        from ph_explorer.io import read_campaign
+
+        asked = asked_before(after) if after is not None else ()
+        campaign = read_campaign(Path(data), geometry or {})
+        result = diagnose(campaign, catalog=catalog, nested=False)
+        plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance)
+    report = plan.to_json()
+    if out is not None and plan.rings:
+        atomic_write([(Path(out), rings_csv_text(report["rings"]))])
+    if json_output:
+        print(json.dumps(report, allow_nan=False))
+        return 0
+    lines = plan.lines()
+    if out is not None and plan.rings:
+        lines[-1] += f"; written to {out}"
+    print("\n".join(lines))
+    return 0
+
+
+def asked_before(path: Path) -> tuple[str, ...]:
+    """The questions a previous plan's JSON (design --start/--next --json) says were asked."""
+    from ph_explorer.io.csv_text import read_bytes
+
+    name = str(path)
+    try:
+        report = json.loads(read_bytes(Path(path)).decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise InputError(f"not a plan's JSON (design --json writes one): {error}", file=name) from None
+    questions = report.get("questions", []) if isinstance(report, dict) else None
+    if not isinstance(questions, list) or not all(isinstance(q, str) for q in questions):
+        raise InputError("its questions must be a list of strings", file=name, column="questions")
+    return tuple(questions)

@@ -92,11 +92,15 @@ def scenario_lines() -> list[str]:
 
 def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[twin.Scenario, int | None]:
     """The scenario's head at the file's rings, after its campaign (Scenario.at_rings), from the
-    campaign of `seed` (default: the scenario's)."""
+    campaign of `seed` (default: the scenario's); every ring a check ring unless the file's check
+    column says which are."""
     from dataclasses import replace
 
-    from ph_explorer.io.rings import read_rings
+    from ph_explorer.io.rings import read_planned_rings
 
-    orientations = read_rings(rings)
+    orientations, check = read_planned_rings(rings)
     base = scenario if seed is None else replace(scenario, seed=int(seed))
-    return base.at_rings(orientations), None
+    measured = base.at_rings(orientations)
+    if check is not None:  # a plan's file (design --start, --next) says which rings are check rings
+        measured = replace(measured, check_orientations=orientations[check])
+    return measured, None

@@ -78,8 +78,8 @@ class PlannedRing:
     reason: str
     check: bool
 
-    def to_json(self) -> dict[str, Any]:
-        return {"A_deg": self.a_deg, "B_deg": self.b_deg, "reason": self.reason, "check": self.check}
+    def to_json(self, order: int = 0) -> dict[str, Any]:
+        return {"A_deg": self.a_deg, "B_deg": self.b_deg, "order": order, "reason": self.reason, "check": self.check}
 
 
 @dataclass(frozen=True)
@@ -95,12 +95,12 @@ class Plan:
     spent_minutes: float = 0.0  # at the machine so far
     budget_minutes: float | None = None
     verdict: str | None = None  # the diagnosis the plan answers (None: no data yet)
-    questions: tuple[str, ...] = ()  # what its rings that decide are to decide (planning.deciding)
+    questions: tuple[str, ...] = ()  # every question asked so far (planning.deciding): the next plan asks none again
     unseen_um: tuple[float, float, float] | None = None  # missed at unseen rings: estimate, 95 % upper, tolerance
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "rings": [ring.to_json() for ring in self.rings],
+            "rings": [ring.to_json(order) for order, ring in enumerate(self.rings, start=1)],
             "stop": self.stop,
             "reason": self.reason,
             "minutes": round(self.minutes, 1),
@@ -243,12 +243,20 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
             i, j = np.unravel_index(int(np.argmax(pair_score)), pair_score.shape)
             take(int(i))
             take(int(j))
-    if not chosen and free.any():  # every B value one ring more, each where the data part is farthest
-        for b in np.flatnonzero(counts[1] > 0):
-            at = free & (onehot[1][:, b] > 0)
+    if not chosen and free.any():
+        # Every B value one ring more, each where the data part is farthest, in the A rows held and
+        # spread over them evenly (so that every row keeps its share), farthest B values first.
+        held_b, rows = np.flatnonzero(counts[1] > 0), counts[0] > 0
+        cap = math.ceil(held_b.size / max(int(rows.sum()), 1))
+        added = np.zeros_like(counts[0])
+        order = held_b[np.argsort([-nearest[free & (onehot[1][:, b] > 0)].max(initial=-1.0) for b in held_b])]
+        for b in order:
+            at = free & (onehot[1][:, b] > 0) & (onehot[0] @ (rows & (added < cap)) > 0)
             if at.any():
-                take(int(np.flatnonzero(at)[np.argmax(nearest[at])]))
-        if not (_lattice_kept(counts[0]) and _lattice_kept(counts[1])):
+                k = int(np.flatnonzero(at)[np.argmax(nearest[at])])
+                added += onehot[0][k]
+                take(k)
+        if len(chosen) < held_b.size or not (_lattice_kept(counts[0]) and _lattice_kept(counts[1])):
             chosen = []
     distance = _angles_deg(nodes[chosen], known).min(axis=1) if chosen and len(known) else np.zeros(len(chosen))
     return nodes[chosen], distance
@@ -291,8 +299,8 @@ def next_rings(
     tolerance_um: float | None = None,
 ) -> Plan:
     """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the
-    questions earlier plans asked (Plan.questions): their rings are measured, and a question they
-    did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
+    questions earlier plans asked (the last plan's Plan.questions): their rings are measured, and a
+    question they did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
     unseen rings (default_tolerance_um of the campaign's own noise)."""
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
@@ -300,7 +308,7 @@ def next_rings(
     unseen, unseen_upper = unseen_error_um(campaign, result)
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET, skip=asked)
     done: dict[str, Any] = {"repetitions": campaign.n_repetitions, "measured_rings": campaign.n_orientations, "spent_minutes": spent}
-    done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(decision.questions)}
+    done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys([*asked, *decision.questions]))}
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
     known_well = unseen_upper <= tolerance
     if result.verdict in ("none", "missing") and not decision.rings and not result.suspect_rings and known_well:
@@ -410,8 +418,7 @@ def adaptive_campaign(
     while True:
         result = judge(campaign)
         results.append(result)
-        asked = [q for p in plans for q in p.questions]
-        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, asked, tolerance_um)
+        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, plans[-1].questions, tolerance_um)
         plans.append(plan)
         if progress is not None:
             progress(plan, result)

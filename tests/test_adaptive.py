@@ -1,0 +1,154 @@
+"""Measure until you know (issue 58): the first rings of a head with no data, the next rings from a
+diagnosis, the stop, the closed loop on the twin, and the command line's plans and bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from command_line import run_cli
+
+from ph_explorer.campaign import lattice_axes, orientation_match
+from ph_explorer.errors import InputError
+from ph_explorer.io.rings import read_planned_rings
+from ph_explorer.planning import adaptive
+from ph_explorer.planning.ring_design import candidate_orientations
+from ph_explorer.twin.random_heads import random_head
+
+
+def cli(*args: str) -> tuple[int, str, str]:
+    done = run_cli(*args)
+    return done.returncode, done.stdout, done.stderr
+
+
+def test_the_first_rings_of_a_head_with_no_data_fit_the_budget_and_hold_check_rings_off_the_lattice() -> None:
+    plan = adaptive.first_rings(budget_minutes=300.0)
+    fitted = np.array([[r.a_deg, r.b_deg] for r in plan.rings if not r.check])
+    checks = np.array([[r.a_deg, r.b_deg] for r in plan.rings if r.check])
+    assert len(fitted) == adaptive.START_RINGS and len(checks) == adaptive.START_CHECK_RINGS and not plan.stop
+    # the TP20's 0.175 um and the default tolerance (a 10-repetition ring mean's noise): 10 repetitions
+    assert plan.repetitions == 10 and plan.minutes <= 300.0
+    assert plan.minutes == pytest.approx(10 * 10 * (64 * 2.0 + 8.0) / 60.0)
+    # the fitted rings are lattice nodes the trilinear keeps, the check rings lie off it
+    nodes = candidate_orientations()
+    assert orientation_match(fitted, nodes).any(axis=1).all() and not orientation_match(checks, nodes).any()
+    a_axis, b_axis = lattice_axes(fitted)
+    assert set(fitted[:, 0]) <= set(a_axis) and set(np.mod(fitted[:, 1] + 180, 360) - 180) <= set(np.mod(b_axis + 180, 360) - 180)
+    report = plan.to_json()
+    assert set(report) >= {"rings", "stop", "reason", "minutes"} and set(report["rings"][0]) >= {"A_deg", "B_deg", "reason"}
+
+
+def test_repetitions_follow_the_noise_and_the_tolerance() -> None:
+    assert adaptive.repetitions_for(0.175) == 10  # the tolerance is the noise of 10 repetitions' mean
+    assert adaptive.repetitions_for(0.3, tolerance_um=0.1) == 9
+    assert adaptive.repetitions_for(0.1, tolerance_um=0.2) == adaptive.MIN_REPETITIONS
+    with pytest.raises(InputError, match="positive"):
+        adaptive.repetitions_for(0.175, tolerance_um=-1.0)
+    with pytest.raises(InputError, match="less than the first"):
+        adaptive.first_rings(budget_minutes=60.0)
+
+
+def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> None:
+    """Step by step, the data rings never make the lattice drop a training ring (a second ring at a
+    B value held once would drop the others): they come one at a time, two for a new A row, or a
+    ring at every B value at once."""
+    from dataclasses import replace
+
+    from ph_explorer.twin import simulate
+
+    scenario = random_head(4, "paper")
+    plan = adaptive.first_rings()
+    last, campaign = adaptive.measured_plan(scenario, plan)
+    for _ in range(8):
+        train = campaign.orientations[~campaign.holdout_mask()]
+        rings, _ = adaptive.data_rings(campaign, adaptive.NEXT_DATA_RINGS, np.zeros((0, 2)))
+        if not len(rings):
+            break
+        grown = np.concatenate([train, rings])
+        a_axis, b_axis = lattice_axes(grown)
+        assert np.isin(grown[:, 0], a_axis).all() and np.isin(np.round(grown[:, 1]), np.round(b_axis)).all()
+        measured = replace(last.at_rings(rings), repetitions=plan.repetitions, check_orientations=np.zeros((0, 2)))
+        from ph_explorer.io.merge import merged_campaign
+
+        campaign = merged_campaign(campaign, simulate(measured))[0]
+        last = measured
+    assert (~campaign.holdout_mask()).sum() > 18  # past one ring a B value: every B value took a second
+
+
+def test_a_healthy_head_stops_within_a_few_plans_with_its_reason() -> None:
+    run = adaptive.adaptive_campaign(random_head(100_002))
+    assert run.stopped and len(run.plans) <= 4
+    last = run.plans[-1]
+    assert last.reason.startswith("you know") and "no effect beyond noise" in last.reason and last.verdict == "none"
+    estimate, upper, tolerance = last.unseen_um
+    assert upper <= tolerance and run.campaign.n_orientations < 40
+
+
+def test_a_plan_within_a_budget_stops_at_the_budget() -> None:
+    scenario = random_head(100_005)
+    first = adaptive.first_rings()
+    run = adaptive.adaptive_campaign(scenario, budget_minutes=first.minutes + 30.0)
+    assert run.stopped and run.plans[-1].spent_minutes <= first.minutes + 30.0 + 1e-6
+    assert all(p.minutes <= first.minutes + 30.0 for p in run.plans)
+
+
+def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tmp_path: Path) -> None:
+    plan_csv, plan_json = tmp_path / "plan.csv", tmp_path / "plan.json"
+    code, out, err = cli("design", "--start", "--json", "--out", str(plan_csv))
+    assert code == 0, err
+    plan = json.loads(out)
+    assert not plan["stop"] and len(plan["rings"]) == 10 and plan["minutes"] > 0
+    plan_json.write_text(out)
+    rings, check = read_planned_rings(plan_csv)
+    assert check is not None and check.sum() == 4 and np.allclose(rings, [[r["A_deg"], r["B_deg"]] for r in plan["rings"]])
+    # the twin measures the plan; its sidecar names the plan's check rings as check rings
+    campaign_csv = tmp_path / "first.csv"
+    code, out, err = cli("simulate", "--scenario", "head_3", "--rings", str(plan_csv), "--out", str(campaign_csv))
+    assert code == 0 and "4 check orientations" in out, err
+    code, out, err = cli("design", "--data", str(campaign_csv), "--next", "--after", str(plan_json), "--json")
+    assert code == 0, err
+    following = json.loads(out)
+    assert set(following) >= {"rings", "stop", "reason", "minutes", "verdict", "questions", "unseen_error_um"}
+    assert following["measured_rings"] == 10 and following["spent_minutes"] > 0
+    code, out, err = cli("design", "--data", str(campaign_csv), "--next")
+    assert code == 0 and (out.startswith("stop after 10 rings") or out.startswith("measure ")), out
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["design", "--start", "--budget-minutes", "-3"], "option --budget-minutes: must be a positive number"),
+        (["design", "--start", "--budget-minutes", "60"], "option --budget-minutes: 60 minutes is less than the first"),
+        (["design", "--next"], "option --next: plans from a measured campaign: give --data"),
+        (["design", "--budget", "3", "--budget-minutes", "30"], "option --budget-minutes: is for an adaptive campaign"),
+        (["design", "--start", "--next"], "option --start:"),
+    ],
+)
+def test_bad_adaptive_options_get_one_line_and_exit_2(args: list[str], says: str) -> None:
+    code, out, err = cli(*args)
+    assert code == 2 and out == "" and err.strip().startswith(says) and len(err.strip().splitlines()) == 1, err
+
+
+def test_a_rings_file_with_a_bad_check_cell_names_its_row(tmp_path: Path) -> None:
+    rings = tmp_path / "rings.csv"
+    rings.write_text("A_deg,B_deg,order,reason,check\n15,20,1,x,true\n30,40,2,y,maybe\n")
+    with pytest.raises(InputError) as error:
+        read_planned_rings(rings)
+    assert "row 3" in error.value.line() and "check" in error.value.line()
+
+
+def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> None:
+    """A population head hiding an A-axis tilt motion at 9 cycles/rev: the first rings claim it but
+    cannot tell 9 from 8 cycles/rev; the next plan measures the rings that decide, and the stop
+    comes with the effect at 9 and nothing left open."""
+    from benchmarks.population import head_of
+
+    scenario, truth = head_of({"group": "catalog_effect", "seed": 200_008})
+    assert truth["id"] == "a_axis_tilt_motion" and truth["cycles_per_rev"] == 9
+    run = adaptive.adaptive_campaign(scenario)
+    assert run.stopped and "nothing is left open" in run.plans[-1].reason
+    asked = [q for p in run.plans[:-1] for q in p.questions]
+    assert any("a_axis_tilt_motion 9 cycles/rev vs" in q for q in asked)
+    assert [(c.effect, c.settings.get("cycles_per_rev")) for c in run.results[-1].found] == [("a_axis_tilt_motion", 9)]
