@@ -198,3 +198,37 @@ def peers_plot(results: dict[str, Any], path: Path) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def adaptive_plot(records_path: Path, path: Path) -> Path | None:
+    """The adaptive campaign's loop on three heads (a healthy one, one with a catalog effect, one with
+    a shape no catalog holds: the first of each kind that took three plans or more): the evaluation
+    rings' MAE after each diagnosis against the rings measured, beside the full campaign's trilinear
+    model (dashed) and the evaluation rings' noise floor (dotted)."""
+    import json
+
+    if not records_path.exists():
+        return None
+    records = json.loads(records_path.read_text())["records"]
+    fig, ax = plt.subplots(figsize=(8, 4.2))
+    for kind, color in (("healthy", "tab:blue"), ("catalog_effect", "tab:orange"), ("unknown_shape", "tab:green")):
+        heads = [r for r in records if r["kind"] == kind and "adaptive" in r]
+        if not heads:
+            continue
+        head = next((r for r in heads if len(r["adaptive"]["trajectory"]) >= 3), heads[0])
+        rings, _, mae = zip(*head["adaptive"]["trajectory"])
+        name = kind.replace("_", " ") + f" (seed {head['seed']}{', ' + head['family'] if 'family' in head else ''})"
+        ax.plot(rings, mae, "o-", color=color, label=f"{name}: adaptive, to its stop")
+        ax.axhline(
+            head["full"]["trilinear_mae_um"], color=color, ls="--", lw=1, label=f"full campaign ({head['full']['rings']} rings), trilinear"
+        )
+        ax.axhline(head["floor_um"], color=color, ls=":", lw=1)
+    ax.set_xlabel("rings measured (fitted and check rings)")
+    ax.set_ylabel("evaluation rings' MAE vs their mean, um")
+    ax.set_title("measure until you know: the error at rings neither campaign measured (dotted: their floor)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -253,10 +253,10 @@ def run_task_sections(
             results["population_unknown"] = unknown_population.run(client, quick=quick, log=log, **(unknown or {}))
     if "adaptive_campaign" in sections:
         # measure until you know: the adaptive campaign against the full one, same heads (issue 58)
-        from benchmarks import adaptive
+        from benchmarks import adaptive_campaign
 
         with section("adaptive campaign", "adaptive_campaign", results):
-            results["adaptive_campaign"] = adaptive.run(client, quick=quick, log=log)
+            results["adaptive_campaign"] = adaptive_campaign.run(client, quick=quick, log=log)
     if "hidden_effects" in sections:
         # each rotary-axis error motion and the ball form hidden in the paper campaign (issue 14)
         from benchmarks import hidden_effects
@@ -288,6 +288,8 @@ def write_plots(results: dict[str, Any], out: Path) -> None:
         plots.calibration_plot(results, out / "calibration.png")
     if "peers" in results:
         plots.peers_plot(results, out / "peers.png")
+    if "adaptive_campaign" in results:
+        plots.adaptive_plot(out / "adaptive_records.json", out / "adaptive.png")
 
 
 def torch_threads() -> int:

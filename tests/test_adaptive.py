@@ -13,7 +13,7 @@ from command_line import run_cli
 from ph_explorer.campaign import lattice_axes, orientation_match
 from ph_explorer.errors import InputError
 from ph_explorer.io.rings import read_planned_rings
-from ph_explorer.planning import adaptive
+from ph_explorer.planning import adaptive, closed_loop
 from ph_explorer.planning.ring_design import candidate_orientations
 from ph_explorer.twin.random_heads import random_head
 
@@ -60,7 +60,7 @@ def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> No
 
     scenario = random_head(4, "paper")
     plan = adaptive.first_rings()
-    last, campaign = adaptive.measured_plan(scenario, plan)
+    last, campaign = closed_loop.measured_plan(scenario, plan)
     for _ in range(8):
         train = campaign.orientations[~campaign.holdout_mask()]
         rings, _ = adaptive.data_rings(campaign, adaptive.NEXT_DATA_RINGS, np.zeros((0, 2)))
@@ -78,7 +78,7 @@ def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> No
 
 
 def test_a_healthy_head_stops_within_a_few_plans_with_its_reason() -> None:
-    run = adaptive.adaptive_campaign(random_head(100_002))
+    run = closed_loop.adaptive_campaign(random_head(100_002))
     assert run.stopped and len(run.plans) <= 4
     last = run.plans[-1]
     assert last.reason.startswith("you know") and "no effect beyond noise" in last.reason and last.verdict == "none"
@@ -89,7 +89,7 @@ def test_a_healthy_head_stops_within_a_few_plans_with_its_reason() -> None:
 def test_a_plan_within_a_budget_stops_at_the_budget() -> None:
     scenario = random_head(100_005)
     first = adaptive.first_rings()
-    run = adaptive.adaptive_campaign(scenario, budget_minutes=first.minutes + 30.0)
+    run = closed_loop.adaptive_campaign(scenario, budget_minutes=first.minutes + 30.0)
     assert run.stopped and run.plans[-1].spent_minutes <= first.minutes + 30.0 + 1e-6
     assert all(p.minutes <= first.minutes + 30.0 for p in run.plans)
 
@@ -147,7 +147,7 @@ def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> No
 
     scenario, truth = head_of({"group": "catalog_effect", "seed": 200_008})
     assert truth["id"] == "a_axis_tilt_motion" and truth["cycles_per_rev"] == 9
-    run = adaptive.adaptive_campaign(scenario)
+    run = closed_loop.adaptive_campaign(scenario)
     assert run.stopped and "nothing is left open" in run.plans[-1].reason
     asked = [q for p in run.plans[:-1] for q in p.questions]
     assert any("a_axis_tilt_motion 9 cycles/rev vs" in q for q in asked)

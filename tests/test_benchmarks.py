@@ -409,7 +409,7 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
     import contextlib
 
     from benchmarks import (
-        adaptive,
+        adaptive_campaign,
         calibration,
         deciding,
         fleet,
@@ -432,7 +432,7 @@ def test_a_run_without_only_runs_every_section(tmp_path: Path, monkeypatch: pyte
         return ran
 
     for module, name in [
-        (adaptive, "adaptive_campaign"),
+        (adaptive_campaign, "adaptive_campaign"),
         (calibration, "diagnosis_calibration"),
         (population, "population"),
         (unknown_population, "population_unknown"),

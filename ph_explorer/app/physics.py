@@ -28,8 +28,9 @@ from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
+from ph_explorer.planning import adaptive, closed_loop
 from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_words, rings_that_decide
-from ph_explorer.twin import simulate, twin_scenario
+from ph_explorer.twin import Scenario, simulate, twin_scenario
 
 
 def teaching_scenario(campaign: Campaign) -> bool:
@@ -72,6 +73,14 @@ class PhysicsLoop:
         self.diagnosed = False  # a diagnosis since the study was opened or last saved: a run to save
         # The study applies while this session shows the campaign it belongs to (until new data).
         self.study_open = study is not None
+        # An adaptive campaign the twin measures (planning.adaptive): the head, its last measured
+        # scenario (the next rings come after its touches), the plan to measure next, each diagnosis's
+        # (rings, minutes, check-ring MAE, floor); None while no adaptive campaign is shown.
+        self.adaptive_twin: Scenario | None = None
+        self.adaptive_last: Scenario | None = None
+        self.next_plan: adaptive.Plan | None = None
+        self.adaptive_points: list[tuple[int, float, float, float]] = []
+        self._adaptive_loading = False
 
     def open_study(self) -> None:
         """Show the study: its line, and its steps as the start of the history."""
@@ -100,6 +109,10 @@ class PhysicsLoop:
         self.refitted = None
         self.revealed = False
         self._show_study_line()
+        if not self._adaptive_loading:  # other data: an adaptive campaign shown before is over
+            self.adaptive_twin = self.adaptive_last = self.next_plan = None
+            self.adaptive_points = []
+            self.panel.show_adaptive([], [], False)
 
     def diagnose(self) -> None:
         """Where the loaded baseline fails out of sample, and which effect is missing (none added)."""
@@ -188,6 +201,60 @@ class PhysicsLoop:
         merged, _ = merged_campaign(ds.campaign, new)
         rings = ", ".join(orientation_label(a, b) for a, b in self.proposed)
         self.load(merged, f"{ds.label} + {len(self.proposed)} rings measured by the twin ({rings})")
+
+    def start_adaptive(self) -> None:
+        """The twin measures the first rings of the shown teaching scenario's head (planning.adaptive),
+        shown as a campaign of their own, diagnosed, with the next plan."""
+        p, ds = self.panel, self.current()
+        twin = twin_scenario(ds.campaign, self.catalog)
+        if twin is None:
+            p.adaptive_status.content = "_Only a teaching scenario's twin can measure: load one (Data tab)._"
+            return
+        p.adaptive_status.content = "_the twin measures the first 10 rings…_"
+        plan = adaptive.first_rings(geometry=twin.geometry, cadence=adaptive.Cadence(twin.touch_s, twin.move_s), catalog=self.catalog)
+        last, campaign = closed_loop.measured_plan(twin, plan)
+        self._adaptive_step(twin, last, campaign, f"{twin.name}: an adaptive campaign, its first {campaign.n_orientations} rings")
+
+    def measure_next(self) -> None:
+        """The twin measures the next plan's rings after the last; the merged campaign is diagnosed again."""
+        p, ds, plan = self.panel, self.current(), self.next_plan
+        if plan is None or plan.stop or self.adaptive_twin is None or self.adaptive_last is None:
+            p.adaptive_status.content = "_Nothing to measure: Start from six rings first._" if plan is None else p.adaptive_status.content
+            return
+        p.adaptive_status.content = f"_the twin measures {len(plan.rings)} rings…_"
+        last, new = closed_loop.measured_plan(self.adaptive_twin, plan, self.adaptive_last)
+        merged, _ = merged_campaign(ds.campaign, new, replace=True)  # a ring measured badly is measured again
+        name = self.adaptive_twin.name
+        self._adaptive_step(self.adaptive_twin, last, merged, f"{name}: an adaptive campaign, {merged.n_orientations} rings")
+
+    def _adaptive_step(self, twin: Scenario, last: Scenario, campaign: Campaign, label: str) -> None:
+        """Show the campaign measured so far, diagnose it, and plan what comes next (or the stop)."""
+        self._adaptive_loading = True
+        try:
+            self.load(campaign, label)
+        finally:
+            self._adaptive_loading = False
+        self.adaptive_twin, self.adaptive_last = twin, last
+        self.diagnose()
+        result = self.diagnosis
+        if result is None or self.current().campaign is not campaign:
+            return
+        asked = self.next_plan.questions if self.next_plan is not None else ()
+        plan = adaptive.next_rings(campaign, result, None, self.catalog, adaptive.Cadence(twin.touch_s, twin.move_s), asked)
+        self.next_plan = plan
+        final = result.steps[-1]
+        self.adaptive_points.append((campaign.n_orientations, plan.spent_minutes, final.mae_um["mean"], final.noise_floor_um["mean"]))
+        full = float(np.ptp(twin.times_s())) / 60.0  # the head's own full campaign, at its cadence
+        head = (
+            f"**{campaign.n_orientations} rings, {plan.spent_minutes:.0f} minutes at the machine** (the full campaign of "
+            f"{len(twin.orientations)} rings: {full:.0f} min); check-ring MAE {final.mae_um['mean']:.3f} um, "
+            f"{final.mae_um['mean'] / final.noise_floor_um['mean']:.2f}x its floor."
+        )
+        words = plan.lines()  # the stop in one line; else the plan's head, a line a ring, its time
+        lines = [head, f"**{words[0]}**"]
+        if not plan.stop:
+            lines += ["\n".join(" ".join(line.split()) for line in words[1:-1]), words[-1]]
+        self.panel.show_adaptive(lines, self.adaptive_points, not plan.stop)
 
     def show_evidence(self, label: str) -> None:
         if self.diagnosis is not None:

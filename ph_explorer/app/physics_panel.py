@@ -18,7 +18,7 @@ from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, S
 from ph_explorer.diagnosis.search import CONFOUNDED
 from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
-from ph_explorer.figures.charts import evidence_svg, history_svg
+from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
 from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.figures.shape_text import shape_svg
@@ -177,6 +177,17 @@ class PhysicsPanel:
             )
             self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
             self.evidence_text = gui.add_markdown("")
+        # Measure until you know (planning.adaptive): a teaching scenario's twin measures an adaptive
+        # campaign of the same head from six rings, each plan's rings after a diagnosis, until it stops.
+        with gui.add_folder("Measure until you know (the twin)", expand_by_default=False, visible=False) as self.adaptive_folder:
+            self.adaptive_start = gui.add_button(
+                "Start from six rings", hint="the twin measures the first rings of this head (6 designed, 4 check rings), then diagnoses"
+            )
+            self.adaptive_next = gui.add_button(
+                "Measure next", visible=False, hint="the twin measures the next plan's rings; the merged campaign is diagnosed again"
+            )
+            self.adaptive_status = gui.add_markdown("")
+            self.adaptive_chart = gui.add_html("", visible=False)
         # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
         self.other_folder = gui.add_folder("Effects in the hybrid (all)", expand_by_default=False)
         self.effects: dict[str, viser.GuiCheckboxHandle] = {}
@@ -381,6 +392,20 @@ class PhysicsPanel:
             f"**Study {name}**: {runs} run{'s' if runs != 1 else ''}; the model it reached: **{reached}**; "
             f"verdict of its last run: **{verdict}**. Diagnose continues from that model; Refit fits it + the ticked effects."
         )
+
+    def show_adaptive(self, lines: Sequence[str], points: Sequence[tuple[int, float, float, float]], more: bool) -> None:
+        """The adaptive campaign so far: its rings and minutes, the plan (or the stop), and the check
+        rings' error of each diagnosis against the rings measured (rings, minutes, MAE, floor), um."""
+        self.adaptive_status.content = "\n\n".join(lines)
+        self.adaptive_next.visible = more
+        self.adaptive_chart.visible = len(points) > 1
+        if len(points) > 1:
+            rings = np.array([p[0] for p in points], dtype=float)
+            series = [
+                ("check-ring MAE vs the mean", [p[2] for p in points], "#1f77b4"),
+                ("its noise floor", [p[3] for p in points], "#999"),
+            ]
+            self.adaptive_chart.content = line_chart_svg(rings, series, "Check-ring error against rings measured", "rings measured", "um")
 
     def selected_effects(self) -> list[str]:
         return [e for e, box in self.effects.items() if box.value]

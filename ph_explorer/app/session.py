@@ -134,6 +134,8 @@ class Session:
         p.reveal.on_click(lambda _: self.loop.reveal())
         p.decide.on_click(lambda _: self.submit(self.loop.decide))
         p.measure.on_click(lambda _: self.submit(self.loop.measure))
+        p.adaptive_start.on_click(lambda _: self.submit(self.loop.start_adaptive))
+        p.adaptive_next.on_click(lambda _: self.submit(self.loop.measure_next))
         p.download_rings.on_click(lambda _: self.report_panel.send_rings())
         p.evidence_of.on_update(lambda _: self.loop.show_evidence(p.evidence_of.value))
 
@@ -288,7 +290,7 @@ class Session:
         self.data_panel.set_source(dataset)
         # Teaching-only controls for a teaching scenario only: a lab's campaign hides nothing to reveal.
         teaching = teaching_scenario(dataset.campaign)
-        self.physics.reveal.visible = self.report_panel.reveal.visible = teaching
+        self.physics.reveal.visible = self.report_panel.reveal.visible = self.physics.adaptive_folder.visible = teaching
         self.show_failing()
         self.refresh_field()
         self._draw_here()

@@ -304,47 +304,17 @@ def _effects(
 @app.command("design")
 @with_geometry
 def _design(
-    budget: Annotated[
-        Optional[int], typer.Option(help="How many rings (orientations) to propose (with --decide: at most; default 6).")
-    ] = None,
-    data: Annotated[
-        Optional[Path],
-        typer.Option(help="A campaign CSV already measured: propose the next rings, those that most reduce its uncertainty."),
-    ] = None,
-    decide: Annotated[
-        bool,
-        typer.Option("--decide", help="With --data: the rings that decide what its diagnosis cannot (confounded or suggested candidates)."),
-    ] = False,
-    out: Annotated[
-        Optional[Path],
-        typer.Option(
-            help="With --decide, --start or --next: write the rings as a CSV (A_deg,B_deg,order,reason[,check]) for a CMM program."
-        ),
-    ] = None,
-    study: Annotated[
-        Optional[Path], typer.Option(help="With --decide: continue this study (its chain in the model), as diagnose --resume does.")
-    ] = None,
-    start: Annotated[
-        bool, typer.Option("--start", help="Measure until you know: the first rings (and check rings) of a head with no data.")
-    ] = False,
-    next_rings: Annotated[
-        bool, typer.Option("--next", help="With --data: the next rings of an adaptive campaign, or the stop and why.")
-    ] = False,
-    budget_minutes: Annotated[
-        Optional[float], typer.Option(help="With --start or --next: the time at the machine the whole campaign may take.")
-    ] = None,
-    tolerance_um: Annotated[
-        Optional[float],
-        typer.Option(
-            help="With --start or --next: what the model may miss at unseen rings, um rms (default: a 10-repetition ring mean's noise)."
-        ),
-    ] = None,
-    sigma_um: Annotated[
-        Optional[float], typer.Option(help="With --start: the probe's repeatability per touch, um (default: the TP20's 0.175).")
-    ] = None,
-    after: Annotated[
-        Optional[Path], typer.Option(help="With --next: the last plan's JSON (--json), whose questions are not asked again.")
-    ] = None,
+    budget: Annotated[Optional[int], typer.Option(help="How many rings to propose (with --decide: at most; default 6).")] = None,
+    data: Annotated[Optional[Path], typer.Option(help="A campaign CSV already measured: the next rings.")] = None,
+    decide: Annotated[bool, typer.Option("--decide", help="With --data: the rings that decide what its diagnosis cannot.")] = False,
+    out: Annotated[Optional[Path], typer.Option(help="With --decide, --start or --next: the rings as a CSV.")] = None,
+    study: Annotated[Optional[Path], typer.Option(help="With --decide: continue this study, as diagnose --resume does.")] = None,
+    start: Annotated[bool, typer.Option("--start", help="The first rings of an adaptive campaign (no data).")] = False,
+    next_rings: Annotated[bool, typer.Option("--next", help="With --data: the next rings of an adaptive campaign, or the stop.")] = False,
+    budget_minutes: Annotated[Optional[float], typer.Option(help="With --start, --next: the campaign's time at the machine.")] = None,
+    tolerance_um: Annotated[Optional[float], typer.Option(help="With --start, --next: what the model may miss at unseen rings.")] = None,
+    sigma_um: Annotated[Optional[float], typer.Option(help="With --start: the probe's repeatability, um (default 0.175).")] = None,
+    after: Annotated[Optional[Path], typer.Option(help="With --next: the last plan's JSON, its questions not asked again.")] = None,
     effects_file: Annotated[Optional[Path], typer.Option("--effects", help="A Python file defining your own effects.")] = None,
     json_output: JsonOpt = False,
     geometry: dict[str, float] | None = None,

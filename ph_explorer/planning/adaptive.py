@@ -1,29 +1,17 @@
-"""Measure until you know: the first rings of a head one knows nothing about, the next rings from
-what its diagnosis leaves open, and a stated reason to stop.
-
-- First rings (`first_rings`): START_RINGS lattice rings designed for the catalog's effects and
-  the data part (planning.ring_design), START_CHECK_RINGS check rings off the lattice as far as
-  possible from them and from each other, each ring measured `repetitions_for(sigma, tolerance)` times.
-- Next rings (`next_rings`), in this order: the rings that decide what the diagnosis leaves open
-  (planning.deciding: an untold pair, a suggestion to confirm), measured as check rings; lattice
-  rings where the data part is farthest from every measured ring (its band is widest there); and
-  fresh check rings where the model has not been tested.
-- Stop when you know: the verdict is `none` or `missing` (every claim replicated over rings, the
-  model within noise at its rings and at its check rings as a group), no ring decides a question
-  left open (a question asked once, its rings measured, and still open is one no ring decides), no
-  ring is named as measured badly, and what the model misses at the check rings is within the
-  tolerance (unseen_error_um, its 95 % upper bound); else at the budget, or when no lattice ring
-  is left to add.
-
-Time at the machine: a ring is its repetitions of n touches plus a move each (Cadence; the
-campaign's own median ring when it has touch times). Method: docs/planning.md.
+"""Measure until you know: the first rings of a head nothing is known about (designed lattice rings
+and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
+badly again, rings that decide its questions, lattice rings where the data part is thinnest, fresh
+check rings), and a stated stop: the verdict `none` or `missing`, nothing a ring decides, nothing
+measured badly, and what the model misses at its check rings within the tolerance (95 % upper
+bound); else the budget, or no lattice ring left. One tolerance sets the repetitions too. The
+closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Collection
-from dataclasses import dataclass, replace
+from collections.abc import Collection
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -40,7 +28,6 @@ from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
 from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations, distinct_rings, propose_rings
-from ph_explorer.twin import Scenario, simulate
 
 START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
 START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
@@ -369,61 +356,3 @@ def next_rings(
     else:
         why = f"at unseen rings the model misses up to {unseen_upper:.3f} um (95 %), more than the tolerance {tolerance:.3f} um"
     return Plan(tuple(rings), False, why, len(rings) * per_ring, **done)
-
-
-@dataclass(frozen=True)
-class AdaptiveRun:
-    """A closed loop on the twin: each plan, the diagnosis that answered it, and the last campaign."""
-
-    plans: tuple[Plan, ...]
-    results: tuple[Diagnosis, ...]  # results[k] answers plans[k] (the last plan is the stop or the step cap)
-    campaign: Campaign
-
-    @property
-    def stopped(self) -> bool:
-        return self.plans[-1].stop
-
-
-def measured_plan(scenario: Scenario, plan: Plan, after: Scenario | None = None) -> tuple[Scenario, Campaign]:
-    """The twin's head measured at the plan's rings, after the last touch of `after` (a scenario
-    measured before), its check rings named as check orientations: (its scenario, its campaign)."""
-    rings = np.array([[r.a_deg, r.b_deg] for r in plan.rings])
-    checks = np.array([[r.a_deg, r.b_deg] for r in plan.rings if r.check]).reshape(-1, 2)
-    measured = replace((after or scenario).at_rings(rings), repetitions=plan.repetitions, check_orientations=checks)
-    if after is None:
-        measured = replace(measured, start_s=0.0)
-    return measured, simulate(measured)
-
-
-def adaptive_campaign(
-    scenario: Scenario,
-    budget_minutes: float | None = None,
-    catalog: Catalog = DEFAULT_CATALOG,
-    max_plans: int = 12,
-    sigma_um: float = TP20_SIGMA_UM,
-    tolerance_um: float | None = None,
-    diagnose: Callable[[Campaign], Diagnosis] | None = None,
-    progress: Callable[[Plan, Diagnosis], None] | None = None,
-) -> AdaptiveRun:
-    """Plan, measure on the twin, diagnose, plan the next, until a plan stops (or max_plans)."""
-    from ph_explorer.diagnosis import diagnose as run_diagnosis
-    from ph_explorer.io.merge import merged_campaign
-
-    judge = diagnose or (lambda campaign: run_diagnosis(campaign, catalog=catalog, nested=False))
-    cadence = Cadence(scenario.touch_s, scenario.move_s)
-    plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog, tolerance_um)
-    last, campaign = measured_plan(scenario, plan)
-    plans: list[Plan] = [plan]
-    results: list[Diagnosis] = []
-    while True:
-        result = judge(campaign)
-        results.append(result)
-        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, plans[-1].questions, tolerance_um)
-        plans.append(plan)
-        if progress is not None:
-            progress(plan, result)
-        if plan.stop or len(plans) > max_plans:
-            break
-        last, more = measured_plan(scenario, plan, last)
-        campaign = merged_campaign(campaign, more, replace=True)[0]  # a ring measured again replaces the old one
-    return AdaptiveRun(tuple(plans), tuple(results), campaign)

@@ -38,7 +38,7 @@ from ph_explorer.campaign import orientation_match
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
-from ph_explorer.planning.adaptive import adaptive_campaign
+from ph_explorer.planning.closed_loop import adaptive_campaign
 from ph_explorer.task_runner import run_tasks
 from ph_explorer.twin import simulate
 from ph_explorer.twin.random_heads import random_campaign
@@ -76,6 +76,11 @@ def evaluation_rings(seed: int, known: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
+def model_of(result: Any, campaign: Any) -> Any:
+    """A diagnosis's model: its hybrid (the effects it claimed), else its data part alone."""
+    return result.hybrid or HybridModel([]).fit(campaign, ~campaign.holdout_mask())
+
+
 def mae_vs_mean(model: Any, rings: np.ndarray, mean: np.ndarray) -> float:
     return float(np.mean(np.abs(model.predict(rings, mean.shape[-1]) - mean)))
 
@@ -96,7 +101,12 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
     run = adaptive_campaign(scenario)
     adaptive_seconds = time.perf_counter() - started
     last = run.results[-1]
-    model = last.hybrid or HybridModel([]).fit(run.campaign, ~run.campaign.holdout_mask())
+    # Each diagnosis's model on the evaluation rings, against the rings measured: the loop's trajectory.
+    trajectory = [
+        [plan.measured_rings, round(plan.spent_minutes, 1), round(mae_vs_mean(model_of(result, measured), rings, mean), 5)]
+        for plan, result, measured in zip(run.plans[1:], run.results, run.campaigns)
+    ]
+    model = model_of(last, run.campaign)
     return {
         **job,
         "full": {
@@ -118,6 +128,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "found": sorted(c.effect for c in last.found),
             "mae_um": round(mae_vs_mean(model, rings, mean), 5),
             "rings_by_plan": [len(p.rings) for p in run.plans],
+            "trajectory": trajectory,  # [rings measured, minutes, evaluation MAE um] after each diagnosis
             "seconds": round(adaptive_seconds, 2),
         },
         "floor_um": round(float(floor), 5),
