@@ -251,10 +251,9 @@ class PhysicsLoop:
             f"{final.mae_um['mean'] / final.noise_floor_um['mean']:.2f}x its floor."
         )
         words = plan.lines()  # the stop in one line; else the plan's head, a line a ring, its time
-        lines = [head, f"**{words[0]}**"]
-        if not plan.stop:
-            lines += ["\n".join(" ".join(line.split()) for line in words[1:-1]), words[-1]]
-        self.panel.show_adaptive(lines, self.adaptive_points, not plan.stop)
+        rings = [] if plan.stop else ["\n".join(" ".join(line.split()) for line in words[1:-1]), words[-1]]
+        self.panel.show_adaptive([head, f"**{words[0]}**"], self.adaptive_points, not plan.stop, rings)
+        self.panel.keep_in_view(f"{campaign.n_orientations} rings, ")
 
     def show_evidence(self, label: str) -> None:
         if self.diagnosis is not None:

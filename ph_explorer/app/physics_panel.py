@@ -188,6 +188,7 @@ class PhysicsPanel:
             )
             self.adaptive_status = gui.add_markdown("")
             self.adaptive_chart = gui.add_html("", visible=False)
+            self.adaptive_plan = gui.add_markdown("")  # the plan's rings, under the chart (a long list)
         # Every catalog effect, for a refit of your own choice (collapsed: the found ones are above).
         self.other_folder = gui.add_folder("Effects in the hybrid (all)", expand_by_default=False)
         self.effects: dict[str, viser.GuiCheckboxHandle] = {}
@@ -393,10 +394,14 @@ class PhysicsPanel:
             f"verdict of its last run: **{verdict}**. Diagnose continues from that model; Refit fits it + the ticked effects."
         )
 
-    def show_adaptive(self, lines: Sequence[str], points: Sequence[tuple[int, float, float, float]], more: bool) -> None:
-        """The adaptive campaign so far: its rings and minutes, the plan (or the stop), and the check
-        rings' error of each diagnosis against the rings measured (rings, minutes, MAE, floor), um."""
+    def show_adaptive(
+        self, lines: Sequence[str], points: Sequence[tuple[int, float, float, float]], more: bool, rings: Sequence[str] = ()
+    ) -> None:
+        """The adaptive campaign so far: its rings and minutes, the plan's head (or the stop), the check
+        rings' error of each diagnosis against the rings measured (rings, minutes, MAE, floor, um),
+        then the plan's rings."""
         self.adaptive_status.content = "\n\n".join(lines)
+        self.adaptive_plan.content = "\n\n".join(rings)
         self.adaptive_next.visible = more
         self.adaptive_chart.visible = len(points) > 1
         if len(points) > 1:

@@ -1,0 +1,85 @@
+"""Issue 58's explorer line: measure until you know, in a real headless Chromium at 1440x900.
+
+The teacher loads head_4 (a hidden A-axis error), opens "Measure until you know (the twin)" on the
+Physics tab and starts from six rings: the twin measures the first plan (6 designed rings and 4
+check rings), the campaign of those rings is shown and diagnosed, and the next plan is listed with
+the rings and minutes so far. Measure next, twice: the campaign grows, each diagnosis's check-ring
+error is drawn against the rings measured. A screenshot of each step goes to
+docs/planning_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from fake_browser import wait_for
+from test_browser_loop import CHROMIUM, colour_census, in_view, step_shot, walk_in_chromium
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
+    pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium", allow_module_level=True)
+
+SCENARIO = "head_4"
+
+
+def scrolled(locator) -> bool:
+    from playwright.sync_api import Error
+
+    try:
+        locator.scroll_into_view_if_needed(timeout=2000)
+    except Error:  # detached while the panel redrew it: the next try finds the new one
+        return False
+    return True
+
+
+def measure_until_known(page, session, shots: Path) -> None:
+    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
+    page.get_by_role("tab", name="Data").click()
+    page.get_by_label("Scenario").click()
+    page.get_by_role("option", name=SCENARIO).click()
+    assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
+    session.wait(timeout=300)
+    assert session.dataset.campaign.n_orientations > 100  # the scenario's full campaign, before
+
+    # 1. Start from six rings: the twin measures the first plan; the campaign of its 10 rings is diagnosed.
+    page.get_by_role("tab", name="Physics").click()
+    page.get_by_text("Measure until you know (the twin)").click()
+    start = page.get_by_role("button", name="Start from six rings")
+    in_view(start, "Start from six rings")
+    start.click()
+    assert wait_for(lambda: len(session.loop.adaptive_points) == 1, timeout=900)
+    session.wait(timeout=300)
+    assert session.dataset.campaign.n_orientations == 10 and session.loop.diagnosis is not None
+    status = session.physics.adaptive_status.content
+    assert "10 rings, " in status and "minutes at the machine" in status and "Verdict" in session.physics.verdict.content, status
+    # The folder's top at the panel's top: its buttons, the rings and minutes so far and the plan in view.
+    start.evaluate("button => button.scrollIntoView({block: 'start'})")
+    in_view(page.get_by_text("10 rings, ", exact=False).first, "the rings and minutes so far")
+    step_shot(page, shots, "planning_1_started")
+
+    # 2. Measure next, twice: the campaign grows, and the check-ring error is drawn against the rings.
+    for step in (2, 3):
+        measure = page.get_by_role("button", name="Measure next")
+        measure.scroll_into_view_if_needed()  # the panel scrolled as the user reads the verdict and the plan
+        in_view(measure, "Measure next")
+        before = session.dataset.campaign.n_orientations
+        measure.click()
+        assert wait_for(lambda step=step: len(session.loop.adaptive_points) == step, timeout=900)
+        session.wait(timeout=300)
+        rings = session.dataset.campaign.n_orientations
+        assert rings > before and f"{rings} rings, " in session.physics.adaptive_status.content
+    chart = page.locator('svg[aria-label^="chart Check-ring error against rings measured"]').first
+    # The panel redraws its HTML as the step's last lines arrive: scroll once the chart stands.
+    assert wait_for(lambda: scrolled(chart), timeout=30)
+    in_view(chart, "the check-ring error against rings measured")
+    inked, colours = colour_census(chart.screenshot())
+    assert inked >= 1500 and colours >= 3, (inked, colours)
+    step_shot(page, shots, "planning_2_measured_next")
+
+
+def test_measure_until_you_know_in_the_explorer_at_1440x900() -> None:
+    shots = walk_in_chromium(measure_until_known, "planning_")
+    assert len(list(shots.glob("planning_*.png"))) == 2
