@@ -9,6 +9,7 @@ from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from .page_adaptive import adaptive
 from .page_calibration import calibration
 from .page_coverage import coverage
 from .page_deciding import deciding
@@ -26,7 +27,7 @@ from .page_unknown import unknown
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 RESULTS = ROOT / "benchmarks" / "results.json"
-PLOTS = ("data_efficiency.png", "speed.png", "calibration.png", "peers.png")
+PLOTS = ("data_efficiency.png", "speed.png", "calibration.png", "peers.png", "adaptive.png")
 METADATA = (
     "date",
     "mode",
@@ -66,6 +67,7 @@ SECTIONS: dict[str, Callable[[Mapping[str, Any], Plots], str]] = {
     "diagnosis_calibration": calibration,
     "population": lambda r, p: population(r),
     "population_unknown": lambda r, p: unknown(r),
+    "adaptive_campaign": adaptive,
     "deciding": lambda r, p: deciding(r),
     "hidden_effects": lambda r, p: hidden_effects(r),
     "uncertainty_coverage": lambda r, p: coverage(r),

@@ -1,0 +1,78 @@
+"""The benchmarks page's `## Measure until you know` section (`adaptive_campaign`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from .page_format import Plots, image, num, table
+
+ADAPTIVE_INTRO = """\
+## Measure until you know
+
+`adaptive_campaign`: each head of the population (healthy heads, heads with a catalog effect, heads
+with a shape no catalog holds, the families in turn) measured twice on its twin: adaptively
+([planning](planning.md#measure-until-you-know-an-adaptive-campaign): six designed rings and four
+check rings, then each plan after a diagnosis, to its stop, with no budget) and in full (the
+population's paper-style campaign). Both are judged on {rings} evaluation rings of their own, off
+both campaigns' grids, measured at {repetitions} repetitions after the campaign: the MAE of the model
+at the stop (the last diagnosis's hybrid, or its data part when it claims nothing) against the full
+campaign's trilinear model. The verdict is compared word for word with the full campaign's; a
+claim "in the head" names an effect the head holds (its background's or the hidden one).
+"""
+
+
+def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
+    a = results.get("adaptive_campaign", {})
+    targets = a.get("targets", {})
+    evaluation = a.get("evaluation", {})
+
+    def share(x: Any) -> str:
+        x = x or {}
+        low, high = (x.get("ci95") or [None, None])[:2]
+        return f"{num(x.get('count'))}/{num(x.get('of'))} ({num(low)}-{num(high)})"
+
+    rows = []
+    for kind in ("healthy", "catalog_effect", "unknown_shape"):
+        k = a.get(kind)
+        if not k:
+            continue
+        rows.append(
+            [
+                kind.replace("_", " "),
+                k.get("heads"),
+                f"{num(k['rings']['median'])} (90 %: {num(k['rings']['p90'])})",
+                f"{num(k['full_rings']['median'])}",
+                f"{num(k['minutes']['median'])} (90 %: {num(k['minutes']['p90'])})",
+                f"{num(k['full_minutes']['median'])}",
+                share(k.get("stopped")),
+                share(k.get("mae_within_ratio")),
+                num(k.get("mae_ratio_median")),
+                f"{num(k.get('adaptive_over_floor_median'))} / {num(k.get('trilinear_over_floor_median'))}",
+                share(k.get("verdict_agreement")),
+                share(k.get("claims_in_head")),
+            ]
+        )
+    header = [
+        "heads",
+        "n",
+        "rings to the stop, median",
+        "full rings",
+        "minutes, median",
+        "full minutes",
+        "stopped by knowing",
+        f"MAE <= {num(targets.get('mae_ratio'))}x the full trilinear",
+        "MAE ratio, median",
+        "over the floor: adaptive / full",
+        "same verdict",
+        "claims in the head",
+    ]
+    body = ADAPTIVE_INTRO.format(rings=evaluation.get("rings"), repetitions=evaluation.get("repetitions"))
+    targets_line = (
+        f"Targets (issue 58): median rings <= {num(targets.get('median_rings_max'))}; MAE within "
+        f"{num(targets.get('mae_ratio'))}x on >= {num(targets.get('mae_within_ratio_min'))}; the same verdict on >= "
+        f"{num(targets.get('verdict_agreement_min'))}. Measured at {a.get('commit')}, {num(a.get('run_seconds'))} s."
+    )
+    return (
+        body + "\n" + table(header, rows) + "\n" + targets_line + "\n\n" + image(plots, "adaptive.png", "the adaptive loop on three heads")
+    )
