@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import CHROMIUM, colour_census, in_view, step_shot, walk_in_chromium
+from test_browser_loop import CHROMIUM, colour_census, in_view, scenario_loaded, step_shot, walk_in_chromium
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -36,12 +36,7 @@ def scrolled(locator) -> bool:
 
 
 def measure_until_known(page, session, shots: Path) -> None:
-    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
-    page.get_by_role("tab", name="Data").click()
-    page.get_by_label("Scenario").click()
-    page.get_by_role("option", name=SCENARIO).click()
-    assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
-    session.wait(timeout=300)
+    scenario_loaded(page, session, SCENARIO)
     assert session.dataset.campaign.n_orientations > 100  # the scenario's full campaign, before
 
     # 1. Start from six rings: the twin measures the first plan; the campaign of its 10 rings is diagnosed.

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import CHROMIUM, chart_drawn, diagnosed, in_view, step_shot, walk_in_chromium
+from test_browser_loop import CHROMIUM, chart_drawn, diagnosed, in_view, scenario_loaded, step_shot, walk_in_chromium
 
 from ph_explorer.io.rings import read_rings
 
@@ -29,12 +29,7 @@ SCENARIO = "head_6"
 
 
 def decide(page, session, shots: Path) -> None:
-    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
-    page.get_by_role("tab", name="Data").click()
-    page.get_by_label("Scenario").click()
-    page.get_by_role("option", name=SCENARIO).click()
-    assert wait_for(lambda: SCENARIO in session.data_panel.source.content, timeout=600)
-    session.wait(timeout=300)
+    scenario_loaded(page, session, SCENARIO)
     measured = session.dataset.campaign.n_orientations
 
     # 1. Diagnose: the claim cannot be told from its partner on these rings.

@@ -204,6 +204,17 @@ def scene_label_boxes(session, canvas: dict) -> list[tuple[str, float, float, fl
     return boxes
 
 
+def scenario_loaded(page, session, name: str) -> None:
+    """Data -> Scenario -> name, as a user picks it (notifications hidden: they would cover the
+    panel in screenshots); returns once the scenario's campaign is shown."""
+    page.add_style_tag(content=".mantine-Notification-root, .mantine-Notifications-root { display: none !important; }")
+    page.get_by_role("tab", name="Data").click()
+    page.get_by_label("Scenario").click()
+    page.get_by_role("option", name=name).click()
+    assert wait_for(lambda: name in session.data_panel.source.content, timeout=600)
+    session.wait(timeout=300)
+
+
 def diagnosed(page, session) -> str:
     """Physics -> Diagnose, as a user clicks them; the verdict's text once it is shown."""
     page.get_by_role("tab", name="Physics").click()
