@@ -127,6 +127,7 @@ def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tm
         (["design", "--next"], "option --next: plans from a measured campaign: give --data"),
         (["design", "--budget", "3", "--budget-minutes", "30"], "option --budget-minutes: is for an adaptive campaign"),
         (["design", "--start", "--next"], "option --start:"),
+        (["design", "--start", "--study", "s.toml"], "option --study: is for --decide"),
     ],
 )
 def test_bad_adaptive_options_get_one_line_and_exit_2(args: list[str], says: str) -> None:

@@ -1,7 +1,8 @@
 """`ph-explorer design --budget N [--data FILE.csv] [--effects FILE.py] [--json]`: which rings to
 measure, in what order (ph_explorer/planning/ring_design.py): without data, N orientations that make the
 catalog's effects identifiable and cover the data part; with a campaign, the next N rings that most
-reduce the uncertainty of what it has measured."""
+reduce the uncertainty of what it has measured; --decide, the rings that decide its diagnosis's
+questions; --start and --next, an adaptive campaign's plans (ph_explorer/planning/adaptive.py)."""
 
 from __future__ import annotations
 
@@ -42,6 +43,8 @@ def design_command(
             raise InputError("plans either the first rings (--start) or the next ones (--next with --data), not both", option="--start")
         if decide or budget is not None:
             raise InputError("--start and --next plan their own rings: give --budget-minutes, not --budget or --decide", option="--budget")
+        if study is not None:
+            raise InputError("is for --decide: an adaptive campaign's plan reads the campaign alone", option="--study")
         return plan_command(start, data, catalog, json_output, geometry, out, adaptive)
     given = [option for option, value in adaptive.items() if value is not None]
     if given:
