@@ -66,7 +66,7 @@ def measure_until_known(page, session, shots: Path) -> None:
         session.wait(timeout=300)
         rings = session.dataset.campaign.n_orientations
         assert rings > before and f"{rings} rings, " in session.physics.adaptive_status.content
-    chart = page.locator('svg[aria-label^="chart Check-ring error against rings measured"]').first
+    chart = page.locator('svg[aria-label^="chart Check-ring error (vs the mean) against rings measured"]').first
     # The panel redraws its HTML as the step's last lines arrive: scroll once the chart stands.
     assert wait_for(lambda: scrolled(chart), timeout=30)
     in_view(chart, "the check-ring error against rings measured")

@@ -211,15 +211,17 @@ class PhysicsLoop:
             p.adaptive_status.content = "_Only a teaching scenario's twin can measure: load one (Data tab)._"
             return
         p.adaptive_status.content = "_the twin measures the first 10 rings…_"
-        plan = adaptive.first_rings(geometry=twin.geometry, cadence=adaptive.Cadence(twin.touch_s, twin.move_s), catalog=self.catalog)
+        plan = adaptive.first_rings(geometry=twin.geometry, cadence=closed_loop.cadence_of(twin), catalog=self.catalog)
         last, campaign = closed_loop.measured_plan(twin, plan)
         self._adaptive_step(twin, last, campaign, f"{twin.name}: an adaptive campaign, its first {campaign.n_orientations} rings")
 
     def measure_next(self) -> None:
         """The twin measures the next plan's rings after the last; the merged campaign is diagnosed again."""
         p, ds, plan = self.panel, self.current(), self.next_plan
-        if plan is None or plan.stop or self.adaptive_twin is None or self.adaptive_last is None:
-            p.adaptive_status.content = "_Nothing to measure: Start from six rings first._" if plan is None else p.adaptive_status.content
+        if plan is None or self.adaptive_twin is None or self.adaptive_last is None:
+            p.adaptive_status.content = "_Nothing to measure: Start from six rings first._"
+            return
+        if plan.stop:  # the stop and its reason are shown already
             return
         p.adaptive_status.content = f"_the twin measures {len(plan.rings)} rings…_"
         last, new = closed_loop.measured_plan(self.adaptive_twin, plan, self.adaptive_last)
@@ -240,7 +242,7 @@ class PhysicsLoop:
         if result is None or self.current().campaign is not campaign:
             return
         asked = self.next_plan.questions if self.next_plan is not None else ()
-        plan = adaptive.next_rings(campaign, result, None, self.catalog, adaptive.Cadence(twin.touch_s, twin.move_s), asked)
+        plan = adaptive.next_rings(campaign, result, None, self.catalog, closed_loop.cadence_of(twin), asked)
         self.next_plan = plan
         final = result.steps[-1]
         self.adaptive_points.append((campaign.n_orientations, plan.spent_minutes, final.mae_um["mean"], final.noise_floor_um["mean"]))

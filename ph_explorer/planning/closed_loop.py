@@ -35,6 +35,11 @@ class AdaptiveRun:
         return self.plans[-1].stop
 
 
+def cadence_of(scenario: Scenario) -> Cadence:
+    """The twin's time at the machine: its seconds per touch and per move."""
+    return Cadence(scenario.touch_s, scenario.move_s)
+
+
 def measured_plan(scenario: Scenario, plan: Plan, after: Scenario | None = None) -> tuple[Scenario, Campaign]:
     """The twin's head measured at the plan's rings, after the last touch of `after` (a scenario
     measured before), its check rings named as check orientations: (its scenario, its campaign)."""
@@ -61,7 +66,7 @@ def adaptive_campaign(
     from ph_explorer.io.merge import merged_campaign
 
     judge = diagnose or (lambda campaign: run_diagnosis(campaign, catalog=catalog, nested=False))
-    cadence = Cadence(scenario.touch_s, scenario.move_s)
+    cadence = cadence_of(scenario)
     plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog, tolerance_um)
     last, campaign = measured_plan(scenario, plan)
     plans: list[Plan] = [plan]
