@@ -106,7 +106,6 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
         [plan.measured_rings, round(plan.spent_minutes, 1), round(mae_vs_mean(model_of(result, measured), rings, mean), 5)]
         for plan, result, measured in zip(run.plans[1:], run.results, run.campaigns)
     ]
-    model = model_of(last, run.campaign)
     return {
         **job,
         "full": {
@@ -126,7 +125,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "reason": run.plans[-1].reason,
             "verdict": last.verdict,
             "found": sorted(c.effect for c in last.found),
-            "mae_um": round(mae_vs_mean(model, rings, mean), 5),
+            "mae_um": trajectory[-1][2],  # the model at the stop: the trajectory's last
             "rings_by_plan": [len(p.rings) for p in run.plans],
             "trajectory": trajectory,  # [rings measured, minutes, evaluation MAE um] after each diagnosis
             "seconds": round(adaptive_seconds, 2),
