@@ -156,3 +156,19 @@ def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> No
     asked = [q for p in run.plans[:-1] for q in p.questions]
     assert any("a_axis_tilt_motion 9 cycles/rev vs" in q for q in asked)
     assert [(c.effect, c.settings.get("cycles_per_rev")) for c in run.results[-1].found] == [("a_axis_tilt_motion", 9)]
+
+
+def test_a_shape_no_catalog_holds_is_claimed_replicated_and_stops_the_campaign() -> None:
+    """A head whose B axis steps in angle over part of its turn (benchmarks' unknown shapes): no
+    catalog effect explains it; a shape of the B axis's angular group is claimed, added, and the
+    campaign stops on it as on a catalog claim, within tolerance at its unseen rings."""
+    from benchmarks.unknown_shapes import unknown_shape_head
+
+    head = unknown_shape_head(591_000, "step")
+    assert head.truth["axis"] == 1.0
+    run = closed_loop.adaptive_campaign(head.scenario)
+    last, result = run.plans[-1], run.results[-1]
+    assert run.stopped and last.reason.startswith("you know") and "a shape no catalog holds" in last.reason
+    assert result.verdict == "uncatalogued" and [s.group for s in result.claimed_shapes] == ["b_angular"]
+    estimate, upper, tolerance = last.unseen_um
+    assert upper <= tolerance and len(run.plans) <= 4

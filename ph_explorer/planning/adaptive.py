@@ -1,8 +1,8 @@
 """Measure until you know: the first rings of a head nothing is known about (designed lattice rings
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
 badly again, rings that decide its questions, lattice rings where the data part is thinnest, fresh
-check rings), and a stated stop: the verdict `none` or `missing`, nothing a ring decides, nothing
-measured badly, and what the model misses at its check rings within the tolerance (95 % upper
+check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or a
+shape replicated), nothing a ring decides, nothing measured badly, and what the model misses at its check rings within the tolerance (95 % upper
 bound); else the budget, or no lattice ring left. One tolerance sets the repetitions too. The
 closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
 """
@@ -33,6 +33,8 @@ START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need
 START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
 NEXT_DATA_RINGS = 3  # lattice rings a step adds for the data part
 NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
+# The verdicts a campaign can stop at: every claim, catalog effect or shape, replicated over rings.
+KNOWN_VERDICTS = ("none", "missing", "uncatalogued")
 CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off the lattice
 # The tolerance: what the model may miss at a ring it never saw, um rms. By default the touch noise
 # of a PAPER_REPETITIONS-repetition ring mean: the model then predicts an unseen ring as well as the
@@ -298,10 +300,11 @@ def next_rings(
     done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys([*asked, *decision.questions]))}
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
     known_well = unseen_upper <= tolerance
-    if result.verdict in ("none", "missing") and not decision.rings and not result.suspect_rings and known_well:
+    if result.verdict in KNOWN_VERDICTS and not decision.rings and not result.suspect_rings and known_well:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
-        claims = "every claim replicated over rings" if result.found else "no effect beyond noise"
+        claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
+        claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
         reason = (
             f"you know: {claims}; {settled}; at unseen rings the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
@@ -349,7 +352,7 @@ def next_rings(
         fitted = fitted if len(rings) + len(fitted) <= affordable else []
         checks = checks[: max(affordable - len(rings) - len(fitted), 0)]
     rings += fitted + checks
-    if result.verdict not in ("none", "missing"):
+    if result.verdict not in KNOWN_VERDICTS:
         why = f"the verdict is {result.verdict}"
     elif decision.rings or again:
         why = "questions left open" if decision.rings else "a ring measured badly"
