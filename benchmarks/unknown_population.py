@@ -7,7 +7,9 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 
 - none: the verdict says the campaign is within noise (the shape went unseen);
 - catalog_name: `missing` with a catalog effect named for the unknown part (for a shape beside a
-  hidden catalog effect: any claim but that effect);
+  hidden catalog effect: any claim but that effect); catalog_name_other_mechanism: of those, the
+  ones where a claim is not the shape's own mechanism either (own_mechanism: its axis's angular
+  positioning at a period within 1 cycle/rev of the shape's, or its seat's lobing);
 - honest: `unexplained`, `partial` or `suggested`;
 - none_silent: `none` with no ring named as measured badly (diagnosis.suspect) and no touch
   outliers named (diagnosis.touch_outliers) either; outliers_named: touch outliers named;
@@ -114,6 +116,14 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "truth": {k: v for k, v in head.truth.items() if isinstance(v, (int, float, str, dict))},
         "verdict": result.verdict,
         "found": [c.effect for c in result.found],
+        "claims": [
+            {
+                "effect": c.effect,
+                "cycles": [float(o["cycles_per_rev"]) for o in (c.settings, *c.settings_not_excluded) if "cycles_per_rev" in o],
+                "confounded_with": [o.effect for o in c.confounded_with],
+            }
+            for c in result.found
+        ],
         "suggested": [c.effect for c in result.suggested],
         "suspect_rings": [[r.a_deg, r.b_deg] for r in result.suspect_rings],
         "outliers_named": bool(result.touch_outliers is not None and result.touch_outliers.named),
@@ -256,6 +266,34 @@ def catalog_name(record: dict[str, Any]) -> bool:
     return record["verdict"] == "missing" and any(effect != companion for effect in record["found"])
 
 
+def own_mechanism(record: dict[str, Any], claim: dict[str, Any]) -> bool:
+    """A catalog claim that is the unknown shape's own mechanism at what the catalog can say of it:
+    the angular positioning error of the shape's axis (or its seat's lobing for a probe that changes),
+    itself or a partner the rings cannot tell from it, at a period (claimed or not excluded) within 1
+    cycle/rev of one the shape has on the turn. A non-integer period's nearest whole one, a drifting
+    period's local one and a coupled error's mean over the other axis qualify; a step, a dent and a
+    period beyond the scan have none in the catalog."""
+    truth = record["truth"]
+    family = truth.get("family")
+    if family in ("seat_wear", "stylus_knock"):
+        return "lobing" in (claim["effect"], *claim["confounded_with"])
+    if family not in ("non_integer_period", "drifting_period", "coupled") or truth.get("axis") is None:
+        return False
+    own = ("a" if truth["axis"] == 0 else "b") + "_axis_cyclic"
+    if own not in (claim["effect"], *claim["confounded_with"]):
+        return False
+    start = truth["cycles_per_rev"]
+    end = start + truth.get("drift_cycles", 0.0)
+    return any(min(start, end) - 1.0 < k < max(start, end) + 1.0 for k in claim["cycles"])
+
+
+def catalog_name_other_mechanism(record: dict[str, Any]) -> bool:
+    """`missing` with a catalog claim that is neither the hidden companion nor the shape's own mechanism (own_mechanism)."""
+    companion = (record["truth"].get("catalog") or {}).get("id")
+    claims = record.get("claims", [])
+    return record["verdict"] == "missing" and any(c["effect"] != companion and not own_mechanism(record, c) for c in claims)
+
+
 def shape_truth(record: dict[str, Any]) -> str | None:
     """The group of error functions (diagnosis.shapes) that holds the head's unknown shape: its
     axis's angular positioning for the axis families, the probe's lobes in time for a probe that
@@ -288,6 +326,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         return {
             "none": rate(sum(r["verdict"] == "none" for r in group), len(group)),
             "catalog_name": rate(sum(catalog_name(r) for r in group), len(group)),
+            "catalog_name_other_mechanism": rate(sum(catalog_name_other_mechanism(r) for r in group), len(group)),
             "honest": rate(sum(r["verdict"] in ("unexplained", "partial", "suggested", "uncatalogued") for r in group), len(group)),
             "none_silent": rate(sum(silent_none(r) for r in group), len(group)),
             "suspect_named": rate(sum(bool(r.get("suspect_rings")) for r in group), len(group)),
