@@ -119,6 +119,21 @@ def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tm
     assert " ".join(out.split()) in " ".join(docs.split()), out
 
 
+def test_simulate_adaptive_measures_a_head_plan_by_plan_and_writes_the_campaign_at_the_stop(tmp_path: Path) -> None:
+    """The closed loop from the command line: head_3's first plan, its diagnosis and the stop, the
+    campaign of those rings written with its check rings named."""
+    from ph_explorer.io import read_campaign
+
+    out_csv = tmp_path / "adaptive.csv"
+    code, out, err = cli("simulate", "--scenario", "head_3", "--adaptive", "--out", str(out_csv))
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].startswith("verdict missing; stop after 10 rings (226 min): you know")
+    assert "measured adaptively, stopped: 10 orientations (4 check)" in lines[-1]
+    campaign = read_campaign(out_csv)
+    assert campaign.n_orientations == 10 and campaign.holdout_mask().sum() == 4 and campaign.n_repetitions == 10
+
+
 @pytest.mark.parametrize(
     ("args", "says"),
     [
@@ -128,6 +143,9 @@ def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tm
         (["design", "--budget", "3", "--budget-minutes", "30"], "option --budget-minutes: is for an adaptive campaign"),
         (["design", "--start", "--next"], "option --start:"),
         (["design", "--start", "--study", "s.toml"], "option --study: is for --decide"),
+        (["simulate", "--random-head", "5", "--adaptive", "--budget-minutes", "0", "--out", "x.csv"], "option --budget-minutes: must be"),
+        (["simulate", "--scenario", "head_3", "--budget-minutes", "30", "--out", "x.csv"], "option --budget-minutes: is the time"),
+        (["simulate", "--scenario", "head_3", "--adaptive", "--rings", "r.csv", "--out", "x.csv"], "option --rings: measures the rings"),
     ],
 )
 def test_bad_adaptive_options_get_one_line_and_exit_2(args: list[str], says: str) -> None:

@@ -153,6 +153,10 @@ def _simulate(
             help="With --scenario: its head measured at these rings only, after its campaign (of --seed), on another noise draw; a CSV with A_deg, B_deg, as design --decide --out writes."
         ),
     ] = None,
+    adaptive: Annotated[
+        bool, typer.Option("--adaptive", help="Measure the head plan by plan until the stop (design --start, --next).")
+    ] = False,
+    budget_minutes: Annotated[Optional[float], typer.Option(help="With --adaptive: the minutes at the machine it may take.")] = None,
 ) -> None:
     """Simulate a campaign with the digital twin of the head, or a random head of the population."""
     _run(
@@ -167,6 +171,8 @@ def _simulate(
         hidden_effect=hidden_effect,
         strength=strength,
         rings=rings,
+        adaptive=adaptive,
+        budget_minutes=budget_minutes,
     )
 
 

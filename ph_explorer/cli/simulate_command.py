@@ -1,14 +1,24 @@
-"""`ph-explorer simulate`: write a scenario's (or a random head's) campaign CSV and sidecar, or list the shipped scenarios."""
+"""`ph-explorer simulate`: write a scenario's (or a random head's) campaign CSV and sidecar, or list
+the shipped scenarios; with --adaptive, the campaign an adaptive campaign measures on the head's
+twin until its stop (planning.closed_loop), each plan printed as `design --next` words it."""
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ph_explorer import twin
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
 from ph_explorer.io import write_campaign
-from ph_explorer.twin.random_heads import design_of, random_campaign
+from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
+
+if TYPE_CHECKING:
+    from ph_explorer.diagnosis.results import Diagnosis
+    from ph_explorer.effects import Effect
+    from ph_explorer.planning.adaptive import Plan
 
 
 def simulate_command(
@@ -21,6 +31,8 @@ def simulate_command(
     hidden_effect: str | None = None,
     strength: str | None = None,
     rings: Path | None = None,
+    adaptive: bool = False,
+    budget_minutes: float | None = None,
 ) -> int:
     """Simulate the scenario (seed: default the scenario's), or a random head, into out; or list the scenarios."""
     if list_scenarios:
@@ -39,6 +51,13 @@ def simulate_command(
         raise InputError("give --scenario NAME|PATH (see --list) or --random-head SEED", option="--scenario")
     if out is None:
         raise InputError("give --out FILE.csv", option="--out")
+    if adaptive:
+        if rings is not None:
+            raise InputError("measures the rings its plans choose: give --adaptive or --rings, not both", option="--rings")
+        head = head_of(random_head, design, hidden_effect, strength) if random_head is not None else twin.load_scenario(scenario)
+        return adaptive_command(head if seed is None else replace(head, seed=int(seed)), out, budget_minutes)
+    if budget_minutes is not None:
+        raise InputError("is the time an adaptive campaign may take: give --adaptive", option="--budget-minutes")
     if random_head is not None:
         campaign = random_campaign_of(random_head, design, hidden_effect, strength)
         hidden = len(campaign.scenario["hidden"])
@@ -62,6 +81,17 @@ def simulate_command(
 
 def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> Campaign:
     """The random head's campaign from the options as given (each checked, one line naming it)."""
+    number, design, hidden = random_head_options(seed, design, hidden_effect, strength)
+    return random_campaign(number, design, hidden)
+
+
+def head_of(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> twin.Scenario:
+    """The random head's scenario from the options as given (random_campaign_of's head)."""
+    return random_head(*random_head_options(seed, design, hidden_effect, strength))
+
+
+def random_head_options(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> tuple[int, str, list[Effect]]:
+    """(seed, design, hidden effects) of a random head from the options as given (each checked, one line naming it)."""
     try:
         number = int(seed)
     except ValueError:
@@ -70,9 +100,9 @@ def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None,
     if hidden_effect is None:
         if strength is not None:
             raise InputError("sets the size of a hidden effect: give --hidden-effect ID", option="--strength")
-        return random_campaign(number, design)
+        return number, design, []
     # The diagnosis's machinery only when a hidden effect is asked for: the command stays light.
-    from ph_explorer.diagnosis.detection import head_with_effect
+    from ph_explorer.diagnosis.detection import hidden_effect_of
 
     size = None
     if strength is not None:
@@ -80,7 +110,29 @@ def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None,
             size = float(strength)
         except ValueError:
             raise InputError(f"must be a number, got {strength!r}", option="--strength") from None
-    return head_with_effect(number, hidden_effect, size, design)[0]
+    return number, design, [hidden_effect_of(number, hidden_effect, size, design)[0]]
+
+
+def adaptive_command(head: twin.Scenario, out: Path, budget_minutes: float | None) -> int:
+    """simulate --adaptive: the head measured plan by plan on its twin until a plan stops; each
+    plan's words as it comes, the campaign at the stop written to out."""
+    if budget_minutes is not None and not (math.isfinite(budget_minutes) and budget_minutes > 0):
+        raise InputError(f"must be a positive number, got {budget_minutes:g}", option="--budget-minutes")
+    from ph_explorer.planning.closed_loop import adaptive_campaign
+
+    def show(plan: Plan, result: Diagnosis) -> None:
+        print(f"verdict {result.verdict}; " + "\n".join(plan.lines()), flush=True)
+
+    run = adaptive_campaign(head, budget_minutes, progress=show)
+    campaign = run.campaign
+    path = write_campaign(campaign, out)
+    state = "stopped" if run.stopped else f"not stopped after {len(run.plans) - 1} plans"
+    print(
+        f"{path}: scenario {head.name} measured adaptively, {state}: {campaign.n_orientations} orientations "
+        f"({int(campaign.holdout_mask().sum())} check) x {campaign.n_repetitions} repetitions x {campaign.n_points} points, "
+        f"{run.plans[-1].spent_minutes:.0f} minutes at the machine"
+    )
+    return 0
 
 
 def scenario_lines() -> list[str]:
@@ -94,8 +146,6 @@ def rings_of(scenario: twin.Scenario, rings: Path, seed: int | None) -> tuple[tw
     """The scenario's head at the file's rings, after its campaign (Scenario.at_rings), from the
     campaign of `seed` (default: the scenario's); every ring a check ring unless the file's check
     column says which are."""
-    from dataclasses import replace
-
     from ph_explorer.io.rings import read_planned_rings
 
     orientations, check = read_planned_rings(rings)
