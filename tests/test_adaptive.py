@@ -190,3 +190,18 @@ def test_a_shape_no_catalog_holds_is_claimed_replicated_and_stops_the_campaign()
     assert result.verdict == "uncatalogued" and [s.group for s in result.claimed_shapes] == ["b_angular"]
     estimate, upper, tolerance = last.unseen_um
     assert upper <= tolerance and len(run.plans) <= 4
+
+
+def test_a_ring_whose_fault_repeats_is_measured_again_once_then_left_out_and_the_campaign_stops() -> None:
+    """A head with one ring measured badly (a form error at that orientation, every time it is
+    measured): the plan after it is named measures it again, once; named again, the stop says it
+    is left out instead of asking for it over and over."""
+    from benchmarks.unknown_shapes import unknown_shape_head
+
+    head = unknown_shape_head(550_052, "bad_ring")
+    bad = f"A{head.truth['a_deg']:g} B{head.truth['b_deg']:g}"
+    run = closed_loop.adaptive_campaign(head.scenario)
+    assert run.stopped and f"{bad} measured again and still named: left out" in run.plans[-1].reason
+    again = [r for p in run.plans for r in p.rings if "measure it again" in r.reason]
+    assert [f"A{r.a_deg:g} B{r.b_deg:g}" for r in again] == [bad]
+    assert [f"A{s.a_deg:g} B{s.b_deg:g}" for s in run.results[-1].suspect_rings] == [bad]

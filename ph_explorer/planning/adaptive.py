@@ -1,9 +1,10 @@
 """Measure until you know: the first rings of a head nothing is known about (designed lattice rings
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
-badly again, rings that decide its questions, lattice rings where the data part is thinnest, fresh
-check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or a
-shape replicated), nothing a ring decides, nothing measured badly, and what the model misses at its check rings within the tolerance (95 % upper
-bound); else the budget, or no lattice ring left. One tolerance sets the repetitions too. The
+badly again, once; rings that decide its questions; lattice rings where the data part is thinnest;
+fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
+a shape replicated), nothing a ring decides, no ring measured badly that was not measured again,
+and what the model misses at its check rings within the tolerance (95 % upper bound); else the
+budget, or no lattice ring left. One tolerance sets the repetitions too. The
 closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
 """
 
@@ -297,28 +298,42 @@ def next_rings(
     unseen, unseen_upper = unseen_error_um(campaign, result)
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET, skip=asked)
     done: dict[str, Any] = {"repetitions": campaign.n_repetitions, "measured_rings": campaign.n_orientations, "spent_minutes": spent}
-    done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys([*asked, *decision.questions]))}
+    # A ring named as measured badly is measured again once, in its role (it replaces the old one);
+    # named again after that, its fault repeats there (or the head errs at that ring alone): the
+    # diagnosis keeps it out and the stop says so, rather than measuring it over and over.
+    held_out = campaign.holdout_mask()
+    again, repeated = [], []
+    for s in result.suspect_rings:
+        question = f"measure {orientation_label(s.a_deg, s.b_deg)} again"
+        k = int(np.flatnonzero(orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1))[0])
+        if question in asked:
+            repeated.append(orientation_label(s.a_deg, s.b_deg))
+        else:
+            again.append(
+                (
+                    question,
+                    PlannedRing(
+                        s.a_deg, s.b_deg, f"measured badly ({s.reason}, {s.ratio:.1f}x its floor): measure it again", bool(held_out[k])
+                    ),
+                )
+            )
+    asked_now = [*asked, *decision.questions, *(question for question, _ in again)]
+    done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys(asked_now))}
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
     known_well = unseen_upper <= tolerance
-    if result.verdict in KNOWN_VERDICTS and not decision.rings and not result.suspect_rings and known_well:
+    if result.verdict in KNOWN_VERDICTS and not decision.rings and not again and known_well:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
         claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
         claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
+        kept_out = f"; {', '.join(repeated)} measured again and still named: left out (its fault repeats there)" if repeated else ""
         reason = (
-            f"you know: {claims}; {settled}; at unseen rings the model misses {unseen:.3f} um "
+            f"you know: {claims}; {settled}{kept_out}; at unseen rings the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
         )
         return Plan((), True, reason, 0.0, **done)
-    # A ring named as measured badly is measured again first, in its role (it replaces the old one).
-    held_out = campaign.holdout_mask()
-    again = [
-        PlannedRing(s.a_deg, s.b_deg, f"measured badly ({s.reason}, {s.ratio:.1f}x its floor): measure it again", bool(held_out[k]))
-        for s in result.suspect_rings
-        for k in np.flatnonzero(orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1))[:1]
-    ]
-    suspect = np.array([[r.a_deg, r.b_deg] for r in again]).reshape(-1, 2)
-    rings = again + [
+    suspect = np.array([[r.a_deg, r.b_deg] for _, r in again]).reshape(-1, 2)
+    rings = [r for _, r in again] + [
         PlannedRing(r["A_deg"], r["B_deg"], r["reason"], True)
         for r in decision.rings
         if not orientation_match(np.array([[r["A_deg"], r["B_deg"]]]), suspect).any()
