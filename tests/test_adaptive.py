@@ -178,8 +178,9 @@ def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> No
 
 def test_a_shape_no_catalog_holds_is_claimed_replicated_and_stops_the_campaign() -> None:
     """A head whose B axis steps in angle over part of its turn (benchmarks' unknown shapes): no
-    catalog effect explains it; a shape of the B axis's angular group is claimed, added, and the
-    campaign stops on it as on a catalog claim, within tolerance at its unseen rings."""
+    catalog effect explains it; a shape of the B axis's angular group is claimed, added, claimed
+    again once fresh rings are measured, and the campaign stops on it as on a catalog claim, within
+    tolerance at its unseen rings."""
     from benchmarks.unknown_shapes import unknown_shape_head
 
     head = unknown_shape_head(591_000, "step")
@@ -189,7 +190,10 @@ def test_a_shape_no_catalog_holds_is_claimed_replicated_and_stops_the_campaign()
     assert run.stopped and last.reason.startswith("you know") and "a shape no catalog holds" in last.reason
     assert result.verdict == "uncatalogued" and [s.group for s in result.claimed_shapes] == ["b_angular"]
     estimate, upper, tolerance = last.unseen_um
-    assert upper <= tolerance and len(run.plans) <= 4
+    assert upper <= tolerance and len(run.plans) <= 5
+    first = next(k for k, r in enumerate(run.results) if r.claimed_shapes)
+    assert not run.plans[first + 1].stop and "confirm the shape shape_b_angular on fresh rings" in run.plans[first + 1].questions
+    assert run.results[first + 1].claimed_shapes and len(run.plans) == first + 3
 
 
 def test_a_ring_whose_fault_repeats_is_measured_again_once_then_left_out_and_the_campaign_stops() -> None:

@@ -2,7 +2,7 @@
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
 badly again, once; rings that decide its questions; lattice rings where the data part is thinnest;
 fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
-a shape replicated), nothing a ring decides, no ring measured badly that was not measured again,
+a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring measured badly that was not measured again,
 and what the model misses at its check rings within the tolerance (95 % upper bound); else the
 budget, or no lattice ring left. One tolerance sets the repetitions too. The
 closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
@@ -317,11 +317,15 @@ def next_rings(
                     ),
                 )
             )
-    asked_now = [*asked, *decision.questions, *(question for question, _ in again)]
+    # A shape is a flexible function chosen on these rings' check rings: it stops a campaign once it
+    # is claimed again after fresh rings, measured after it was first claimed, have joined them.
+    shapes = [f"confirm the shape {shape.id} on fresh rings" for shape in result.claimed_shapes]
+    unconfirmed = [question for question in shapes if question not in asked]
+    asked_now = [*asked, *decision.questions, *(question for question, _ in again), *shapes]
     done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys(asked_now))}
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
     known_well = unseen_upper <= tolerance
-    if result.verdict in KNOWN_VERDICTS and not decision.rings and not again and known_well:
+    if result.verdict in KNOWN_VERDICTS and not decision.rings and not again and not unconfirmed and known_well:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
         claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
@@ -371,6 +375,8 @@ def next_rings(
         why = f"the verdict is {result.verdict}"
     elif decision.rings or again:
         why = "questions left open" if decision.rings else "a ring measured badly"
+    elif unconfirmed:
+        why = "a shape no catalog holds, claimed on these rings: fresh rings confirm it or not"
     else:
         why = f"at unseen rings the model misses up to {unseen_upper:.3f} um (95 %), more than the tolerance {tolerance:.3f} um"
     return Plan(tuple(rings), False, why, len(rings) * per_ring, **done)
