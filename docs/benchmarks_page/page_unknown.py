@@ -14,7 +14,10 @@ UNKNOWN_INTRO = """\
 ([the families and their distributions](methods/random_heads.md#unknown-shapes)), sized by what it
 does to the check rings (1 to 3 noise floors), diagnosed as a user would. **none**: the verdict
 says the campaign is within noise, the shape unseen; **catalog name**: `missing` with a catalog
-effect named for the unknown part; **honest**: `unexplained`, `partial` or `suggested`; **silent
+effect named for the unknown part; **other mechanism**: of those, the heads where a claim is not
+the shape's own mechanism either (its axis's angular positioning at a period within 1 cycle/rev of
+one the shape has on the turn, itself or an untold partner, or its seat's lobing for a probe that
+changes: what the catalog can say of a non-integer, drifting or coupled period); **honest**: `unexplained`, `partial` or `suggested`; **silent
 none**: `none` with no ring named as measured badly and no touch outliers named either; **ring
 named**: a ring named as measured badly ([suspect rings](methods/suspect_rings.md)); **outliers
 named**: touch outliers named. Each share with its 95 % interval; the
@@ -55,7 +58,17 @@ def unknown(results: Mapping[str, Any]) -> str:
         bad_min=pct(targets.get("bad_ring_named_min")),
         after=f"{targets.get('after_shape_within', 1.25)}x",
     )
-    head = ["family", "none", "catalog name", "honest", "silent none", "ring named", "outliers named", "check rings / floor (median)"]
+    head = [
+        "family",
+        "none",
+        "catalog name",
+        "other mechanism",
+        "honest",
+        "silent none",
+        "ring named",
+        "outliers named",
+        "check rings / floor (median)",
+    ]
     shapes = ["family", "shape right", "shape wrong", "after the shape, within", "check rings / floor where claimed"]
     return (
         intro
@@ -67,7 +80,7 @@ def unknown(results: Mapping[str, Any]) -> str:
     )
 
 
-KEYS = ("none", "catalog_name", "honest", "none_silent", "suspect_named", "outliers_named")
+KEYS = ("none", "catalog_name", "catalog_name_other_mechanism", "honest", "none_silent", "suspect_named", "outliers_named")
 
 
 def multi_text(u: Mapping[str, Any]) -> str:
