@@ -54,7 +54,7 @@ def simulate_command(
     if adaptive:
         if rings is not None:
             raise InputError("measures the rings its plans choose: give --adaptive or --rings, not both", option="--rings")
-        head = head_of(random_head, design, hidden_effect, strength) if random_head is not None else twin.load_scenario(scenario)
+        head = random_head_of(random_head, design, hidden_effect, strength) if random_head is not None else twin.load_scenario(scenario)
         return adaptive_command(head if seed is None else replace(head, seed=int(seed)), out, budget_minutes)
     if budget_minutes is not None:
         raise InputError("is the time an adaptive campaign may take: give --adaptive", option="--budget-minutes")
@@ -85,7 +85,7 @@ def random_campaign_of(seed: str, design: str | None, hidden_effect: str | None,
     return random_campaign(number, design, hidden)
 
 
-def head_of(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> twin.Scenario:
+def random_head_of(seed: str, design: str | None, hidden_effect: str | None, strength: str | None) -> twin.Scenario:
     """The random head's scenario from the options as given (random_campaign_of's head)."""
     return random_head(*random_head_options(seed, design, hidden_effect, strength))
 

@@ -2,10 +2,10 @@
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
 badly again, once; rings that decide its questions; lattice rings where the data part is thinnest;
 fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
-a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring measured badly that was not measured again,
-and what the model misses at its check rings within the tolerance (95 % upper bound); else the
-budget, or no lattice ring left. One tolerance sets the repetitions too. The
-closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
+a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring
+measured badly that was not measured again, and what the model misses at its check rings within
+the tolerance (95 % upper bound); else the budget, or no lattice ring left. One tolerance sets the
+repetitions too. The closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
 """
 
 from __future__ import annotations
@@ -302,26 +302,22 @@ def next_rings(
     # named again after that, its fault repeats there (or the head errs at that ring alone): the
     # diagnosis keeps it out and the stop says so, rather than measuring it over and over.
     held_out = campaign.holdout_mask()
-    again, repeated = [], []
+    again: list[PlannedRing] = []
+    repeated, remeasure = [], []  # the rings measured again already; the questions this plan asks
     for s in result.suspect_rings:
-        question = f"measure {orientation_label(s.a_deg, s.b_deg)} again"
-        k = int(np.flatnonzero(orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1))[0])
-        if question in asked:
-            repeated.append(orientation_label(s.a_deg, s.b_deg))
-        else:
-            again.append(
-                (
-                    question,
-                    PlannedRing(
-                        s.a_deg, s.b_deg, f"measured badly ({s.reason}, {s.ratio:.1f}x its floor): measure it again", bool(held_out[k])
-                    ),
-                )
-            )
+        label = orientation_label(s.a_deg, s.b_deg)
+        if f"measure {label} again" in asked:
+            repeated.append(label)
+            continue
+        remeasure.append(f"measure {label} again")
+        at = orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1)
+        reason = f"measured badly ({s.reason}, {s.ratio:.1f}x its floor): measure it again"
+        again.append(PlannedRing(s.a_deg, s.b_deg, reason, bool(held_out[at].any())))
     # A shape is a flexible function chosen on these rings' check rings: it stops a campaign once it
     # is claimed again after fresh rings, measured after it was first claimed, have joined them.
     shapes = [f"confirm the shape {shape.id} on fresh rings" for shape in result.claimed_shapes]
     unconfirmed = [question for question in shapes if question not in asked]
-    asked_now = [*asked, *decision.questions, *(question for question, _ in again), *shapes]
+    asked_now = [*asked, *decision.questions, *remeasure, *shapes]
     done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys(asked_now))}
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
     known_well = unseen_upper <= tolerance
@@ -336,8 +332,8 @@ def next_rings(
             f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
         )
         return Plan((), True, reason, 0.0, **done)
-    suspect = np.array([[r.a_deg, r.b_deg] for _, r in again]).reshape(-1, 2)
-    rings = [r for _, r in again] + [
+    suspect = np.array([[r.a_deg, r.b_deg] for r in again]).reshape(-1, 2)
+    rings = again + [
         PlannedRing(r["A_deg"], r["B_deg"], r["reason"], True)
         for r in decision.rings
         if not orientation_match(np.array([[r["A_deg"], r["B_deg"]]]), suspect).any()
