@@ -15,7 +15,11 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   outliers named (diagnosis.touch_outliers) either; outliers_named: touch outliers named;
 - suspect_named: a ring named as measured badly; bad_ring_named: a bad-ring head's own ring named,
   over its family's heads and as many more of seeds of their own;
-- the check rings' error over their floor (median of each head's mean ratio): what a user sees.
+- the check rings' error over their floor (median of each head's mean ratio): what a user sees;
+- where a shape is claimed (issue 56): the check rings' error once it is added, over the floor
+  (after_shape_within) and over that of the same head without the shape, diagnosed alike
+  (after_shape_within_plain): the background's interpolation error stays whatever the shape, so
+  plain_within, the share of those plain heads within 1.25 floors, bounds the first.
 
 MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_effects.py): the
 share on which every effect is claimed (multi_effects.found_each: as catalog-effect heads are
@@ -111,6 +115,12 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         return record | {"verdict": "error", "error": f"{type(error).__name__}: {error}"}
     check = [ring.ratio for ring in result.rings if ring.held_out]
     first = next((entry for entry in result.signature if entry["significant"]), None)
+    if any(shape.claimed for shape in result.shapes):
+        # The same head without its shape, diagnosed alike: the error a shape could fall to at best
+        # (the background's interpolation error stays).
+        seed = head.truth["head_seed"]
+        plain = diagnose(random_campaign(seed, design_of(seed)), nested=False).steps[-1]
+        record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
     return record | {
         "design": design_of(job["seed"]),
         "truth": {k: v for k, v in head.truth.items() if isinstance(v, (int, float, str, dict))},
@@ -337,7 +347,14 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "shape_right": rate(sum(shape_right(r) for r in shaped), len(shaped)),
             "shape_wrong": rate(sum(shape_wrong(r) for r in group), len(group)),
             "after_shape_within": rate(sum(r["step_ratios"][-1] <= TARGETS["after_shape_within"] for r in claimed), len(claimed)),
+            # the same heads without their shape: within 1.25 floors (what the wording above can reach
+            # at best), and the shape's after within 1.25 times that head's own
+            "plain_within": rate(sum(r["plain_ratio"] <= TARGETS["after_shape_within"] for r in claimed), len(claimed)),
+            "after_shape_within_plain": rate(
+                sum(r["step_ratios"][-1] <= TARGETS["after_shape_within"] * r["plain_ratio"] for r in claimed), len(claimed)
+            ),
             "after_shape_ratio_median": round(float(np.median([r["step_ratios"][-1] for r in claimed])), 3) if claimed else None,
+            "plain_ratio_median": round(float(np.median([r["plain_ratio"] for r in claimed])), 3) if claimed else None,
             "before_ratio_median_where_claimed": round(float(np.median([r["step_ratios"][0] for r in claimed])), 3) if claimed else None,
         }
 

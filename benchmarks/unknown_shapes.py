@@ -172,7 +172,7 @@ def _lateral(touches: Touches) -> NDArray[np.float64]:
 
 def _campaign_fraction(touches: Touches) -> NDArray[np.float64]:
     """Each touch's place in the campaign's time order, 0 to 1 (touch times need not be recorded)."""
-    return touches.order / max(int(touches.order.max()), 1)
+    return touches.place
 
 
 class SeatWear(_Unknown):

@@ -33,6 +33,8 @@ class Campaign:
     check_orientations: (m, 2) orientations the scenario holds out of training (from a sidecar),
         or None when nothing says so (then the off-grid orientations are used).
     scenario: what a simulate sidecar recorded (name, seed, effects, hidden effects), or {}.
+    places: each touch's place in the time order of the campaign this one was taken from (subset),
+        0 to 1, or None: its own order's (touch_place).
     """
 
     orientations: NDArray[np.float64]
@@ -42,6 +44,7 @@ class Campaign:
     check_orientations: NDArray[np.float64] | None = None
     scenario: dict[str, Any] = field(default_factory=dict)
     source: str | None = None
+    places: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         self.orientations = np.asarray(self.orientations, dtype=float).reshape(-1, 2)
@@ -120,7 +123,16 @@ class Campaign:
             orientations=self.orientations[idx],
             deviations=self.deviations[idx],
             times_s=None if self.times_s is None else self.times_s[idx],
+            places=self.touch_place()[idx],  # rings taken out of a campaign keep their place in its time
         )
+
+    def touch_place(self) -> NDArray[np.float64]:
+        """Each touch's place in the campaign's time order, 0 to 1, shaped like deviations: a subset's
+        rings keep the place they had (a fit on some rings predicts the others where they were measured)."""
+        if self.places is not None:
+            return self.places
+        order = self.touch_order()
+        return order / max(int(order.max()), 1)
 
     def touch_order(self) -> NDArray[np.int64]:
         """Rank of every touch in time, shaped like deviations.

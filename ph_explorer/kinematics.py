@@ -47,6 +47,7 @@ class Touches:
     gravity_probe: NDArray[np.float64]  # (n_o, 1, n_pt, 3) unit gravity vector in the probe frame
     order: NDArray[np.int64]  # (n_o, n_rep, n_pt) rank of the touch in time over the campaign
     times_s: NDArray[np.float64] | None  # (n_o, n_rep, n_pt) or None
+    place: NDArray[np.float64]  # (n_o, n_rep, n_pt) the touch's place in the campaign's time order, 0 to 1
     a_approach: NDArray[np.float64]  # (n_o, n_rep, n_pt) sign (+1/-1) of the A joint's approach
     b_approach: NDArray[np.float64]  # (n_o, n_rep, n_pt) sign (+1/-1) of the B joint's approach
     reachable: NDArray[np.bool_]  # (n_o, 1, n_pt) joint angles inside the head's range
@@ -75,11 +76,13 @@ def touch_kinematics(
     geometry: Geometry = DEFAULT_GEOMETRY,
     n_repetitions: int = 1,
     times_s: ArrayLike | None = None,
+    place: ArrayLike | None = None,
 ) -> Touches:
     """Kinematics of every touch at the given nominal orientations.
 
     times_s (n_o, n_rep, n_pt) fixes the touch order; without it the scan order is orientation by
-    orientation, repetition by repetition, point 0..N-1.
+    orientation, repetition by repetition, point 0..N-1. place: each touch's place in the time
+    order of the campaign these touches were taken from, 0 to 1 (default: their own order's).
     """
     o = np.atleast_2d(np.asarray(orientations, dtype=float))
     n_pt = geometry.points_per_circle
@@ -122,6 +125,7 @@ def touch_kinematics(
         gravity_probe=gravity[:, None],
         order=order,
         times_s=times,
+        place=order / max(int(order.max()), 1) if place is None else np.broadcast_to(np.asarray(place, dtype=float), shape),
         a_approach=a_approach,
         b_approach=b_approach,
         reachable=reachable[:, None, :],
@@ -130,7 +134,7 @@ def touch_kinematics(
 
 def campaign_touches(campaign: Campaign) -> Touches:
     """Kinematics of every touch of a Campaign, in its own touch order."""
-    return touch_kinematics(campaign.orientations, campaign.geometry, campaign.n_repetitions, campaign.times_s)
+    return touch_kinematics(campaign.orientations, campaign.geometry, campaign.n_repetitions, campaign.times_s, campaign.touch_place())
 
 
 def approach_sign(joint_deg: NDArray[np.float64], order: NDArray[np.int64]) -> NDArray[np.float64]:

@@ -3,6 +3,7 @@ variables, found on the right axis, drawn with its band, added, and the error fa
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import tomllib
 from pathlib import Path
@@ -21,6 +22,7 @@ from ph_explorer.diagnosis.shapes import family_test
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
 from ph_explorer.effects.error_functions import error_function, hat_functions, load_shapes
+from ph_explorer.effects.probe import lateral_share
 from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.io.writer import write_campaign
 from ph_explorer.models import least_squares
@@ -99,6 +101,34 @@ def test_a_period_beyond_the_catalog_scan_is_named_within_one_cycle() -> None:
     assert shape.group == "b_angular" and shape.period_cycles is not None
     assert abs(shape.period_cycles - 48.0) <= 1.0
     assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]
+
+
+class StylusKnock(Effect):
+    """Test-only: a knock reseats the stylus 60 % into the campaign; from then on a 2-lobe
+    pre-travel term in the force azimuth that was not there before."""
+
+    candidate: ClassVar[bool] = False
+    id, name = "test_stylus_knock", "A knock that reseats the stylus"
+    parameters = (Parameter("amplitude_um", "um", 0.3, "2-lobe amplitude after the knock", plausible=(0.0, 0.8)),)
+
+    def forward(self, touches, rng):
+        lobes = np.cos(2 * np.radians(touches.psi_deg)) * lateral_share(touches)
+        return np.broadcast_to(self.params["amplitude_um"] * (touches.place >= 0.6) * lobes, touches.shape).copy()
+
+
+def test_a_probe_that_changed_during_the_campaign_is_predicted_where_the_check_rings_were_measured() -> None:
+    # No touch times in the file: the shape is a function of the place in the scan order. The
+    # check rings come last; a model fitted beside the lattice predicts them at their own place
+    # in time, not at a place renumbered among the rings predicted (Campaign.touch_place).
+    campaign = dataclasses.replace(random_campaign(SEED, "paper", [StylusKnock()]), times_s=None)
+    check = campaign.holdout_mask()
+    assert np.array_equal(campaign.subset(check).touch_place(), campaign.touch_place()[check])
+    result = diagnose(campaign, nested=False)
+    shape = next(s for s in result.shapes if s.claimed)
+    assert shape.group == "probe_time" and shape.variable == "campaign_fraction"
+    before, after = result.steps[0], result.steps[-1]
+    assert before.mae_um["mean"] > 2.0 * before.noise_floor_um["mean"]
+    assert after.mae_um["mean"] < 1.5 * after.noise_floor_um["mean"]
 
 
 def test_a_healthy_head_is_asked_for_no_shape() -> None:

@@ -31,7 +31,11 @@ for a probe that changes), or with that group among those the rings cannot tell,
 whose shape a group holds; **shape wrong**: a shape claimed that does not hold it (any shape on a
 bad-ring or outlier head); **after the shape**: of the heads with a shape claimed, the share whose
 check rings' MAE (against the mean) is within {after} of their floor once it is added, and the
-median check rings / floor before and after.
+median check rings / floor before and after; **same head without it**: those heads again without
+their shape, diagnosed alike: the share within {after} of their floor (what the share before can
+reach at best: the background's interpolation error stays) and their median; **after, within the
+head's own**: the share whose check rings once the shape is added are within {after} of that
+head's own without it.
 """
 
 
@@ -48,6 +52,8 @@ def unknown(results: Mapping[str, Any]) -> str:
             share_of(s.get("shape_wrong")),
             share_of(s.get("after_shape_within")),
             f"{num(s.get('before_ratio_median_where_claimed'))} -> {num(s.get('after_shape_ratio_median'))}",
+            f"{share_of(s.get('plain_within'))}, {num(s.get('plain_ratio_median'))}",
+            share_of(s.get("after_shape_within_plain")),
         ]
         for family, s in groups
         if "shape_right" in s
@@ -69,7 +75,15 @@ def unknown(results: Mapping[str, Any]) -> str:
         "outliers named",
         "check rings / floor (median)",
     ]
-    shapes = ["family", "shape right", "shape wrong", "after the shape, within", "check rings / floor where claimed"]
+    shapes = [
+        "family",
+        "shape right",
+        "shape wrong",
+        "after the shape, within",
+        "check rings / floor where claimed",
+        "same head without it: within, median",
+        "after, within the head's own",
+    ]
     return (
         intro
         + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"

@@ -143,17 +143,19 @@ class Shape:
         )
 
 
-def knots(group: str, touches: Touches) -> tuple[tuple[float, ...], bool, float | None]:
+def knots(group: str, touches: Touches, train: NDArray[np.bool_]) -> tuple[tuple[float, ...], bool, float | None]:
     """(knots, periodic, aliasing limit in deg or None) of a group's functions on these touches.
 
     A joint angle: knots every KNOT_STEP_DEG over the angles its rings sample with a lever (the
     whole turn, periodic, when that is more than FULL_TURN_DEG); the aliasing limit is two knot
-    steps, or twice the widest gap the rings' sweeps leave. Time: TIME_KNOTS over the span."""
+    steps, or twice the widest gap the rings' sweeps leave. Time: TIME_KNOTS over the span of the
+    training rings (`train`), which the hybrid is fitted on; later rings (check rings are often
+    measured last) see the function's last value."""
     spec = SHAPE_GROUPS[group]
     variable = spec.variable_of(touches)
     x = np.broadcast_to(variable.values(touches), touches.shape)[:, 0]  # (n_o, n_pt): the joints repeat
     if not variable.angle:
-        span = np.broadcast_to(variable.values(touches), touches.shape)
+        span = np.broadcast_to(variable.values(touches), touches.shape)[train]
         return tuple(np.linspace(float(span.min()), float(span.max()), TIME_KNOTS)), False, None
     lever = np.abs(spec.lever(touches)).max(axis=-1)[:, 0]  # (n_o, n_pt)
     sampled = np.sort(x[lever > SAMPLED_LEVER * lever.max()])
@@ -183,7 +185,7 @@ class _Fit:
 
 
 def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]) -> _Fit:
-    grid, periodic, aliasing = knots(group, search.touches)
+    grid, periodic, aliasing = knots(group, search.touches, search.train)
     effect = error_function(group, grid, periodic)()
     design = Design(search.bases(effect), search.smoother)
     joint = design if fixed is None else fixed.stacked(design)

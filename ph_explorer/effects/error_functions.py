@@ -33,7 +33,7 @@ from ph_explorer.kinematics import Touches
 
 
 def _order_fraction(touches: Touches) -> NDArray[np.float64]:
-    return touches.order / max(int(touches.order.max()), 1)
+    return touches.place
 
 
 @dataclass(frozen=True)
@@ -147,8 +147,9 @@ SHAPE_GROUPS: dict[str, ShapeGroup] = {
 
 
 def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: bool) -> NDArray[np.float64]:
-    """(..., K): the piecewise linear interpolation weights of x on the knots (each row sums to 1
-    inside the knots' range, 0 outside it); periodic: the knots span a full turn of an angle (deg)."""
+    """(..., K): the piecewise linear interpolation weights of x on the knots (each row sums to 1);
+    beyond the knots' range a function holds its end value (nothing is known of its trend there: a
+    probe term of time is taken as last seen); periodic: the knots span a full turn of an angle (deg)."""
     knots = np.asarray(knots, dtype=float)
     x = np.asarray(x, dtype=float)[..., None]
     if periodic:
@@ -157,9 +158,8 @@ def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: 
     gaps = np.diff(knots)
     left = np.concatenate([gaps[:1], gaps])  # the gap to the knot before (the first's: its next)
     right = np.concatenate([gaps, gaps[-1:]])
-    d = x - knots
-    inside = (x >= knots[0]) & (x <= knots[-1])
-    return np.where(inside, np.maximum(0.0, 1.0 - np.where(d < 0, -d / left, d / right)), 0.0)
+    d = np.clip(x, knots[0], knots[-1]) - knots
+    return np.maximum(0.0, 1.0 - np.where(d < 0, -d / left, d / right))
 
 
 class ErrorFunction(Effect):
