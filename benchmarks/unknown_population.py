@@ -14,7 +14,8 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 - none_silent: `none` with no ring named as measured badly (diagnosis.suspect) and no touch
   outliers named (diagnosis.touch_outliers) either; outliers_named: touch outliers named;
 - suspect_named: a ring named as measured badly; bad_ring_named: a bad-ring head's own ring named,
-  over its family's heads and as many more of seeds of their own;
+  over its family's heads and as many more of seeds of their own; bad_ring_named_on_lattice: the
+  same over those whose bad ring is not a check ring (a check ring is never named);
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees;
 - where a shape is claimed (issue 56): the check rings' error once it is added, over the floor
   (after_shape_within) and over that of the same head without the shape, diagnosed alike
@@ -121,6 +122,9 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         seed = head.truth["head_seed"]
         plain = diagnose(random_campaign(seed, design_of(seed)), nested=False).steps[-1]
         record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
+    if job["family"] == "bad_ring":  # a check ring is never named (diagnosis.suspect): where is it?
+        at = (head.campaign.orientations == [head.truth["a_deg"], head.truth["b_deg"]]).all(axis=1)
+        record["bad_on_check_ring"] = bool(head.campaign.holdout_mask()[at].any())
     return record | {
         "design": design_of(job["seed"]),
         "truth": {k: v for k, v in head.truth.items() if isinstance(v, (int, float, str, dict))},
@@ -364,6 +368,9 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     return {
         "all": summary(judged),
         "bad_ring_named": rate(sum(truth_ring_named(r) for r in bad), len(bad)),
+        "bad_ring_named_on_lattice": rate(
+            sum(truth_ring_named(r) for r in bad if not r["bad_on_check_ring"]), sum(not r["bad_on_check_ring"] for r in bad)
+        ),
         "by_family": {family: summary(group) for family, group in by_family.items()},
         "errors": [{"seed": r["seed"], "family": r["family"], "error": r["error"]} for r in records if r["verdict"] == "error"],
     }
