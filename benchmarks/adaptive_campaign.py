@@ -15,7 +15,12 @@ intervals:
   at most 1.1x (the issue's target: >= 90 %), and the median ratio; each against the floor;
 - the verdict at the stop against the full campaign's (the same word), the same claims, and
   claims in the head (every effect claimed is one the head holds: its background's or the hidden one;
-  a sparse campaign's data part interpolates less of the background, whose effects then show).
+  a sparse campaign's data part interpolates less of the background, whose effects then show);
+- the same answer about what the head hides (same_answer): a hidden catalog effect claimed by both
+  or by neither; on the other heads both quiet (`none`, or claims of the head's own background
+  only, as the population judges a healthy head's alarm) or both not. The words differ where the
+  sparse campaign's model, physical where the full one's trilinear interpolates, names background
+  effects the full campaign leaves to its data part.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer import metrics
 from ph_explorer.campaign import orientation_match
 from ph_explorer.diagnosis import diagnose
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.planning.closed_loop import adaptive_campaign
@@ -113,6 +119,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "minutes": round(float(np.ptp(scenario.times_s())) / 60.0, 1),  # at the head's cadence, times in its CSV or not
             "verdict": full_result.verdict,
             "found": sorted(c.effect for c in full_result.found),
+            "suggested": sorted(c.effect for c in full_result.suggested),
             "trilinear_mae_um": round(mae_vs_mean(trilinear, rings, mean), 5),
             "seconds": round(full_seconds, 2),
         },
@@ -125,6 +132,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "reason": run.plans[-1].reason,
             "verdict": last.verdict,
             "found": sorted(c.effect for c in last.found),
+            "suggested": sorted(c.effect for c in last.suggested),
             "mae_um": trajectory[-1][2],  # the model at the stop: the trajectory's last
             "rings_by_plan": [len(p.rings) for p in run.plans],
             "trajectory": trajectory,  # [rings measured, minutes, evaluation MAE um] after each diagnosis
@@ -132,7 +140,26 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
         },
         "floor_um": round(float(floor), 5),
         "in_head": sorted({effect.id for effect in scenario.effects}),
+        "hidden": scenario.hidden_ids,
     }
+
+
+def quiet(side: dict[str, Any], background: set[str]) -> bool:
+    """No alarm about what the head hides: `none`, or `missing` or `suggested` naming only effects of
+    the head's own background (as population.alarm judges a healthy head)."""
+    named = set(side["found"]) | set(side.get("suggested", []))
+    return side["verdict"] == "none" or (side["verdict"] in ("missing", "suggested") and bool(named) and named <= background)
+
+
+def same_answer(record: dict[str, Any]) -> bool:
+    """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
+    claimed by both or by neither; else both quiet, or both not (quiet)."""
+    hidden = record.get("hidden", [])
+    catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
+    if record["kind"] == "catalog_effect" and catalog:
+        return all((effect in record["full"]["found"]) == (effect in record["adaptive"]["found"]) for effect in catalog)
+    background = set(record["in_head"]) - set(hidden)
+    return quiet(record["full"], background) == quiet(record["adaptive"], background)
 
 
 def jobs(count: int) -> list[dict[str, Any]]:
@@ -169,6 +196,8 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "trilinear_over_floor_median": round(float(np.median([r["full"]["trilinear_mae_um"] / r["floor_um"] for r in group])), 3),
             "verdict_agreement": rate(sum(r["adaptive"]["verdict"] == r["full"]["verdict"] for r in group), len(group)),
             "claims_agreement": rate(sum(r["adaptive"]["found"] == r["full"]["found"] for r in group), len(group)),
+            # the same answer about what the head hides, the words aside (same_answer)
+            "same_answer": rate(sum(same_answer(r) for r in group), len(group)),
             # a claim of an effect the head holds (its background's or the one hidden in it) is no false claim
             "claims_in_head": rate(sum(set(r["adaptive"]["found"]) <= set(r["in_head"]) for r in group), len(group)),
         }

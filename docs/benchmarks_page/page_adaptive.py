@@ -18,7 +18,11 @@ population's paper-style campaign). Both are judged on {rings} evaluation rings 
 both campaigns' grids, measured at {repetitions} repetitions after the campaign: the MAE of the model
 at the stop (the last diagnosis's hybrid, or its data part when it claims nothing) against the full
 campaign's trilinear model. The verdict is compared word for word with the full campaign's; a
-claim "in the head" names an effect the head holds (its background's or the hidden one).
+claim "in the head" names an effect the head holds (its background's or the hidden one); **same
+answer**: about what the head hides, the words aside: a hidden catalog effect claimed by both or by
+neither, else both quiet (`none`, or claims of the head's own background only) or both not. A sparse
+campaign's model is physical where the full one's trilinear interpolates, so it names background
+effects the full campaign leaves to its data part: the words differ where the answer does not.
 """
 
 
@@ -50,6 +54,7 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
                 num(k.get("mae_ratio_median")),
                 f"{num(k.get('adaptive_over_floor_median'))} / {num(k.get('trilinear_over_floor_median'))}",
                 share(k.get("verdict_agreement")),
+                share(k.get("same_answer")),
                 share(k.get("claims_in_head")),
             ]
         )
@@ -65,6 +70,7 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
         "MAE ratio, median",
         "over the floor: adaptive / full",
         "same verdict",
+        "same answer",
         "claims in the head",
     ]
     body = ADAPTIVE_INTRO.format(rings=evaluation.get("rings"), repetitions=evaluation.get("repetitions"))
