@@ -21,10 +21,10 @@ from scipy import stats
 
 from ph_explorer.campaign import Campaign, orientation_keys, orientation_label, orientation_match
 from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.diagnosis.suspect import without_suspects
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
-from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
@@ -256,15 +256,19 @@ def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float
     """What the diagnosed model misses at rings it never saw, in um rms: at each check ring, the
     mean square of its repetition mean's residual less what touch noise puts there (sigma^2 / R for
     the ring, and for the rings the data part predicts it from, times their weights' squares);
-    the mean over check rings and its one-sided 95 % upper bound (a t quantile over the rings)."""
-    held_out = np.flatnonzero(campaign.holdout_mask())
-    model = result.hybrid or HybridModel([]).fit(campaign, ~campaign.holdout_mask())
-    checks = campaign.subset(held_out)
-    residual = (checks.deviations - model.predict_touches(campaign_touches(checks))).mean(axis=1)
+    the mean over check rings and its one-sided 95 % upper bound (a t quantile over the rings).
+    Each check ring is predicted as the error history measures it: left out of the physical fit,
+    which reads every ring's out-of-sample residual (predict_held_out), on the campaign the
+    diagnosis fitted (its suspect rings left out)."""
+    fitted = without_suspects(campaign, result.suspect_rings)
+    train = ~fitted.holdout_mask()
+    held_out = np.flatnonzero(~train)
+    model = result.hybrid or HybridModel([]).fit(fitted, train)
+    residual = (fitted.deviations[held_out] - model.predict_held_out(fitted, held_out)).mean(axis=1)
     # The touch noise in a residual: the ring's own mean's, and that of the training rings' means the
     # data part predicts it from (their weights' squares).
-    neighbours = (OutOfSampleSmoother(campaign.orientations, ~campaign.holdout_mask()).weights[held_out] ** 2).sum(axis=1)
-    excess = (residual**2).mean(axis=1) - (1.0 + neighbours) * campaign.noise_sigma_um() ** 2 / campaign.n_repetitions
+    neighbours = (OutOfSampleSmoother(fitted.orientations, train).weights[held_out] ** 2).sum(axis=1)
+    excess = (residual**2).mean(axis=1) - (1.0 + neighbours) * fitted.noise_sigma_um() ** 2 / fitted.n_repetitions
     mean = float(excess.mean())
     error = float(excess.std(ddof=1) / math.sqrt(excess.size)) if excess.size > 1 else math.inf
     upper = mean + float(stats.t.ppf(0.95, max(excess.size - 1, 1))) * error
