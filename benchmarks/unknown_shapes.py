@@ -23,6 +23,7 @@ from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.detection import hidden_effect_of
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.probe import lateral_share
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
@@ -166,15 +167,6 @@ class AxisCoupled(_AxisShape):
         return self.params["amplitude_arcsec"] * size * cycle
 
 
-def _lateral(touches: Touches) -> NDArray[np.float64]:
-    return np.sin(np.radians(touches.beta_deg))
-
-
-def _campaign_fraction(touches: Touches) -> NDArray[np.float64]:
-    """Each touch's place in the campaign's time order, 0 to 1 (touch times need not be recorded)."""
-    return touches.place
-
-
 class SeatWear(_Unknown):
     """The module's seats wear during the campaign: a 3-lobe pre-travel term in the force azimuth
     that grows from nothing to its amplitude over the campaign."""
@@ -184,8 +176,8 @@ class SeatWear(_Unknown):
     parameters = (Parameter("amplitude_um", "um", 0.3, "3-lobe amplitude at the campaign's end", plausible=(0.0, 0.8)), PHASE)
 
     def shape(self, touches: Touches) -> NDArray[np.float64]:
-        lobes = np.cos(3 * np.radians(touches.psi_deg) + np.radians(self.params["phase_deg"])) * _lateral(touches)
-        return self.params["amplitude_um"] * _campaign_fraction(touches) * lobes
+        lobes = np.cos(3 * np.radians(touches.psi_deg) + np.radians(self.params["phase_deg"])) * lateral_share(touches)
+        return self.params["amplitude_um"] * touches.place * lobes
 
 
 class StylusKnock(_Unknown):
@@ -201,8 +193,8 @@ class StylusKnock(_Unknown):
     )
 
     def shape(self, touches: Touches) -> NDArray[np.float64]:
-        lobes = np.cos(2 * np.radians(touches.psi_deg) + np.radians(self.params["phase_deg"])) * _lateral(touches)
-        return self.params["amplitude_um"] * (_campaign_fraction(touches) >= self.params["at"]) * lobes
+        lobes = np.cos(2 * np.radians(touches.psi_deg) + np.radians(self.params["phase_deg"])) * lateral_share(touches)
+        return self.params["amplitude_um"] * (touches.place >= self.params["at"]) * lobes
 
 
 class BadRing(_Unknown):
