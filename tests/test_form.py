@@ -3,6 +3,7 @@ signature but parameters that change over the head is suggested, never claimed."
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from typing import ClassVar
 
@@ -14,6 +15,7 @@ from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.axes import BAxisCyclic
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
+from ph_explorer.effects.probe import lateral_share
 from ph_explorer.figures.diagnosis_text import report_sections
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -64,3 +66,35 @@ def test_a_constant_error_of_the_same_signature_keeps_its_claim() -> None:
     assert result.verdict == "missing"
     claim = next(c for c in result.found if c.effect == "b_axis_cyclic")
     assert claim.settings == {"cycles_per_rev": 12} and claim.replication.form_breaks is None
+
+
+class SeatWear(Effect):
+    """Test-only: a kinematic seat that wears during the campaign, its 3-lobe pre-travel term
+    growing from nil at the first touch to amplitude_um at the last; no catalog holds it."""
+
+    candidate: ClassVar[bool] = False
+    id, name = "test_seat_wear", "A kinematic seat wearing during the campaign"
+    parameters = (Parameter("amplitude_um", "um", 0.3, "3-lobe amplitude at the last touch", plausible=(0.0, 0.8)),)
+
+    def forward(self, touches, rng):
+        lobes = np.cos(3 * np.radians(touches.psi_deg)) * lateral_share(touches)
+        return np.broadcast_to(self.params["amplitude_um"] * touches.place * lobes, touches.shape).copy()
+
+
+def test_a_catalog_effect_that_a_shape_of_another_variable_predicts_better_is_not_claimed() -> None:
+    # The check rings are measured last, when the seat has worn most, and the lattice's out-of-sample
+    # residual cannot see an error of A0 alone: an A-axis tilt motion fitted to the check rings
+    # replicated over them, and was claimed (`missing`) before this test. The probe's lobes as a
+    # function of time predict the rings better in its place: it is suggested, and the shape claimed.
+    campaign = dataclasses.replace(random_campaign(SEED, "paper", [SeatWear()]), times_s=None)
+    result = diagnose(campaign, nested=False)
+    assert result.verdict == "uncatalogued" and not result.found
+    assert result.claimed_shapes[0].group == "probe_time"
+    tilt = next(c for c in result.suggested if c.effect == "a_axis_tilt_motion")
+    rival = tilt.replication.outpredicted
+    assert rival is not None and rival.group == "probe_time" and rival.p_value < 0.05 and rival.p_without_top < 0.05
+    assert tilt.form_broken and tilt not in result.open_suggestions
+    words = " ".join(line for s in report_sections(result, DEFAULT_CATALOG, detail="full") for line in s.lines)
+    assert rival.words_why() in words and "No catalog effect has this form" in words
+    data = json.loads(json.dumps(result.to_json()))
+    assert Diagnosis.from_json(data).to_json() == data

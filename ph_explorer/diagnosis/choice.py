@@ -18,7 +18,8 @@ from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
 from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains
-from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN, CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.shapes import outpredicting_shape
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -35,23 +36,19 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
     return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed, held_out=~search.train)
 
 
-# A candidate that is not material on the check rings is still taken when it brings at least this
-# many of the rings that exceed their noise within it: more than one, so that no single ring decides,
-# and at least this share of them, so that it explains a material part of the failure (as the
-# check rings' 15 % does; with a catalog of many effects a couple of rings is what one of them
-# takes from a failure it does not explain).
-RINGS_BROUGHT_WITHIN = 2
-SHARE_BROUGHT_WITHIN = 0.25
-
-
 def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], fitted: Candidate, seed: int = 0) -> Replication:
     """The test a claim passes, the effect added to `chain`: its gain replicated over rings with its
-    size determined by `fitted`'s parameters (diagnosis.replication), and its form holding over
-    the head (diagnosis.form)."""
+    size determined by `fitted`'s parameters (diagnosis.replication), its form holding over the
+    head (diagnosis.form), and no shape of another variable predicting the rings better in its
+    place (shapes.outpredicting_shape)."""
     before = search.design(chain) if chain else None
     gain = ring_gains(search.residual, before, search.design([*chain, effect]), search.targets, ring_sigma(search.campaign.deviations) ** 2)
     test = replication(gain, ~search.train, determined_size(fitted.params, fitted.params_u, effect.amplitudes()), seed)
-    return replace(test, form_breaks=form_breaks(search, effect, chain, seed)) if test.replicated else test
+    if test.replicated:
+        test = replace(test, form_breaks=form_breaks(search, effect, chain, seed))
+    if test.replicated:
+        test = replace(test, outpredicted=outpredicting_shape(search, effect, chain, gain, seed))
+    return test
 
 
 def scanned_beside(search: CandidateSearch, effect: Effect, others: Sequence[Effect]) -> Candidate:

@@ -48,6 +48,24 @@ class FormBreak:
         )
 
 
+@dataclass(frozen=True)
+class RivalShape:
+    """A shape of a variable other than a claim's own (diagnosis.shapes) that predicts the rings
+    better in the claim's place: the error resembles the catalog effect where the rings look, and
+    is another function of the head."""
+
+    group: str  # error_functions.SHAPE_GROUPS key, e.g. "probe_time"
+    words: str  # what it is, e.g. "pre-travel lobes of the probe ... changing over the campaign"
+    p_value: float  # family-wise over the rival groups (shapes.family_test)
+    p_without_top: float
+
+    def words_why(self) -> str:
+        return (
+            f"{self.words} predicts the rings better in its place (p = {self.p_value:.3g} over rings, "
+            "as the best of the other variables' shapes): the error resembles this effect, not its form"
+        )
+
+
 @dataclass
 class Replication:
     """The evidence over rings for one candidate (see the module docstring)."""
@@ -61,11 +79,12 @@ class Replication:
     carried_by: list[int] = field(default_factory=list)  # the rings that gain most (indices)
     determined: bool = True  # an amplitude beyond its expanded uncertainty (k = 2)
     form_breaks: FormBreak | None = None  # its parameters differ over the head (diagnosis.form)
+    outpredicted: RivalShape | None = None  # a shape of another variable predicts the rings better
 
     @property
     def replicated(self) -> bool:
         significant = self.p_value < REPLICATION_LEVEL and self.p_without_top < REPLICATION_LEVEL
-        return significant and self.determined and self.form_breaks is None
+        return significant and self.determined and self.form_breaks is None and self.outpredicted is None
 
     def reasons(self) -> list[str]:
         """Why the claim is not replicated, in words ([] when it is)."""
@@ -79,6 +98,8 @@ class Replication:
             out.append("no amplitude exceeds its expanded uncertainty")
         if self.form_breaks is not None:
             out.append(self.form_breaks.words())
+        if self.outpredicted is not None:
+            out.append(self.outpredicted.words_why())
         return out
 
     def as_dict(self) -> dict[str, Any]:
@@ -94,6 +115,7 @@ class Replication:
             "determined": self.determined,
             "level": REPLICATION_LEVEL,
             "form_breaks": None if self.form_breaks is None else {f.name: getattr(self.form_breaks, f.name) for f in fields(FormBreak)},
+            "outpredicted": None if self.outpredicted is None else {f.name: getattr(self.outpredicted, f.name) for f in fields(RivalShape)},
         }
 
     @classmethod
@@ -108,6 +130,7 @@ class Replication:
             list(data["carried_by"]),
             data["determined"],
             FormBreak(**data["form_breaks"]) if data.get("form_breaks") else None,
+            RivalShape(**data["outpredicted"]) if data.get("outpredicted") else None,
         )
 
 

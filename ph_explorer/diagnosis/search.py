@@ -44,6 +44,13 @@ SETTINGS_NOT_EXCLUDED = 3.84
 # ... and lower the out-of-sample rms error against the reference that exposes it by at least this
 # fraction: less is within what a user would see as the model's normal scatter, not a missing effect.
 MATERIAL_REDUCTION = 0.15
+# A candidate that is not material on the check rings is still taken when it brings at least this
+# many of the rings that exceed their noise within it: more than one, so that no single ring decides,
+# and at least this share of them, so that it explains a material part of the failure (as the
+# check rings' 15 % does; with a catalog of many effects a couple of rings is what one of them
+# takes from a failure it does not explain).
+RINGS_BROUGHT_WITHIN = 2
+SHARE_BROUGHT_WITHIN = 0.25
 # Significant scan values of one effect tried for materiality, most explained first.
 MAX_MATERIAL_TRIALS = 8
 # Scan values fitted at once when their columns change between repetitions: as many as hold this

@@ -22,16 +22,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.candidates import DIGITS
-from ph_explorer.diagnosis.choice import RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
     SIGN_FLIPS,
     Replication,
+    RivalShape,
     replication,
     ring_residual_squares,
     ring_weights,
 )
-from ph_explorer.diagnosis.search import JACKKNIFE_INFLATION, MATERIAL_REDUCTION, CandidateSearch
+from ph_explorer.diagnosis.search import (
+    JACKKNIFE_INFLATION,
+    MATERIAL_REDUCTION,
+    RINGS_BROUGHT_WITHIN,
+    SHARE_BROUGHT_WITHIN,
+    CandidateSearch,
+)
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS, ErrorFunction, error_function, value_name
@@ -242,7 +248,9 @@ def dominant_period(effect: ErrorFunction, weight_x: NDArray[np.float64]) -> flo
     return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
 
 
-def family_test(gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int = 0) -> tuple[NDArray[np.float64], float]:
+def family_test(
+    gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int = 0, standardise: bool = False
+) -> tuple[NDArray[np.float64], float]:
     """Each group's weighted gain over rings, and the family-wise p-value of the largest.
 
     gains: (groups, n_o), each ring's gain with each group (in noise variances); a group's statistic
@@ -250,14 +258,50 @@ def family_test(gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int 
     claim's), the group that predicts the rings best scoring highest. The null flips every ring's
     sign in all groups at once, so the largest statistic over the groups is compared with the
     largest under each flip (Westfall and Young's max-T): the correction for taking the best of
-    correlated groups, exact under the sign-flip null (docs/methods/shapes.md)."""
+    correlated groups, exact under the sign-flip null (docs/methods/shapes.md). standardise: each
+    statistic over its own null spread, so that a group whose gains differ much (both ways) does
+    not carry the null's maximum (differences of gains, which may be negative)."""
     weighted = gains * ring_weights(check)[None]
+    if standardise:
+        weighted = weighted / np.maximum(np.sqrt((weighted**2).sum(axis=1, keepdims=True)), 1e-300)
     statistics = weighted.sum(axis=1)
     rng = np.random.default_rng(seed)
     signs = rng.integers(0, 2, size=(SIGN_FLIPS, gains.shape[1]), dtype=np.int64) * 2.0 - 1.0
     null = (signs @ weighted.T).max(axis=1)  # (flips,): the best group under each flip
     observed = float(statistics.max())
     return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))
+
+
+def outpredicting_shape(
+    search: CandidateSearch, effect: Effect, chain: Sequence[Effect], gain: NDArray[np.float64], seed: int = 0
+) -> RivalShape | None:
+    """The shape of a variable other than the effect's own (a group of another axis, or the probe's
+    lobes in time for an axis's effect) that predicts the rings better than the effect in its place
+    and leaves it nothing to add, None when none does. `gain`: each ring's gain with the effect
+    added to `chain`. Each rival group is fitted in the effect's place as find_shapes fits it; the
+    best one's gain over the effect's is tested over rings as the best of the rivals (family_test)
+    and without its most influential ring; and the effect's own gain beside it must not replicate
+    (a rival that gains more on another error, not yet claimed, leaves the effect its own gain)
+    (docs/methods/replication.md#outpredicted)."""
+    rivals = [key for key, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
+    if not rivals:
+        return None
+    fixed = search.design(list(chain)) if chain else None
+    noise = ring_sigma(search.campaign.deviations) ** 2
+    before = ring_residual_squares(search.residual, fixed, search.targets)
+    check = ~search.train
+    fits = [_fit(search, fixed, before, key, noise) for key in rivals]
+    over = np.stack([fit.gain - gain for fit in fits])
+    statistics, family_p = family_test(over, check, seed, standardise=True)
+    best = int(np.argmax(statistics))
+    without_top = replication(over[best], check, True, seed).p_without_top
+    if family_p >= REPLICATION_LEVEL or without_top >= REPLICATION_LEVEL:
+        return None
+    claimed = search.design([*chain, effect])
+    beside = _fit(search, claimed, ring_residual_squares(search.residual, claimed, search.targets), rivals[best], noise)
+    if replication((fits[best].squares - beside.squares) / np.maximum(noise, 1e-300), check, True, seed).replicated:
+        return None
+    return RivalShape(rivals[best], SHAPE_GROUPS[rivals[best]].words, round(family_p, 5), round(without_top, 5))
 
 
 def find_shapes(
