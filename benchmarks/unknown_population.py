@@ -135,6 +135,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
                 "effect": c.effect,
                 "cycles": [float(o["cycles_per_rev"]) for o in (c.settings, *c.settings_not_excluded) if "cycles_per_rev" in o],
                 "confounded_with": [o.effect for o in c.confounded_with],
+                "untold_shape": None if c.untold_shape is None else c.untold_shape.group,
             }
             for c in result.found
         ],
@@ -283,12 +284,15 @@ def catalog_name(record: dict[str, Any]) -> bool:
 def own_mechanism(record: dict[str, Any], claim: dict[str, Any]) -> bool:
     """A catalog claim that is the unknown shape's own mechanism at what the catalog can say of it:
     the angular positioning error of the shape's axis (or its seat's lobing for a probe that changes),
-    itself or a partner the rings cannot tell from it, at a period (claimed or not excluded) within 1
+    itself or a partner the rings cannot tell from it (a catalog effect, or the shape's own group as
+    the claim's untold_shape), at a period (claimed or not excluded) within 1
     cycle/rev of one the shape has on the turn. A non-integer period's nearest whole one, a drifting
     period's local one and a coupled error's mean over the other axis qualify; a step, a dent and a
     period beyond the scan have none in the catalog."""
     truth = record["truth"]
     family = truth.get("family")
+    if claim.get("untold_shape") is not None and claim["untold_shape"] == shape_truth(record):
+        return True  # named with the shape that holds the truth: the rings cannot tell
     if family in ("seat_wear", "stylus_knock"):
         return "lobing" in (claim["effect"], *claim["confounded_with"])
     if family not in ("non_integer_period", "drifting_period", "coupled") or truth.get("axis") is None:

@@ -10,13 +10,14 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from benchmarks.unknown_shapes import unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.axes import BAxisCyclic
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
 from ph_explorer.effects.probe import lateral_share
-from ph_explorer.figures.diagnosis_text import report_sections
+from ph_explorer.figures.diagnosis_text import report_sections, verdict_headline
 from ph_explorer.twin.random_heads import random_campaign
 
 SEED = 7  # a healthy head of the paper's design (test_within_noise: its verdict is `none`)
@@ -66,6 +67,8 @@ def test_a_constant_error_of_the_same_signature_keeps_its_claim() -> None:
     assert result.verdict == "missing"
     claim = next(c for c in result.found if c.effect == "b_axis_cyclic")
     assert claim.settings == {"cycles_per_rev": 12} and claim.replication.form_breaks is None
+    # ... and beats the shapes of the variables it is not a function of (shapes.untold_shape).
+    assert claim.replication.outpredicted is None and claim.untold_shape is None
 
 
 class SeatWear(Effect):
@@ -96,5 +99,21 @@ def test_a_catalog_effect_that_a_shape_of_another_variable_predicts_better_is_no
     assert tilt.form_broken and tilt not in result.open_suggestions
     words = " ".join(line for s in report_sections(result, DEFAULT_CATALOG, detail="full") for line in s.lines)
     assert rival.words_why() in words and "No catalog effect has this form" in words
+    data = json.loads(json.dumps(result.to_json()))
+    assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_claim_its_rings_cannot_tell_from_a_shape_of_another_variable_is_named_with_it() -> None:
+    # A seat wearing during the campaign (the unknown-shape population's generator, a dev seed):
+    # B-axis axial motion at 18 cycles/rev fits the check rings, measured last; the probe's lobes
+    # in time gain more on 8 of its 9 check rings, not enough to outpredict it as the best of five
+    # rivals, and the claim does not beat them either. The verdict names both.
+    result = diagnose(unknown_shape_head(940_042, "seat_wear").campaign, nested=False)
+    claim = next(c for c in result.found if c.effect == "b_axis_axial_motion")
+    untold = claim.untold_shape
+    assert untold is not None and untold.group == "probe_time" and not untold.test.told_apart and untold.test.p_value >= 0.05
+    assert f"or a shape: {untold.words}" in verdict_headline(result, DEFAULT_CATALOG)
+    words = " ".join(line for s in report_sections(result, DEFAULT_CATALOG, detail="full") for line in s.lines)
+    assert "lattice rings measured again after the check rings would tell a change in time" in words
     data = json.loads(json.dumps(result.to_json()))
     assert Diagnosis.from_json(data).to_json() == data

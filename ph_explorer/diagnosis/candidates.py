@@ -98,6 +98,23 @@ class RivalSetting:
 
 
 @dataclass(frozen=True)
+class UntoldShape:
+    """A shape of a variable other than a claim's own (diagnosis.shapes.untold_shape) that its
+    rings cannot tell the claim from: the claim's gain over the shape's in its place, rings as units."""
+
+    group: str  # error_functions.SHAPE_GROUPS key, e.g. "probe_time"
+    words: str
+    test: PairTest
+
+    def to_json(self) -> dict[str, Any]:
+        return {"group": self.group, "words": self.words} | plain(self.test)
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> UntoldShape:
+        return cls(data["group"], data["words"], PairTest(**{k: data[k] for k in names_of(PairTest)}))
+
+
+@dataclass(frozen=True)
 class Candidate:
     """A catalog effect tested against the out-of-sample residual, with everything the diagnosis
     learnt of it. Frozen: each stage of the search returns a new one (dataclasses.replace)."""
@@ -127,6 +144,8 @@ class Candidate:
     # likelihood (search.SETTINGS_NOT_EXCLUDED) or the rings as units (telling_apart.settings_told_apart).
     settings_not_excluded: tuple[dict[str, Any], ...] = ()
     rival_setting: RivalSetting | None = None
+    # A shape of another variable its rings cannot tell a claim from (diagnosis.shapes.untold_shape).
+    untold_shape: UntoldShape | None = None
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:
@@ -176,6 +195,7 @@ class Candidate:
             "replication": {} if self.replication is None else self.replication.as_dict(),
             "settings_not_excluded": list(self.settings_not_excluded),
             "rival_setting": {} if self.rival_setting is None else self.rival_setting.to_json(),
+            "untold_shape": {} if self.untold_shape is None else self.untold_shape.to_json(),
         }
         return out
 
@@ -188,6 +208,7 @@ class Candidate:
         plain["replication"] = Replication.from_json(data["replication"]) if data.get("replication") else None
         plain["settings_not_excluded"] = tuple(data.get("settings_not_excluded", []))
         plain["rival_setting"] = RivalSetting.from_json(data["rival_setting"]) if data.get("rival_setting") else None
+        plain["untold_shape"] = UntoldShape.from_json(data["untold_shape"]) if data.get("untold_shape") else None
         return cls(**plain)
 
 

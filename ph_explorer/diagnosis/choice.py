@@ -47,7 +47,7 @@ def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect],
     if test.replicated:
         test = replace(test, form_breaks=form_breaks(search, effect, chain, seed))
     if test.replicated:
-        test = replace(test, outpredicted=outpredicting_shape(search, effect, chain, gain, seed))
+        test = replace(test, outpredicted=outpredicting_shape(search, effect, chain, seed))
     return test
 
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.diagnosis.candidates import DIGITS
+from ph_explorer.diagnosis.candidates import DIGITS, PairTest, UntoldShape
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
     SIGN_FLIPS,
@@ -272,36 +272,69 @@ def family_test(
     return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))
 
 
-def outpredicting_shape(
-    search: CandidateSearch, effect: Effect, chain: Sequence[Effect], gain: NDArray[np.float64], seed: int = 0
-) -> RivalShape | None:
-    """The shape of a variable other than the effect's own (a group of another axis, or the probe's
-    lobes in time for an axis's effect) that predicts the rings better than the effect in its place
-    and leaves it nothing to add, None when none does. `gain`: each ring's gain with the effect
-    added to `chain`. Each rival group is fitted in the effect's place as find_shapes fits it; the
-    best one's gain over the effect's is tested over rings as the best of the rivals (family_test)
-    and without its most influential ring; and the effect's own gain beside it must not replicate
-    (a rival that gains more on another error, not yet claimed, leaves the effect its own gain)
-    (docs/methods/replication.md#outpredicted)."""
-    rivals = [key for key, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
-    if not rivals:
+@dataclass
+class _Rivals:
+    """The shapes of the variables an effect is not a function of (a group of another axis, or the
+    probe's lobes in time for an axis's effect), each fitted in the effect's place beside `chain`."""
+
+    keys: list[str]
+    fits: list[_Fit]
+    gain: NDArray[np.float64]  # (n_o,) each ring's gain with the effect itself in that place
+    noise: NDArray[np.float64]
+    check: NDArray[np.bool_]
+
+
+def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) -> _Rivals | None:
+    keys = [key for key, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
+    if not keys:
         return None
     fixed = search.design(list(chain)) if chain else None
     noise = ring_sigma(search.campaign.deviations) ** 2
     before = ring_residual_squares(search.residual, fixed, search.targets)
-    check = ~search.train
-    fits = [_fit(search, fixed, before, key, noise) for key in rivals]
-    over = np.stack([fit.gain - gain for fit in fits])
-    statistics, family_p = family_test(over, check, seed, standardise=True)
+    gain = (before - ring_residual_squares(search.residual, search.design([*chain, effect]), search.targets)) / np.maximum(noise, 1e-300)
+    return _Rivals(keys, [_fit(search, fixed, before, key, noise) for key in keys], gain, noise, ~search.train)
+
+
+def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> RivalShape | None:
+    """The shape of a variable other than the effect's own that predicts the rings better than the
+    effect in its place (added to `chain`) and leaves it nothing to add, None when none does. The
+    best rival's gain over the effect's is tested over rings as the best of the rivals (family_test)
+    and without its most influential ring; and the effect's own gain beside it must not replicate
+    (a rival that gains more on another error, not yet claimed, leaves the effect its own gain)
+    (docs/methods/replication.md#outpredicted)."""
+    rivals = _rivals(search, effect, chain)
+    if rivals is None:
+        return None
+    over = np.stack([fit.gain - rivals.gain for fit in rivals.fits])
+    statistics, family_p = family_test(over, rivals.check, seed, standardise=True)
     best = int(np.argmax(statistics))
-    without_top = replication(over[best], check, True, seed).p_without_top
+    without_top = replication(over[best], rivals.check, True, seed).p_without_top
     if family_p >= REPLICATION_LEVEL or without_top >= REPLICATION_LEVEL:
         return None
     claimed = search.design([*chain, effect])
-    beside = _fit(search, claimed, ring_residual_squares(search.residual, claimed, search.targets), rivals[best], noise)
-    if replication((fits[best].squares - beside.squares) / np.maximum(noise, 1e-300), check, True, seed).replicated:
+    key = rivals.keys[best]
+    beside = _fit(search, claimed, ring_residual_squares(search.residual, claimed, search.targets), key, rivals.noise)
+    if replication((rivals.fits[best].squares - beside.squares) / np.maximum(rivals.noise, 1e-300), rivals.check, True, seed).replicated:
         return None
-    return RivalShape(rivals[best], SHAPE_GROUPS[rivals[best]].words, round(family_p, 5), round(without_top, 5))
+    return RivalShape(key, SHAPE_GROUPS[key].words, round(family_p, 5), round(without_top, 5))
+
+
+def untold_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> UntoldShape | None:
+    """The shape of a variable other than a claim's own that its rings cannot tell it from: a rival
+    (as outpredicting_shape's) whose gain in its place the claim's does not beat over rings (the
+    replication test, and without its most influential ring); the closest (largest p-value) of
+    them, None when the claim beats every one (docs/methods/replication.md#outpredicted)."""
+    rivals = _rivals(search, effect, chain)
+    if rivals is None:
+        return None
+    tests = [(key, replication(rivals.gain - fit.gain, rivals.check, True, seed)) for key, fit in zip(rivals.keys, rivals.fits)]
+    untold = [(key, t) for key, t in tests if not (t.p_value < REPLICATION_LEVEL and t.p_without_top < REPLICATION_LEVEL)]
+    if not untold:
+        return None
+    key, test = max(untold, key=lambda item: item[1].p_value)
+    return UntoldShape(
+        key, SHAPE_GROUPS[key].words, PairTest(False, round(test.p_value, 5), round(test.p_without_top, 5), test.rings_gaining, test.rings)
+    )
 
 
 def find_shapes(

@@ -18,6 +18,7 @@ from dataclasses import replace
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
 from ph_explorer.diagnosis.replication import replication, ring_gains
 from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
+from ph_explorer.diagnosis.shapes import untold_shape
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -45,8 +46,9 @@ def tell_apart(
     seed: int = 0,
 ) -> list[Candidate]:
     """The candidates, each claimed or suggested one with its closest confounded partners' PairTest
-    (rings_prefer) and its own setting asked against the effect's others (settings_told_apart); the
-    chain before them is `start`."""
+    (rings_prefer) and its own setting asked against the effect's others (settings_told_apart), each
+    claim with the shape of another variable its rings cannot tell it from (shapes.untold_shape);
+    the chain before them is `start`."""
     settings = {c.effect: c.settings for c in candidates}
     out = []
     for candidate in candidates:
@@ -62,6 +64,8 @@ def tell_apart(
             for p in candidate.confounded_with
         )
         candidate = replace(candidate, confounded_with=partners)
+        if candidate.effect in claimed:
+            candidate = replace(candidate, untold_shape=untold_shape(search, effect, start, seed))
         out.append(settings_told_apart(search, candidate, effect, start, seed) if candidate.settings else candidate)
     return out
 

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 from typing import Literal
 
 from ph_explorer.campaign import orientation_label
-from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner
+from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner, UntoldShape
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
+from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
 from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
@@ -108,7 +109,7 @@ def verdict_headline(result: Diagnosis, catalog: Catalog, pairs_only: bool = Fal
     cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
     pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
     named = "; ".join(
-        [claim_name(c, result, catalog) for c in result.found if c.untold or not pairs_only]
+        [claim_name(c, result, catalog) for c in result.found if c.untold or c.untold_shape or not pairs_only]
         + [shape_name(shape) for shape in result.claimed_shapes]
     )
     return f"Verdict: {result.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[result.verdict]}."
@@ -122,10 +123,10 @@ def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str
         return effect_label(catalog[effect]().with_settings(**at)) if effect in catalog else effect
 
     name = label(candidate.effect, candidate.settings)
-    if not candidate.untold:
-        return name
-    partners = " or ".join(label(p.effect, settings.get(p.effect, {})) for p in candidate.untold)
-    return f"{name} or {partners} (these rings cannot tell)"
+    partners = [label(p.effect, settings.get(p.effect, {})) for p in candidate.untold]
+    if candidate.untold_shape is not None:
+        partners.append(f"a shape: {candidate.untold_shape.words}")
+    return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name
 
 
 def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> list[str]:
@@ -237,9 +238,15 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
         else " (its fit: the table below)"
     )
     told = [p for p in candidate.confounded_with if p.told_apart]
-    lines = [f"{effect_label(effect)}{fit}."] if with_fit or candidate.untold or told or candidate.rival_setting else []
+    lines = (
+        [f"{effect_label(effect)}{fit}."]
+        if with_fit or candidate.untold or told or candidate.rival_setting or candidate.untold_shape
+        else []
+    )
     partners = [untold_text(candidate.effect, candidate.untold, actions)] if candidate.untold else []
     partners += [told_text(candidate.effect, p) for p in told]
+    if candidate.untold_shape is not None:
+        partners.append(untold_shape_text(candidate.untold_shape))
     if partners:
         lines.append("  " + " ".join(partners))
     settings = []
@@ -254,6 +261,16 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
     if settings:
         lines.append("  " + "; ".join(settings) + ".")
     return lines
+
+
+def untold_shape_text(shape: UntoldShape) -> str:
+    """The shape of another variable the rings cannot tell a claim from, and what would."""
+    decide = (
+        "lattice rings measured again after the check rings would tell a change in time from the head"
+        if SHAPE_GROUPS[shape.group].variable == "time"
+        else "rings off the lattice where the two predict most differently would tell them apart"
+    )
+    return f"Or a shape no catalog holds, {shape.words}: the rings cannot tell it from this claim (the claim {test_text(shape.test)}); {decide}."
 
 
 def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str]) -> str:
