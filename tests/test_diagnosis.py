@@ -504,7 +504,11 @@ def test_a_hidden_effect_the_catalog_lacks_gets_a_shape_or_is_unexplained(name):
     group = SHAPE_OF[name]
     if group is None:
         assert result.verdict == "unexplained" and not result.claimed_shapes
-        assert sections["verdict"].title.startswith("Verdict: unexplained") and "write the effect" in sections["verdict"].lines[-1]
+        next_line = sections["verdict"].lines[-1]
+        assert sections["verdict"].title.startswith("Verdict: unexplained") and "write the effect" in next_line
+        # The closest shape tried first: where rings would pin it down, before an effect of one's own.
+        tried = [shape for shape in result.shapes if not shape.claimed]
+        assert tried and f"the closest shape, {tried[0].id}, is not claimed: to pin it down, measure rings" in next_line
         return
     assert result.verdict == "uncatalogued"
     shape = result.claimed_shapes[0]

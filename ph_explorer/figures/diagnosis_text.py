@@ -192,12 +192,17 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         rest = "the rest" if undecided else "what these rings leave open"
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
         return f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
+    # The shape that came closest and was not claimed: the rings that would pin it down come before
+    # an effect file of the user's own (what neither the catalog nor a shape holds).
+    tried = next((shape for shape in result.shapes if not shape.claimed), None)
+    closest = f"the closest shape, {tried.id}, is not claimed: to pin it down, {pin_text(tried)}; " if tried is not None else ""
+    look = "look at what is left in the head's variables; "
     return {
         "none": "nothing is missing that this campaign shows; a model of it is within noise.",
         "missing": actions["add"] + ".",
         "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
-        "partial": f"add the effects found, then look at what is left: an effect outside the catalog ({actions['own']}) may explain it.",
-        "unexplained": f"no catalog effect explains the failure: look at what is left in the head's variables, and write the effect that has that signature ({actions['own']}).",
+        "partial": f"add the effects found, then look at what is left: {closest}an effect outside the catalog ({actions['own']}) may explain it.",
+        "unexplained": f"no catalog effect explains the failure: {closest or look}else write the effect that has that signature ({actions['own']}).",
         "uncatalogued": "the shape found is added in the error history below; "
         + "; ".join(f"to pin {shape.id} down, {pin_text(shape)}" for shape in result.claimed_shapes)
         + ".",
