@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.candidates import DIGITS, PairTest, UntoldShape
+from ph_explorer.diagnosis.fitted_bases import settings_key
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
     SIGN_FLIPS,
@@ -275,24 +276,33 @@ def family_test(
 @dataclass
 class _Rivals:
     """The shapes of the variables an effect is not a function of (a group of another axis, or the
-    probe's lobes in time for an axis's effect), each fitted in the effect's place beside `chain`."""
+    probe's lobes in time for an axis's effect), each fitted in the effect's place beside a chain:
+    each ring's gain and left-out sum of squares with each."""
 
     keys: list[str]
-    fits: list[_Fit]
+    gains: NDArray[np.float64]  # (rivals, n_o) in noise variances
+    squares: NDArray[np.float64]  # (rivals, n_o)
     gain: NDArray[np.float64]  # (n_o,) each ring's gain with the effect itself in that place
     noise: NDArray[np.float64]
     check: NDArray[np.bool_]
 
 
 def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) -> _Rivals | None:
-    keys = [key for key, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
-    if not keys:
-        return None
-    fixed = search.design(list(chain)) if chain else None
-    noise = ring_sigma(search.campaign.deviations) ** 2
-    before = ring_residual_squares(search.residual, fixed, search.targets)
-    gain = (before - ring_residual_squares(search.residual, search.design([*chain, effect]), search.targets)) / np.maximum(noise, 1e-300)
-    return _Rivals(keys, [_fit(search, fixed, before, key, noise) for key in keys], gain, noise, ~search.train)
+    key = (settings_key(effect), tuple(settings_key(e) for e in chain))
+    if key in search.rival_shapes:
+        return search.rival_shapes[key]
+    keys = [group for group, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
+    out = None
+    if keys:
+        fixed = search.design(list(chain)) if chain else None
+        noise = ring_sigma(search.campaign.deviations) ** 2
+        before = ring_residual_squares(search.residual, fixed, search.targets)
+        with_effect = ring_residual_squares(search.residual, search.design([*chain, effect]), search.targets)
+        fits = [_fit(search, fixed, before, group, noise) for group in keys]
+        gains, squares = np.stack([f.gain for f in fits]), np.stack([f.squares for f in fits])
+        out = _Rivals(keys, gains, squares, (before - with_effect) / np.maximum(noise, 1e-300), noise, ~search.train)
+    search.rival_shapes[key] = out
+    return out
 
 
 def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> RivalShape | None:
@@ -305,7 +315,7 @@ def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence
     rivals = _rivals(search, effect, chain)
     if rivals is None:
         return None
-    over = np.stack([fit.gain - rivals.gain for fit in rivals.fits])
+    over = rivals.gains - rivals.gain[None]
     statistics, family_p = family_test(over, rivals.check, seed, standardise=True)
     best = int(np.argmax(statistics))
     without_top = replication(over[best], rivals.check, True, seed).p_without_top
@@ -314,7 +324,7 @@ def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence
     claimed = search.design([*chain, effect])
     key = rivals.keys[best]
     beside = _fit(search, claimed, ring_residual_squares(search.residual, claimed, search.targets), key, rivals.noise)
-    if replication((rivals.fits[best].squares - beside.squares) / np.maximum(rivals.noise, 1e-300), rivals.check, True, seed).replicated:
+    if replication((rivals.squares[best] - beside.squares) / np.maximum(rivals.noise, 1e-300), rivals.check, True, seed).replicated:
         return None
     return RivalShape(key, SHAPE_GROUPS[key].words, round(family_p, 5), round(without_top, 5))
 
@@ -327,7 +337,7 @@ def untold_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect
     rivals = _rivals(search, effect, chain)
     if rivals is None:
         return None
-    tests = [(key, replication(rivals.gain - fit.gain, rivals.check, True, seed)) for key, fit in zip(rivals.keys, rivals.fits)]
+    tests = [(key, replication(rivals.gain - gain, rivals.check, True, seed)) for key, gain in zip(rivals.keys, rivals.gains)]
     untold = [(key, t) for key, t in tests if not (t.p_value < REPLICATION_LEVEL and t.p_without_top < REPLICATION_LEVEL)]
     if not untold:
         return None
