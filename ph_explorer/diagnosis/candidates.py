@@ -99,7 +99,7 @@ class RivalSetting:
 
 @dataclass(frozen=True)
 class UntoldShape:
-    """A shape of a variable other than a claim's own (diagnosis.shapes.untold_shape) that its
+    """A shape of a variable other than a claim's own (diagnosis.rival_shapes.untold_shape) that its
     rings cannot tell the claim from: the claim's gain over the shape's in its place, rings as units."""
 
     group: str  # error_functions.SHAPE_GROUPS key, e.g. "probe_time"
@@ -144,7 +144,7 @@ class Candidate:
     # likelihood (search.SETTINGS_NOT_EXCLUDED) or the rings as units (telling_apart.settings_told_apart).
     settings_not_excluded: tuple[dict[str, Any], ...] = ()
     rival_setting: RivalSetting | None = None
-    # A shape of another variable its rings cannot tell a claim from (diagnosis.shapes.untold_shape).
+    # A shape of another variable its rings cannot tell a claim from (diagnosis.rival_shapes.untold_shape).
     untold_shape: UntoldShape | None = None
 
     @classmethod
@@ -173,7 +173,7 @@ class Candidate:
     @property
     def form_broken(self) -> bool:
         """Its gain over rings is there, but its parameters differ over the head (diagnosis.form) or
-        a shape of another variable predicts the rings better (shapes.outpredicting_shape): no ring
+        a shape of another variable predicts the rings better (rival_shapes.outpredicting_shape): no ring
         decides it, for no catalog effect has the head's form."""
         return self.replication is not None and (self.replication.form_breaks is not None or self.replication.outpredicted is not None)
 

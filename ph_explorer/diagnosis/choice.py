@@ -18,8 +18,8 @@ from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
 from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains
+from ph_explorer.diagnosis.rival_shapes import outpredicting_shape
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN, CandidateSearch, rank_candidates
-from ph_explorer.diagnosis.shapes import outpredicting_shape
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -40,7 +40,7 @@ def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect],
     """The test a claim passes, the effect added to `chain`: its gain replicated over rings with its
     size determined by `fitted`'s parameters (diagnosis.replication), its form holding over the
     head (diagnosis.form), and no shape of another variable predicting the rings better in its
-    place (shapes.outpredicting_shape)."""
+    place (rival_shapes.outpredicting_shape)."""
     before = search.design(chain) if chain else None
     gain = ring_gains(search.residual, before, search.design([*chain, effect]), search.targets, ring_sigma(search.campaign.deviations) ** 2)
     test = replication(gain, ~search.train, determined_size(fitted.params, fitted.params_u, effect.amplitudes()), seed)

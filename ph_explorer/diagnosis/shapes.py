@@ -21,13 +21,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.diagnosis.candidates import DIGITS, PairTest, UntoldShape
-from ph_explorer.diagnosis.fitted_bases import settings_key
+from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
     SIGN_FLIPS,
     Replication,
-    RivalShape,
     replication,
     ring_residual_squares,
     ring_weights,
@@ -178,7 +176,7 @@ def knots(group: str, touches: Touches, train: NDArray[np.bool_]) -> tuple[tuple
 
 
 @dataclass
-class _Fit:
+class GroupFit:
     """One group's fit beside the chain: its effect class, design, coefficients, each ring's left-out fit."""
 
     effect: ErrorFunction
@@ -191,7 +189,9 @@ class _Fit:
     squares: NDArray[np.float64]  # (n_o,): each ring's left-out sum of squares with it (the next group's "before")
 
 
-def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]) -> _Fit:
+def fit_group(
+    search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]
+) -> GroupFit:
     grid, periodic, aliasing = knots(group, search.touches, search.train)
     effect = error_function(group, grid, periodic)()
     design = Design(search.bases(effect), search.smoother)
@@ -208,10 +208,10 @@ def _fit(search: CandidateSearch, fixed: Design | None, before: NDArray[np.float
         mean, within = joint.apply_each(without)
         squares = ((search.residual - mean[:, None, :] - (0.0 if within is None else within)) ** 2).sum(axis=(1, 2))
     gain = (before - squares) / np.maximum(noise, 1e-300)
-    return _Fit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, squares)
+    return GroupFit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, squares)
 
 
-def _left_out_residual(search: CandidateSearch, fit: _Fit) -> NDArray[np.float64]:
+def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.float64]:
     """What the chain and the group leave of each ring's residual, fitted without that ring."""
     mean, within = fit.joint.apply_each(fit.without)
     return search.residual - mean[:, None, :] - (0.0 if within is None else within)
@@ -273,80 +273,6 @@ def family_test(
     return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))
 
 
-@dataclass
-class _Rivals:
-    """The shapes of the variables an effect is not a function of (a group of another axis, or the
-    probe's lobes in time for an axis's effect), each fitted in the effect's place beside a chain:
-    each ring's gain and left-out sum of squares with each."""
-
-    keys: list[str]
-    gains: NDArray[np.float64]  # (rivals, n_o) in noise variances
-    squares: NDArray[np.float64]  # (rivals, n_o)
-    gain: NDArray[np.float64]  # (n_o,) each ring's gain with the effect itself in that place
-    noise: NDArray[np.float64]
-    check: NDArray[np.bool_]
-
-
-def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) -> _Rivals | None:
-    key = (settings_key(effect), tuple(settings_key(e) for e in chain))
-    if key in search.rival_shapes:
-        return search.rival_shapes[key]
-    keys = [group for group, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
-    out = None
-    if keys:
-        fixed = search.design(list(chain)) if chain else None
-        noise = ring_sigma(search.campaign.deviations) ** 2
-        before = ring_residual_squares(search.residual, fixed, search.targets)
-        with_effect = ring_residual_squares(search.residual, search.design([*chain, effect]), search.targets)
-        fits = [_fit(search, fixed, before, group, noise) for group in keys]
-        gains, squares = np.stack([f.gain for f in fits]), np.stack([f.squares for f in fits])
-        out = _Rivals(keys, gains, squares, (before - with_effect) / np.maximum(noise, 1e-300), noise, ~search.train)
-    search.rival_shapes[key] = out
-    return out
-
-
-def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> RivalShape | None:
-    """The shape of a variable other than the effect's own that predicts the rings better than the
-    effect in its place (added to `chain`) and leaves it nothing to add, None when none does. The
-    best rival's gain over the effect's is tested over rings as the best of the rivals (family_test)
-    and without its most influential ring; and the effect's own gain beside it must not replicate
-    (a rival that gains more on another error, not yet claimed, leaves the effect its own gain)
-    (docs/methods/replication.md#outpredicted)."""
-    rivals = _rivals(search, effect, chain)
-    if rivals is None:
-        return None
-    over = rivals.gains - rivals.gain[None]
-    statistics, family_p = family_test(over, rivals.check, seed, standardise=True)
-    best = int(np.argmax(statistics))
-    without_top = replication(over[best], rivals.check, True, seed).p_without_top
-    if family_p >= REPLICATION_LEVEL or without_top >= REPLICATION_LEVEL:
-        return None
-    claimed = search.design([*chain, effect])
-    key = rivals.keys[best]
-    beside = _fit(search, claimed, ring_residual_squares(search.residual, claimed, search.targets), key, rivals.noise)
-    if replication((rivals.squares[best] - beside.squares) / np.maximum(rivals.noise, 1e-300), rivals.check, True, seed).replicated:
-        return None
-    return RivalShape(key, SHAPE_GROUPS[key].words, round(family_p, 5), round(without_top, 5))
-
-
-def untold_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> UntoldShape | None:
-    """The shape of a variable other than a claim's own that its rings cannot tell it from: a rival
-    (as outpredicting_shape's) whose gain in its place the claim's does not beat over rings (the
-    replication test, and without its most influential ring); the closest (largest p-value) of
-    them, None when the claim beats every one (docs/methods/replication.md#outpredicted)."""
-    rivals = _rivals(search, effect, chain)
-    if rivals is None:
-        return None
-    tests = [(key, replication(rivals.gain - gain, rivals.check, True, seed)) for key, gain in zip(rivals.keys, rivals.gains)]
-    untold = [(key, t) for key, t in tests if not (t.p_value < REPLICATION_LEVEL and t.p_without_top < REPLICATION_LEVEL)]
-    if not untold:
-        return None
-    key, test = max(untold, key=lambda item: item[1].p_value)
-    return UntoldShape(
-        key, SHAPE_GROUPS[key].words, PairTest(False, round(test.p_value, 5), round(test.p_without_top, 5), test.rings_gaining, test.rings)
-    )
-
-
 def find_shapes(
     search: CandidateSearch,
     chain: Sequence[Effect],
@@ -371,7 +297,7 @@ def find_shapes(
     # columns would overfit, and every next group would seem to gain).
     before = ring_residual_squares(search.residual, fixed, search.targets)
     while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
-        fits = {g: _fit(search, fixed, before, g, noise) for g in groups}
+        fits = {g: fit_group(search, fixed, before, g, noise) for g in groups}
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         best = list(fits)[int(np.argmax(statistics))]
         fit = fits[best]

@@ -17,8 +17,8 @@ from dataclasses import replace
 
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
 from ph_explorer.diagnosis.replication import replication, ring_gains
+from ph_explorer.diagnosis.rival_shapes import untold_shape
 from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
-from ph_explorer.diagnosis.shapes import untold_shape
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -47,7 +47,7 @@ def tell_apart(
 ) -> list[Candidate]:
     """The candidates, each claimed or suggested one with its closest confounded partners' PairTest
     (rings_prefer) and its own setting asked against the effect's others (settings_told_apart), each
-    claim with the shape of another variable its rings cannot tell it from (shapes.untold_shape);
+    claim with the shape of another variable its rings cannot tell it from (rival_shapes.untold_shape);
     the chain before them is `start`."""
     settings = {c.effect: c.settings for c in candidates}
     out = []
