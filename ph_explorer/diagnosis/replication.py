@@ -50,7 +50,7 @@ class FormBreak:
 
 @dataclass(frozen=True)
 class RivalShape:
-    """A shape of a variable other than a claim's own (diagnosis.shapes) that predicts the rings
+    """A shape of a variable other than a claim's own (diagnosis.rival_shapes) that predicts the rings
     better in the claim's place: the error resembles the catalog effect where the rings look, and
     is another function of the head."""
 

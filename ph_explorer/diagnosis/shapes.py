@@ -192,6 +192,9 @@ class GroupFit:
 def fit_group(
     search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], group: str, noise: NDArray[np.float64]
 ) -> GroupFit:
+    """One group's error functions fitted beside `fixed` (the chain's design, or None) on the
+    out-of-sample residual, the ridge chosen by leaving rings out; each ring's gain over `before`
+    (its left-out sum of squares without the group) in its noise variances `noise`."""
     grid, periodic, aliasing = knots(group, search.touches, search.train)
     effect = error_function(group, grid, periodic)()
     design = Design(search.bases(effect), search.smoother)
