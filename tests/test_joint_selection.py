@@ -7,7 +7,7 @@ import pytest
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects.axes import BAxisCyclic
-from ph_explorer.effects.motions import AAxisRadialMotion, BAxisTiltMotion
+from ph_explorer.effects.motions import AAxisAxialMotion, AAxisRadialMotion, BAxisAxialMotion, BAxisRadialMotion, BAxisTiltMotion
 from ph_explorer.twin.random_heads import random_campaign
 
 
@@ -65,3 +65,23 @@ def test_a_setting_chosen_before_a_later_effect_is_refitted_beside_it() -> None:
     # ... to a setting whose set of those the rings cannot exclude holds the truth.
     assert radial.settings == {"cycles_per_rev": 11} or {"cycles_per_rev": 11} in radial.settings_not_excluded
     assert sorted(c.effect for c in result.found) == ["a_axis_radial_motion", "b_axis_cyclic", "b_axis_tilt_motion"]
+
+
+def test_an_effect_that_stood_in_for_a_later_one_gives_way_beside_it() -> None:
+    # Three effects on a random head: the B-axis axial motion 16/rev was first taken as a B-axis
+    # tilt motion 17/rev, while the B radial and A axial motions were still missing; beside them,
+    # the rings prefer the axial motion in its place (choice.chosen_beside).
+    hidden = [
+        BAxisAxialMotion(amplitude_um=-0.1694, phase_deg=37.17, cycles_per_rev=16),
+        AAxisAxialMotion(amplitude_um=-0.2515, phase_deg=31.13, cycles_per_rev=13),
+        BAxisRadialMotion(x_amplitude_um=-0.2275, x_phase_deg=295.9, y_amplitude_um=-0.2275, y_phase_deg=297.46, cycles_per_rev=33),
+    ]
+    result = diagnose(random_campaign(571000, "paper", hidden), nested=False)
+    claimed = {c.effect: c for c in result.found}
+    assert sorted(claimed) == ["a_axis_axial_motion", "b_axis_axial_motion", "b_axis_radial_motion"]
+    axial = claimed["b_axis_axial_motion"]
+    assert axial.settings == {"cycles_per_rev": 16}
+    assert axial.note == "taken in place of B-axis tilt error motion 17 beside the other effects"
+    # The effect it replaced is in the ranking still, no claim, saying what took its place.
+    gave_way = next(c for ranking in (result.candidates, *result.reranked) for c in ranking if c.effect == "b_axis_tilt_motion" and c.not_needed)
+    assert "B-axis axial error motion explains more in its place" in gave_way.note

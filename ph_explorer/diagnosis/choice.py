@@ -19,7 +19,14 @@ from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
 from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains
 from ph_explorer.diagnosis.rival_shapes import outpredicting_shape
-from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN, CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import (
+    MATERIAL_REDUCTION,
+    RINGS_BROUGHT_WITHIN,
+    SHARE_BROUGHT_WITHIN,
+    CandidateSearch,
+    rank_candidates,
+)
+from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -180,6 +187,24 @@ def claimed_together(
     return ranked, step, claims, test
 
 
+def chosen_beside(
+    search: CandidateSearch, claim: Candidate, others: Sequence[Effect], by_id: dict[str, Effect], seed: int = 0
+) -> Candidate:
+    """What the search takes in a claim's place with `others` in the model: the best significant
+    effect of the whole ranking there when it is another effect than the claim's and the rings
+    prefer it to the claim (telling_apart.rings_prefer: an effect taken while a later one was still
+    missing may have stood in for it; a hair's better fit is no reason), else the claim's own
+    effect at its best setting, scanned on its own null."""
+    ranked = rank_candidates(search, list(by_id.values()), fixed=search.design(others))
+    free = (c for c in ranked if not any(e.id == c.effect and e.settings() == c.settings for e in others))
+    best = next(free, None)
+    if best is not None and best.significant and best.effect != claim.effect:
+        effect, was = (by_id[c.effect].with_settings(**c.settings) for c in (best, claim))
+        if rings_prefer(search, effect, was, others, seed).told_apart:
+            return best
+    return scanned_beside(search, by_id[claim.effect], others)
+
+
 def refitted(
     search: CandidateSearch,
     chain: list[Effect],
@@ -188,32 +213,49 @@ def refitted(
     by_id: dict[str, Effect],
     seed: int = 0,
 ) -> bool:
-    """Each effect taken, its setting scanned again with every other effect of the chain in the
-    model (a selection with refits): a setting chosen while a later effect was still missing (a
-    period between two harmonics, one off beside another axis's error) moves to the best one
-    beside the others, when the claim at it is replicated over rings and of its form beside
-    them. chain, found and the ranking each came from are changed in place; True when any moved."""
+    """Each effect taken, chosen again with every other effect of the chain in the model (a
+    selection with refits and swaps, docs/diagnosis.md, step 2): a setting chosen while a later
+    effect was still missing (a period between two harmonics, one off beside another axis's
+    error) moves to the best one beside the others, and an effect that stood in for another
+    gives way to the effect the ranking puts first there (chosen_beside), when the claim at it is
+    replicated over rings and of its form beside them. chain, found and the ranking each came
+    from are changed in place; True when any moved."""
     moved = False
     first = len(chain) - len(found)  # the effects the search started from are not refitted
     for j, claim in enumerate(found):
         k = first + j
         others = chain[:k] + chain[k + 1 :]
-        again = scanned_beside(search, by_id[claim.effect], others)
+        again = chosen_beside(search, claim, others, by_id, seed)
         taken = any(e.id == again.effect and e.settings() == again.settings for e in others)
-        if again.settings == claim.settings or not again.beyond_noise or taken:
+        same = (again.effect, again.settings) == (claim.effect, claim.settings)
+        if same or not again.beyond_noise or taken or not swappable(rankings, claim, again, found):
             continue
-        effect = by_id[claim.effect].with_settings(**again.settings)
+        effect = by_id[again.effect].with_settings(**again.settings)
         test = claim_test(search, effect, others, again, seed)
         if not test.replicated:
             continue
         was = ", ".join(f"{v:g}" for v in claim.settings.values())
-        new = replace(
-            again, significant=True, suggested=False, replication=test, note=f"its setting refitted beside the other effects (was {was})"
-        )
+        note = f"its setting refitted beside the other effects (was {was})"
+        if again.effect != claim.effect:
+            note = f"taken in place of {claim.name} {was} beside the other effects"
+        new = replace(again, significant=True, suggested=False, replication=test, note=note)
+        gave_way = replace(claim, not_needed=True, note=f"{again.name} explains more in its place beside the other effects")
         for ranking in rankings:
-            ranking[:] = [new if c is claim else c for c in ranking]
+            if any(c is claim for c in ranking):
+                ranking[:] = [new if c is claim else gave_way if c.effect == again.effect != claim.effect else c for c in ranking]
         found[j], chain[k], moved = new, effect, True
     return moved
+
+
+def swappable(rankings: list[list[Candidate]], claim: Candidate, again: Candidate, found: list[Candidate]) -> bool:
+    """Whether `again` can take the claim's place in the ranking the claim came from: its own
+    effect's entry there is no other claim (two claims of one effect come from two rankings)."""
+    return not any(
+        c.effect == again.effect and c is not claim and any(c is f for f in found)
+        for r in rankings
+        if any(x is claim for x in r)
+        for c in r
+    )
 
 
 @dataclass
