@@ -18,14 +18,14 @@ import pytest
 from command_line import run_cli
 
 from ph_explorer.campaign import Campaign, orientation_label
-from ph_explorer.diagnosis import Diagnosis, diagnose
+from ph_explorer.diagnosis import Diagnosis, diagnose, loop
 from ph_explorer.diagnosis.candidates import PairTest, RivalSetting
 from ph_explorer.diagnosis.choice import within_noise_after
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import within_noise
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
-from ph_explorer.figures.diagnosis_text import report_sections, report_text, shared_text
+from ph_explorer.figures.diagnosis_text import report_sections, report_text, shared_text, verdict_headline
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -731,3 +731,19 @@ def test_the_verdict_says_what_rings_can_decide_before_offering_them(diagnoses):
             assert "name stays a pair" in step and "--decide" not in step
             pair = {result.found[0].effect, *(partner.effect for partner in result.found[0].untold)}
             assert len(pair) == 2 and all(effect in step for effect in pair)
+
+
+def test_the_verdict_is_said_before_what_is_left_is_described_and_the_history_measured(monkeypatch):
+    # head_5 without its effect in the catalog: the shape step runs, then the signature and the steps.
+    campaign = simulate(load_scenario("head_5"))
+    said: list[tuple[str, object]] = []
+    original = loop.signature
+    monkeypatch.setattr(loop, "signature", lambda *a, **k: said.append(("signature", None)) or original(*a, **k))
+    result = loop.diagnose(
+        campaign, catalog=catalog_without("direction"), nested=False, on_verdict=lambda headline: said.append(("verdict", headline))
+    )
+    assert [what for what, _ in said] == ["verdict", "signature"]
+    assert said[0][1] == result.headline and result.verdict in ("unexplained", "partial", "uncatalogued")
+    # The command line says it first, then the rest: together the one report, word for word.
+    text = report_text(result, DEFAULT_CATALOG)
+    assert text == verdict_headline(result.headline, DEFAULT_CATALOG) + "\n" + report_text(result, DEFAULT_CATALOG, headline=False)

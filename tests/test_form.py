@@ -112,7 +112,7 @@ def test_a_claim_its_rings_cannot_tell_from_a_shape_of_another_variable_is_named
     claim = next(c for c in result.found if c.effect == "b_axis_axial_motion")
     untold = claim.untold_shape
     assert untold is not None and untold.group == "probe_time" and not untold.test.told_apart and untold.test.p_value >= 0.05
-    assert f"or a shape: {untold.words}" in verdict_headline(result, DEFAULT_CATALOG)
+    assert f"or a shape: {untold.words}" in verdict_headline(result.headline, DEFAULT_CATALOG)
     words = " ".join(line for s in report_sections(result, DEFAULT_CATALOG, detail="full") for line in s.lines)
     assert "lattice rings measured again after the check rings would tell a change in time" in words
     data = json.loads(json.dumps(result.to_json()))

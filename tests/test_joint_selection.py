@@ -83,5 +83,7 @@ def test_an_effect_that_stood_in_for_a_later_one_gives_way_beside_it() -> None:
     assert axial.settings == {"cycles_per_rev": 16}
     assert axial.note == "taken in place of B-axis tilt error motion 17 beside the other effects"
     # The effect it replaced is in the ranking still, no claim, saying what took its place.
-    gave_way = next(c for ranking in (result.candidates, *result.reranked) for c in ranking if c.effect == "b_axis_tilt_motion" and c.not_needed)
+    gave_way = next(
+        c for ranking in (result.candidates, *result.reranked) for c in ranking if c.effect == "b_axis_tilt_motion" and c.not_needed
+    )
     assert "B-axis axial error motion explains more in its place" in gave_way.note

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.loop import diagnose
-from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.diagnosis.results import Diagnosis, Headline
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.models.deviation_model import DeviationModel
@@ -57,11 +57,12 @@ def diagnose_campaign(
     progress: Callable[[str], None] | None = None,
     network_progress: Callable[[int, float, float, float], None] | None = None,
     nested: bool = True,
+    on_verdict: Callable[[Headline], None] | None = None,
 ) -> Diagnosis:
     """diagnose() with the command's options: a trained model folder's baseline (the folder, or its
     models already loaded by the caller, who shows them too), the data part by
     name (the network retrained on what the physical terms leave, reporting each epoch); without
-    `nested`, the verdict first (honest_after adds the nested figures)."""
+    `nested`, the verdict first (honest_after adds the nested figures); on_verdict: as diagnose's."""
     models = load_models(Path(model)) if isinstance(model, (str, Path)) else model
     baseline = baseline_of(models) if models is not None else None
     part: str | Callable[[], DeviationModel] = check_data_part(data_part)
@@ -71,4 +72,14 @@ def diagnose_campaign(
         def part() -> DeviationModel:
             return FourierNetwork(progress=network_progress)
 
-    return diagnose(campaign, add=add, baseline=baseline, data_part=part, catalog=catalog, progress=progress, start=start, nested=nested)
+    return diagnose(
+        campaign,
+        add=add,
+        baseline=baseline,
+        data_part=part,
+        catalog=catalog,
+        progress=progress,
+        start=start,
+        nested=nested,
+        on_verdict=on_verdict,
+    )

@@ -23,7 +23,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
-from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Ring, Step, Verdict, flagged_in
+from ph_explorer.diagnosis.results import Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch, confounding
 from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
@@ -131,6 +131,7 @@ def diagnose(
     seed: int = 0,
     nested: bool = True,
     start: Sequence[Effect] = (),
+    on_verdict: Callable[[Headline], None] | None = None,
 ) -> Diagnosis:
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
@@ -143,6 +144,8 @@ def diagnose(
     them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
     start: effects already in the model, each at its settings (a resumed study's chain): the
     search continues from them, and the steps begin with them.
+    on_verdict: called with the verdict and what it names as soon as they stand, before what is
+    left is described and the error history measured (a front end says it first).
     """
     # Touches read far off are named (the fit takes them as they are); rings measured badly are
     # named and left out of the fit and of the claims.
@@ -199,14 +202,16 @@ def diagnose(
         rankings.append(ranking)
     candidates = rankings[0]
     found = tuple(learnt.get(id(c), c) for c in choice.found)
-    # What is left, in the head's own variables, when the catalog does not explain it all, and a
-    # shape for it: an error function of those variables no catalog holds.
+    # A shape for what the catalog does not explain: an error function of the head's own variables
+    # no catalog holds; then the verdict stands, and what is left is described in those variables.
     unexplained = verdict in ("partial", "unexplained", "suggested")
-    left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
     shapes = find_shapes(search, chain, choice.after if chain else before, seed) if unexplained else []
     shape_effects = [shape.effect() for shape in shapes if shape.claimed]
     if shape_effects:
         verdict = "uncatalogued"
+    if on_verdict is not None:
+        on_verdict(Headline(verdict, found, tuple(candidates), tuple(shapes)))
+    left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
 
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
 

@@ -169,6 +169,21 @@ class Ring:
 
 
 @dataclass(frozen=True)
+class Headline:
+    """The verdict and what it names: known before the error history is measured, so that a front
+    end can say it first (diagnosis.loop.diagnose's on_verdict); a Diagnosis's own is its headline."""
+
+    verdict: Verdict
+    found: tuple[Candidate, ...]
+    candidates: tuple[Candidate, ...]  # the first ranking: the settings of the partners a claim is named with
+    shapes: tuple[Shape, ...] = ()
+
+    @property
+    def claimed_shapes(self) -> tuple[Shape, ...]:
+        return tuple(s for s in self.shapes if s.claimed)
+
+
+@dataclass(frozen=True)
 class Diagnosis:
     """Everything one diagnosis found, in one record (docs/formats.md, "The diagnosis record")."""
 
@@ -247,8 +262,12 @@ class Diagnosis:
         return tuple(c for c in self.suggested if not c.form_broken)
 
     @property
+    def headline(self) -> Headline:
+        return Headline(self.verdict, self.found, self.candidates, self.shapes)
+
+    @property
     def claimed_shapes(self) -> tuple[Shape, ...]:
-        return tuple(s for s in self.shapes if s.claimed)
+        return self.headline.claimed_shapes
 
     @property
     def model_effects(self) -> tuple[Effect, ...]:

@@ -16,7 +16,7 @@ from typing import Literal
 
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner, UntoldShape
-from ph_explorer.diagnosis.results import VERDICTS, Diagnosis
+from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
@@ -72,7 +72,9 @@ def report_sections(
     actions = ACTIONS[front]
     claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
     sections = [
-        Section("verdict", verdict_headline(result, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))),
+        Section(
+            "verdict", verdict_headline(result.headline, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))
+        ),
         Section("why", "Why", tuple(why_lines(result))),
         Section("claims", "Found", claims),
         Section("shapes", "Shapes no catalog holds", tuple(line for shape in result.shapes for line in shape_lines(shape))),
@@ -94,30 +96,36 @@ def report_sections(
     return [Section(s.key, name(s.title), tuple(name(line) for line in s.lines)) for s in sections if s.lines or s.key == "verdict"]
 
 
-def report_text(result: Diagnosis, catalog: Catalog, detail: Detail = "short", decision: Decision | None = None) -> str:
-    """The report as plain text (the command line's): each section's title, its lines indented."""
+def report_text(
+    result: Diagnosis, catalog: Catalog, detail: Detail = "short", decision: Decision | None = None, headline: bool = True
+) -> str:
+    """The report as plain text (the command line's): each section's title, its lines indented;
+    without the headline when it was said already (verdict_headline, as soon as the verdict stood)."""
     sections = report_sections(result, catalog, detail, decision=decision)
     blocks = ["\n".join([section.title, *(f"  {line}" for line in section.lines)]) for section in sections]
+    if not headline:
+        blocks[0] = blocks[0].partition("\n")[2]
     return "\n\n".join(blocks) + "\n"
 
 
 # -- the verdict -------------------------------------------------------------------------------------
 
 
-def verdict_headline(result: Diagnosis, catalog: Catalog, pairs_only: bool = False) -> str:
-    """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...'; a claim the rings
-    cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
-    pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
+def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = False) -> str:
+    """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...' (a Diagnosis's
+    headline); a claim the rings cannot tell from a partner is named with it, as a pair (issue 55:
+    the credit is the pair's). pairs_only: only the claims named as pairs (the explorer names each
+    claim beside its checkbox)."""
     named = "; ".join(
-        [claim_name(c, result, catalog) for c in result.found if c.untold or c.untold_shape or not pairs_only]
-        + [shape_name(shape) for shape in result.claimed_shapes]
+        [claim_name(c, headline, catalog) for c in headline.found if c.untold or c.untold_shape or not pairs_only]
+        + [shape_name(shape) for shape in headline.claimed_shapes]
     )
-    return f"Verdict: {result.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[result.verdict]}."
+    return f"Verdict: {headline.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[headline.verdict]}."
 
 
-def claim_name(candidate: Candidate, result: Diagnosis, catalog: Catalog) -> str:
+def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> str:
     """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
-    settings = {c.effect: c.settings for c in result.candidates}
+    settings = {c.effect: c.settings for c in headline.candidates}
 
     def label(effect: str, at: dict) -> str:
         return effect_label(catalog[effect]().with_settings(**at)) if effect in catalog else effect
