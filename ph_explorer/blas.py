@@ -5,7 +5,8 @@ columns with a few dozen targets over every ring's points: each far too small fo
 pool to pay for itself. On 2 busy cores OpenBLAS's own threads then spin against each other (and,
 once torch has run in the same process, against its OpenMP pool: a diagnosis in the explorer took
 600 s instead of 25 s); measured, one BLAS thread makes these products 10-25 times faster. The
-parallelism that pays is the nested cross-validation's two folds at a time (diagnosis.nested).
+parallelism that pays is independent parts of one diagnosis two at a time, in threads (numpy
+releases the GIL in the heavy parts): the nested cross-validation's folds, the shape groups.
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from typing import TypeVar
 from threadpoolctl import threadpool_limits
 
 F = TypeVar("F", bound=Callable)
+
+PARTS_AT_ONCE = 2  # a diagnosis's independent parts fitted at a time (the machine's 2 cores)
 
 
 def one_blas_thread(function: F) -> F:

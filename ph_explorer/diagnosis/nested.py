@@ -20,6 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ph_explorer import metrics
+from ph_explorer.blas import PARTS_AT_ONCE
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.fitted_bases import FittedBases
@@ -31,7 +32,6 @@ from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
 
 NESTED_FOLDS = 5
-NESTED_WORKERS = 2
 # The data-driven part of the models the folds fit: the interpolator, which refits in milliseconds
 # (a network's data part would be retrained twice per fold).
 NESTED_DATA_PART = "trilinear"
@@ -70,7 +70,7 @@ def nested_after(
         return fold, before, after, [effect_label(e) for e in choice.chain[len(start) :]]
 
     # The folds are independent: two at a time (numpy releases the GIL in the heavy parts).
-    with ThreadPoolExecutor(max_workers=NESTED_WORKERS) as pool:
+    with ThreadPoolExecutor(max_workers=PARTS_AT_ONCE) as pool:
         results = list(pool.map(one_fold, np.array_split(rng.permutation(train), folds)))
     predicted = [r[0] for r in results]
     before = [r[1] for r in results]

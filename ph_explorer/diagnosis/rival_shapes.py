@@ -17,7 +17,7 @@ from ph_explorer.diagnosis.candidates import PairTest, UntoldShape
 from ph_explorer.diagnosis.fitted_bases import settings_key
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, RivalShape, replication, ring_residual_squares
 from ph_explorer.diagnosis.search import CandidateSearch
-from ph_explorer.diagnosis.shapes import family_test, fit_group
+from ph_explorer.diagnosis.shapes import family_test, fit_group, fit_groups
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
@@ -48,7 +48,7 @@ def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) ->
         noise = ring_sigma(search.campaign.deviations) ** 2
         before = ring_residual_squares(search.residual, fixed, search.targets)
         with_effect = ring_residual_squares(search.residual, search.design([*chain, effect]), search.targets)
-        fits = [fit_group(search, fixed, before, group, noise) for group in keys]
+        fits = list(fit_groups(search, fixed, before, keys, noise).values())
         gains, squares = np.stack([f.gain for f in fits]), np.stack([f.squares for f in fits])
         out = _Rivals(keys, gains, squares, (before - with_effect) / np.maximum(noise, 1e-300), noise, ~search.train)
     search.rival_shapes[key] = out

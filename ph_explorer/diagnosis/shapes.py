@@ -15,12 +15,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.blas import PARTS_AT_ONCE
 from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
@@ -214,6 +216,14 @@ def fit_group(
     return GroupFit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, squares)
 
 
+def fit_groups(
+    search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], groups: Sequence[str], noise: NDArray[np.float64]
+) -> dict[str, GroupFit]:
+    """Each group fitted beside `fixed` (fit_group), PARTS_AT_ONCE at a time: they are independent."""
+    with ThreadPoolExecutor(max_workers=PARTS_AT_ONCE) as pool:
+        return dict(zip(groups, pool.map(lambda group: fit_group(search, fixed, before, group, noise), groups)))
+
+
 def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.float64]:
     """What the chain and the group leave of each ring's residual, fitted without that ring."""
     mean, within = fit.joint.apply_each(fit.without)
@@ -300,7 +310,7 @@ def find_shapes(
     # columns would overfit, and every next group would seem to gain).
     before = ring_residual_squares(search.residual, fixed, search.targets)
     while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
-        fits = {g: fit_group(search, fixed, before, g, noise) for g in groups}
+        fits = fit_groups(search, fixed, before, groups, noise)
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         best = list(fits)[int(np.argmax(statistics))]
         fit = fits[best]
