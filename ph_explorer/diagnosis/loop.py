@@ -137,8 +137,7 @@ def diagnose(
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
     again, until no candidate is left (at most max_steps effects).
-    baseline: a trained model to start from (default: the trilinear model fitted on the training
-    orientations).
+    baseline: a trained model to start from (default: the trilinear model on the training rings).
     catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
     nested: when the search finds effects, measure them on rings that took no part in choosing
     them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).

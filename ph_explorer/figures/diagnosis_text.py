@@ -99,23 +99,18 @@ def report_sections(
 def report_text(
     result: Diagnosis, catalog: Catalog, detail: Detail = "short", decision: Decision | None = None, headline: bool = True
 ) -> str:
-    """The report as plain text (the command line's): each section's title, its lines indented;
-    without the headline when it was said already (verdict_headline, as soon as the verdict stood)."""
-    sections = report_sections(result, catalog, detail, decision=decision)
-    blocks = ["\n".join([section.title, *(f"  {line}" for line in section.lines)]) for section in sections]
-    if not headline:
-        blocks[0] = blocks[0].partition("\n")[2]
-    return "\n\n".join(blocks) + "\n"
+    """The report as plain text: each section's title, its lines indented; without the headline if said already."""
+    blocks = ["\n".join([s.title, *(f"  {line}" for line in s.lines)]) for s in report_sections(result, catalog, detail, decision=decision)]
+    return "\n\n".join([blocks[0] if headline else blocks[0].partition("\n")[2], *blocks[1:]]) + "\n"
 
 
 # -- the verdict -------------------------------------------------------------------------------------
 
 
 def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = False) -> str:
-    """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...' (a Diagnosis's
-    headline); a claim the rings cannot tell from a partner is named with it, as a pair (issue 55:
-    the credit is the pair's). pairs_only: only the claims named as pairs (the explorer names each
-    claim beside its checkbox)."""
+    """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...'; a claim the rings
+    cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
+    pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
     named = "; ".join(
         [claim_name(c, headline, catalog) for c in headline.found if c.untold or c.untold_shape or not pairs_only]
         + [shape_name(shape) for shape in headline.claimed_shapes]
@@ -189,9 +184,8 @@ def check_group_text(test: NoiseTest) -> str:
 
 
 def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
-    """What to do next, by verdict and by what the diagnosis leaves open, with the front end's
-    actions; with the decision found, what rings can decide and what they cannot (never a button
-    that answers that no ring decides)."""
+    """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions;
+    with the decision found, what rings can decide and what they cannot (no button says no ring does)."""
     if result.leaves_open:
         what = "confirm the suggestion" if result.open_suggestions and not result.found else "decide what these rings cannot tell"
         if decision is None:
