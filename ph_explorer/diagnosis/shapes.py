@@ -14,6 +14,7 @@ it. Method: docs/methods/shapes.md.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -219,8 +220,11 @@ def fit_group(
 def fit_groups(
     search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], groups: Sequence[str], noise: NDArray[np.float64]
 ) -> dict[str, GroupFit]:
-    """Each group fitted beside `fixed` (fit_group), PARTS_AT_ONCE at a time: they are independent."""
-    with ThreadPoolExecutor(max_workers=PARTS_AT_ONCE) as pool:
+    """Each group fitted beside `fixed` (fit_group), PARTS_AT_ONCE at a time (they are independent)
+    when called from the main thread; one at a time from a thread already beside others (a nested
+    fold's, a Dask task's), which would only contend for the same cores."""
+    workers = PARTS_AT_ONCE if threading.current_thread() is threading.main_thread() else 1
+    with ThreadPoolExecutor(max_workers=workers) as pool:
         return dict(zip(groups, pool.map(lambda group: fit_group(search, fixed, before, group, noise), groups)))
 
 
