@@ -118,7 +118,8 @@ def population(results: Mapping[str, Any]) -> str:
             tail += (
                 f"\nA campaign with a shape no catalog holds ({shape.get('campaign')}; verdict `{shape.get('verdict')}`): the command "
                 f"prints its verdict {num(get(shape, 'command_verdict_s', 'median'), 's')} after launch (median; max "
-                f"{num(get(shape, 'command_verdict_s', 'max'), 's')}), the verdict waiting for the shapes it rests on; in one process "
+                f"{num(get(shape, 'command_verdict_s', 'max'), 's')}), the verdict waiting for the shapes it rests on, not for the "
+                f"signature of what is left and the error history, which follow it; in one process "
                 f"the search takes {num(get(shape, 'in_process_s', 'search'), 's')}, the signature of what is left "
                 f"{num(get(shape, 'in_process_s', 'signature'), 's')}, the shapes {num(get(shape, 'in_process_s', 'shapes'), 's')}, "
                 f"the whole {num(get(shape, 'in_process_s', 'total'), 's')}. Target (issue 56): the verdict at most "
