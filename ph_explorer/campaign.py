@@ -23,6 +23,11 @@ ORIENTATION_DECIMALS = 6
 ORIENTATION_TOLERANCE_DEG = 10.0**-ORIENTATION_DECIMALS
 
 
+def place_in_order(order: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Each touch's place in time, 0 (the first touch) to 1 (the last), from its rank in time."""
+    return order / max(int(order.max()), 1)
+
+
 @dataclass
 class Campaign:
     """Deviations of a ring measured at many head orientations.
@@ -131,8 +136,7 @@ class Campaign:
         rings keep the place they had (a fit on some rings predicts the others where they were measured)."""
         if self.places is not None:
             return self.places
-        order = self.touch_order()
-        return order / max(int(order.max()), 1)
+        return place_in_order(self.touch_order())
 
     def touch_order(self) -> NDArray[np.int64]:
         """Rank of every touch in time, shaped like deviations.

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import Campaign, place_in_order
 from ph_explorer.geometry import (
     A_LIMIT_DEG,
     DEFAULT_GEOMETRY,
@@ -125,7 +125,7 @@ def touch_kinematics(
         gravity_probe=gravity[:, None],
         order=order,
         times_s=times,
-        place=order / max(int(order.max()), 1) if place is None else np.broadcast_to(np.asarray(place, dtype=float), shape),
+        place=place_in_order(order) if place is None else np.broadcast_to(np.asarray(place, dtype=float), shape),
         a_approach=a_approach,
         b_approach=b_approach,
         reachable=reachable[:, None, :],

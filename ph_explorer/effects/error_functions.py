@@ -32,10 +32,6 @@ from ph_explorer.geometry import wrap_deg
 from ph_explorer.kinematics import Touches
 
 
-def _order_fraction(touches: Touches) -> NDArray[np.float64]:
-    return touches.place
-
-
 @dataclass(frozen=True)
 class ShapeVariable:
     """A variable a shape is a function of: its name (the JSON's and the shapes file's), label,
@@ -54,7 +50,7 @@ SHAPE_VARIABLES: dict[str, ShapeVariable] = {
         ShapeVariable("a_joint_deg", "A joint angle (deg)", "deg", lambda t: t.a_deg, angle=True),
         ShapeVariable("b_joint_deg", "B joint angle (deg)", "deg", lambda t: t.b_deg, angle=True),
         ShapeVariable("time_s", "touch time (s)", "s", lambda t: t.times_s),
-        ShapeVariable("campaign_fraction", "place in the campaign's touch order (0 to 1)", "", _order_fraction),
+        ShapeVariable("campaign_fraction", "place in the campaign's touch order (0 to 1)", "", lambda t: t.place),
     )
 }
 
