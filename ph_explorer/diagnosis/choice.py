@@ -212,6 +212,7 @@ def refitted(
     rankings: list[list[Candidate]],
     by_id: dict[str, Effect],
     seed: int = 0,
+    last_settled: bool = False,
 ) -> bool:
     """Each effect taken, chosen again with every other effect of the chain in the model (a
     selection with refits and swaps, docs/diagnosis.md, step 2): a setting chosen while a later
@@ -219,10 +220,13 @@ def refitted(
     error) moves to the best one beside the others, and an effect that stood in for another
     gives way to the effect the ranking puts first there (chosen_beside), when the claim at it is
     replicated over rings and of its form beside them. chain, found and the ranking each came
-    from are changed in place; True when any moved."""
+    from are changed in place; True when any moved. last_settled: the last effect was taken alone
+    from the ranking beside all the others (next_found), so it stays unless one before it moved."""
     moved = False
     first = len(chain) - len(found)  # the effects the search started from are not refitted
     for j, claim in enumerate(found):
+        if last_settled and not moved and j == len(found) - 1:
+            break  # that ranking was made, and its claim chosen, beside these very others
         k = first + j
         others = chain[:k] + chain[k + 1 :]
         again = chosen_beside(search, claim, others, by_id, seed)
@@ -320,7 +324,7 @@ def choose_effects(
             pick, current = taken
             found.append(pick)
             chain.append(by_id[pick.effect].with_settings(**pick.settings))
-        if len(found) > 1 and refitted(search, chain, found, rankings, by_id, seed):
+        if len(found) > 1 and refitted(search, chain, found, rankings, by_id, seed, last_settled=taken is not None):
             current = within_noise_after(search, campaign, chain, seed)
         after = current
         # Search again with the chain in the model; an effect found may be found again at another
