@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.detection import hidden_effect_of
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
 from ph_explorer.errors import InputError
@@ -72,16 +73,28 @@ def multi_effect_head(seed: int) -> MultiEffectHead:
     raise RuntimeError(f"no {kind} of effects reaches its strength on seed {seed} nor its replacements")
 
 
+def partner_settings(candidate: Candidate) -> dict[str, list[dict[str, float]]]:
+    """A claim's confounded partners, each at the settings the diagnosis names it at (Partner.settings)."""
+    return {p.effect: [{k: float(v) for k, v in s.items()} for s in p.settings] for p in candidate.confounded_with}
+
+
+def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float]) -> bool:
+    """Whether a claim's record holds an effect: its id at its settings or at settings the claim
+    cannot exclude, or a partner confounded with it named at its settings (an untold pair holds the
+    truth; the pair's credit: issue 55)."""
+    if claim["effect"] == effect_id and (claim["settings"] == settings or settings in claim.get("not_excluded", [])):
+        return True
+    return settings in claim.get("partner_settings", {}).get(effect_id, [])
+
+
 def found_each(effects: list[Effect], found: list[dict[str, Any]], exact: bool = False) -> list[bool]:
-    """For each effect the head holds: claimed with its id at its settings or at settings the claim
-    cannot exclude, or claimed as an effect confounded with it at its settings (the population's
-    catalog-effect rule: an untold pair holds the truth); exact: only its id at its own settings."""
+    """For each effect the head holds: a claim holds it (holds_truth, the population's catalog-effect
+    rule); exact: only its id at its own settings."""
 
     def holds(effect: Effect, claim: dict[str, Any]) -> bool:
         settings = {k: float(v) for k, v in effect.settings().items()}
         if exact:
             return claim["effect"] == effect.id and claim["settings"] == settings
-        at = claim["settings"] == settings or settings in claim.get("not_excluded", [])
-        return at and (claim["effect"] == effect.id or effect.id in claim.get("confounded_with", []))
+        return holds_truth(claim, effect.id, settings)
 
     return [any(holds(effect, claim) for claim in found) for effect in effects]

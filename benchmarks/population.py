@@ -60,6 +60,7 @@ import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.click import run as explorer_click
+from benchmarks.multi_effects import holds_truth, partner_settings
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.detection import hidden_effect_of
@@ -158,6 +159,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
             "params": {k: float(v) for k, v in c.params.items()},
             "params_u": {k: float(v) for k, v in c.params_u.items()},
             "confounded_with": [o.effect for o in c.confounded_with],
+            "partner_settings": partner_settings(c),
         }
         for c in result.found
     ]
@@ -228,12 +230,10 @@ def true_settings(record: dict[str, Any]) -> dict[str, float]:
 
 def right_effect(record: dict[str, Any]) -> dict[str, Any] | None:
     """The found effect that is the hidden one at its settings (or at settings it cannot exclude),
-    or one confounded with it."""
+    or one confounded with it that names it at its settings (multi_effects.holds_truth)."""
     truth, settings = record["truth"], true_settings(record)
-    for found in record["found"]:
-        if found["effect"] == truth["id"] and (found["settings"] == settings or settings in found.get("not_excluded", [])):
-            return found
-    return next((f for f in record["found"] if truth["id"] in f["confounded_with"]), None)
+    own = [f for f in record["found"] if f["effect"] == truth["id"]]
+    return next((f for f in [*own, *record["found"]] if holds_truth(f, truth["id"], settings)), None)
 
 
 def error_over_u(effect_id: str, truth: dict[str, float], found: dict[str, Any]) -> list[float]:

@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
-from benchmarks.multi_effects import KINDS, found_each, multi_effect_head
+from benchmarks.multi_effects import KINDS, found_each, multi_effect_head, partner_settings
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
@@ -173,6 +173,7 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
             "settings": {k: float(v) for k, v in c.settings.items()},
             "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
             "confounded_with": [o.effect for o in c.confounded_with],
+            "partner_settings": partner_settings(c),
         }
         for c in result.found
     ]

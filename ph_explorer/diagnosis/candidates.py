@@ -60,6 +60,10 @@ class Partner:
     shared: float  # the largest squared canonical correlation of their columns over the touches
     separated_by: Separation | None = None
     test: PairTest | None = None
+    # The partner's settings that share that much, the closest first (search.partner_settings: an
+    # n/rev error seen through a lever turning once a revolution reads as n - 1 and n + 1).
+    settings: tuple[dict[str, float], ...] = ()
+    params: dict[str, float] = field(default_factory=dict)  # fitted at its first settings, when the rings were asked
 
     @property
     def told_apart(self) -> bool | None:
@@ -67,7 +71,9 @@ class Partner:
         return None if self.test is None else self.test.told_apart
 
     def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"effect": self.effect, "shared": self.shared}
+        out: dict[str, Any] = {"effect": self.effect, "shared": self.shared, "settings": list(self.settings)}
+        if self.params:
+            out["params"] = rounded(self.params)
         if self.separated_by is not None:
             out["separated_by"] = plain(self.separated_by)
         return out | (plain(self.test) if self.test is not None else {})
@@ -76,7 +82,14 @@ class Partner:
     def from_json(cls, data: Mapping[str, Any]) -> Partner:
         test = PairTest(**{k: data[k] for k in names_of(PairTest)}) if "told_apart" in data else None
         separated = data.get("separated_by")
-        return cls(data["effect"], data["shared"], Separation(**separated) if separated is not None else None, test)
+        return cls(
+            data["effect"],
+            data["shared"],
+            Separation(**separated) if separated is not None else None,
+            test,
+            tuple(data.get("settings", ())),
+            {k: v for k, v in data.get("params", {}).items() if v is not None},
+        )
 
 
 @dataclass(frozen=True)

@@ -23,8 +23,9 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
+from ph_explorer.diagnosis.partners import confounding
 from ph_explorer.diagnosis.results import Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
-from ph_explorer.diagnosis.search import CandidateSearch, confounding
+from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects

@@ -13,17 +13,17 @@ lowers the out-of-sample rms error against the reference that exposes it materia
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate, Partner, Separation
+from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
-from ph_explorer.diagnosis.separation import Separations, orthonormal_span, span_share
+from ph_explorer.diagnosis.separation import orthonormal_span, span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -366,7 +366,6 @@ def rank_candidates(
 # Two candidates whose columns share more than this (squared canonical correlation over every
 # touch, through the smoother) cannot be told apart by this campaign.
 CONFOUNDED = 0.8
-SEPARATIONS = 3  # the closest partners of each candidate told what would separate them
 
 
 def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
@@ -380,40 +379,3 @@ def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64]
 def shared_variance(a: Design, b: Design) -> float:
     """The largest squared canonical correlation between two designs' columns over all touches."""
     return span_share(touch_span(a), touch_span(b))
-
-
-def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> list[Candidate]:
-    """The candidates, each beyond noise or significant with the others it cannot be told from on
-    this campaign (their columns at the chosen settings share more than CONFOUNDED), the closest
-    first, and what would separate it from its closest SEPARATIONS."""
-    # Each effect once in the ranking: its columns at the settings it was scored at.
-    at = {c.effect: by_id[c.effect].with_settings(**c.settings) for c in candidates if c.evidence.get("x")}
-    designs = {effect_id: search.design([effect]) for effect_id, effect in at.items()}
-    spans: dict[str, tuple[NDArray[np.float64], NDArray[np.float64] | None]] = {}  # each design's, made once
-    separations: Separations | None = None  # made when a first pair asks, for every pair after it
-
-    def span(effect_id: str) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-        if effect_id not in spans:
-            spans[effect_id] = touch_span(designs[effect_id])
-        return spans[effect_id]
-
-    out = []
-    for candidate in candidates:
-        if not (candidate.beyond_noise or candidate.significant) or candidate.effect not in designs:
-            out.append(candidate)
-            continue
-        partners = []
-        for other in designs:
-            shared = span_share(span(candidate.effect), span(other)) if other != candidate.effect else 0.0
-            if shared > CONFOUNDED:
-                partners.append(Partner(other, round(shared, 3)))
-        partners.sort(key=lambda p: -p.shared)  # the closest first
-        # ... and what would tell it from its closest partners.
-        closest = partners[:SEPARATIONS]
-        if closest and separations is None:
-            separations = Separations(search.campaign)
-        pairs = [(at[candidate.effect], at[p.effect]) for p in closest]
-        separated = [Separation(**s) for s in separations(pairs)] if pairs else []
-        partners[: len(closest)] = [replace(p, separated_by=s) for p, s in zip(closest, separated)]
-        out.append(replace(candidate, confounded_with=tuple(partners)))
-    return out

@@ -1,6 +1,6 @@
 """What measurement would separate two candidates this campaign cannot tell apart.
 
-Two confounded effects (search.confounding) split the signal between them. Each MEASUREMENTS entry
+Two confounded effects (partners.confounding) split the signal between them. Each MEASUREMENTS entry
 adds touches to the campaign's own, and the two effects' shared variance after the circle fit (no
 smoother) is computed over the union; the measurement that lowers it most is named, with the share
 it would leave. Nothing is simulated: the columns are the effects' bases at the touches.

@@ -1,6 +1,6 @@
 """Do this campaign's rings tell a candidate from a partner it is confounded with?
 
-Two confounded candidates (search.confounding) have columns that share most of their variance,
+Two confounded candidates (partners.confounding) have columns that share most of their variance,
 yet the share they do not have can still be many noise variances at a ring when the effect is
 large. The question is answered as a claim is (diagnosis.replication), with rings as units: each
 ring's out-of-sample sum of squares with the partner in the model less that with the candidate,
@@ -56,14 +56,16 @@ def tell_apart(
             out.append(candidate)
             continue
         effect = by_id[candidate.effect].with_settings(**candidate.settings)
-        partners = tuple(
-            # Beyond the closest partners (no separation asked) the rings are not asked either.
-            p
-            if p.separated_by is None
-            else replace(p, test=rings_prefer(search, effect, by_id[p.effect].with_settings(**settings.get(p.effect, {})), start, seed))
-            for p in candidate.confounded_with
-        )
-        candidate = replace(candidate, confounded_with=partners)
+        partners = []
+        for p in candidate.confounded_with:
+            if p.separated_by is None:  # beyond the closest partners (no separation asked) the rings are not asked either
+                partners.append(p)
+                continue
+            # The partner at the settings that stand in for the claim best (partners.partner_settings).
+            other = by_id[p.effect].with_settings(**(p.settings[0] if p.settings else settings.get(p.effect, {})))
+            test = rings_prefer(search, effect, other, start, seed)
+            partners.append(replace(p, test=test, params={} if test.told_apart else fitted_beside(search, other, start)))
+        candidate = replace(candidate, confounded_with=tuple(partners))
         if candidate.effect in claimed:
             candidate = replace(candidate, untold_shape=untold_shape(search, effect, start, seed))
         out.append(settings_told_apart(search, candidate, effect, start, seed) if candidate.settings else candidate)
@@ -84,8 +86,13 @@ def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: E
     not_excluded = tuple(s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept))
     settings, test = max(kept, key=lambda item: item[1].p_value)
     rival = chosen.with_settings(**settings)
-    design = search.design([*start, rival])
-    own = least_squares.fit(design, search.targets)[0][-search.design([rival]).n_columns :, 0]
     shared = shared_variance(search.design([chosen]), search.design([rival]))
-    params = {k: float(v) for k, v in rival.from_coefficients(own).items()}
+    params = fitted_beside(search, rival, start)
     return replace(candidate, settings_not_excluded=not_excluded, rival_setting=RivalSetting(settings, params, round(shared, 3), test))
+
+
+def fitted_beside(search: CandidateSearch, effect: Effect, start: Sequence[Effect]) -> dict[str, float]:
+    """The effect's parameters fitted beside `start` (a rival setting or an untold partner, for the
+    rings that would decide: planning.deciding)."""
+    own = least_squares.fit(search.design([*start, effect]), search.targets)[0][-search.design([effect]).n_columns :, 0]
+    return {k: float(v) for k, v in effect.from_coefficients(own).items()}

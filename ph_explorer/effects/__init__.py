@@ -11,7 +11,7 @@ Method: docs/methods/effects.md.
 """
 
 from ph_explorer.effects.catalog import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, load_user_effects
-from ph_explorer.effects.effect import Effect, EffectSum, Evidence, Parameter, effect_label, settings_text
+from ph_explorer.effects.effect import Effect, EffectSum, Evidence, Parameter, effect_label, settings_label, settings_text
 
 __all__ = [
     "BUILTIN_EFFECTS",
@@ -22,6 +22,7 @@ __all__ = [
     "Evidence",
     "Parameter",
     "effect_label",
+    "settings_label",
     "settings_text",
     "load_user_effects",
 ]

@@ -382,6 +382,11 @@ def effect_label(effect: Effect) -> str:
     return " ".join([effect.id, *(f"{v:g} {units.get(k, '')}".strip() for k, v in settings.items())])
 
 
+def settings_label(effect: Effect, settings: list[dict[str, Any]]) -> str:
+    """The effect at one setting as a step names it (effect_label), or at several: 'a_axis_tilt_motion 19-21 cycles/rev'."""
+    return effect_label(effect.with_settings(**settings[0])) if len(settings) == 1 else f"{effect.id} {settings_text(effect, settings)}"
+
+
 def settings_text(effect: Effect, settings: list[dict[str, Any]]) -> str:
     """'1-14, 17-21 cycles/rev': settings of the effect's scanned parameters in words, consecutive
     values of one parameter as a range, in its unit."""

@@ -18,7 +18,7 @@ from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner, UntoldShape
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
-from ph_explorer.effects import Catalog, effect_label, settings_text
+from ph_explorer.effects import Catalog, effect_label, settings_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
@@ -122,11 +122,11 @@ def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> st
     """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
     settings = {c.effect: c.settings for c in headline.candidates}
 
-    def label(effect: str, at: dict) -> str:
-        return effect_label(catalog[effect]().with_settings(**at)) if effect in catalog else effect
+    def label(effect: str, at: list[dict]) -> str:  # at one setting, or at several (a partner's: "19-21 cycles/rev")
+        return settings_label(catalog[effect](), at) if effect in catalog else effect
 
-    name = label(candidate.effect, candidate.settings)
-    partners = [label(p.effect, settings.get(p.effect, {})) for p in candidate.untold]
+    name = label(candidate.effect, [candidate.settings])
+    partners = [label(p.effect, list(p.settings) or [settings.get(p.effect, {})]) for p in candidate.untold]
     if candidate.untold_shape is not None:
         partners.append(f"a shape: {candidate.untold_shape.words}")
     return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name

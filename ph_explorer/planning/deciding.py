@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer.campaign import Campaign, orientation_label
-from ph_explorer.diagnosis.candidates import Candidate, RivalSetting
+from ph_explorer.diagnosis.candidates import Candidate, Partner, RivalSetting
 from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.suspect import without_suspects
@@ -36,7 +36,7 @@ class Question:
 
     effect: Effect
     other: Effect | None = None
-    shared: float = 0.0  # the share of their columns' variance on the measured rings (search.confounding)
+    shared: float = 0.0  # the share of their columns' variance on the measured rings (partners.confounding)
     separated_by: str = ""  # a measurement other than rings that would separate them (diagnosis.separation)
 
     @property
@@ -99,7 +99,7 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
             if other is not None and other.params and pair not in asked:
                 asked.add(pair)
                 measurement = partner.separated_by.measurement if partner.separated_by is not None else ""
-                out.append(Question(effect, fitted_effect(other, catalog), float(partner.shared), measurement))
+                out.append(Question(effect, partner_effect(partner, other, catalog), float(partner.shared), measurement))
         rival = candidate.rival_setting
         if rival is not None and not candidate.suggested:  # a suggestion is confirmed first, its setting after
             out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival.shared)))
@@ -114,6 +114,16 @@ def fitted_effect(candidate: Candidate, catalog: Catalog, at: RivalSetting | Non
     known = {p.name for p in cls.parameters}
     fit = at if at is not None else candidate
     return cls(**{k: v for k, v in {**fit.params, **fit.settings}.items() if k in known})
+
+
+def partner_effect(partner: Partner, ranked: Candidate, catalog: Catalog) -> Effect:
+    """An untold partner at the settings that stand in for the claim, fitted there beside the chain
+    (telling_apart.tell_apart); a record without that fit: at its own ranking's fit."""
+    if not partner.params:
+        return fitted_effect(ranked, catalog)
+    cls = catalog[partner.effect]
+    known = {p.name for p in cls.parameters}
+    return cls(**{k: v for k, v in {**partner.params, **(partner.settings[0] if partner.settings else {})}.items() if k in known})
 
 
 def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
