@@ -15,7 +15,8 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    by another head) at 1-3x its detection
    limit: "missing" or "partial" with the right effect at its settings (or at settings it cannot
    exclude: the touches' profile likelihood, search.SETTINGS_NOT_EXCLUDED, and the rings,
-   telling_apart.settings_told_apart), or with a found effect confounded with it; beside it the
+   telling_apart.settings_told_apart), or with a found effect whose confounded partner it is, named
+   at its settings (multi_effects.holds_truth: diagnosis.partners); beside it the
    share found at the true setting itself and how many other settings each find keeps; and for the right effect found at its settings, the share of its fitted
    parameters whose truth is within fit +- U (per parameter, as k = 2 is stated; every parameter
    of an effect at once is reported beside it).

@@ -16,14 +16,9 @@ from ph_explorer.twin.random_heads import random_campaign
 
 # A coning A axis (its tilt about Y and Z a quarter turn apart) at 21/rev beside a B-axis radial
 # motion 14/rev, on a coarse lattice: the tilt's one sideband, 20/rev, is all the touches show.
+CONING = {"about_y_amplitude_arcsec": -0.6067, "about_y_phase_deg": 45.77, "about_z_amplitude_arcsec": 0.6067, "about_z_phase_deg": 134.63}
 HIDDEN = [
-    AAxisTiltMotion(
-        about_y_amplitude_arcsec=-0.6067,
-        about_y_phase_deg=45.77,
-        about_z_amplitude_arcsec=0.6067,
-        about_z_phase_deg=134.63,
-        cycles_per_rev=21,
-    ),
+    AAxisTiltMotion(**CONING, cycles_per_rev=21),
     BAxisRadialMotion(x_amplitude_um=0.5426, x_phase_deg=196.53, y_amplitude_um=0.5426, y_phase_deg=192.52, cycles_per_rev=14),
 ]
 

@@ -21,7 +21,7 @@ leaves, e.g. a 4/rev B-axis error a 20 deg lattice cannot follow); both shares a
 Stability: the same heads with another draw of their noise. One catalog effect at 1-3x its
 detection limit: `missing` or `partial` with it (at its settings, or at settings the diagnosis
 cannot exclude; beside it, found at its true setting, and how many others each find keeps) or
-with a candidate confounded with it, and its true parameters within the fit +- U (per parameter, as k = 2 is stated; all of
+with a claim whose confounded partner it is, named at its settings, and its true parameters within the fit +- U (per parameter, as k = 2 is stated; all of
 an effect's parameters at once beside it). One effect of a shape no catalog holds (a local
 defect of an axis, seven lobes of the probe) at 2-4x its detection limit: how often it is called
 `missing` (an overclaim), and, where the diagnosis sees it, whether the signature's first

@@ -107,7 +107,7 @@ def multi_text(u: Mapping[str, Any]) -> str:
         f"\n**Several catalog effects at once** ({num(multi.get('heads'))} heads, two or three effects each, or two settings of one "
         f"axis error; benchmarks/multi_effects.py): every effect claimed on {share_of(multi.get('all_found'))} "
         f"(target at least {pct((u.get('targets') or {}).get('multi_all_found_min'))}; as catalog-effect heads are judged: at its "
-        f"settings or at settings the claim cannot exclude, or as an untold pair that holds it; with its own id and settings "
+        f"settings or at settings the claim cannot exclude, or as an untold pair that names it at its settings; with its own id and settings "
         f"exactly: {share_of(multi.get('all_found_exactly'))}); by kind: {kinds}; of all their effects, "
         f"{share_of(multi.get('each_effect_found'))} claimed.\n"
     )
