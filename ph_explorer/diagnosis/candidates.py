@@ -60,7 +60,7 @@ class Partner:
     shared: float  # the largest squared canonical correlation of their columns over the touches
     separated_by: Separation | None = None
     test: PairTest | None = None
-    # The partner's settings that share that much, the closest first (search.partner_settings: an
+    # The partner's settings that share that much, the closest first (partners.partner_settings: an
     # n/rev error seen through a lever turning once a revolution reads as n - 1 and n + 1).
     settings: tuple[dict[str, float], ...] = ()
     params: dict[str, float] = field(default_factory=dict)  # fitted at its first settings, when the rings were asked
