@@ -36,10 +36,10 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
         untold = [p for p in c.confounded_with if not p.told_apart]
         told = [p for p in c.confounded_with if p.told_apart]
         if untold:
-            shared = "; ".join(shared_text(c.effect, p) for p in untold[:3])
+            shared = "; ".join(shared_text(c.effect, p, catalog) for p in untold[:3])
             ident = f'<span style="color:#b35900">confounded: {shared}: this campaign cannot tell them apart</span>'
         elif told:
-            shared = "; ".join(shared_text(c.effect, p) for p in told[:3])
+            shared = "; ".join(shared_text(c.effect, p, catalog) for p in told[:3])
             ident = f"told apart by the rings, though {shared}"
         else:
             ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"

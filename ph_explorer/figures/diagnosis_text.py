@@ -11,7 +11,7 @@ the sections out; none decides anything from their words. Method: docs/diagnosis
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 from ph_explorer.campaign import orientation_label
@@ -90,7 +90,7 @@ def report_sections(
         sections[2:2] = [Section("tests", "The tests", tuple(test_lines(result, catalog)))]
         sections[-1:-1] = [
             Section("candidates", "Candidate effects, best first", tuple(candidate_table(result, catalog))),
-            Section("partners", "What the campaign cannot tell apart", tuple(partner_lines(result, actions))),
+            Section("partners", "What the campaign cannot tell apart", tuple(partner_lines(result, actions, catalog))),
             Section("teaching", "The effect found", (result.found[0].teaching,) if result.found else ()),
         ]
     return [Section(s.key, name(s.title), tuple(name(line) for line in s.lines)) for s in sections if s.lines or s.key == "verdict"]
@@ -120,16 +120,18 @@ def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = Fa
 
 def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> str:
     """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
-    settings = {c.effect: c.settings for c in headline.candidates}
-
-    def label(effect: str, at: list[dict]) -> str:  # at one setting, or at several (a partner's: "19-21 cycles/rev")
-        return settings_label(catalog[effect](), at) if effect in catalog else effect
-
-    name = label(candidate.effect, [candidate.settings])
-    partners = [label(p.effect, list(p.settings) or [settings.get(p.effect, {})]) for p in candidate.untold]
+    ranked = {c.effect: c.settings for c in headline.candidates}  # a record without a partner's settings: its ranking's
+    name = settings_label(catalog[candidate.effect](), [candidate.settings]) if candidate.effect in catalog else candidate.effect
+    partners = [partner_label(p if p.settings else replace(p, settings=(ranked.get(p.effect, {}),)), catalog) for p in candidate.untold]
     if candidate.untold_shape is not None:
         partners.append(f"a shape: {candidate.untold_shape.words}")
     return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name
+
+
+def partner_label(partner: Partner, catalog: Catalog | None) -> str:
+    """A partner at the settings that stand in for a claim, 'a_axis_tilt_motion 19-21 cycles/rev' (its id alone without them)."""
+    known = catalog is not None and partner.effect in catalog and partner.settings
+    return settings_label(catalog[partner.effect](), list(partner.settings)) if known else partner.effect
 
 
 def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> list[str]:
@@ -239,19 +241,16 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
     """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
     cannot tell it from, in one voice, and the settings they cannot exclude."""
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
-    fit = (
-        f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)"
-        if with_fit
-        else " (its fit: the table below)"
-    )
+    fitted = catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)
+    fit = f": {fitted} (+- U, k = 2)" if with_fit else " (its fit: the table below)"
     told = [p for p in candidate.confounded_with if p.told_apart]
     lines = (
         [f"{effect_label(effect)}{fit}."]
         if with_fit or candidate.untold or told or candidate.rival_setting or candidate.untold_shape
         else []
     )
-    partners = [untold_text(candidate.effect, candidate.untold, actions)] if candidate.untold else []
-    partners += [told_text(candidate.effect, p) for p in told]
+    partners = [untold_text(candidate.effect, candidate.untold, actions, catalog)] if candidate.untold else []
+    partners += [told_text(candidate.effect, p, catalog) for p in told]
     if candidate.untold_shape is not None:
         partners.append(untold_shape_text(candidate.untold_shape))
     if partners:
@@ -280,11 +279,11 @@ def untold_shape_text(shape: UntoldShape) -> str:
     return f"Or a shape no catalog holds, {shape.words}: the rings cannot tell it from this claim (the claim {test_text(shape.test)}); {decide}."
 
 
-def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str]) -> str:
-    """One voice on the partners the rings cannot tell a claim from: how much each shares, the
-    rings' test, and what would decide."""
+def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str], catalog: Catalog | None = None) -> str:
+    """One voice on the partners the rings cannot tell a claim from (at their settings, given the
+    catalog): how much each shares, the rings' test, and what would decide."""
     shared = "; ".join(
-        f"{partner.effect}, which explains {percent(partner.shared)} of what this campaign shows of {effect}"
+        f"{partner_label(partner, catalog)}, which explains {percent(partner.shared)} of what this campaign shows of {effect}"
         + (f" (the rings' test: {test_text(partner.test)})" if partner.test is not None else "")
         for partner in partners
     )
@@ -308,31 +307,31 @@ def suggestion_lines(result: Diagnosis, catalog: Catalog, limit: int | None) -> 
     return lines + ([f"... and {more} more (--detail full)."] if more else [])
 
 
-def partner_lines(result: Diagnosis, actions: dict[str, str]) -> list[str]:
+def partner_lines(result: Diagnosis, actions: dict[str, str], catalog: Catalog | None = None) -> list[str]:
     """Every candidate's confounded partners (full detail): the claims' and those beyond noise."""
     lines = []
     for candidate in result.found or [c for c in result.candidates if c.beyond_noise]:
         for partner in candidate.confounded_with:
             if partner.told_apart:
-                lines.append(told_text(candidate.effect, partner))
+                lines.append(told_text(candidate.effect, partner, catalog))
             elif partner.told_apart is False:
-                lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner], actions)}")
+                lines.append(f"{candidate.effect} {untold_text(candidate.effect, [partner], actions, catalog)}")
             else:
                 lines.append(
-                    f"{shared_text(candidate.effect, partner)}: this campaign cannot tell them apart; the credit is not theirs to split."
+                    f"{shared_text(candidate.effect, partner, catalog)}: this campaign cannot tell them apart; the credit is not theirs to split."
                 )
     return lines
 
 
-def shared_text(effect: str, partner: Partner) -> str:
+def shared_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> str:
     """'93 % of what this campaign shows of X is also explained by Y' (the largest squared canonical
-    correlation of their columns over the touches)."""
-    return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {partner.effect}"
+    correlation of their columns over the touches; Y at its settings, given the catalog)."""
+    return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {partner_label(partner, catalog)}"
 
 
-def told_text(effect: str, partner: Partner) -> str:
+def told_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> str:
     """A partner the rings tell the effect from: what they share, and the rings' test."""
-    return f"{shared_text(effect, partner)}, yet the rings tell them apart: {test_text(partner.test)}."
+    return f"{shared_text(effect, partner, catalog)}, yet the rings tell them apart: {test_text(partner.test)}."
 
 
 def test_text(test: PairTest) -> str:
