@@ -25,7 +25,7 @@ from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import within_noise
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
-from ph_explorer.figures.diagnosis_text import partner_label, report_sections, report_text, shared_text, verdict_headline
+from ph_explorer.figures.diagnosis_text import named_at, report_sections, report_text, shared_text, verdict_headline
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -594,8 +594,10 @@ def test_the_words_agree_with_the_tables_when_the_baseline_is_within_noise_yet_a
     assert pairs, "the paper scenario has no confounded candidate any more: pick another campaign for this test"
     c, other = pairs[0]
     words = shared_text(c.effect, other, DEFAULT_CATALOG)  # the partner at the settings that stand in
-    assert words.endswith(f"of what this campaign shows of {c.effect} is also explained by {partner_label(other, DEFAULT_CATALOG)}")
-    assert partner_label(other, DEFAULT_CATALOG).startswith(other.effect)
+    assert words.endswith(
+        f"of what this campaign shows of {c.effect} is also explained by {named_at(other.effect, other.settings, DEFAULT_CATALOG)}"
+    )
+    assert named_at(other.effect, other.settings, DEFAULT_CATALOG).startswith(other.effect)
     full = {section.key: section for section in report_sections(result, DEFAULT_CATALOG, "full")}
     assert any(words in line and "this campaign cannot tell them apart" in line for line in full["partners"].lines)
     assert "partners" not in short and words not in report_text(result, DEFAULT_CATALOG)

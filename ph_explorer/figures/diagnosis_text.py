@@ -11,7 +11,7 @@ the sections out; none decides anything from their words. Method: docs/diagnosis
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 from ph_explorer.campaign import orientation_label
@@ -121,17 +121,16 @@ def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = Fa
 def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> str:
     """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
     ranked = {c.effect: c.settings for c in headline.candidates}  # a record without a partner's settings: its ranking's
-    name = settings_label(catalog[candidate.effect](), [candidate.settings]) if candidate.effect in catalog else candidate.effect
-    partners = [partner_label(p if p.settings else replace(p, settings=(ranked.get(p.effect, {}),)), catalog) for p in candidate.untold]
+    name = named_at(candidate.effect, [candidate.settings], catalog)
+    partners = [named_at(p.effect, p.settings or [ranked.get(p.effect, {})], catalog) for p in candidate.untold]
     if candidate.untold_shape is not None:
         partners.append(f"a shape: {candidate.untold_shape.words}")
     return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name
 
 
-def partner_label(partner: Partner, catalog: Catalog | None) -> str:
-    """A partner at the settings that stand in for a claim, 'a_axis_tilt_motion 19-21 cycles/rev' (its id alone without them)."""
-    known = catalog is not None and partner.effect in catalog and partner.settings
-    return settings_label(catalog[partner.effect](), list(partner.settings)) if known else partner.effect
+def named_at(effect: str, settings: Sequence[dict], catalog: Catalog | None) -> str:
+    """An effect at one or several settings ('a_axis_tilt_motion 19-21 cycles/rev'); its id alone without them or the catalog."""
+    return settings_label(catalog[effect](), list(settings)) if catalog is not None and effect in catalog and settings else effect
 
 
 def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> list[str]:
@@ -241,8 +240,9 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
     """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
     cannot tell it from, in one voice, and the settings they cannot exclude."""
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
-    fitted = catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)
-    fit = f": {fitted} (+- U, k = 2)" if with_fit else " (its fit: the table below)"
+    fit = " (its fit: the table below)"
+    if with_fit:
+        fit = f": {catalog[candidate.effect].parameters_text(candidate.params, candidate.params_u)} (+- U, k = 2)"
     told = [p for p in candidate.confounded_with if p.told_apart]
     lines = (
         [f"{effect_label(effect)}{fit}."]
@@ -283,7 +283,7 @@ def untold_text(effect: str, partners: Sequence[Partner], actions: dict[str, str
     """One voice on the partners the rings cannot tell a claim from (at their settings, given the
     catalog): how much each shares, the rings' test, and what would decide."""
     shared = "; ".join(
-        f"{partner_label(partner, catalog)}, which explains {percent(partner.shared)} of what this campaign shows of {effect}"
+        f"{named_at(partner.effect, partner.settings, catalog)}, which explains {percent(partner.shared)} of what this campaign shows of {effect}"
         + (f" (the rings' test: {test_text(partner.test)})" if partner.test is not None else "")
         for partner in partners
     )
@@ -326,7 +326,7 @@ def partner_lines(result: Diagnosis, actions: dict[str, str], catalog: Catalog |
 def shared_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> str:
     """'93 % of what this campaign shows of X is also explained by Y' (the largest squared canonical
     correlation of their columns over the touches; Y at its settings, given the catalog)."""
-    return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {partner_label(partner, catalog)}"
+    return f"{percent(partner.shared)} of what this campaign shows of {effect} is also explained by {named_at(partner.effect, partner.settings, catalog)}"
 
 
 def told_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> str:

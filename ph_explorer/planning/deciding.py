@@ -11,7 +11,7 @@ rings). Method: docs/methods/deciding.md.
 
 from __future__ import annotations
 
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -110,10 +110,8 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
 
 def fitted_effect(candidate: Candidate, catalog: Catalog, at: RivalSetting | None = None) -> Effect:
     """The candidate's effect at its fitted parameters and settings, or at those of `at` (its rival_setting)."""
-    cls = catalog[candidate.effect]
-    known = {p.name for p in cls.parameters}
     fit = at if at is not None else candidate
-    return cls(**{k: v for k, v in {**fit.params, **fit.settings}.items() if k in known})
+    return effect_at(catalog, candidate.effect, fit.params, fit.settings)
 
 
 def partner_effect(partner: Partner, ranked: Candidate, catalog: Catalog) -> Effect:
@@ -121,9 +119,14 @@ def partner_effect(partner: Partner, ranked: Candidate, catalog: Catalog) -> Eff
     (telling_apart.tell_apart); a record without that fit: at its own ranking's fit."""
     if not partner.params:
         return fitted_effect(ranked, catalog)
-    cls = catalog[partner.effect]
+    return effect_at(catalog, partner.effect, partner.params, partner.settings[0] if partner.settings else {})
+
+
+def effect_at(catalog: Catalog, effect_id: str, params: Mapping[str, float], settings: Mapping[str, Any]) -> Effect:
+    """The catalog's effect at these fitted parameters and settings (names it does not know are left out)."""
+    cls = catalog[effect_id]
     known = {p.name for p in cls.parameters}
-    return cls(**{k: v for k, v in {**partner.params, **(partner.settings[0] if partner.settings else {})}.items() if k in known})
+    return cls(**{k: v for k, v in {**params, **settings}.items() if k in known})
 
 
 def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
