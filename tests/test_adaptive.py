@@ -209,3 +209,30 @@ def test_a_ring_whose_fault_repeats_is_measured_again_once_then_left_out_and_the
     again = [r for p in run.plans for r in p.rings if "measure it again" in r.reason]
     assert [f"A{r.a_deg:g} B{r.b_deg:g}" for r in again] == [bad]
     assert [f"A{s.a_deg:g} B{s.b_deg:g}" for s in run.results[-1].suspect_rings] == [bad]
+
+
+def test_the_base_model_is_fitted_never_claimed_and_the_verdict_judges_what_lies_beyond_it() -> None:
+    """Healthy head 100008's first ten rings: the plain diagnosis claims its B axis's orientation, a
+    location error a dense lattice's data part interpolates; the diagnosis a plan reads fits the
+    axes' location errors first, as one step, claims none of them, and finds the campaign within
+    noise with them. The record keeps the base through JSON, and the report names it."""
+    from ph_explorer.diagnosis import diagnose
+    from ph_explorer.diagnosis.results import Diagnosis
+    from ph_explorer.effects import DEFAULT_CATALOG
+    from ph_explorer.figures.diagnosis_text import report_text
+
+    head = random_head(100_008)
+    campaign = closed_loop.measured_plan(head, adaptive.first_rings(geometry=head.geometry))[1]
+    plain = diagnose(campaign, nested=False)
+    assert plain.verdict == "missing" and [c.effect for c in plain.found] == ["b_axis_orientation"]
+    base = [effect.id for effect in adaptive.base_model()]
+    assert len(base) == 4 and {DEFAULT_CATALOG[i].kind for i in base} == {"location"}
+    result = adaptive.plan_diagnosis(campaign)
+    assert result.verdict == "none" and not result.found and result.base == result.started_from == 4
+    assert [e.id for e in result.chain] == base and result.steps[1].added == tuple(base) and len(result.steps) == 2
+    assert result.within_noise["baseline"].fails and not result.within_noise["base"].fails
+    again = Diagnosis.from_json(json.loads(json.dumps(result.to_json())))
+    assert again.base == 4 and again.within_noise["base"].statistic == pytest.approx(result.within_noise["base"].statistic)
+    text = report_text(result, DEFAULT_CATALOG)
+    assert "Base model: b_axis_position, b_axis_orientation, a_axis_position, a_axis_squareness, fitted always" in text
+    assert "Within-noise test, with the base model: the campaign is within noise" in text

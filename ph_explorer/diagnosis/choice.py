@@ -269,9 +269,10 @@ class Choice:
     search: CandidateSearch
     before: NoiseTest | None  # the baseline's within-noise test
     found: list[Candidate]  # the effects taken, in order
-    chain: list[Effect]  # start + the effects taken, at their chosen settings
+    chain: list[Effect]  # base + start + the effects taken, at their chosen settings
     after: NoiseTest | None  # the test with the chain in the model (None: nothing in it)
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
+    based: NoiseTest | None = None  # with the base model in it (before when there is none): what the verdict judges
 
     @property
     def candidates(self) -> list[Candidate]:
@@ -293,18 +294,21 @@ def choose_effects(
     start: Sequence[Effect] = (),
     detail: bool = True,
     bases: FittedBases | None = None,
+    base: Sequence[Effect] = (),
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
     the model, e.g. a resumed study's); detail: the candidates' uncertainties and evidence (a
     search that only chooses needs neither); bases: fitted columns shared with other searches on
-    subsets of the same touches (CandidateSearch)."""
+    subsets of the same touches (CandidateSearch); base: effects always in the model, first in the
+    chain, never claimed (`based` tests the model with them)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
     before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed, held_out=~search.train)
-    chain = list(start)
-    current = within_noise_after(search, campaign, chain, seed) if chain else before
+    chain = [*base, *start]
+    based = within_noise_after(search, campaign, list(base), seed) if base else before
+    current = within_noise_after(search, campaign, chain, seed) if start else based
     after = current if chain else None
     rankings = [rank_candidates(search, effects, fixed=search.design(chain) if chain else None, progress=progress)]
     found: list[Candidate] = []
@@ -330,4 +334,4 @@ def choose_effects(
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
         rankings.append(rank_candidates(search, effects, fixed=search.design(chain), progress=progress))
-    return Choice(search, before, found, chain, after, rankings)
+    return Choice(search, before, found, chain, after, rankings, based)

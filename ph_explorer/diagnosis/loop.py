@@ -133,6 +133,7 @@ def diagnose(
     nested: bool = True,
     start: Sequence[Effect] = (),
     on_verdict: Callable[[Headline], None] | None = None,
+    base: Sequence[Effect] = (),
 ) -> Diagnosis:
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
@@ -144,6 +145,9 @@ def diagnose(
     them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
     start: effects already in the model, each at its settings (a resumed study's chain): the
     search continues from them, and the steps begin with them.
+    base: effects always in the model, each at its settings, never claimed (planning.adaptive's
+    location errors): the verdict judges what lies beyond them; they are the error history's first
+    step.
     on_verdict: called with the verdict and what it names as soon as they stand, before what is
     left is described and the error history measured (a front end says it first).
     """
@@ -178,13 +182,14 @@ def diagnose(
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
-    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start)
+    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base)
     search, before, chain = choice.search, choice.before, choice.chain
+    fixed = len(base) + len(start)  # the chain's effects in the model before the search
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     # A suggestion whose form breaks over the head is no catalog effect the rings could confirm.
     open_suggestion = any(not c.form_broken for c in flagged_in(choice.rankings, "suggested"))
-    verdict = decide(before, choice.after, bool(chain), open_suggestion)
+    verdict = decide(choice.based, choice.after, bool(chain[len(base) :]), open_suggestion)
     # What the search learnt of its first ranking, each stage returning new candidates.
     candidates = choice.candidates
     if chain:
@@ -196,7 +201,7 @@ def diagnose(
     for k, ranking in enumerate([candidates, *choice.rankings[1:]]):
         taken = [c.effect for c in choice.found] if k == 0 else [c.effect for c in choice.found if any(c is r for r in ranking)]
         if k == 0 or taken:
-            told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: len(start) + k], seed)
+            told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: fixed + k], seed)
             learnt |= {id(old): new for old, new in zip(ranking, told)}
             ranking = told
         rankings.append(ranking)
@@ -225,11 +230,12 @@ def diagnose(
     else:
         # A shape of a shapes file is added at its knots (nothing is scanned): the catalog's class.
         chosen_steps = [
+            *base,
             *start,
             *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) if i in by_id else catalog[i]() for i in add),
         ]
     hybrid = None
-    for count in range(1, len(chosen_steps) + 1):
+    for count in range(len(base) or 1, len(chosen_steps) + 1):  # the base model is one step
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_part)
         steps.append(step)
     if add is None and shape_effects:  # the shapes claimed, added as one step
@@ -260,12 +266,13 @@ def diagnose(
         suggested=flagged_in(rankings, "suggested"),
         not_needed=flagged_in(rankings, "not_needed"),
         signature=tuple(left),
-        within_noise={"baseline": before, "after": choice.after},
+        within_noise={"baseline": before, "after": choice.after} | ({"base": choice.based} if base else {}),
         steps=tuple(steps),
         rings=rings,
         reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
         chain=tuple(chosen_steps),
-        started_from=len(start),
+        started_from=fixed,
+        base=len(base),
         suspect_rings=suspects,
         touch_outliers=outliers,
         shapes=tuple(shapes),

@@ -196,14 +196,16 @@ class Diagnosis:
     suggested: tuple[Candidate, ...]  # candidates the search would take whose gain is not replicated over rings
     not_needed: tuple[Candidate, ...]  # significant, but the model is within noise without them
     signature: tuple[dict[str, Any], ...]  # what is left, in the head's variables (partial, unexplained)
-    within_noise: dict[str, NoiseTest | None]  # "baseline" and "after" (the effects found); None: untestable
+    # "baseline", "after" (the effects found) and, with a base model, "base" (what the verdict judges); None: untestable
+    within_noise: dict[str, NoiseTest | None]
     steps: tuple[Step, ...]
     rings: tuple[Ring, ...]  # every ring but the suspect ones, in the campaign's order
     # The rankings after each step of the search (before each next step, and after the last).
     reranked: tuple[tuple[Candidate, ...], ...] = ()
     nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
     chain: tuple[Effect, ...] = ()  # the last step's effects, at their settings
-    started_from: int = 0  # how many of them were in the model before this run (a resumed study)
+    started_from: int = 0  # how many of them were in the model before this run (the base, a resumed study's)
+    base: int = 0  # how many of them are the base model: always fitted, never claimed (diagnose's base)
     suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
     touch_outliers: TouchOutliers | None = None  # touches read far off (None: too few repetitions to tell)
     # Shapes no catalog holds (diagnosis.shapes): those claimed, then the best tried and not claimed.
@@ -298,6 +300,7 @@ class Diagnosis:
             "steps": [s.to_json() for s in self.steps],
             "chain": [chain_entry(e) for e in self.chain],
             "started_from": self.started_from,
+            "base": self.base,
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
             "shapes": [shape.to_json() for shape in self.shapes],
@@ -328,6 +331,7 @@ class Diagnosis:
             steps=tuple(Step.from_json(s) for s in data["steps"]),
             chain=tuple(chain_effect(e, catalog) for e in data["chain"]),
             started_from=data["started_from"],
+            base=data.get("base", 0),
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
             shapes=tuple(Shape.from_json(shape) for shape in data.get("shapes", [])),
