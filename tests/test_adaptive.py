@@ -216,6 +216,9 @@ def test_the_base_model_is_fitted_never_claimed_and_the_verdict_judges_what_lies
     location error a dense lattice's data part interpolates; the diagnosis a plan reads fits the
     axes' location errors first, as one step, claims none of them, and finds the campaign within
     noise with them. The record keeps the base through JSON, and the report names it."""
+    import jsonschema
+    from test_diagnosis import diagnosis_schema
+
     from ph_explorer.diagnosis import diagnose
     from ph_explorer.diagnosis.results import Diagnosis
     from ph_explorer.effects import DEFAULT_CATALOG
@@ -228,11 +231,18 @@ def test_the_base_model_is_fitted_never_claimed_and_the_verdict_judges_what_lies
     base = [effect.id for effect in adaptive.base_model()]
     assert len(base) == 4 and {DEFAULT_CATALOG[i].kind for i in base} == {"location"}
     result = adaptive.plan_diagnosis(campaign)
-    assert result.verdict == "none" and not result.found and result.base == result.started_from == 4
-    assert [e.id for e in result.chain] == base and result.steps[1].added == tuple(base) and len(result.steps) == 2
+    assert result.verdict == "none" and not result.found and len(result.base) == result.started_from == 4
+    assert [e.id for e in result.chain] == [link.effect for link in result.base] == base
+    assert result.steps[1].added == tuple(base) and len(result.steps) == 2
+    # every parameter with its U: the B axis's orientation about x and y, within the plausible 15 arcsec
+    orientation = result.base[1].params, result.base[1].params_u
+    assert set(orientation[0]) == set(orientation[1]) == {"about_x_arcsec", "about_y_arcsec"}
+    assert all(0 < u < 15 and abs(orientation[0][k]) < 15 for k, u in orientation[1].items())
     assert result.within_noise["baseline"].fails and not result.within_noise["base"].fails
-    again = Diagnosis.from_json(json.loads(json.dumps(result.to_json())))
-    assert again.base == 4 and again.within_noise["base"].statistic == pytest.approx(result.within_noise["base"].statistic)
+    record = json.loads(json.dumps(result.to_json(), allow_nan=False))
+    jsonschema.Draft202012Validator(diagnosis_schema()).validate(record)
+    again = Diagnosis.from_json(record)
+    assert again.to_json() == record and again.base[1].params_u == pytest.approx(orientation[1], abs=1e-5)
     text = report_text(result, DEFAULT_CATALOG)
-    assert "Base model: b_axis_position, b_axis_orientation, a_axis_position, a_axis_squareness, fitted always" in text
+    assert "Base model, fitted always and never claimed" in text and "; b_axis_orientation about x " in text
     assert "Within-noise test, with the base model: the campaign is within noise" in text

@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.partners import confounding
-from ph_explorer.diagnosis.results import Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
+from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
@@ -218,6 +218,8 @@ def diagnose(
         on_verdict(Headline(verdict, found, tuple(candidates), tuple(shapes)))
     left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
 
+    # The base model's parameters +- U in the verdict's model (the search's chain, its claims in it).
+    base_fit = [ChainLink(e.id, e.settings(), *fit) for e, fit in zip(base, search.fitted_u(chain, len(base)) if base else [])]
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
@@ -272,7 +274,7 @@ def diagnose(
         reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
         chain=tuple(chosen_steps),
         started_from=fixed,
-        base=len(base),
+        base=tuple(base_fit),
         suspect_rings=suspects,
         touch_outliers=outliers,
         shapes=tuple(shapes),

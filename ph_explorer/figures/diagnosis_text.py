@@ -140,8 +140,8 @@ def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision
         lines.append(outliers_text(result.touch_outliers))
     if result.base:
         lines.append(base_text(result))
-    if result.started_from > result.base:
-        already = ", ".join(effect_label(e) for e in result.chain[result.base : result.started_from])
+    if result.started_from > len(result.base):
+        already = ", ".join(effect_label(e) for e in result.chain[len(result.base) : result.started_from])
         lines.append(f"Resumed with {already} in the model; the search continued from there.")
     remeasure = ""
     if result.suspect_rings:
@@ -197,7 +197,7 @@ def undecided_text(decision: Decision) -> str:
     """What rings cannot decide, each question with what else would (or that its name stays a pair)."""
     undecided = [(label, q) for label, q in decision.expected.items() if not q["decided_by_rings"]]
     return " ".join(
-        f"No {decision.budget} rings of this stylus decide {label.replace(' vs ', ' or ')} "
+        f"No {decision.budget} rings of this stylus decide {q.get('words', label.replace(' vs ', ' or '))} "
         f"(their test over rings would pass {100 * q['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides): "
         + (
             f"{q['separated_by']} would."

@@ -18,11 +18,13 @@ def tested_models(result: Diagnosis) -> list[tuple[str, str]]:
 
 
 def base_text(result: Diagnosis) -> str:
-    """The base model in one line: its effects, fitted always and never claimed."""
-    effects = ", ".join(effect_label(e) for e in result.chain[: result.base])
+    """The base model in one line: its effects' parameters +- U, fitted always and never claimed."""
+    fits = "; ".join(
+        f"{effect_label(effect)} {effect.parameters_text(link.params, link.params_u)}" for effect, link in zip(result.chain, result.base)
+    )
     return (
-        f"Base model: {effects}, fitted always and never claimed (an adaptive campaign's few rings cannot interpolate "
-        "them); the verdict judges what lies beyond them."
+        f"Base model, fitted always and never claimed (an adaptive campaign's few rings cannot interpolate it; the verdict "
+        f"judges what lies beyond it): {fits} (+- U, k = 2)."
     )
 
 

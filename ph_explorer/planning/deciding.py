@@ -52,6 +52,11 @@ class Question:
     def label(self) -> str:
         return " vs ".join(self.names) if self.other is not None else self.effect.id
 
+    @property
+    def words(self) -> str:
+        """The question's sides named at their settings: 'a_axis_axial_motion 20 cycles/rev or a_axis_tilt_motion 21 cycles/rev'."""
+        return " or ".join(effect_label(e) for e in (self.effect, self.other) if e is not None)
+
     def reason(self, gain: float, total: float) -> str:
         if self.other is not None:
             first, second = self.names
@@ -299,6 +304,7 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         free[rings] = False
         taken += [(q, i) for i in rings]
         expected[question.label] = {
+            "words": question.words,
             "decided_by_rings": bool(rings),
             "power": round(power, 2),
             "expected_gain": round(total, 1),
@@ -356,7 +362,7 @@ def decision_words(decision: Decision, budget: int) -> DecisionWords:
         if not expected["decided_by_rings"]:
             other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
             undecided.append(
-                f"{label}: no {budget} rings of this stylus decide it (the test over rings would pass "
+                f"{expected.get('words', label)}: no {budget} rings of this stylus decide it (the test over rings would pass "
                 f"{100 * expected['power']:.0f} % of the time with them, {100 * DECIDING_POWER:.0f} % decides){other}"
             )
     time = None
