@@ -145,9 +145,9 @@ def diagnose(
     them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
     start: effects already in the model, each at its settings (a resumed study's chain): the
     search continues from them, and the steps begin with them.
-    base: effects always in the model, each at its settings, never claimed (planning.adaptive's
-    location errors): the verdict judges what lies beyond them; they are the error history's first
-    step.
+    base: effects in the model before the search, each at its settings, never claimed
+    (planning.adaptive's location errors), those the rings can use (choice.usable_base): the
+    verdict judges what lies beyond them; they are the error history's first step.
     on_verdict: called with the verdict and what it names as soon as they stand, before what is
     left is described and the error history measured (a front end says it first).
     """
@@ -184,6 +184,7 @@ def diagnose(
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
     choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base)
     search, before, chain = choice.search, choice.before, choice.chain
+    offered, base = base, choice.base  # the base model's effects these rings can use (choice.usable_base)
     fixed = len(base) + len(start)  # the chain's effects in the model before the search
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
@@ -268,13 +269,14 @@ def diagnose(
         suggested=flagged_in(rankings, "suggested"),
         not_needed=flagged_in(rankings, "not_needed"),
         signature=tuple(left),
-        within_noise={"baseline": before, "after": choice.after} | ({"base": choice.based} if base else {}),
+        within_noise={"baseline": before, "after": choice.after} | ({"base": choice.based} if offered else {}),
         steps=tuple(steps),
         rings=rings,
         reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
         chain=tuple(chosen_steps),
         started_from=fixed,
         base=tuple(base_fit),
+        base_unused=tuple(e.id for e in offered if all(e is not kept for kept in base)),
         suspect_rings=suspects,
         touch_outliers=outliers,
         shapes=tuple(shapes),

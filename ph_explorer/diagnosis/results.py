@@ -226,7 +226,8 @@ class Diagnosis:
     nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
     chain: tuple[Effect, ...] = ()  # the last step's effects, at their settings
     started_from: int = 0  # how many of them were in the model before this run (the base, a resumed study's)
-    base: tuple[ChainLink, ...] = ()  # the chain's first effects always fitted and never claimed (diagnose's base), +- U
+    base: tuple[ChainLink, ...] = ()  # the chain's first effects, fitted and never claimed (diagnose's base), +- U
+    base_unused: tuple[str, ...] = ()  # the base model's effects these rings predict better without (choice.usable_base)
     suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
     touch_outliers: TouchOutliers | None = None  # touches read far off (None: too few repetitions to tell)
     # Shapes no catalog holds (diagnosis.shapes): those claimed, then the best tried and not claimed.
@@ -322,6 +323,7 @@ class Diagnosis:
             "chain": [chain_entry(e) for e in self.chain],
             "started_from": self.started_from,
             "base": [link.to_json() | {"params": rounded(link.params), "params_u": rounded(link.params_u)} for link in self.base],
+            "base_unused": list(self.base_unused),
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
             "shapes": [shape.to_json() for shape in self.shapes],
@@ -353,6 +355,7 @@ class Diagnosis:
             chain=tuple(chain_effect(e, catalog) for e in data["chain"]),
             started_from=data["started_from"],
             base=tuple(ChainLink.from_json(link) for link in data.get("base", [])),
+            base_unused=tuple(data.get("base_unused", [])),
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
             shapes=tuple(Shape.from_json(shape) for shape in data.get("shapes", [])),

@@ -138,7 +138,7 @@ def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision
     lines = [suspect_text(ring) for ring in result.suspect_rings]
     if result.touch_outliers is not None and result.touch_outliers.named:
         lines.append(outliers_text(result.touch_outliers))
-    if result.base:
+    if result.base or result.base_unused:
         lines.append(base_text(result))
     if result.started_from > len(result.base):
         already = ", ".join(effect_label(e) for e in result.chain[len(result.base) : result.started_from])

@@ -18,13 +18,24 @@ def tested_models(result: Diagnosis) -> list[tuple[str, str]]:
 
 
 def base_text(result: Diagnosis) -> str:
-    """The base model in one line: its effects' parameters +- U, fitted always and never claimed."""
+    """The base model in one line: its effects' parameters +- U, fitted and never claimed, and those
+    these rings predict better without."""
+    # A parameter whose column the rings cannot see (its fit 0 +- 0, e.g. an offset along the ring's
+    # own axis) is said so, not given a value.
+    unseen = [(e, k) for e, link in zip(result.chain, result.base) for k, u in link.params_u.items() if not u > 1e-9]
     fits = "; ".join(
-        f"{effect_label(effect)} {effect.parameters_text(link.params, link.params_u)}" for effect, link in zip(result.chain, result.base)
+        f"{effect_label(effect)} "
+        + effect.parameters_text({k: v for k, v in link.params.items() if (effect, k) not in unseen}, link.params_u)
+        for effect, link in zip(result.chain, result.base)
     )
+    fits += " (+- U, k = 2)" + "".join(f"; {effect_label(e)} {k}: not seen by these rings" for e, k in unseen) if fits else ""
+    unused = ", ".join(result.base_unused)
     return (
-        f"Base model, fitted always and never claimed (an adaptive campaign's few rings cannot interpolate it; the verdict "
-        f"judges what lies beyond it): {fits} (+- U, k = 2)."
+        "Base model, never claimed (the location errors an adaptive campaign's few rings cannot interpolate; the verdict "
+        "judges what lies beyond them): "
+        + (fits or "none")
+        + (f"; not fitted, these rings predict rings left out better without: {unused}" if unused else "")
+        + "."
     )
 
 

@@ -118,10 +118,11 @@ class Plan:
 
 
 def base_model(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
-    """The effects an adaptive campaign's diagnosis always fits and never claims: the catalog's
-    location errors (ISO 230-7: where each axis line lies), which every five-axis calibration
-    identifies. A dense lattice's data part interpolates them; a few rings' cannot, and without
-    them the search would spend its steps claiming them (docs/planning.md#the-base-model)."""
+    """The effects an adaptive campaign's diagnosis offers as its base model, never claimed: the
+    catalog's location errors (ISO 230-7: where each axis line lies), which every five-axis
+    calibration identifies. A dense lattice's data part interpolates them; a few rings' cannot, and
+    without them the search would spend its steps claiming them; the diagnosis fits those the rings
+    can use (diagnosis.choice.usable_base; docs/planning.md#the-base-model)."""
     return [cls() for cls in catalog.candidates().values() if cls.kind == "location"]
 
 
