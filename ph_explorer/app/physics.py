@@ -114,10 +114,6 @@ class PhysicsLoop:
             self.adaptive_points = []
             self.panel.show_adaptive([], [], False)
 
-    def base(self) -> list[Effect]:
-        """An adaptive campaign's model always holds the base model, as its plans read it (planning.adaptive)."""
-        return adaptive.base_model(self.catalog) if self.adaptive_twin is not None else []
-
     def diagnose(self) -> None:
         """Where the loaded baseline fails out of sample, and which effect is missing (none added)."""
         p, ds = self.panel, self.current()
@@ -131,7 +127,8 @@ class PhysicsLoop:
         p.show_progress("out-of-sample residuals of the baseline (leave one orientation out)…", 0.02)
         # A study continues from the model it reached, as `diagnose --resume` does.
         start = list(self.chain) if self.study_open else []
-        base = self.base()
+        # An adaptive campaign's diagnosis offers the base model, as its plans read it (planning.adaptive).
+        base = adaptive.base_model(self.catalog) if self.adaptive_twin is not None else []
         try:
             # The loaded model is the baseline, as in the command line. The verdict is shown first; the
             # nested cross-validation (the honest "after") follows (honest_after), as the command line
@@ -275,8 +272,10 @@ class PhysicsLoop:
         # At the settings the diagnosis found (e.g. 22 cycles per revolution), else the effect's own;
         # a shape at its knots.
         ticked = [shapes[i] if i in shapes else self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
-        # The base model and a study's chain stay in the model; a ticked effect already in it (same settings) is not added twice.
-        chain = self.base() + (list(self.chain) if self.study_open else [])
+        # The base model the diagnosis fitted (an adaptive campaign's) and a study's chain stay in the
+        # model; a ticked effect already in it (same settings) is not added twice.
+        base = list(self.diagnosis.chain[: len(self.diagnosis.base)]) if self.diagnosis is not None else []
+        chain = base + (list(self.chain) if self.study_open else [])
         in_chain = {effect_label(e) for e in chain}
         effects = chain + [e for e in ticked if effect_label(e) not in in_chain]
         ids = [effect_label(e) for e in effects]

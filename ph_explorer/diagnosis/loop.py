@@ -138,18 +138,14 @@ def diagnose(
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
-    again, until no candidate is left (at most max_steps effects).
-    baseline: a trained model to start from (default: the trilinear model on the training rings).
-    catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
-    nested: when the search finds effects, measure them on rings that took no part in choosing
-    them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
-    start: effects already in the model, each at its settings (a resumed study's chain): the
-    search continues from them, and the steps begin with them.
-    base: effects in the model before the search, each at its settings, never claimed
-    (planning.adaptive's location errors), those the rings can use (choice.usable_base): the
-    verdict judges what lies beyond them; they are the error history's first step.
-    on_verdict: called with the verdict and what it names as soon as they stand, before what is
-    left is described and the error history measured (a front end says it first).
+    again (at most max_steps effects). baseline: a trained model to start from (default: the
+    trilinear model on the training rings). catalog: the effects to choose from. nested: measure
+    the effects found on rings that took no part in choosing them (diagnosis.nested).
+    start: effects already in the model at their settings (a resumed study's chain): the search
+    continues from them. base: effects never claimed, those the rings can use in the model before
+    the search (choice.usable_base; planning.adaptive's location errors): the verdict judges what
+    lies beyond them. on_verdict: called with the verdict as soon as it stands (a front end says
+    it first). Method: docs/diagnosis.md.
     """
     # Touches read far off are named (the fit takes them as they are); rings measured badly are
     # named and left out of the fit and of the claims.
