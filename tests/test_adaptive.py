@@ -247,3 +247,19 @@ def test_the_base_model_is_fitted_never_claimed_and_the_verdict_judges_what_lies
     text = report_text(result, DEFAULT_CATALOG)
     assert "Base model, never claimed" in text and "; b_axis_orientation about x " in text
     assert "Within-noise test, with the base model: the campaign is within noise" in text
+
+
+def test_a_location_error_the_rings_predict_better_without_is_left_out_of_the_base() -> None:
+    """head_3's first ten rings (a teaching head whose twin holds no location error, with a hidden
+    B-axis error at 22 cycles/rev): of the four location errors only the B axis's position predicts
+    rings left out better beside the claim; the others are named as not fitted, and the claim
+    stands with the model within noise, as without a base model."""
+    from ph_explorer.twin import load_scenario
+
+    head = load_scenario("head_3")
+    campaign = closed_loop.measured_plan(head, adaptive.first_rings(geometry=head.geometry))[1]
+    result = adaptive.plan_diagnosis(campaign)
+    assert result.verdict == "missing" and [(c.effect, c.settings["cycles_per_rev"]) for c in result.found] == [("b_axis_cyclic", 22)]
+    assert [link.effect for link in result.base] == ["b_axis_position"]
+    assert result.base_unused == ("b_axis_orientation", "a_axis_position", "a_axis_squareness")
+    assert [e.id for e in result.chain] == ["b_axis_position", "b_axis_cyclic"] and not result.within_noise["after"].fails
