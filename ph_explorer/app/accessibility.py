@@ -90,8 +90,12 @@ BRING_INTO_VIEW_JS = r"""
         && ![...e.children].some((child) => child.textContent.includes(text)));
     return hits.length ? hits[hits.length - 1] : null;
   };
+  // The last step's text wins: an earlier request still looking for its text (a long verdict
+  // arriving late) must not scroll the panel away from what a later step wrote.
+  const me = (window.phExplorerBringInto = (window.phExplorerBringInto || 0) + 1);
   const start = performance.now();
   const attempt = () => {
+    if (window.phExplorerBringInto !== me) return;
     const a = find(first), b = last ? find(last) : null;
     if (!a || (last && !b)) {
       if (performance.now() - start < 5000) requestAnimationFrame(attempt);
