@@ -638,20 +638,34 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     assert differences(before, json.loads(json.dumps(record))) == []
 
 
-def differences(before, now, path: str = "$") -> list[str]:
-    """Where `now` does not hold `before`: every key of before, equal (now may hold more)."""
+def differences(before, now, path: str = "$", tolerance: float = 0.0) -> list[str]:
+    """Where `now` does not hold `before`: every key of before, equal (now may hold more). Figures
+    are equal to 1e-5 relative, a fitted parameter within a quarter of its U and a U within 10 %
+    (params beside params_u): BLAS threads and dependency releases move the last digits, and an
+    implausible candidate's ill-conditioned parameters (a step of 8e-05 +- 0.001 um) by more."""
     if isinstance(before, dict):
         if not isinstance(now, dict):
             return [f"{path}: {now!r} is not an object"]
-        return [d for k, v in before.items() for d in (differences(v, now[k], f"{path}.{k}") if k in now else [f"{path}.{k}: missing"])]
+        out: list[str] = []
+        bands = before.get("params_u") if isinstance(before.get("params_u"), dict) else {}
+        for k, v in before.items():
+            if k not in now:
+                out.append(f"{path}.{k}: missing")
+            elif k in ("params", "params_u") and isinstance(v, dict) and isinstance(now[k], dict):
+                for name, value in v.items():
+                    band = bands.get(name, 0.0) if k == "params" else value
+                    allowed = (0.25 if k == "params" else 0.1) * abs(band) if isinstance(band, (int, float)) else 0.0
+                    out += differences(value, now[k].get(name), f"{path}.{k}.{name}", allowed)
+            else:
+                out += differences(v, now[k], f"{path}.{k}")
+        return out
     if isinstance(before, list):
         if not isinstance(now, list) or len(now) != len(before):
             return [f"{path}: {len(before)} items before, now {now!r:.80}"]
         return [d for i, (a, b) in enumerate(zip(before, now)) for d in differences(a, b, f"{path}[{i}]")]
     if isinstance(before, float) and isinstance(now, (int, float)) and not isinstance(now, bool):
-        # Same figures, not the same bits: a BLAS or dependency release moves the last digits, and an
-        # implausible candidate's ill-conditioned params (kilometre steps) by parts in 10^7.
-        return [] if math.isclose(before, now, rel_tol=1e-5, abs_tol=1e-9) else [f"{path}: {before!r} before, now {now!r}"]
+        close = math.isclose(before, now, rel_tol=1e-5, abs_tol=max(1e-9, tolerance))
+        return [] if close else [f"{path}: {before!r} before, now {now!r}"]
     return [] if before == now else [f"{path}: {before!r} before, now {now!r}"]
 
 
