@@ -13,7 +13,8 @@ ADAPTIVE_INTRO = """\
 `adaptive_campaign`: each head of the population (healthy heads, heads with a catalog effect, heads
 with a shape no catalog holds, the families in turn) measured twice on its twin: adaptively
 ([planning](planning.md#measure-until-you-know-an-adaptive-campaign): six designed rings and four
-check rings, then each plan after a diagnosis, to its stop, with no budget) and in full (the
+check rings, then each plan after a diagnosis with its [base model](planning.md#the-base-model),
+to its stop, with no budget) and in full (the
 population's paper-style campaign). Both are judged on {rings} evaluation rings of their own, off
 both campaigns' grids, measured at {repetitions} repetitions after the campaign: the MAE of the model
 at the stop (the last diagnosis's hybrid, or its data part when it claims nothing) against the full

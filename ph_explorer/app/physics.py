@@ -127,13 +127,15 @@ class PhysicsLoop:
         p.show_progress("out-of-sample residuals of the baseline (leave one orientation out)…", 0.02)
         # A study continues from the model it reached, as `diagnose --resume` does.
         start = list(self.chain) if self.study_open else []
+        # An adaptive campaign's diagnosis offers the base model, as its plans read it (planning.adaptive).
+        base = adaptive.base_model(self.catalog) if self.adaptive_twin is not None else []
         try:
             # The loaded model is the baseline, as in the command line. The verdict is shown first; the
             # nested cross-validation (the honest "after") follows (honest_after), as the command line
             # gives it too: a saved run records it, and the worker thread keeps the sliders live meanwhile.
             baseline = baseline_of({k: v for k, v in ds.models.items() if k in MODEL_TYPES})
             result = diagnosis.diagnose(
-                ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start, nested=False
+                ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start, nested=False, base=base
             )
         except InputError as error:
             p.done(f"**Cannot diagnose** — {error.line()}")
@@ -150,7 +152,7 @@ class PhysicsLoop:
         # The diagnosis's per-ring figures join this browser's map (its out-of-sample error over the floor, each ring's verdict).
         self.show(ds.with_figures(diagnosis_figures(result, ds.campaign.orientations)))
         if not (self.study_open and self.steps):  # a study's history goes on; else it starts at the baseline
-            self.steps = list(result.steps[: 1 + len(start)])
+            self.steps = list(result.steps[: 1 + bool(base) + len(start)])
             self.refitted = None  # a new history: no refit of it yet
         p.show_history(self.steps)
         self.diagnosed = self.study_open
@@ -270,8 +272,10 @@ class PhysicsLoop:
         # At the settings the diagnosis found (e.g. 22 cycles per revolution), else the effect's own;
         # a shape at its knots.
         ticked = [shapes[i] if i in shapes else self.catalog[i](**scanned[i].settings) if i in scanned else self.catalog[i]() for i in ids]
-        # A study's chain stays in the model; a ticked effect already in it (same settings) is not added twice.
-        chain = list(self.chain) if self.study_open else []
+        # The base model the diagnosis fitted (an adaptive campaign's) and a study's chain stay in the
+        # model; a ticked effect already in it (same settings) is not added twice.
+        base = list(self.diagnosis.chain[: len(self.diagnosis.base)]) if self.diagnosis is not None else []
+        chain = base + (list(self.chain) if self.study_open else [])
         in_chain = {effect_label(e) for e in chain}
         effects = chain + [e for e in ticked if effect_label(e) not in in_chain]
         ids = [effect_label(e) for e in effects]

@@ -170,12 +170,11 @@ def plan_command(
             raise InputError("plans from a measured campaign: give --data FILE.csv (--start plans a head with no data)", option="--next")
         if sigma is not None:
             raise InputError("is for --start: with data the campaign's own repetitions say the noise", option="--sigma-um")
-        from ph_explorer.diagnosis import diagnose
         from ph_explorer.io import read_campaign
 
         asked = asked_before(after) if after is not None else ()
         campaign = read_campaign(Path(data), geometry or {})
-        result = diagnose(campaign, catalog=catalog, nested=False)
+        result = adaptive.plan_diagnosis(campaign, catalog)
         plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance)
     report = plan.to_json()
     if out is not None and plan.rings:

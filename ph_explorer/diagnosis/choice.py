@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,7 +17,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
-from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains
+from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains, ring_weights
 from ph_explorer.diagnosis.rival_shapes import outpredicting_shape
 from ph_explorer.diagnosis.search import (
     MATERIAL_REDUCTION,
@@ -41,6 +41,35 @@ def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Seq
     changing = 0.0 if within is None else within
     residual = search.residual - mean[:, None, :] - changing
     return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed, held_out=~search.train)
+
+
+def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect]) -> float:
+    """The rings' weighted out-of-sample gain (ring_gains; check and lattice rings half each) of a
+    base effect added beside the others."""
+    noise = ring_sigma(search.campaign.deviations) ** 2
+    before = search.design(beside) if beside else None
+    gain = ring_gains(search.residual, before, search.design([*beside, effect]), search.targets, noise)
+    return float(ring_weights(~search.train) @ gain)
+
+
+def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequence[Effect] = ()) -> list[Effect]:
+    """The base model's effects that predict rings left out better than the model without them.
+    Before the search (no claims): each in turn, kept when its gain beside those kept is positive.
+    With the claims: those kept, the one of least gain beside all the rest dropped while its gain
+    is not positive. A location error a few rings cannot determine adds more to what they miss than
+    it removes; one that stood in for a claim is not needed beside it."""
+    kept: list[Effect] = []
+    if not claims:
+        for effect in base:
+            kept += [effect] if base_gain(search, effect, kept) > 0.0 else []
+        return kept
+    kept = list(base)
+    while kept:
+        gains = [base_gain(search, e, [*(k for k in kept if k is not e), *claims]) for e in kept]
+        if min(gains) > 0.0:
+            break
+        kept.pop(int(np.argmin(gains)))
+    return kept
 
 
 def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], fitted: Candidate, seed: int = 0) -> Replication:
@@ -269,9 +298,11 @@ class Choice:
     search: CandidateSearch
     before: NoiseTest | None  # the baseline's within-noise test
     found: list[Candidate]  # the effects taken, in order
-    chain: list[Effect]  # start + the effects taken, at their chosen settings
+    chain: list[Effect]  # base + start + the effects taken, at their chosen settings
     after: NoiseTest | None  # the test with the chain in the model (None: nothing in it)
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
+    based: NoiseTest | None = None  # with the base model in it (before when there is none): what the verdict judges
+    base: list[Effect] = field(default_factory=list)  # the base model's effects kept (usable_base), first in the chain
 
     @property
     def candidates(self) -> list[Candidate]:
@@ -293,18 +324,22 @@ def choose_effects(
     start: Sequence[Effect] = (),
     detail: bool = True,
     bases: FittedBases | None = None,
+    base: Sequence[Effect] = (),
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
     the model, e.g. a resumed study's); detail: the candidates' uncertainties and evidence (a
     search that only chooses needs neither); bases: fitted columns shared with other searches on
-    subsets of the same touches (CandidateSearch)."""
+    subsets of the same touches (CandidateSearch); base: effects in the model before the search,
+    never claimed, those the rings can use (usable_base; `based` tests the model with them)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
     before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed, held_out=~search.train)
-    chain = list(start)
-    current = within_noise_after(search, campaign, chain, seed) if chain else before
+    base = usable_base(search, base)
+    chain = [*base, *start]
+    based = within_noise_after(search, campaign, base, seed) if base else before
+    current = within_noise_after(search, campaign, chain, seed) if start else based
     after = current if chain else None
     rankings = [rank_candidates(search, effects, fixed=search.design(chain) if chain else None, progress=progress)]
     found: list[Candidate] = []
@@ -330,4 +365,10 @@ def choose_effects(
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
         rankings.append(rank_candidates(search, effects, fixed=search.design(chain), progress=progress))
-    return Choice(search, before, found, chain, after, rankings)
+    if base and found:  # the base beside the claims: what a claim now explains needs no location error
+        kept = usable_base(search, base, chain[len(base) :])
+        if len(kept) < len(base):
+            base, chain = kept, [*kept, *chain[len(base) :]]
+            after = within_noise_after(search, campaign, chain, seed)
+            rankings[-1] = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
+    return Choice(search, before, found, chain, after, rankings, based, base)

@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import choose_effects
 from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.partners import confounding
-from ph_explorer.diagnosis.results import Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
+from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
@@ -133,19 +133,19 @@ def diagnose(
     nested: bool = True,
     start: Sequence[Effect] = (),
     on_verdict: Callable[[Headline], None] | None = None,
+    base: Sequence[Effect] = (),
 ) -> Diagnosis:
     """Run the whole loop on a campaign; the check rings (campaign.holdout_mask()) are never fitted.
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
-    again, until no candidate is left (at most max_steps effects).
-    baseline: a trained model to start from (default: the trilinear model on the training rings).
-    catalog: the effects to choose from (DEFAULT_CATALOG, or one with a user's file).
-    nested: when the search finds effects, measure them on rings that took no part in choosing
-    them (ph_explorer.diagnosis.nested; NESTED_FOLDS more searches).
-    start: effects already in the model, each at its settings (a resumed study's chain): the
-    search continues from them, and the steps begin with them.
-    on_verdict: called with the verdict and what it names as soon as they stand, before what is
-    left is described and the error history measured (a front end says it first).
+    again (at most max_steps effects). baseline: a trained model to start from (default: the
+    trilinear model on the training rings). catalog: the effects to choose from. nested: measure
+    the effects found on rings that took no part in choosing them (diagnosis.nested).
+    start: effects already in the model at their settings (a resumed study's chain): the search
+    continues from them. base: effects never claimed, those the rings can use in the model before
+    the search (choice.usable_base; planning.adaptive's location errors): the verdict judges what
+    lies beyond them. on_verdict: called with the verdict as soon as it stands (a front end says
+    it first). Method: docs/diagnosis.md.
     """
     # Touches read far off are named (the fit takes them as they are); rings measured badly are
     # named and left out of the fit and of the claims.
@@ -178,13 +178,15 @@ def diagnose(
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
-    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start)
+    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base)
     search, before, chain = choice.search, choice.before, choice.chain
+    offered, base = base, choice.base  # the base model's effects these rings can use (choice.usable_base)
+    fixed = len(base) + len(start)  # the chain's effects in the model before the search
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     # A suggestion whose form breaks over the head is no catalog effect the rings could confirm.
     open_suggestion = any(not c.form_broken for c in flagged_in(choice.rankings, "suggested"))
-    verdict = decide(before, choice.after, bool(chain), open_suggestion)
+    verdict = decide(choice.based, choice.after, bool(chain[len(base) :]), open_suggestion)
     # What the search learnt of its first ranking, each stage returning new candidates.
     candidates = choice.candidates
     if chain:
@@ -196,7 +198,7 @@ def diagnose(
     for k, ranking in enumerate([candidates, *choice.rankings[1:]]):
         taken = [c.effect for c in choice.found] if k == 0 else [c.effect for c in choice.found if any(c is r for r in ranking)]
         if k == 0 or taken:
-            told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: len(start) + k], seed)
+            told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: fixed + k], seed)
             learnt |= {id(old): new for old, new in zip(ranking, told)}
             ranking = told
         rankings.append(ranking)
@@ -213,6 +215,8 @@ def diagnose(
         on_verdict(Headline(verdict, found, tuple(candidates), tuple(shapes)))
     left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
 
+    # The base model's parameters +- U in the verdict's model (the search's chain, its claims in it).
+    base_fit = [ChainLink(e.id, e.settings(), *fit) for e, fit in zip(base, search.fitted_u(chain, len(base)) if base else [])]
     search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
@@ -225,11 +229,12 @@ def diagnose(
     else:
         # A shape of a shapes file is added at its knots (nothing is scanned): the catalog's class.
         chosen_steps = [
+            *base,
             *start,
             *(by_id[i].with_settings(**(scan[i].settings if i in scan else {})) if i in by_id else catalog[i]() for i in add),
         ]
     hybrid = None
-    for count in range(1, len(chosen_steps) + 1):
+    for count in range(len(base) or 1, len(chosen_steps) + 1):  # the base model is one step
         hybrid, step = add_effects(campaign, chosen_steps[:count], data_part)
         steps.append(step)
     if add is None and shape_effects:  # the shapes claimed, added as one step
@@ -260,12 +265,14 @@ def diagnose(
         suggested=flagged_in(rankings, "suggested"),
         not_needed=flagged_in(rankings, "not_needed"),
         signature=tuple(left),
-        within_noise={"baseline": before, "after": choice.after},
+        within_noise={"baseline": before, "after": choice.after} | ({"base": choice.based} if offered else {}),
         steps=tuple(steps),
         rings=rings,
         reranked=tuple(tuple(ranking) for ranking in rankings[1:]),
         chain=tuple(chosen_steps),
-        started_from=len(start),
+        started_from=fixed,
+        base=tuple(base_fit),
+        base_unused=tuple(e.id for e in offered if all(e is not kept for kept in base)),
         suspect_rings=suspects,
         touch_outliers=outliers,
         shapes=tuple(shapes),

@@ -47,6 +47,27 @@ VERDICTS: dict[Verdict, str] = {
 
 
 @dataclass(frozen=True)
+class ChainLink:
+    """One effect of the model a study reached: at its scanned settings, with its joint fit +- U (k = 2)."""
+
+    effect: str
+    settings: dict[str, float]
+    params: dict[str, float] = field(default_factory=dict)
+    params_u: dict[str, float] = field(default_factory=dict)
+    shape: dict[str, Any] | None = None  # a shape's table (its knots and values: it is in no catalog)
+
+    def to_json(self) -> dict[str, Any]:
+        out = {"effect": self.effect, "settings": self.settings, "params": self.params, "params_u": self.params_u}
+        return out | ({"shape": self.shape} if self.shape is not None else {})
+
+    @classmethod
+    def from_json(cls, data: Mapping[str, Any]) -> ChainLink:
+        """A link of a record's JSON (a figure that does not exist is null there)."""
+        figures = [{k: _number(v) for k, v in data.get(key, {}).items()} for key in ("params", "params_u")]
+        return cls(data["effect"], dict(data["settings"]), *figures, data.get("shape"))
+
+
+@dataclass(frozen=True)
 class Step:
     """One step of the error history: the effects added so far and the held-out MAE with its floor."""
 
@@ -196,14 +217,17 @@ class Diagnosis:
     suggested: tuple[Candidate, ...]  # candidates the search would take whose gain is not replicated over rings
     not_needed: tuple[Candidate, ...]  # significant, but the model is within noise without them
     signature: tuple[dict[str, Any], ...]  # what is left, in the head's variables (partial, unexplained)
-    within_noise: dict[str, NoiseTest | None]  # "baseline" and "after" (the effects found); None: untestable
+    # "baseline", "after" (the effects found) and, with a base model, "base" (what the verdict judges); None: untestable
+    within_noise: dict[str, NoiseTest | None]
     steps: tuple[Step, ...]
     rings: tuple[Ring, ...]  # every ring but the suspect ones, in the campaign's order
     # The rankings after each step of the search (before each next step, and after the last).
     reranked: tuple[tuple[Candidate, ...], ...] = ()
     nested: NestedAfter | None = None  # the honest "after" (ph_explorer.diagnosis.nested)
     chain: tuple[Effect, ...] = ()  # the last step's effects, at their settings
-    started_from: int = 0  # how many of them were in the model before this run (a resumed study)
+    started_from: int = 0  # how many of them were in the model before this run (the base, a resumed study's)
+    base: tuple[ChainLink, ...] = ()  # the chain's first effects, fitted and never claimed (diagnose's base), +- U
+    base_unused: tuple[str, ...] = ()  # the base model's effects these rings predict better without (choice.usable_base)
     suspect_rings: tuple[SuspectRing, ...] = ()  # rings measured badly: named, left out of everything above
     touch_outliers: TouchOutliers | None = None  # touches read far off (None: too few repetitions to tell)
     # Shapes no catalog holds (diagnosis.shapes): those claimed, then the best tried and not claimed.
@@ -298,6 +322,8 @@ class Diagnosis:
             "steps": [s.to_json() for s in self.steps],
             "chain": [chain_entry(e) for e in self.chain],
             "started_from": self.started_from,
+            "base": [link.to_json() | {"params": rounded(link.params), "params_u": rounded(link.params_u)} for link in self.base],
+            "base_unused": list(self.base_unused),
             "suspect_rings": [r.to_json() for r in self.suspect_rings],
             "touch_outliers": None if self.touch_outliers is None else self.touch_outliers.to_json(),
             "shapes": [shape.to_json() for shape in self.shapes],
@@ -328,6 +354,8 @@ class Diagnosis:
             steps=tuple(Step.from_json(s) for s in data["steps"]),
             chain=tuple(chain_effect(e, catalog) for e in data["chain"]),
             started_from=data["started_from"],
+            base=tuple(ChainLink.from_json(link) for link in data.get("base", [])),
+            base_unused=tuple(data.get("base_unused", [])),
             suspect_rings=tuple(SuspectRing.from_json(r) for r in data.get("suspect_rings", [])),
             touch_outliers=None if data.get("touch_outliers") is None else TouchOutliers.from_json(data["touch_outliers"]),
             shapes=tuple(Shape.from_json(shape) for shape in data.get("shapes", [])),

@@ -140,6 +140,16 @@ class CandidateSearch:
             joint = joint.stacked(other)
         return joint
 
+    def fitted_u(self, chain: Sequence[Effect], count: int) -> list[tuple[dict[str, float], dict[str, float]]]:
+        """(params, params_u) of the chain's first `count` effects in the joint fit of the whole chain,
+        U (k = 2) from the fits without each ring, as a candidate's."""
+        joint = self.design(chain)
+        coefficients = least_squares.fit(joint, self.targets)[0][:, 0]
+        without = least_squares.jackknife(joint, self.targets, np.arange(self.campaign.n_orientations))
+        edges = np.cumsum([0, *(self.design([effect]).n_columns for effect in chain[:count])])
+        k = COVERAGE_FACTOR * JACKKNIFE_INFLATION
+        return [jackknife_parameters(e, without[:, a:b], coefficients[a:b], k=k) for e, a, b in zip(chain, edges[:-1], edges[1:])]
+
     def _design(self, effect: Effect) -> Design:
         """One effect's design at its settings, made once per search (every ranking and every
         step of the chain asks for the same scan values again)."""

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.results import Diagnosis, NestedAfter, Step, chain_effect, chain_entry
+from ph_explorer.diagnosis.results import ChainLink, Diagnosis, NestedAfter, Step, chain_effect, chain_entry
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.effects.error_functions import shape_class
 from ph_explorer.errors import InputError
@@ -31,21 +31,6 @@ STUDY_KEYS = ("format", "campaign", "baseline", "data_part", "chain", "runs")
 def study_campaign(file_name: str, sha256: str, campaign: Campaign) -> dict[str, Any]:
     """The study's `campaign` object: the file it was made on, its bytes' sha256 and its size."""
     return {"file": file_name, "sha256": sha256, "orientations": campaign.n_orientations, "repetitions": campaign.n_repetitions}
-
-
-@dataclass(frozen=True)
-class ChainLink:
-    """One effect of the model a study reached: at its scanned settings, with its joint fit +- U (k = 2)."""
-
-    effect: str
-    settings: dict[str, float]
-    params: dict[str, float] = field(default_factory=dict)
-    params_u: dict[str, float] = field(default_factory=dict)
-    shape: dict[str, Any] | None = None  # a shape's table (its knots and values: it is in no catalog)
-
-    def to_json(self) -> dict[str, Any]:
-        out = {"effect": self.effect, "settings": self.settings, "params": self.params, "params_u": self.params_u}
-        return out | ({"shape": self.shape} if self.shape is not None else {})
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
 from ph_explorer.figures.diagnosis_text import report_sections, signature_text
 from ph_explorer.figures.history_text import chosen_text, step_label
+from ph_explorer.figures.noise_text import tested_models
 from ph_explorer.figures.orientation_map import MapFigure
 from ph_explorer.figures.ring_text import ring_reason
 
@@ -103,7 +104,7 @@ def diagnosis_section(study: Study | None, diagnosis: Diagnosis | None, catalog:
 
 def _noise_tests(record: Diagnosis) -> list[str]:
     rows = []
-    for key, model in (("baseline", f"the baseline ({record.baseline_model})"), ("after", "with the effects found")):
+    for key, model in tested_models(record):
         test = record.within_noise.get(key)
         if test is None:
             continue

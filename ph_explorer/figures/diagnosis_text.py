@@ -17,10 +17,10 @@ from typing import Literal
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner, UntoldShape
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
-from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, FALSE_ALARM, NoiseTest
 from ph_explorer.effects import Catalog, effect_label, settings_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.history_text import history_lines
+from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
 from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
 from ph_explorer.planning.deciding import DECIDING_POWER, Decision
@@ -138,8 +138,10 @@ def verdict_lines(result: Diagnosis, actions: dict[str, str], decision: Decision
     lines = [suspect_text(ring) for ring in result.suspect_rings]
     if result.touch_outliers is not None and result.touch_outliers.named:
         lines.append(outliers_text(result.touch_outliers))
-    if result.started_from:
-        already = ", ".join(effect_label(e) for e in result.chain[: result.started_from])
+    if result.base or result.base_unused:
+        lines.append(base_text(result))
+    if result.started_from > len(result.base):
+        already = ", ".join(effect_label(e) for e in result.chain[len(result.base) : result.started_from])
         lines.append(f"Resumed with {already} in the model; the search continued from there.")
     remeasure = ""
     if result.suspect_rings:
@@ -161,27 +163,6 @@ def why_lines(result: Diagnosis) -> list[str]:
             "(--detail full lists them): none is the explanation."
         )
     return lines
-
-
-def campaign_test_line(result: Diagnosis) -> str:
-    claims = result.verdict in ("missing", "partial")
-    test = result.within_noise["after" if claims else "baseline"]
-    if test is None:
-        return "One repetition: no repetition spread, so 'within noise' could not be tested."
-    model = "with the effects found" if claims else f"the baseline ({result.baseline_model})"
-    outcome = "fails" if test.fails else "is within noise"
-    return (
-        f"Within-noise test, {model}: the campaign {outcome} ({test.failing_rings} of {test.rings} rings exceed their noise; "
-        f"statistic {test.statistic:.1f}, critical {test.critical:.1f}, p = {test.p_value:.3g}, false-alarm rate {100 * FALSE_ALARM:.0f} %"
-        + (f"; {check_group_text(test)}" if test.check_exceedance is not None else "")
-        + ")."
-    )
-
-
-def check_group_text(test: NoiseTest) -> str:
-    """'the check rings together 1.3x their noise level, within (fail above 2)'."""
-    verdict = "fail" if test.check_rings_fail else "within"
-    return f"the check rings together {test.check_exceedance:.1f}x their noise level, {verdict} (fail above {CHECK_TOLERANCE:g})"
 
 
 def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
@@ -360,33 +341,7 @@ def signature_text(entry: dict) -> str:
     )
 
 
-# -- rings, tests, candidates ------------------------------------------------------------------------
-
-
-def test_lines(result: Diagnosis, catalog: Catalog) -> list[str]:
-    """The noise floor, the baseline and both within-noise tests (full detail)."""
-    floor, baseline = result.noise_floor_um, result.baseline_mae_um
-    lines = [
-        f"Noise floor (touch noise after the modelled effects): {floor['mean']:.3f} um against the repetition mean, "
-        f"{floor['single']:.3f} um against single repetitions.",
-        f"Baseline ({result.baseline_model}) on the {int(result.held_out.sum())} held-out rings: "
-        f"MAE {baseline['mean']:.3f} um (mean), {baseline['single']:.3f} um (single).",
-    ]
-    for key, model in (("baseline", "the baseline"), ("after", "with the effects found")):
-        test = result.within_noise.get(key)
-        if test is not None:
-            quiet = test.failing_rings and not test.fails
-            lines.append(
-                f"Within-noise test ({model}): by how much the rings exceed their noise, summed over all rings but the worst: "
-                f"{test.statistic:.1f}; the campaign fails above {test.critical:.1f} (p = {test.p_value:.3g})"
-                + (": within noise, though a few rings exceed at the ring level (1 %), as noise alone makes some." if quiet else ".")
-            )
-    lines += [
-        f"Not needed: {c.effect} ({catalog[c.effect].parameters_text(c.params, c.params_u)}) would lower the check rings' error by "
-        f"{100 * c.error_reduction:.0f} %, but the model is within noise without it: nothing the campaign shows is missing, so it is not claimed."
-        for c in result.not_needed
-    ]
-    return lines
+# -- candidates ------------------------------------------------------------------------------------
 
 
 def candidate_table(result: Diagnosis, catalog: Catalog) -> list[str]:

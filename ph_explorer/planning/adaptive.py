@@ -22,7 +22,7 @@ from scipy import stats
 from ph_explorer.campaign import Campaign, orientation_keys, orientation_label, orientation_match
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.suspect import without_suspects
-from ph_explorer.effects import DEFAULT_CATALOG, Catalog
+from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -115,6 +115,23 @@ class Plan:
         ]
         budget = "" if self.budget_minutes is None else f" of a budget of {self.budget_minutes:g}"
         return [head, *rings, f"about {self.minutes:.0f} minutes at the machine ({self.spent_minutes + self.minutes:.0f}{budget} in all)"]
+
+
+def base_model(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
+    """The effects an adaptive campaign's diagnosis offers as its base model, never claimed: the
+    catalog's location errors (ISO 230-7: where each axis line lies), which every five-axis
+    calibration identifies. A dense lattice's data part interpolates them; a few rings' cannot, and
+    without them the search would spend its steps claiming them; the diagnosis fits those the rings
+    can use (diagnosis.choice.usable_base; docs/planning.md#the-base-model)."""
+    return [cls() for cls in catalog.candidates().values() if cls.kind == "location"]
+
+
+def plan_diagnosis(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, **options: Any) -> Diagnosis:
+    """The diagnosis a plan reads: diagnosis.diagnose with the base model, without the nested folds
+    (options: diagnose's others)."""
+    from ph_explorer.diagnosis import diagnose
+
+    return diagnose(campaign, catalog=catalog, nested=False, base=base_model(catalog), **options)
 
 
 def default_tolerance_um(sigma_um: float) -> float:

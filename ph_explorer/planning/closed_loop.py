@@ -13,7 +13,7 @@ import numpy as np
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
-from ph_explorer.planning.adaptive import TP20_SIGMA_UM, Cadence, Plan, first_rings, next_rings
+from ph_explorer.planning.adaptive import TP20_SIGMA_UM, Cadence, Plan, first_rings, next_rings, plan_diagnosis
 from ph_explorer.twin import Scenario, simulate
 
 
@@ -62,10 +62,9 @@ def adaptive_campaign(
     progress: Callable[[Plan, Diagnosis], None] | None = None,
 ) -> AdaptiveRun:
     """Plan, measure on the twin, diagnose, plan the next, until a plan stops (or max_plans)."""
-    from ph_explorer.diagnosis import diagnose as run_diagnosis
     from ph_explorer.io.merge import merged_campaign
 
-    judge = diagnose or (lambda campaign: run_diagnosis(campaign, catalog=catalog, nested=False))
+    judge = diagnose or (lambda campaign: plan_diagnosis(campaign, catalog))
     cadence = cadence_of(scenario)
     plan = first_rings(budget_minutes, scenario.geometry, sigma_um, cadence, catalog, tolerance_um)
     last, campaign = measured_plan(scenario, plan)
