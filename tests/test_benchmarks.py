@@ -370,7 +370,12 @@ def check_adaptive_campaign(results: dict) -> None:
     assert adaptive["mode"] == "quick" and adaptive["commit"] and adaptive["targets"]["median_rings_max"] == 20
     for kind in ("healthy", "catalog_effect", "unknown_shape"):
         figures = adaptive[kind]
-        assert figures["heads"] == 1 and figures["rings"]["median"] >= 10 and figures["full_rings"]["median"] > figures["rings"]["median"]
+        assert figures["heads"] == 1 and figures["rings"]["median"] >= 10
+        if kind != "unknown_shape":
+            # an unknown shape may need more rings than a full campaign of a small design: over the
+            # population 15 of 300 heads did (benchmarks/results.json); a healthy or catalog head's
+            # stop came at median 18 rings of 131
+            assert figures["full_rings"]["median"] > figures["rings"]["median"]
         assert figures["minutes"]["median"] > 0 and figures["full_minutes"]["median"] > 0
         for key in ("stopped", "mae_within_ratio", "verdict_agreement", "claims_agreement", "claims_in_head"):
             assert figures[key]["of"] == 1 and len(figures[key]["ci95"]) == 2, key
