@@ -16,8 +16,9 @@ intervals:
 - the verdict at the stop against the full campaign's (the same word), the same claims, and
   claims in the head (every effect claimed is one the head holds: its background's or the hidden one;
   a sparse campaign's data part interpolates less of the background, whose effects then show);
-- the same answer about what the head hides (same_answer): a hidden catalog effect claimed by both
-  or by neither; on the other heads both quiet (`none`, or claims of the head's own background
+- the same answer about what the head hides (same_answer): a hidden catalog effect held by a claim
+  of both or of neither (multi_effects.holds_truth, the population's rule: an untold pair holding it
+  counts, as the diagnosis names both); on the other heads both quiet (`none`, or claims of the head's own background
   only, as the population judges a healthy head's alarm) or both not. The words differ where the
   sparse campaign's model, physical where the full one's trilinear interpolates, names background
   effects the full campaign leaves to its data part.
@@ -35,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
+from benchmarks.multi_effects import claim_record, holds_truth
 from benchmarks.population import FIRST_SEED, head_of
 from benchmarks.unknown_population import FIRST_SEED as UNKNOWN_SEED
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
@@ -119,6 +121,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "minutes": round(float(np.ptp(scenario.times_s())) / 60.0, 1),  # at the head's cadence, times in its CSV or not
             "verdict": full_result.verdict,
             "found": sorted(c.effect for c in full_result.found),
+            "claims": [claim_record(c) for c in full_result.found],
             "suggested": sorted(c.effect for c in full_result.suggested),
             "trilinear_mae_um": round(mae_vs_mean(trilinear, rings, mean), 5),
             "seconds": round(full_seconds, 2),
@@ -132,15 +135,29 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "reason": run.plans[-1].reason,
             "verdict": last.verdict,
             "found": sorted(c.effect for c in last.found),
+            "claims": [claim_record(c) for c in last.found],
             "suggested": sorted(c.effect for c in last.suggested),
             "mae_um": trajectory[-1][2],  # the model at the stop: the trajectory's last
             "rings_by_plan": [len(p.rings) for p in run.plans],
             "trajectory": trajectory,  # [rings measured, minutes, evaluation MAE um] after each diagnosis
+            # What each diagnosis answered, for stop rules read off the records (a stop only truncates the run).
+            "answers": [
+                {
+                    "verdict": result.verdict,
+                    "found": sorted(c.effect for c in result.found),
+                    "shapes": sorted(s.group for s in result.claimed_shapes),
+                    "suggested": sorted(c.effect for c in result.suggested),
+                    "unseen_um": None if plan.unseen_um is None else list(plan.unseen_um),
+                    "check_rings": int(measured.holdout_mask().sum()),
+                }
+                for plan, result, measured in zip(run.plans[1:], run.results, run.campaigns)
+            ],
             "seconds": round(adaptive_seconds, 2),
         },
         "floor_um": round(float(floor), 5),
         "in_head": sorted({effect.id for effect in scenario.effects}),
         "hidden": scenario.hidden_ids,
+        "hidden_settings": {e.id: {k: float(v) for k, v in e.settings().items()} for e in scenario.effects if e.id in scenario.hidden_ids},
     }
 
 
@@ -153,11 +170,15 @@ def quiet(side: dict[str, Any], background: set[str]) -> bool:
 
 def same_answer(record: dict[str, Any]) -> bool:
     """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
-    claimed by both or by neither; else both quiet, or both not (quiet)."""
+    held by a claim of both or of neither (holds_truth); else both quiet, or both not (quiet)."""
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
-        return all((effect in record["full"]["found"]) == (effect in record["adaptive"]["found"]) for effect in catalog)
+
+        def held(side: dict[str, Any], effect: str) -> bool:
+            return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
+
+        return all(held(record["full"], effect) == held(record["adaptive"], effect) for effect in catalog)
     background = set(record["in_head"]) - set(hidden)
     return quiet(record["full"], background) == quiet(record["adaptive"], background)
 

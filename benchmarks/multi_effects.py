@@ -78,6 +78,18 @@ def partner_settings(candidate: Candidate) -> dict[str, list[dict[str, float]]]:
     return {p.effect: [{k: float(v) for k, v in s.items()} for s in p.settings] for p in candidate.confounded_with}
 
 
+def claim_record(candidate: Candidate) -> dict[str, Any]:
+    """A claim as the benchmarks judge it (holds_truth): its effect, settings, the settings it cannot
+    exclude, and its confounded partners at theirs."""
+    return {
+        "effect": candidate.effect,
+        "settings": {k: float(v) for k, v in candidate.settings.items()},
+        "not_excluded": [{k: float(v) for k, v in o.items()} for o in candidate.settings_not_excluded],
+        "confounded_with": [o.effect for o in candidate.confounded_with],
+        "partner_settings": partner_settings(candidate),
+    }
+
+
 def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float]) -> bool:
     """Whether a claim's record holds an effect: its id at its settings or at settings the claim
     cannot exclude, or a partner confounded with it named at its settings (an untold pair holds the

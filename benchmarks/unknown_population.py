@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
-from benchmarks.multi_effects import KINDS, found_each, multi_effect_head, partner_settings
+from benchmarks.multi_effects import KINDS, claim_record, found_each, multi_effect_head
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
@@ -167,16 +167,7 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
         result = diagnose(head.campaign, nested=False)
     except Exception as error:  # recorded, never lost
         return record | {"verdict": "error", "error": f"{type(error).__name__}: {error}"}
-    found = [
-        {
-            "effect": c.effect,
-            "settings": {k: float(v) for k, v in c.settings.items()},
-            "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
-            "confounded_with": [o.effect for o in c.confounded_with],
-            "partner_settings": partner_settings(c),
-        }
-        for c in result.found
-    ]
+    found = [claim_record(c) for c in result.found]
     each, exactly = found_each(head.effects, found), found_each(head.effects, found, exact=True)
     return record | {
         "kind": head.kind,
