@@ -17,7 +17,7 @@ intervals:
   claims in the head (every effect claimed is one the head holds: its background's or the hidden one;
   a sparse campaign's data part interpolates less of the background, whose effects then show);
 - the same answer about what the head hides (same_answer): a hidden catalog effect held by a claim
-  of both or of neither (multi_effects.holds_truth, the population's rule: an untold pair holding it
+  of both or of neither (multi_effects.holds_truth: a pair the rings did not tell apart holding it
   counts, as the diagnosis names both); on the other heads both quiet (`none`, or claims of the head's own background
   only, as the population judges a healthy head's alarm) or both not. The words differ where the
   sparse campaign's model, physical where the full one's trilinear interpolates, names background
@@ -170,13 +170,13 @@ def quiet(side: dict[str, Any], background: set[str]) -> bool:
 
 def same_answer(record: dict[str, Any]) -> bool:
     """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
-    held by a claim of both or of neither (holds_truth); else both quiet, or both not (quiet)."""
+    held by a claim of both or of neither (holds_truth, untold pairs); else both quiet, or both not (quiet)."""
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
 
         def held(side: dict[str, Any], effect: str) -> bool:
-            return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
+            return any(holds_truth(claim, effect, record["hidden_settings"][effect], untold=True) for claim in side["claims"])
 
         return all(held(record["full"], effect) == held(record["adaptive"], effect) for effect in catalog)
     background = set(record["in_head"]) - set(hidden)

@@ -73,30 +73,33 @@ def multi_effect_head(seed: int) -> MultiEffectHead:
     raise RuntimeError(f"no {kind} of effects reaches its strength on seed {seed} nor its replacements")
 
 
-def partner_settings(candidate: Candidate) -> dict[str, list[dict[str, float]]]:
-    """A claim's confounded partners, each at the settings the diagnosis names it at (Partner.settings)."""
-    return {p.effect: [{k: float(v) for k, v in s.items()} for s in p.settings] for p in candidate.confounded_with}
+def partner_settings(candidate: Candidate, untold: bool = False) -> dict[str, list[dict[str, float]]]:
+    """A claim's confounded partners, each at the settings the diagnosis names it at (Partner.settings);
+    untold: only those the rings were asked about and do not tell it from (Candidate.untold)."""
+    partners = candidate.untold if untold else candidate.confounded_with
+    return {p.effect: [{k: float(v) for k, v in s.items()} for s in p.settings] for p in partners}
 
 
 def claim_record(candidate: Candidate) -> dict[str, Any]:
     """A claim as the benchmarks judge it (holds_truth): its effect, settings, the settings it cannot
-    exclude, and its confounded partners at theirs."""
+    exclude, its confounded partners at theirs, and of those the untold ones."""
     return {
         "effect": candidate.effect,
         "settings": {k: float(v) for k, v in candidate.settings.items()},
         "not_excluded": [{k: float(v) for k, v in o.items()} for o in candidate.settings_not_excluded],
         "confounded_with": [o.effect for o in candidate.confounded_with],
         "partner_settings": partner_settings(candidate),
+        "untold_settings": partner_settings(candidate, untold=True),
     }
 
 
-def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float]) -> bool:
+def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float], untold: bool = False) -> bool:
     """Whether a claim's record holds an effect: its id at its settings or at settings the claim
-    cannot exclude, or a partner confounded with it named at its settings (an untold pair holds the
-    truth; the pair's credit: issue 55)."""
+    cannot exclude, or a partner confounded with it named at its settings (a pair holds the truth;
+    the pair's credit: issue 55); untold: only a partner the rings did not tell it from."""
     if claim["effect"] == effect_id and (claim["settings"] == settings or settings in claim.get("not_excluded", [])):
         return True
-    return settings in claim.get("partner_settings", {}).get(effect_id, [])
+    return settings in claim.get("untold_settings" if untold else "partner_settings", {}).get(effect_id, [])
 
 
 def found_each(effects: list[Effect], found: list[dict[str, Any]], exact: bool = False) -> list[bool]:
