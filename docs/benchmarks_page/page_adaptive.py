@@ -20,8 +20,9 @@ both campaigns' grids, measured at {repetitions} repetitions after the campaign:
 at the stop (the last diagnosis's hybrid, or its data part when it claims nothing) against the full
 campaign's trilinear model. The verdict is compared word for word with the full campaign's; a
 claim "in the head" names an effect the head holds (its background's or the hidden one); **same
-answer**: about what the head hides, the words aside: a hidden catalog effect claimed by both or by
-neither, else both quiet (`none`, or claims of the head's own background only) or both not. A sparse
+answer**: about what the head hides, the words aside: a hidden catalog effect held by a claim of
+both or of neither (a claim holds it at its own setting or one it cannot exclude, or through a
+partner the rings did not tell it from, which the verdict names beside it), else both quiet (`none`, or claims of the head's own background only) or both not. A sparse
 campaign's model is physical where the full one's trilinear interpolates, so it names background
 effects the full campaign leaves to its data part: the words differ where the answer does not.
 """

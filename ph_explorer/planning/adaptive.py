@@ -323,6 +323,8 @@ def next_rings(
     # named again after that, its fault repeats there (or the head errs at that ring alone): the
     # diagnosis keeps it out and the stop says so, rather than measuring it over and over.
     held_out = campaign.holdout_mask()
+    tested = campaign.orientations[held_out, 0]  # the unseen error holds where its check rings are
+    seen = f"its {tested.size} check rings, A0 {tested.min():g}-{tested.max():g} deg" if tested.size else "no check ring"
     again: list[PlannedRing] = []
     repeated, remeasure = [], []  # the rings measured again already; the questions this plan asks
     for s in result.suspect_rings:
@@ -349,7 +351,7 @@ def next_rings(
         claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
         kept_out = f"; {', '.join(repeated)} measured again and still named: left out (its fault repeats there)" if repeated else ""
         reason = (
-            f"you know: {claims}; {settled}{kept_out}; at unseen rings the model misses {unseen:.3f} um "
+            f"you know: {claims}; {settled}{kept_out}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
         )
         return Plan((), True, reason, 0.0, **done)
@@ -364,7 +366,7 @@ def next_rings(
     if not len(data) and not rings:
         reason = (
             f"no lattice ring is left to add (a ring a B value, as the trilinear's lattice keeps them) and no ring decides "
-            f"what is open: the verdict stays {result.verdict}; at unseen rings the model misses {unseen:.3f} um "
+            f"what is open: the verdict stays {result.verdict}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um, the tolerance {tolerance:.3f} um)"
         )
         return Plan((), True, reason, 0.0, **done)
