@@ -170,13 +170,13 @@ def quiet(side: dict[str, Any], background: set[str]) -> bool:
 
 def same_answer(record: dict[str, Any]) -> bool:
     """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
-    held by a claim of both or of neither (holds_truth, untold pairs); else both quiet, or both not (quiet)."""
+    held by a claim of both or of neither (holds_truth); else both quiet, or both not (quiet)."""
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
 
         def held(side: dict[str, Any], effect: str) -> bool:
-            return any(holds_truth(claim, effect, record["hidden_settings"][effect], untold=True) for claim in side["claims"])
+            return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
 
         return all(held(record["full"], effect) == held(record["adaptive"], effect) for effect in catalog)
     background = set(record["in_head"]) - set(hidden)

@@ -93,13 +93,13 @@ def claim_record(candidate: Candidate) -> dict[str, Any]:
     }
 
 
-def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float], untold: bool = False) -> bool:
+def holds_truth(claim: dict[str, Any], effect_id: str, settings: dict[str, float]) -> bool:
     """Whether a claim's record holds an effect: its id at its settings or at settings the claim
-    cannot exclude, or a partner confounded with it named at its settings (a pair holds the truth;
-    the pair's credit: issue 55); untold: only a partner the rings did not tell it from."""
+    cannot exclude, or a partner the rings did not tell it from, named at its settings (an untold
+    pair holds the truth; the pair's credit: issue 55)."""
     if claim["effect"] == effect_id and (claim["settings"] == settings or settings in claim.get("not_excluded", [])):
         return True
-    return settings in claim.get("untold_settings" if untold else "partner_settings", {}).get(effect_id, [])
+    return settings in claim.get("untold_settings", {}).get(effect_id, [])
 
 
 def found_each(effects: list[Effect], found: list[dict[str, Any]], exact: bool = False) -> list[bool]:

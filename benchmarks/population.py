@@ -15,8 +15,9 @@ nested cross-validation, which gives no verdict and which the explorer streams a
    by another head) at 1-3x its detection
    limit: "missing" or "partial" with the right effect at its settings (or at settings it cannot
    exclude: the touches' profile likelihood, search.SETTINGS_NOT_EXCLUDED, and the rings,
-   telling_apart.settings_told_apart), or with a found effect whose confounded partner it is, named
-   at its settings (multi_effects.holds_truth: diagnosis.partners); beside it the
+   telling_apart.settings_told_apart), or with a found effect whose confounded partner it is, the
+   rings not telling them apart, named at its settings (multi_effects.holds_truth:
+   diagnosis.partners, Candidate.untold); beside it the
    share found at the true setting itself and how many other settings each find keeps; and for the right effect found at its settings, the share of its fitted
    parameters whose truth is within fit +- U (per parameter, as k = 2 is stated; every parameter
    of an effect at once is reported beside it).
@@ -161,6 +162,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
             "params_u": {k: float(v) for k, v in c.params_u.items()},
             "confounded_with": [o.effect for o in c.confounded_with],
             "partner_settings": partner_settings(c),
+            "untold_settings": partner_settings(c, untold=True),
         }
         for c in result.found
     ]
@@ -231,7 +233,7 @@ def true_settings(record: dict[str, Any]) -> dict[str, float]:
 
 def right_effect(record: dict[str, Any]) -> dict[str, Any] | None:
     """The found effect that is the hidden one at its settings (or at settings it cannot exclude),
-    or one confounded with it that names it at its settings (multi_effects.holds_truth)."""
+    or an untold partner of one that names it at its settings (multi_effects.holds_truth)."""
     truth, settings = record["truth"], true_settings(record)
     own = [f for f in record["found"] if f["effect"] == truth["id"]]
     return next((f for f in [*own, *record["found"]] if holds_truth(f, truth["id"], settings)), None)

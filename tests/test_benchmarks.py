@@ -81,6 +81,21 @@ def test_target_reads_the_curves() -> None:
 
 
 @pytest.mark.slow
+def test_a_pair_holds_the_truth_only_when_the_rings_did_not_tell_it_apart() -> None:
+    """Issue 55's credit to an untold pair (multi_effects.holds_truth): a tilt motion at 21/rev is
+    held by an axial claim whose partner the rings did not tell from it, named at 21/rev; not when
+    the rings told them apart, nor at another setting."""
+    from benchmarks.multi_effects import holds_truth
+
+    tilt = {"cycles_per_rev": 21.0}
+    claim = {"effect": "a_axis_axial_motion", "settings": {"cycles_per_rev": 20.0}, "not_excluded": []}
+    partners = {"a_axis_tilt_motion": [{"cycles_per_rev": 19.0}, tilt]}
+    assert holds_truth(claim | {"partner_settings": partners, "untold_settings": partners}, "a_axis_tilt_motion", tilt)
+    assert not holds_truth(claim | {"partner_settings": partners, "untold_settings": {}}, "a_axis_tilt_motion", tilt)
+    assert not holds_truth(claim | {"untold_settings": partners}, "a_axis_tilt_motion", {"cycles_per_rev": 23.0})
+    assert holds_truth(claim, "a_axis_axial_motion", {"cycles_per_rev": 20.0})
+
+
 def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> None:
     """The population's false alarms (benchmarks/population.py): a verdict that names only terms the
     head has, at their settings, is a finding; a wrong setting, a term it lacks or a failing model
