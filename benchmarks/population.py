@@ -62,7 +62,7 @@ import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.click import run as explorer_click
-from benchmarks.multi_effects import holds_truth, partner_settings
+from benchmarks.multi_effects import claim_record, holds_truth
 from benchmarks.outside_catalog import OUTSIDE_EFFECTS
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.detection import hidden_effect_of
@@ -154,16 +154,7 @@ def diagnose_one(job: dict[str, Any]) -> dict[str, Any]:
     record["noise_dof"] = campaign.scenario["effects"][0].get("dof", 0)
     record["verdict"] = result.verdict
     record["found"] = [
-        {
-            "effect": c.effect,
-            "settings": {k: float(v) for k, v in c.settings.items()},
-            "not_excluded": [{k: float(v) for k, v in o.items()} for o in c.settings_not_excluded],
-            "params": {k: float(v) for k, v in c.params.items()},
-            "params_u": {k: float(v) for k, v in c.params_u.items()},
-            "confounded_with": [o.effect for o in c.confounded_with],
-            "partner_settings": partner_settings(c),
-            "untold_settings": partner_settings(c, untold=True),
-        }
+        claim_record(c) | {"params": {k: float(v) for k, v in c.params.items()}, "params_u": {k: float(v) for k, v in c.params_u.items()}}
         for c in result.found
     ]
     record["suggested"] = [c.effect for c in result.suggested]
