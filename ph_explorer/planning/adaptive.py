@@ -323,7 +323,9 @@ def next_rings(
     # named again after that, its fault repeats there (or the head errs at that ring alone): the
     # diagnosis keeps it out and the stop says so, rather than measuring it over and over.
     held_out = campaign.holdout_mask()
-    tested = campaign.orientations[held_out, 0]  # the unseen error holds where its check rings are
+    # The unseen error holds where the check rings it read are (the suspect rings left out).
+    judged = without_suspects(campaign, result.suspect_rings)
+    tested = judged.orientations[judged.holdout_mask(), 0]
     seen = f"its {tested.size} check rings, A0 {tested.min():g}-{tested.max():g} deg" if tested.size else "no check ring"
     again: list[PlannedRing] = []
     repeated, remeasure = [], []  # the rings measured again already; the questions this plan asks
