@@ -117,18 +117,3 @@ def test_a_claim_its_rings_cannot_tell_from_a_shape_of_another_variable_is_named
     assert "lattice rings measured again after the check rings would tell a change in time" in words
     data = json.loads(json.dumps(result.to_json()))
     assert Diagnosis.from_json(data).to_json() == data
-
-
-def test_a_period_that_is_not_an_integer_gives_way_to_a_shape_of_its_own_axis() -> None:
-    # A B-axis angular error at 22.47 cycles/rev (the unknown-shape population's generator, a dev
-    # seed, the paper's design) was claimed as two B-axis harmonics, 23 and 22/rev, before the
-    # claim's own axis joined its rivals. The B axis's angular positioning as a shape holds any
-    # harmonic; here it predicts the rings better in the harmonic's place.
-    head = unknown_shape_head(941_024, "non_integer_period")
-    assert head.truth["axis"] == 1 and not float(head.truth["cycles_per_rev"]).is_integer()
-    result = diagnose(head.campaign, nested=False)
-    assert result.verdict == "uncatalogued" and not result.found
-    shape = result.claimed_shapes[0]
-    assert shape.group == "b_angular" and shape.replicated
-    assert not any(c.effect.startswith("b_axis") for c in result.suggested)  # no harmonic left to confirm
-    assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]

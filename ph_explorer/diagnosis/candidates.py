@@ -186,7 +186,7 @@ class Candidate:
     @property
     def form_broken(self) -> bool:
         """Its gain over rings is there, but its parameters differ over the head (diagnosis.form) or
-        a shape predicts the rings better (rival_shapes.outpredicting_shape): no ring
+        a shape of another variable predicts the rings better (rival_shapes.outpredicting_shape): no ring
         decides it, for no catalog effect has the head's form."""
         return self.replication is not None and (self.replication.form_breaks is not None or self.replication.outpredicted is not None)
 

@@ -75,7 +75,7 @@ def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequenc
 def claim_test(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], fitted: Candidate, seed: int = 0) -> Replication:
     """The test a claim passes, the effect added to `chain`: its gain replicated over rings with its
     size determined by `fitted`'s parameters (diagnosis.replication), its form holding over the
-    head (diagnosis.form), and no shape predicting the rings better in its
+    head (diagnosis.form), and no shape of another variable predicting the rings better in its
     place (rival_shapes.outpredicting_shape)."""
     before = search.design(chain) if chain else None
     gain = ring_gains(search.residual, before, search.design([*chain, effect]), search.targets, ring_sigma(search.campaign.deviations) ** 2)

@@ -50,9 +50,9 @@ class FormBreak:
 
 @dataclass(frozen=True)
 class RivalShape:
-    """A shape (diagnosis.rival_shapes) that predicts the rings better in the claim's place: the
-    error resembles the catalog effect where the rings look, and is another function of the head
-    (of another variable, or of the claim's own axis but not one harmonic)."""
+    """A shape of a variable other than a claim's own (diagnosis.rival_shapes) that predicts the rings
+    better in the claim's place: the error resembles the catalog effect where the rings look, and
+    is another function of the head."""
 
     group: str  # error_functions.SHAPE_GROUPS key, e.g. "probe_time"
     words: str  # what it is, e.g. "pre-travel lobes of the probe ... changing over the campaign"
@@ -62,7 +62,7 @@ class RivalShape:
     def words_why(self) -> str:
         return (
             f"{self.words} predicts the rings better in its place (p = {self.p_value:.3g} over rings, "
-            "as the best of the shapes): the error resembles this effect, not its form"
+            "as the best of the other variables' shapes): the error resembles this effect, not its form"
         )
 
 
@@ -79,7 +79,7 @@ class Replication:
     carried_by: list[int] = field(default_factory=list)  # the rings that gain most (indices)
     determined: bool = True  # an amplitude beyond its expanded uncertainty (k = 2)
     form_breaks: FormBreak | None = None  # its parameters differ over the head (diagnosis.form)
-    outpredicted: RivalShape | None = None  # a shape predicts the rings better in its place
+    outpredicted: RivalShape | None = None  # a shape of another variable predicts the rings better
 
     @property
     def replicated(self) -> bool:

@@ -1,8 +1,8 @@
-"""A claim against the shapes (diagnosis.shapes), each fitted in the claim's place: every axis's
-error functions, its own axis's included, and the probe's lobes in time. A rival that predicts the
-rings better and leaves the claim nothing to add outpredicts it (the claim is suggested); a shape
-of another variable that the claim does not beat is named beside it, as an untold pair (its own
-axis's shapes hold the claim itself). Method: docs/methods/replication.md#outpredicted.
+"""A claim against the shapes of the variables it is not a function of: another axis's error
+functions, or the probe's lobes in time for an axis's effect (diagnosis.shapes), each fitted in
+the claim's place. A rival that predicts the rings better and leaves the claim nothing to add
+outpredicts it (the claim is suggested); one the claim does not beat is named beside it, as an
+untold pair. Method: docs/methods/replication.md#outpredicted.
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ from ph_explorer.effects.error_functions import SHAPE_GROUPS
 
 @dataclass
 class _Rivals:
-    """The shape groups (every axis's, and the probe's lobes in time), each fitted in the effect's
-    place beside a chain: each ring's gain and left-out sum of squares with each."""
+    """The shapes of the variables an effect is not a function of (a group of another axis, or the
+    probe's lobes in time for an axis's effect), each fitted in the effect's place beside a chain:
+    each ring's gain and left-out sum of squares with each."""
 
     keys: list[str]
     gains: NDArray[np.float64]  # (rivals, n_o) in noise variances
@@ -40,7 +41,7 @@ def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) ->
     key = (settings_key(effect), tuple(settings_key(e) for e in chain))
     if key in search.rival_shapes:
         return search.rival_shapes[key]
-    keys = list(SHAPE_GROUPS)
+    keys = [group for group, spec in SHAPE_GROUPS.items() if spec.axis != effect.axis]
     out = None
     if keys:
         fixed = search.design(list(chain)) if chain else None
@@ -55,7 +56,8 @@ def _rivals(search: CandidateSearch, effect: Effect, chain: Sequence[Effect]) ->
 
 
 def outpredicting_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect], seed: int = 0) -> RivalShape | None:
-    """The shape (its own axis's included) that predicts the rings better than the effect in its place (added to `chain`) and leaves it nothing to add, None when none does. The
+    """The shape of a variable other than the effect's own that predicts the rings better than the
+    effect in its place (added to `chain`) and leaves it nothing to add, None when none does. The
     best rival's gain over the effect's is tested over rings as the best of the rivals (family_test)
     and without its most influential ring; and the effect's own gain beside it must not replicate
     (a rival that gains more on another error, not yet claimed, leaves the effect its own gain)
@@ -85,9 +87,7 @@ def untold_shape(search: CandidateSearch, effect: Effect, chain: Sequence[Effect
     rivals = _rivals(search, effect, chain)
     if rivals is None:
         return None
-    # The claim's own axis's shapes hold the claim itself: beside them it stands as the simpler account.
-    others = [(key, gain) for key, gain in zip(rivals.keys, rivals.gains) if SHAPE_GROUPS[key].axis != effect.axis]
-    tests = [(key, replication(rivals.gain - gain, rivals.check, True, seed)) for key, gain in others]
+    tests = [(key, replication(rivals.gain - gain, rivals.check, True, seed)) for key, gain in zip(rivals.keys, rivals.gains)]
     untold = [(key, t) for key, t in tests if not (t.p_value < REPLICATION_LEVEL and t.p_without_top < REPLICATION_LEVEL)]
     if not untold:
         return None

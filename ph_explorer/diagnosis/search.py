@@ -109,7 +109,7 @@ class CandidateSearch:
         self.bases = bases if bases is not None else FittedBases(campaign_touches(campaign), keep=False)
         self.touches = campaign_touches(campaign) if bases is not None else self.bases.touches
         self._designs: dict[tuple[str, tuple], Design] = {}
-        # The shapes fitted in a claim's place, by claim and chain (rival_shapes._rivals):
+        # The shapes of other variables fitted in a claim's place, by claim and chain (rival_shapes._rivals):
         # its claim test and its pair test ask for the same ones.
         self.rival_shapes: dict[tuple, Any] = {}
         self._before: tuple[Design | None, tuple[NDArray, NDArray]] | None = None  # judge's last check_residual
