@@ -269,11 +269,12 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
     return nodes[chosen], distance
 
 
-def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float]:
+def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float, NDArray[np.float64]]:
     """What the diagnosed model misses at rings it never saw, in um rms: at each check ring, the
     mean square of its repetition mean's residual less what touch noise puts there (sigma^2 / R for
     the ring, and for the rings the data part predicts it from, times their weights' squares);
-    the mean over check rings and its one-sided 95 % upper bound (a t quantile over the rings).
+    the mean over check rings, its one-sided 95 % upper bound (a t quantile over the rings), and
+    the A0 of the check rings it read (deg).
     Each check ring is predicted as the error history measures it: left out of the physical fit,
     which reads every ring's out-of-sample residual (predict_held_out), on the campaign the
     diagnosis fitted (its suspect rings left out)."""
@@ -289,7 +290,7 @@ def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float
     mean = float(excess.mean())
     error = float(excess.std(ddof=1) / math.sqrt(excess.size)) if excess.size > 1 else math.inf
     upper = mean + float(stats.t.ppf(0.95, max(excess.size - 1, 1))) * error
-    return math.sqrt(max(mean, 0.0)), math.sqrt(max(upper, 0.0))
+    return math.sqrt(max(mean, 0.0)), math.sqrt(max(upper, 0.0)), fitted.orientations[held_out, 0]
 
 
 def campaign_minutes(campaign: Campaign, cadence: Cadence = Cadence()) -> float:
@@ -316,16 +317,13 @@ def next_rings(
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
     tolerance = tolerance_um if tolerance_um is not None else default_tolerance_um(campaign.noise_sigma_um())
-    unseen, unseen_upper = unseen_error_um(campaign, result)
+    unseen, unseen_upper, tested = unseen_error_um(campaign, result)  # tested: where it holds
     decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET, skip=asked)
     done: dict[str, Any] = {"repetitions": campaign.n_repetitions, "measured_rings": campaign.n_orientations, "spent_minutes": spent}
     # A ring named as measured badly is measured again once, in its role (it replaces the old one);
     # named again after that, its fault repeats there (or the head errs at that ring alone): the
     # diagnosis keeps it out and the stop says so, rather than measuring it over and over.
     held_out = campaign.holdout_mask()
-    # The unseen error holds where the check rings it read are (the suspect rings left out).
-    judged = without_suspects(campaign, result.suspect_rings)
-    tested = judged.orientations[judged.holdout_mask(), 0]
     seen = f"its {tested.size} check rings, A0 {tested.min():g}-{tested.max():g} deg" if tested.size else "no check ring"
     again: list[PlannedRing] = []
     repeated, remeasure = [], []  # the rings measured again already; the questions this plan asks
