@@ -5,7 +5,7 @@ Physics tab and starts from six rings: the twin measures the first plan (6 desig
 check rings), the campaign of those rings is shown and diagnosed, and the next plan is listed with
 the rings and minutes so far. Measure next, twice: the campaign grows, each diagnosis's check-ring
 error is drawn against the rings measured. A screenshot of each step goes to
-docs/planning_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+planning_<n>_<step>.png in PH_EXPLORER_LOOP_SHOTS (docs: the site's).
 """
 
 from __future__ import annotations

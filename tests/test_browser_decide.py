@@ -5,7 +5,7 @@ The teacher loads head_6 (a hidden effect that another mechanism mimics on the p
 diagnoses it (the claim cannot be told from its partner), asks for the rings that would decide
 (listed, and crossed on the error map), has the twin measure them (they join the campaign as
 check rings, on the map), and diagnoses again: the verdict now tells the two apart. A screenshot
-of each step goes to docs/decide_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+of each step goes to decide_<n>_<step>.png in PH_EXPLORER_LOOP_SHOTS (docs: the site's).
 """
 
 from __future__ import annotations

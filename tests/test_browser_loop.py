@@ -8,7 +8,7 @@ ticks the effect the diagnosis found, refits, reads the error fall and reveals t
 At each step: the flat polar plot and the error map are drawn (element screenshots with several
 distinct colours and enough non-blank pixels, not only DOM nodes), the controls and results that
 step needs lie inside the 1440x900 viewport (Playwright's bounding boxes), nothing on the page was
-scrolled, and a screenshot goes to docs/loop_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+scrolled, and a screenshot goes to loop_<n>_<step>.png in PH_EXPLORER_LOOP_SHOTS (docs: the site's).
 The diagnosis's failing rings come from its per-ring test, so the map names them after Diagnose.
 
 Then (issue 31): the exported report is the session (the refitted effect by name, every step);
@@ -41,7 +41,6 @@ if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
     pytest.skip("Debian's chromium is not installed (/usr/bin/chromium); apt-get install chromium", allow_module_level=True)
 
 WIDTH, HEIGHT = 1440, 900
-DOCS = Path(__file__).resolve().parents[1] / "docs"
 SCENARIO = "head_3"  # a teaching scenario with a hidden effect (its name says nothing of it)
 # A drawn chart: this many pixels off the white background, in at least this many colours (each
 # covering at least COLOUR_PIXELS pixels, so that anti-aliasing does not count as a colour).
@@ -469,14 +468,16 @@ def readable_scene(page, session) -> None:
 def walk_in_chromium(walk, prefix: str) -> Path:
     """Serve the default data, open it in chromium at 1440x900 and run walk(page, session, shots);
     the page as it stood goes to PH_EXPLORER_LOOP_FAILED (default /tmp) when it fails. The walk's
-    screenshots, `prefix`*.png, replace the older ones in docs/ (PH_EXPLORER_LOOP_SHOTS: elsewhere)
-    once the whole walk has passed; a failed walk leaves them as they were."""
+    screenshots, `prefix`*.png, replace the older ones in PH_EXPLORER_LOOP_SHOTS (docs to retake the
+    site's; else a temporary folder, so the tests leave a clone as it was) once the whole walk has
+    passed; a failed walk leaves them as they were."""
     from playwright.sync_api import sync_playwright
 
     from ph_explorer.app.server import build_server
 
     app = build_server(port=0)  # the default data: the shipped paper campaign and assets/models/paper
-    shots = Path(os.environ.get("PH_EXPLORER_LOOP_SHOTS", DOCS))
+    folder = os.environ.get("PH_EXPLORER_LOOP_SHOTS")
+    shots = Path(folder) if folder else Path(tempfile.mkdtemp(prefix="ph_explorer_shots_"))
     shots.mkdir(parents=True, exist_ok=True)
     taken = Path(tempfile.mkdtemp(prefix=f"ph_explorer_{prefix}"))
     try:

@@ -5,7 +5,7 @@ The user uploads a campaign of a head whose B axis has a 48-tooth gear's error (
 catalog's scan of 1-40 cycles/rev), diagnoses it (`uncatalogued`: the B axis's angular positioning
 as a function of the B joint angle, its curve drawn with its band under the verdict), ticks the
 shape in "Effects found", refits, and reads the check-ring error fall; the hybrid joins Tables
-1-3. A screenshot of each step goes to docs/shapes_<n>_<step>.png (PH_EXPLORER_LOOP_SHOTS: elsewhere).
+1-3. A screenshot of each step goes to shapes_<n>_<step>.png in PH_EXPLORER_LOOP_SHOTS (docs: the site's).
 """
 
 from __future__ import annotations
