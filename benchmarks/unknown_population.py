@@ -15,7 +15,7 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   outliers named (diagnosis.touch_outliers) either; outliers_named: touch outliers named;
 - suspect_named: a ring named as measured badly; bad_ring_named: a bad-ring head's own ring named,
   over its family's heads and as many more of seeds of their own; bad_ring_named_on_lattice: the
-  same over those whose bad ring is not a check ring (a check ring is never named);
+  same over those whose bad ring is not a check ring (a check ring is named, never left out);
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees;
 - where a shape is claimed (issue 56): the check rings' error once it is added, over the floor
   (after_shape_within) and over that of the same head without the shape, diagnosed alike
@@ -125,7 +125,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
             record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
-    if job["family"] == "bad_ring":  # a check ring is never named (diagnosis.suspect): where is it?
+    if job["family"] == "bad_ring":  # a check ring is named but kept (diagnosis.suspect): where is it?
         at = (head.campaign.orientations == [head.truth["a_deg"], head.truth["b_deg"]]).all(axis=1)
         record["bad_on_check_ring"] = bool(head.campaign.holdout_mask()[at].any())
     return record | {

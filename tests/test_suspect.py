@@ -1,4 +1,4 @@
-"""Rings measured badly (issue 55, item 5): named, left out of the fit and the claims, never silently `none`."""
+"""Rings measured badly (issue 55, item 5): named, lattice rings left out of the fit and the claims, never silently `none`."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
+from ph_explorer.diagnosis.suspect import POLE_B_SWEEP_DEG, suspect_rings, without_suspects
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.figures.diagnosis_text import report_sections
@@ -65,6 +65,41 @@ def test_a_badly_measured_ring_is_named_and_the_heads_verdict_is_unchanged(healt
     data = json.loads(json.dumps(result.to_json()))
     assert data["suspect_rings"][0]["reason"] == "fails alone"
     assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_badly_measured_check_ring_is_named_and_kept(healthy):
+    """The check ring A52 B10 measured with a chipped contact: named to measure again (the rings
+    predicting it and the other check rings are quiet), kept in every test, and the verdict that of
+    the head measured well (the check rings' group test leaves its worst ring out)."""
+    at = int(np.flatnonzero((healthy.orientations == [52.0, 10.0]).all(axis=1))[0])
+    assert healthy.holdout_mask()[at]
+    plain = diagnose(healthy, nested=False)
+    result = diagnose(chipped(healthy, at), nested=False)
+    (suspect,) = result.suspect_rings
+    assert suspect.check_ring and not suspect.left_out and suspect.reason == "fails alone"
+    assert (suspect.a_deg, suspect.b_deg) == (52.0, 10.0) and suspect.ratio > 3.0
+    assert result.verdict == plain.verdict == "none"
+    assert len(result.rings) == len(plain.rings)  # kept: nothing vouches that its error is not the head's
+    verdict = next(s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict")
+    assert verdict.lines[0].startswith("Remeasure A52 B10 (a check ring, kept in every test)")
+    data = json.loads(json.dumps(result.to_json()))
+    assert data["suspect_rings"][0]["check_ring"] is True
+    assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_check_ring_near_the_pole_is_never_judged_alone():
+    """A check ring whose B joint turns more than a quarter turn over its points (A9 on a 30 mm bore
+    with a 100 mm stylus: its path passes 1.2 deg from the pole) is predicted by rings that sweep B
+    otherwise (A0: a full turn, A15: 63 deg); chipped, it is not named, while A49 B105 is."""
+    from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
+
+    campaign = random_campaign(SEED, "other_geometry")
+    sweep = joint_sweep_deg(campaign_touches(campaign))[:, 1]
+    near, far = (int(np.flatnonzero((campaign.orientations == o).all(axis=1))[0]) for o in ([9.0, 45.0], [49.0, 105.0]))
+    assert sweep[near] > POLE_B_SWEEP_DEG > sweep[far]
+    assert suspect_rings(chipped(campaign, near)) == ()
+    (named,) = suspect_rings(chipped(campaign, far))
+    assert named.check_ring and (named.a_deg, named.b_deg) == (49.0, 105.0)
 
 
 def test_a_ring_whose_repetitions_disagree_is_named(healthy, ring):

@@ -119,9 +119,8 @@ def suspect_text(u: Mapping[str, Any]) -> str:
     used = str((calibration.get("used") or {}).get("alone"))
     return (
         f"\nA badly measured ring named on its head: {share_of(u.get('bad_ring_named'))} (its family's heads and as many more); "
-        f"of those whose bad ring is not a check ring (a check ring is never named): {share_of(u.get('bad_ring_named_on_lattice'))}. "
+        f"of those whose bad ring is not a check ring: {share_of(u.get('bad_ring_named_on_lattice'))}. "
         f"The suspect test's own calibration heads (seeds {calibration.get('healthy_seeds')} healthy, "
-        f"{calibration.get('bad_ring_seeds')} with a bad ring, {num(calibration.get('bad_check_rings'))} of them on a check ring, "
-        f"which is never named): a ring named on healthy heads {share_of((calibration.get('healthy_named') or {}).get(used))}, "
+        f"{calibration.get('bad_ring_seeds')} with a bad ring, {num(calibration.get('bad_check_rings'))} of them on a check ring): a ring named on healthy heads {share_of((calibration.get('healthy_named') or {}).get(used))}, "
         f"the bad ring named {share_of((calibration.get('bad_ring_named') or {}).get(used))}.\n"
     )

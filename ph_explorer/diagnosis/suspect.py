@@ -1,10 +1,11 @@
-"""Rings measured badly: a ring on the lattice that fails alone, or whose repetitions disagree.
+"""Rings measured badly: a ring that fails alone, or whose repetitions disagree.
 
 A head's errors are functions of its joint angles, shared by neighbouring orientations; a form
-error in every repetition of one ring (a chipped contact, a dirty gauge) is not. Such a ring is
-named and left out of the fit and the claims; more than SUSPECT_MAX are a pattern of the head.
-Check rings and off-grid rings have no neighbours that vouch for them and are never named.
-Method: docs/methods/suspect_rings.md.
+error in every repetition of one ring (a chipped contact, a dirty gauge) is not. A lattice ring
+that does is named and left out of the fit and the claims; a check ring that fails alone while the
+rings predicting it are quiet is named to measure again and kept in every test (nothing vouches
+that it is not the head's). More than SUSPECT_MAX are a pattern of the head. Method:
+docs/methods/suspect_rings.md.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from numpy.typing import NDArray
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.diagnosis.within_noise import kept_null, low_harmonic_share, ring_sigma, within_p_value
+from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
 from ph_explorer.models.crossval import OutOfSampleSmoother
 
 # Calibrated on 300 healthy heads (seeds 910000-910299) and 100 heads with one badly measured ring
@@ -29,6 +31,9 @@ SUSPECT_QUIET = 4.0  # ... while no ring predicting it exceeds more than this, i
 SUSPECT_LEVEL = 1e-3  # the scatter test, family-wise over the campaign's rings (Bonferroni)
 SUSPECT_MAX = 2  # more rings standing out alone are a pattern of the head
 MIN_TRAINING_KEPT = 4  # never leave fewer training rings than a diagnosis needs
+# A ring whose B joint turns more than this over its points passes near the pole (A = 0), where
+# the B sweep changes fastest with A0: the lattice rings predicting it sweep B otherwise.
+POLE_B_SWEEP_DEG = 90.0
 
 SuspectReason = Literal["fails alone", "repetitions disagree"]
 
@@ -44,6 +49,12 @@ class SuspectRing:
     excess: float  # its mean statistic over noise's average
     neighbours_excess: float  # the most a ring predicting it exceeds, its share undone
     p_scatter: float  # the scatter test's p-value of its repetitions
+    check_ring: bool = False  # a check ring: named to measure again, kept in every test
+
+    @property
+    def left_out(self) -> bool:
+        """Left out of the fit, the tests and the claims: a ring of the training set."""
+        return not self.check_ring
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -54,6 +65,7 @@ class SuspectRing:
             "excess": round(self.excess, 3),
             "neighbours_excess": round(self.neighbours_excess, 3),
             "p_scatter": float(f"{self.p_scatter:.4g}"),
+            "check_ring": self.check_ring,
         }
 
     @classmethod
@@ -66,6 +78,7 @@ class SuspectRing:
             float(data["excess"]),
             float(data["neighbours_excess"]),
             float(data["p_scatter"]),
+            bool(data.get("check_ring", False)),
         )
 
 
@@ -77,20 +90,21 @@ class RingStanding:
     neighbours: NDArray[np.float64]  # (n_o,) the most a ring predicting it exceeds, its share undone
     p_scatter: NDArray[np.float64]  # (n_o,) the scatter test's p-value of its repetitions
     ratio: NDArray[np.float64]  # (n_o,) its out-of-sample MAE (repetition mean) over its own floor
-    judged: NDArray[np.bool_]  # (n_o,) a training ring on the lattice: the only rings judged
+    judged: NDArray[np.bool_]  # (n_o,) a training ring on the lattice: judged alone and by its scatter
+    check: NDArray[np.bool_]  # (n_o,) a check ring away from the pole: judged alone only
     training_rings: int  # all training rings, on the lattice or off it
 
     def suspect(self, excess: float = SUSPECT_EXCESS, alone: float = SUSPECT_ALONE, level: float = SUSPECT_LEVEL) -> NDArray[np.bool_]:
         """The suspect rings at these thresholds; none when more than SUSPECT_MAX stand out or too few training rings would be left."""
         fails_alone = self.fails_alone(excess, alone)
         suspect = fails_alone | (self.judged & (self.p_scatter < level / len(self.judged)))
-        if suspect.sum() > SUSPECT_MAX or self.training_rings - suspect.sum() < MIN_TRAINING_KEPT:
+        if suspect.sum() > SUSPECT_MAX or self.training_rings - (suspect & self.judged).sum() < MIN_TRAINING_KEPT:
             return np.zeros_like(suspect)
         return suspect
 
     def fails_alone(self, excess: float = SUSPECT_EXCESS, alone: float = SUSPECT_ALONE) -> NDArray[np.bool_]:
         quiet = self.neighbours <= SUSPECT_QUIET
-        return self.judged & quiet & (self.excess > excess) & (self.excess > alone * np.maximum(self.neighbours, 1.0))
+        return (self.judged | self.check) & quiet & (self.excess > excess) & (self.excess > alone * np.maximum(self.neighbours, 1.0))
 
 
 def ring_standing(campaign: Campaign, seed: int = 0) -> RingStanding | None:
@@ -114,16 +128,26 @@ def ring_standing(campaign: Campaign, seed: int = 0) -> RingStanding | None:
     undone = ((mean[j] + weights[j, i][:, None] * mean[i]) ** 2).mean(axis=-1) / expected[j]
     neighbours = np.zeros(n_o)
     np.maximum.at(neighbours, i, undone)
+    # A check ring takes no part in any prediction: its neighbours are the rings predicting it and
+    # the other check rings (rings it was never fitted to that fail with it are the head's).
+    excess = (mean**2).mean(axis=-1) / expected
+    check = ~train & ~(joint_sweep_deg(campaign_touches(campaign))[:, 1] > POLE_B_SWEEP_DEG)
+    k, m = np.nonzero((weights != 0) & check[:, None])
+    np.maximum.at(neighbours, k, excess[m])
+    others = np.where(check, excess, 0.0)
+    top = np.sort(others)[-2:] if n_o > 1 else np.zeros(2)
+    neighbours[check] = np.maximum(neighbours[check], np.where(others[check] >= top[-1], top[0], top[-1]))
     ratio = (
         metrics.ring_mae(campaign.deviations - residual, campaign.deviations)["mean"]
         / smoother.noise_floor(campaign.noise_sigma_um(), n_rep)["mean"]
     )
     return RingStanding(
-        (mean**2).mean(axis=-1) / expected,
+        excess,
         neighbours,
         within_p_value(low_harmonic_share(residual - mean[:, None]), n_rep, n_pt),
         ratio,
         judged,
+        check,
         int(train.sum()),
     )
 
@@ -143,13 +167,15 @@ def suspect_rings(campaign: Campaign, seed: int = 0) -> tuple[SuspectRing, ...]:
             float(standing.excess[k]),
             float(standing.neighbours[k]),
             float(standing.p_scatter[k]),
+            bool(standing.check[k]),
         )
         for k in np.flatnonzero(standing.suspect())
     )
 
 
 def without_suspects(campaign: Campaign, suspects: Sequence[SuspectRing]) -> Campaign:
-    """The campaign without its suspect rings (the diagnosis's fit and claims leave them out)."""
-    if not suspects:
+    """The campaign without its suspect training rings (the diagnosis's fit and claims leave them out)."""
+    left_out = [(s.a_deg, s.b_deg) for s in suspects if s.left_out]
+    if not left_out:
         return campaign
-    return campaign.subset(~orientation_match(campaign.orientations, [(s.a_deg, s.b_deg) for s in suspects]).any(axis=1))
+    return campaign.subset(~orientation_match(campaign.orientations, left_out).any(axis=1))

@@ -13,7 +13,14 @@ from ph_explorer.diagnosis.touch_outliers import OUTLIER_SHARE, OUTLIER_Z, Touch
 
 def suspect_text(ring: SuspectRing) -> str:
     """'Remeasure A45 B40 (left out of the fit and the claims): ...' (diagnosis.suspect)."""
-    where = f"Remeasure {orientation_label(ring.a_deg, ring.b_deg)} (left out of the fit and the claims): "
+    label = orientation_label(ring.a_deg, ring.b_deg)
+    if ring.check_ring:
+        return (
+            f"Remeasure {label} (a check ring, kept in every test): {ring.ratio:.1f}x its floor out of sample while the rings "
+            f"predicting it and the other check rings stay within {max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring "
+            "measured badly, or an error at this orientation alone; if it repeats, measure rings between it and its neighbours."
+        )
+    where = f"Remeasure {label} (left out of the fit and the claims): "
     if ring.reason == "fails alone":
         return where + (
             f"{ring.ratio:.1f}x its floor out of sample while the rings predicting it stay within "

@@ -330,7 +330,7 @@ def next_rings(
     for s in result.suspect_rings:
         label = orientation_label(s.a_deg, s.b_deg)
         if f"measure {label} again" in asked:
-            repeated.append(label)
+            repeated.append(f"{label} measured again and still named: " + ("left out" if s.left_out else "kept, a check ring"))
             continue
         remeasure.append(f"measure {label} again")
         at = orientation_match(campaign.orientations, np.array([[s.a_deg, s.b_deg]])).any(axis=1)
@@ -349,7 +349,7 @@ def next_rings(
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
         claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
         claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
-        kept_out = f"; {', '.join(repeated)} measured again and still named: left out (its fault repeats there)" if repeated else ""
+        kept_out = f"; {', '.join(repeated)} (its fault repeats there)" if repeated else ""
         reason = (
             f"you know: {claims}; {settled}{kept_out}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
