@@ -30,6 +30,11 @@ from ph_explorer.geometry import (
 )
 
 GRAVITY_MACHINE = np.array([0.0, 0.0, -1.0])  # unit vector: gravity along -z
+# A ring whose B joint turns more than this over its points while its A joint moves passes near the
+# pole (A = 0) without being on it: there the B sweep changes fastest with A0 (docs/physics.md).
+POLE_B_SWEEP_DEG = 90.0
+# An A sweep below this is a ring on the pole (A0 = 0: A stays at the cone angle, B turns once).
+ON_POLE_A_SWEEP_DEG = 1e-6
 
 
 @dataclass(frozen=True)
@@ -159,3 +164,10 @@ def joint_sweep_deg(touches: Touches) -> NDArray[np.float64]:
     a = touches.a_deg[:, 0, :]
     b = np.degrees(np.unwrap(np.radians(touches.b_deg[:, 0, :]), axis=-1))
     return np.stack([np.ptp(a, axis=-1), np.ptp(b, axis=-1)], axis=-1)
+
+
+def near_pole(touches: Touches) -> NDArray[np.bool_]:
+    """(n_o,) rings whose path passes near the pole without being on it: B turns more than a quarter
+    turn while A moves. Rings at A0 = 0 (A fixed, one B turn) share one path at every B0: not near."""
+    sweep = joint_sweep_deg(touches)
+    return (sweep[:, 1] > POLE_B_SWEEP_DEG) & (sweep[:, 0] > ON_POLE_A_SWEEP_DEG)

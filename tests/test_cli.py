@@ -62,6 +62,7 @@ def test_inspect_json(tmp_path: Path) -> None:
     assert s["geometry"]["points_per_circle"] == 32 and s["geometry"]["pivot_to_ball_mm"] == 80.0
     # A0 = 112 tilts the stylus to 118.5 deg at some touches: beyond the PH20's 115 deg.
     assert s["unreachable_orientations"] == [[112.0, 0.0]]
+    assert s["near_pole"] == []  # A0 = 0 is on the pole, A43 far from it
     assert 0 < s["unreachable_touches"] < 6 * 32 and s["unreachable_touches"] % 6 == 0
     assert s["scenario"] == {"name": "test", "seed": 1, "hidden_effects": 0}
 
@@ -79,6 +80,17 @@ def test_inspect_text_and_geometry_options(tmp_path: Path) -> None:
     bad = run("inspect", str(path), "--bore-diameter-mm", "1")
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines() == [bad.stderr.strip()] and "bore_diameter_mm = 1" in bad.stderr
+
+
+def test_inspect_names_the_rings_near_the_pole(tmp_path: Path) -> None:
+    """A ring between A0 = 0 and the lattice's next A (A9: B turns 92 deg while A swings) is where
+    the interpolation between rings is poorest; inspect names it, in text and JSON."""
+    rng = np.random.default_rng(3)
+    orientations = np.array([(a, b) for a in (0.0, 15.0, 30.0) for b in (-120.0, 0.0, 120.0)] + [(9.0, 45.0), (40.0, 45.0)])
+    path = write_campaign(Campaign(orientations, rng.normal(0.0, 0.2, (11, 3, 64))), tmp_path / "pole.csv")
+    assert json.loads(run("inspect", str(path), "--json").stdout)["near_pole"] == [[9.0, 45.0]]
+    line = next(line for line in run("inspect", str(path)).stdout.splitlines() if line.startswith("rings near the pole"))
+    assert "A9 B45 (B turns over a quarter turn" in line and "A40" not in line
 
 
 def test_inspect_without_a_file_is_a_usage_error() -> None:

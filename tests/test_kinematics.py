@@ -9,7 +9,7 @@ from hypothesis.extra.numpy import arrays
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, ball_centres, stylus_direction
-from ph_explorer.kinematics import campaign_touches, joint_sweep_deg, touch_kinematics
+from ph_explorer.kinematics import campaign_touches, joint_sweep_deg, near_pole, touch_kinematics
 
 RHO_OVER_L = 9.0 / 80.0
 
@@ -34,6 +34,18 @@ def test_b_sweep_shrinks_as_the_ring_tilts(a0: float, b0: float, b_sweep: float)
 def test_b_sweep_falls_monotonically_with_a0() -> None:
     sweeps = joint_sweep_deg(touch_kinematics([[a, 10.0] for a in (5, 15, 30, 45, 60, 90)]))[:, 1]
     assert np.all(np.diff(sweeps) < 0)
+
+
+def test_near_the_pole_is_between_a0_zero_and_one_and_a_half_cone_angles() -> None:
+    """On the pole (A0 = 0) a ring turns B once at fixed A; just off it, inside the cone (A0 < 6.46
+    deg here) B still turns once while A swings 2 A0; past the cone B's sweep falls below a quarter
+    turn by A0 = 9.3 deg (92 deg at A9). Only the rings between are near the pole."""
+    a0 = np.array([0.0, 0.5, 3.0, 6.0, 7.0, 9.0, 10.0, 15.0, 45.0, -3.0])
+    near = near_pole(touch_kinematics(np.stack([a0, np.full(a0.size, 30.0)], axis=1)))
+    assert near.tolist() == [False, True, True, True, True, True, False, False, False, True]
+    # A longer stylus in a wider bore has a wider cone (8.05 deg): A9 then sweeps B 127 deg.
+    wide = Geometry(100.0, 2.0, 30.0, 64)
+    assert near_pole(touch_kinematics([[0.0, 0.0], [9.0, 45.0], [12.0, 45.0]], wide)).tolist() == [False, True, False]
 
 
 @given(orientations=arrays(np.float64, (20, 2), elements=st.floats(-115, 115, allow_nan=False)).map(lambda o: o * [1.0, 180.0 / 115.0]))

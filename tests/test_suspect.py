@@ -10,7 +10,7 @@ import pytest
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.suspect import POLE_B_SWEEP_DEG, suspect_rings, without_suspects
+from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.figures.diagnosis_text import report_sections
@@ -88,18 +88,25 @@ def test_a_badly_measured_check_ring_is_named_and_kept(healthy):
 
 
 def test_a_check_ring_near_the_pole_is_never_judged_alone():
-    """A check ring whose B joint turns more than a quarter turn over its points (A9 on a 30 mm bore
+    """A check ring whose B joint turns more than a quarter turn while A moves (A9 on a 30 mm bore
     with a 100 mm stylus: its path passes 1.2 deg from the pole) is predicted by rings that sweep B
-    otherwise (A0: a full turn, A15: 63 deg); chipped, it is not named, while A49 B105 is."""
-    from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
+    otherwise (A0: a full turn, A15: 63 deg); chipped, it is not named, while A49 B105 is. A check
+    ring on the pole (A0 = 0: A fixed, one B turn, the path of every A0 = 0 ring) is judged."""
+    from ph_explorer.kinematics import POLE_B_SWEEP_DEG, campaign_touches, joint_sweep_deg, near_pole
 
     campaign = random_campaign(SEED, "other_geometry")
     sweep = joint_sweep_deg(campaign_touches(campaign))[:, 1]
     near, far = (int(np.flatnonzero((campaign.orientations == o).all(axis=1))[0]) for o in ([9.0, 45.0], [49.0, 105.0]))
     assert sweep[near] > POLE_B_SWEEP_DEG > sweep[far]
+    assert near_pole(campaign_touches(campaign)).tolist() == [k == near for k in range(campaign.n_orientations)]
     assert suspect_rings(chipped(campaign, near)) == ()
     (named,) = suspect_rings(chipped(campaign, far))
     assert named.check_ring and (named.a_deg, named.b_deg) == (49.0, 105.0)
+    on_pole = int(np.flatnonzero((campaign.orientations == [0.0, 40.0]).all(axis=1))[0])
+    checked = replace(campaign, check_orientations=np.vstack([campaign.check_orientations, [[0.0, 40.0]]]))
+    assert sweep[on_pole] > POLE_B_SWEEP_DEG and not near_pole(campaign_touches(checked))[on_pole]
+    (named,) = suspect_rings(chipped(checked, on_pole))
+    assert named.check_ring and (named.a_deg, named.b_deg) == (0.0, 40.0)
 
 
 def test_a_ring_whose_repetitions_disagree_is_named(healthy, ring):

@@ -60,6 +60,11 @@ def summary_text(s: dict[str, Any]) -> str:
             "joint sweep per ring",
             f"A up to {sweep['A_max']:.1f} deg, B {sweep['B_min']:.1f} .. {sweep['B_max']:.1f} deg",
         ),
+        (
+            "rings near the pole",
+            _pairs(s["near_pole"])
+            + ("" if not s["near_pole"] else " (B turns over a quarter turn as A moves: interpolation between rings is poorest here)"),
+        ),
         ("unreachable touches", f"{s['unreachable_touches']} (A joint beyond +-{A_LIMIT_DEG:g} deg)"),
     ]
     if s["scenario"]:

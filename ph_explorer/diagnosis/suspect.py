@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.diagnosis.within_noise import kept_null, low_harmonic_share, ring_sigma, within_p_value
-from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
+from ph_explorer.kinematics import campaign_touches, near_pole
 from ph_explorer.models.crossval import OutOfSampleSmoother
 
 # Calibrated on 300 healthy heads (seeds 910000-910299) and 100 heads with one badly measured ring
@@ -31,9 +31,6 @@ SUSPECT_QUIET = 4.0  # ... while no ring predicting it exceeds more than this, i
 SUSPECT_LEVEL = 1e-3  # the scatter test, family-wise over the campaign's rings (Bonferroni)
 SUSPECT_MAX = 2  # more rings standing out alone are a pattern of the head
 MIN_TRAINING_KEPT = 4  # never leave fewer training rings than a diagnosis needs
-# A ring whose B joint turns more than this over its points passes near the pole (A = 0), where
-# the B sweep changes fastest with A0: the lattice rings predicting it sweep B otherwise.
-POLE_B_SWEEP_DEG = 90.0
 
 SuspectReason = Literal["fails alone", "repetitions disagree"]
 
@@ -131,12 +128,12 @@ def ring_standing(campaign: Campaign, seed: int = 0) -> RingStanding | None:
     # A check ring takes no part in any prediction: its neighbours are the rings predicting it and
     # the other check rings (rings it was never fitted to that fail with it are the head's).
     excess = (mean**2).mean(axis=-1) / expected
-    check = ~train & ~(joint_sweep_deg(campaign_touches(campaign))[:, 1] > POLE_B_SWEEP_DEG)
+    check = ~train & ~near_pole(campaign_touches(campaign))  # the lattice rings predicting it sweep B otherwise
     k, m = np.nonzero((weights != 0) & check[:, None])
     np.maximum.at(neighbours, k, excess[m])
     others = np.where(check, excess, 0.0)
-    top = np.sort(others)[-2:] if n_o > 1 else np.zeros(2)
-    neighbours[check] = np.maximum(neighbours[check], np.where(others[check] >= top[-1], top[0], top[-1]))
+    second, first = np.sort(others)[-2:]
+    neighbours[check] = np.maximum(neighbours[check], np.where(others[check] >= first, second, first))
     ratio = (
         metrics.ring_mae(campaign.deviations - residual, campaign.deviations)["mean"]
         / smoother.noise_floor(campaign.noise_sigma_um(), n_rep)["mean"]

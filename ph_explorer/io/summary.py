@@ -9,7 +9,7 @@ import numpy as np
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.io.sidecar import plain_values
-from ph_explorer.kinematics import campaign_touches, joint_sweep_deg
+from ph_explorer.kinematics import campaign_touches, joint_sweep_deg, near_pole
 
 # The scenario fields a summary shows (the effects and their parameters are the sidecar's business;
 # a teaching scenario's hidden effects are counted, never named: the sidecar's hidden list is the answer).
@@ -21,7 +21,8 @@ def _pairs(orientations: np.ndarray) -> list[list[float]]:
 
 
 def campaign_summary(campaign: Campaign) -> dict[str, Any]:
-    """Sizes, lattice, off-grid and check rings, noise, deviation range, geometry, joint sweeps, reach."""
+    """Sizes, lattice, off-grid and check rings, noise, deviation range, geometry, joint sweeps, rings
+    near the pole, reach."""
     a_grid, b_grid = campaign.grid()
     off = campaign.off_grid_mask()
     touches = campaign_touches(campaign)
@@ -53,6 +54,7 @@ def campaign_summary(campaign: Campaign) -> dict[str, Any]:
             "B_min": float(sweep[:, 1].min()),
             "B_max": float(sweep[:, 1].max()),
         },
+        "near_pole": _pairs(campaign.orientations[near_pole(touches)]),
         "unreachable_touches": int(unreachable.sum()),
         "unreachable_orientations": _pairs(campaign.orientations[unreachable_orientations]),
         "scenario": scenario_summary(campaign.scenario) if campaign.scenario else None,
