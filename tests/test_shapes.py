@@ -21,10 +21,11 @@ from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.shapes import family_test
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
-from ph_explorer.effects.error_functions import error_function, hat_functions, load_shapes
+from ph_explorer.effects.error_functions import error_function, hat_functions, load_shapes, roughness_factor
 from ph_explorer.effects.probe import lateral_share
 from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.io.writer import write_campaign
+from ph_explorer.kinematics import touch_kinematics
 from ph_explorer.models import least_squares
 from ph_explorer.models.least_squares import Design, RingDeletion
 from ph_explorer.twin.random_heads import random_campaign
@@ -54,6 +55,26 @@ class StepB(_BAngular):
 
     def error_arcsec(self, b_deg):
         return self.params["amplitude_arcsec"] * ((b_deg > 60.0) & (b_deg < 150.0))
+
+
+@pytest.mark.parametrize("periodic", [True, False])
+def test_a_ridge_on_a_shapes_coefficients_penalises_its_values_and_their_steps(periodic: bool) -> None:
+    """Coefficients z = L'v: |z|^2 = v'v + |Dv|^2, and the columns times z give the same
+    deviations as the hat functions times the values, which come back from z unchanged."""
+    knots = tuple(-180.0 + np.arange(180) * 2.0) if periodic else tuple(np.linspace(-10.0, 40.0, 26))
+    cls = error_function("b_angular", knots, periodic)
+    values = np.random.default_rng(0).normal(size=len(knots))
+    shape = cls(**{p.name: float(v) for p, v in zip(cls.parameters, values)})
+    z = shape.coefficients()
+    steps = np.diff(np.concatenate([values, values[:1]])) if periodic else np.diff(values)
+    assert z @ z == pytest.approx(values @ values + steps @ steps, rel=1e-12)
+    assert np.allclose(np.tril(roughness_factor(len(knots), periodic)), roughness_factor(len(knots), periodic))
+    assert np.allclose([shape.from_coefficients(z)[p.name] for p in cls.parameters], values, atol=1e-12)
+    t = touch_kinematics(random_campaign(SEED, "paper").orientations[:20])
+    columns, _ = shape.basis(t)
+    hats = hat_functions(shape.group.variable_of(t).values(t), np.array(knots), periodic)
+    direct = shape.group.lever(t)[..., 0] * (hats @ values)
+    assert np.allclose(columns @ z, np.broadcast_to(direct, (columns @ z).shape), atol=1e-12)
 
 
 class FineGearB(_BAngular):

@@ -8,7 +8,9 @@ knots x_0 < ... < x_{K-1} (periodic over a full turn of an angle), multiplied by
 (effect.screw_deviation for an axis's components). The basis columns are the knots' hat functions
 times the levers and the parameters are the values at the knots, so a shape exported as a table
 (x, value, U) and loaded again is the same function. A catalog effect is a sparse special case
-(one harmonic of one group).
+(one harmonic of one group). Its fitted coefficients are the values in roughness coordinates
+(`roughness_factor`): every ridge penalty of the fits then also penalises the steps between
+neighbouring knots, as a P-spline's (Eilers and Marx, 1996).
 """
 
 from __future__ import annotations
@@ -158,6 +160,19 @@ def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: 
     return np.maximum(0.0, 1.0 - np.where(d < 0, -d / left, d / right))
 
 
+@cache
+def roughness_factor(count: int, periodic: bool) -> NDArray[np.float64]:
+    """L (K, K), lower triangular, with L L' = D'D + I: D the first differences of K knot values
+    (around the turn when periodic). Coefficients z = L' v of the values v make a ridge |z|^2 the
+    penalty v'v + v'D'Dv: on the values, as before, and on their steps from knot to knot (a
+    P-spline's, Eilers and Marx 1996); the columns are X L^-T (docs/methods/shapes.md)."""
+    eye = np.eye(count)
+    difference = eye - np.roll(eye, 1, axis=1) if periodic else np.diff(eye, axis=0)
+    factor = np.linalg.cholesky(difference.T @ difference + eye)
+    factor.flags.writeable = False
+    return factor
+
+
 class ErrorFunction(Effect):
     """A group's error functions, tabulated at knots (the module docstring); make its class with
     `error_function(group, knots, periodic)`."""
@@ -192,7 +207,18 @@ class ErrorFunction(Effect):
 
     def values(self) -> NDArray[np.float64]:
         """(n_components, K): each component's value at the knots, in its unit."""
-        return self.coefficients().reshape(len(self.group.components), len(self.knots))
+        return np.array([self.params[p.name] for p in self.parameters]).reshape(len(self.group.components), len(self.knots))
+
+    def coefficients(self) -> NDArray[np.float64]:
+        """The values in roughness coordinates, z = L' v per component (roughness_factor)."""
+        return (self.values() @ roughness_factor(len(self.knots), self.periodic)).ravel()
+
+    def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
+        """The values at the knots from roughness coordinates: v = L^-T z per component."""
+        factor = roughness_factor(len(self.knots), self.periodic)
+        z = np.asarray(coef, dtype=float).reshape(len(self.group.components), len(self.knots))
+        values = np.linalg.solve(factor.T, z.T).T
+        return {p.name: float(v) for p, v in zip(self.parameters, values.ravel())}
 
     def function(self, x: ArrayLikeFloat) -> NDArray[np.float64]:
         """(..., n_components): the functions at x, in their units."""
@@ -202,7 +228,9 @@ class ErrorFunction(Effect):
         variable = self.group.variable_of(touches)
         hats = hat_functions(variable.values(touches), np.array(self.knots), self.periodic)  # (..., K)
         lever = self.group.lever(touches)  # (n_o, 1, n_pt, C)
-        columns = lever[..., :, None] * hats[..., None, :]
+        # X L^-T per component: each component's hat columns in roughness coordinates.
+        inverse_t = np.linalg.inv(roughness_factor(len(self.knots), self.periodic)).T
+        columns = lever[..., :, None] * (hats @ inverse_t)[..., None, :]
         columns = columns.reshape(columns.shape[:-2] + (-1,))
         names = [p.name for p in self.parameters]
         if columns.shape[1] == 1:
