@@ -7,10 +7,9 @@ function of time. Each component of the group has its own f(x), piecewise linear
 knots x_0 < ... < x_{K-1} (periodic over a full turn of an angle), multiplied by its lever
 (effect.screw_deviation for an axis's components). The basis columns are the knots' hat functions
 times the levers and the parameters are the values at the knots, so a shape exported as a table
-(x, value, U) and loaded again is the same function. A catalog effect is a sparse special case
-(one harmonic of one group). Its fitted coefficients are the values in roughness coordinates
-(`roughness_factor`): every ridge penalty of the fits then also penalises the steps between
-neighbouring knots, as a P-spline's (Eilers and Marx, 1996).
+(x, value, U) and loaded again is the same function (a catalog effect is one harmonic of one
+group). Its coefficients are the values in roughness coordinates (`roughness_factor`): every ridge
+of the fits then also penalises the steps between knots, as a P-spline's (Eilers and Marx, 1996).
 """
 
 from __future__ import annotations
