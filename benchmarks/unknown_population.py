@@ -20,7 +20,11 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
 - where a shape is claimed (issue 56): the check rings' error once it is added, over the floor
   (after_shape_within) and over that of the same head without the shape, diagnosed alike
   (after_shape_within_plain): the background's interpolation error stays whatever the shape, so
-  plain_within, the share of those plain heads within 1.25 floors, bounds the first.
+  plain_within, the share of those plain heads within 1.25 floors, bounds the first;
+- oracle_passes: the head's own shape, its function known exactly, passes the shapes' replication
+  test beside the chain (benchmarks/shape_oracle.py): where it does not, no shape search over these
+  rings can; shape_right_where_oracle_passes; and by_axis (a function of the A joint shows only at
+  rings off the lattice's A rows).
 
 MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_effects.py): the
 share on which every effect is claimed (multi_effects.found_each: as catalog-effect heads are
@@ -45,6 +49,7 @@ import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.multi_effects import KINDS, claim_record, found_each, multi_effect_head
+from benchmarks.shape_oracle import oracle_record
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
@@ -125,6 +130,9 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
             record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
+    if job["family"] not in ("bad_ring", "touch_outliers"):  # what the rings can show of the shape at all
+        shape = next(effect for effect in head.scenario.effects if effect.id == head.truth["id"])
+        record["oracle"] = oracle_record(head.campaign, result, shape)
     if job["family"] == "bad_ring":  # a check ring is named but kept (diagnosis.suspect): where is it?
         at = (head.campaign.orientations == [head.truth["a_deg"], head.truth["b_deg"]]).all(axis=1)
         record["bad_on_check_ring"] = bool(head.campaign.holdout_mask()[at].any())
@@ -317,6 +325,12 @@ def shape_truth(record: dict[str, Any]) -> str | None:
     return None if axis is None else ("a" if axis == 0 else "b") + "_angular"
 
 
+def shape_axis(record: dict[str, Any]) -> str | None:
+    """The shape's axis ("A", "B"), "probe" for a probe that changes, None where no shape is right."""
+    truth = shape_truth(record)
+    return None if truth is None else {"a": "A", "b": "B"}.get(truth[0], "probe")
+
+
 def shape_right(record: dict[str, Any]) -> bool:
     """A shape claimed on the truth's group, or with it among the groups the rings cannot tell."""
     truth = shape_truth(record)
@@ -337,6 +351,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         shaped = [r for r in group if shape_truth(r) is not None]
         claimed = [r for r in group if any(s["claimed"] for s in r.get("shapes", []))]
         compared = [r for r in claimed if "plain_ratio" in r]  # the same head without its shape was diagnosed
+        seen = [r for r in shaped if "oracle" in r]
         return {
             "none": rate(sum(r["verdict"] == "none" for r in group), len(group)),
             "catalog_name": rate(sum(catalog_name(r) for r in group), len(group)),
@@ -360,6 +375,11 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "after_shape_ratio_median": round(float(np.median([r["step_ratios"][-1] for r in claimed])), 3) if claimed else None,
             "plain_ratio_median": round(float(np.median([r["plain_ratio"] for r in compared])), 3) if compared else None,
             "before_ratio_median_where_claimed": round(float(np.median([r["step_ratios"][0] for r in claimed])), 3) if claimed else None,
+            # the oracle (shape_oracle): the head's own shape known exactly passes the shapes' replication test
+            "oracle_passes": rate(sum(r["oracle"]["passes"] for r in seen), len(seen)),
+            "shape_right_where_oracle_passes": rate(
+                sum(shape_right(r) for r in seen if r["oracle"]["passes"]), sum(r["oracle"]["passes"] for r in seen)
+            ),
         }
 
     judged = [r for r in records if r["verdict"] != "error" and not r["extra"]]
@@ -372,6 +392,12 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             sum(truth_ring_named(r) for r in bad if not r["bad_on_check_ring"]), sum(not r["bad_on_check_ring"] for r in bad)
         ),
         "by_family": {family: summary(group) for family, group in by_family.items()},
+        # the shape's axis (a function of the A joint shows only at rings off the lattice's A rows)
+        "by_axis": {
+            axis: {key: summary(group)[key] for key in ("shape_right", "oracle_passes", "shape_right_where_oracle_passes")}
+            for axis, group in ((axis, [r for r in judged if shape_axis(r) == axis]) for axis in ("A", "B", "probe"))
+            if group
+        },
         "errors": [
             {"seed": r["seed"], "family": r["family"], "error": r.get("error") or f"the head without its shape: {r['plain_error']}"}
             for r in records
