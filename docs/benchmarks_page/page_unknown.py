@@ -35,7 +35,11 @@ median check rings / floor before and after; **same head without it**: those hea
 their shape, diagnosed alike: the share within {after} of their floor (what the share before can
 reach at best: the background's interpolation error stays) and their median; **after, within the
 head's own**: the share whose check rings once the shape is added are within {after} of that
-head's own without it.
+head's own without it; **oracle passes**: the head's own shape, its function known exactly and its
+size free, fitted beside the chain, passes the shapes' replication test over rings
+(benchmarks/shape_oracle.py): where it does not, no shape search over these rings can replicate
+that shape (a function of the A joint shows only at rings off the lattice's A rows,
+[the physics](physics.md), section 6); **right where it passes**: shape right over those heads.
 """
 
 
@@ -54,6 +58,8 @@ def unknown(results: Mapping[str, Any]) -> str:
             f"{num(s.get('before_ratio_median_where_claimed'))} -> {num(s.get('after_shape_ratio_median'))}",
             f"{share_of(s.get('plain_within'))}, {num(s.get('plain_ratio_median'))}",
             share_of(s.get("after_shape_within_plain")),
+            share_of(s.get("oracle_passes")),
+            share_of(s.get("shape_right_where_oracle_passes")),
         ]
         for family, s in groups
         if "shape_right" in s
@@ -83,18 +89,34 @@ def unknown(results: Mapping[str, Any]) -> str:
         "check rings / floor where claimed",
         "same head without it: within, median",
         "after, within the head's own",
+        "oracle passes",
+        "right where it passes",
     ]
     return (
         intro
         + f"\n{num(u.get('heads'))} heads, commit {u.get('commit')}, {num(u.get('run_seconds'), 's')}.\n\n"
         + table(head, rows)
         + ("\n" + table(shapes, shape_rows) if shape_rows else "")
+        + axis_text(u)
         + suspect_text(u)
         + multi_text(u)
     )
 
 
 KEYS = ("none", "catalog_name", "catalog_name_other_mechanism", "honest", "none_silent", "suspect_named", "outliers_named")
+
+
+def axis_text(u: Mapping[str, Any]) -> str:
+    """Shapes right and the oracle, by the shape's axis (A, B, the probe)."""
+    by_axis = u.get("by_axis") or {}
+    if not by_axis:
+        return ""
+    parts = [
+        f"{axis}: right {share_of(s.get('shape_right'))}, oracle passes {share_of(s.get('oracle_passes'))}, "
+        f"right where it passes {share_of(s.get('shape_right_where_oracle_passes'))}"
+        for axis, s in by_axis.items()
+    ]
+    return "\n**By the shape's axis**: " + "; ".join(parts) + ".\n"
 
 
 def multi_text(u: Mapping[str, Any]) -> str:
