@@ -54,6 +54,7 @@ from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
 from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE, within_noise
+from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.errors import InputError
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.task_runner import run_tasks
@@ -130,7 +131,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
             record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
-    if job["family"] not in ("bad_ring", "touch_outliers"):  # what the rings can show of the shape at all
+    if shape_truth({"family": job["family"], "truth": head.truth}) is not None:  # what the rings can show of the shape at all
         shape = next(effect for effect in head.scenario.effects if effect.id == head.truth["id"])
         record["oracle"] = oracle_record(head.campaign, result, shape)
     if job["family"] == "bad_ring":  # a check ring is named but kept (diagnosis.suspect): where is it?
@@ -328,7 +329,7 @@ def shape_truth(record: dict[str, Any]) -> str | None:
 def shape_axis(record: dict[str, Any]) -> str | None:
     """The shape's axis ("A", "B"), "probe" for a probe that changes, None where no shape is right."""
     truth = shape_truth(record)
-    return None if truth is None else {"a": "A", "b": "B"}.get(truth[0], "probe")
+    return None if truth is None else (SHAPE_GROUPS[truth].axis or "probe")
 
 
 def shape_right(record: dict[str, Any]) -> bool:
@@ -352,6 +353,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         claimed = [r for r in group if any(s["claimed"] for s in r.get("shapes", []))]
         compared = [r for r in claimed if "plain_ratio" in r]  # the same head without its shape was diagnosed
         seen = [r for r in shaped if "oracle" in r]
+        passing = [r for r in seen if r["oracle"]["passes"]]
         return {
             "none": rate(sum(r["verdict"] == "none" for r in group), len(group)),
             "catalog_name": rate(sum(catalog_name(r) for r in group), len(group)),
@@ -376,10 +378,8 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "plain_ratio_median": round(float(np.median([r["plain_ratio"] for r in compared])), 3) if compared else None,
             "before_ratio_median_where_claimed": round(float(np.median([r["step_ratios"][0] for r in claimed])), 3) if claimed else None,
             # the oracle (shape_oracle): the head's own shape known exactly passes the shapes' replication test
-            "oracle_passes": rate(sum(r["oracle"]["passes"] for r in seen), len(seen)),
-            "shape_right_where_oracle_passes": rate(
-                sum(shape_right(r) for r in seen if r["oracle"]["passes"]), sum(r["oracle"]["passes"] for r in seen)
-            ),
+            "oracle_passes": rate(len(passing), len(seen)),
+            "shape_right_where_oracle_passes": rate(sum(shape_right(r) for r in passing), len(passing)),
         }
 
     judged = [r for r in records if r["verdict"] != "error" and not r["extra"]]
