@@ -161,9 +161,13 @@ def approach_sign(joint_deg: NDArray[np.float64], order: NDArray[np.int64]) -> N
 
 def joint_sweep_deg(touches: Touches) -> NDArray[np.float64]:
     """(n_o, 2) range of the A and B joints over the points of each ring (B unwrapped), deg."""
-    a = touches.a_deg[:, 0, :]
-    b = np.degrees(np.unwrap(np.radians(touches.b_deg[:, 0, :]), axis=-1))
-    return np.stack([np.ptp(a, axis=-1), np.ptp(b, axis=-1)], axis=-1)
+
+    def sweep() -> NDArray[np.float64]:
+        a = touches.a_deg[:, 0, :]
+        b = np.degrees(np.unwrap(np.radians(touches.b_deg[:, 0, :]), axis=-1))
+        return np.stack([np.ptp(a, axis=-1), np.ptp(b, axis=-1)], axis=-1)
+
+    return touches.memo("joint_sweep", sweep)
 
 
 def near_pole(touches: Touches) -> NDArray[np.bool_]:

@@ -27,6 +27,7 @@ from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.io.writer import write_campaign
 from ph_explorer.kinematics import touch_kinematics
 from ph_explorer.models import least_squares
+from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.models.least_squares import Design, RingDeletion
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -241,6 +242,28 @@ def test_a_bad_shapes_file_is_one_line_and_nothing_is_loaded(exported, tmp_path,
     done = run_cli("diagnose", "--data", data, "--effects", bad, "--add", "shape_b_angular")
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and done.stdout == "" and len(lines) == 1 and lines[0].startswith(f"{bad}, {what}")
+
+
+def test_a_saved_hybrid_with_a_shape_reads_back_the_same_model_from_an_older_folder(exported, tmp_path) -> None:
+    # A folder written before the P-spline coordinates stored a shape's knot values as its
+    # coefficients; load takes them from the saved values, so old and new folders predict alike.
+    data, shapes = exported
+    catalog = DEFAULT_CATALOG.with_file(shapes)
+    campaign = random_campaign(SEED, "paper", [StepB()])
+    model = HybridModel([catalog["shape_b_angular"]()]).fit(campaign)
+    model.save(tmp_path / "new")
+    record_path = model.save(tmp_path / "old")
+    record = json.loads(record_path.read_text())
+    start = sum(record["widths"][:-1])
+    record["coefficients"][start:] = list(record["effects"][-1]["params"].values())  # the values, as before
+    record_path.write_text(json.dumps(record))
+    # Between the lattice's rings, where the data part does not give back what it was fitted on.
+    unseen = campaign.orientations[:12] + np.array([2.5, 7.5])
+    expected = model.predict(unseen)
+    assert np.abs(model.physical_part(touch_kinematics(unseen))).max() > 0.01  # the shape is in it
+    for folder in ("new", "old"):
+        again = HybridModel.load(tmp_path / folder, catalog)
+        assert np.allclose(again.predict(unseen), expected, atol=1e-9)
 
 
 def test_a_study_saves_the_shape_and_resumes_with_it_in_the_model(exported, tmp_path) -> None:

@@ -172,6 +172,14 @@ def roughness_factor(count: int, periodic: bool) -> NDArray[np.float64]:
     return factor
 
 
+@cache
+def roughness_inverse_t(count: int, periodic: bool) -> NDArray[np.float64]:
+    """L^-T (K, K): a shape's hat columns times it are its columns in roughness coordinates."""
+    inverse_t = np.linalg.inv(roughness_factor(count, periodic)).T
+    inverse_t.flags.writeable = False
+    return inverse_t
+
+
 class ErrorFunction(Effect):
     """A group's error functions, tabulated at knots (the module docstring); make its class with
     `error_function(group, knots, periodic)`."""
@@ -228,8 +236,7 @@ class ErrorFunction(Effect):
         hats = hat_functions(variable.values(touches), np.array(self.knots), self.periodic)  # (..., K)
         lever = self.group.lever(touches)  # (n_o, 1, n_pt, C)
         # X L^-T per component: each component's hat columns in roughness coordinates.
-        inverse_t = np.linalg.inv(roughness_factor(len(self.knots), self.periodic)).T
-        columns = lever[..., :, None] * (hats @ inverse_t)[..., None, :]
+        columns = lever[..., :, None] * (hats @ roughness_inverse_t(len(self.knots), self.periodic))[..., None, :]
         columns = columns.reshape(columns.shape[:-2] + (-1,))
         names = [p.name for p in self.parameters]
         if columns.shape[1] == 1:

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
+from ph_explorer.effects.error_functions import ErrorFunction
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
@@ -233,6 +234,12 @@ class HybridModel(DeviationModel):
         model.n_points = model.geometry.points_per_circle
         model.coefficients_ = np.asarray(record["coefficients"], dtype=float)
         model.widths_ = list(record["widths"])
+        # A shape's coefficients come from its saved knot values: a folder written before the
+        # P-spline coordinates (2026-12-01) stored the values themselves as its coefficients.
+        starts = np.cumsum([0] + model.widths_[:-1])
+        for effect, saved, start, width in zip(effects, record["effects"], starts, model.widths_):
+            if isinstance(effect, ErrorFunction):
+                model.coefficients_[start : start + width] = type(effect)(**saved["params"]).coefficients()
         model.ridge_ = float(record["ridge"])
         return model
 
