@@ -127,14 +127,17 @@ class HybridModel(DeviationModel):
             return np.zeros(touches.shape)
         return self.physical_basis(touches) @ self.coefficients_
 
+    def coefficient_blocks(self) -> list[slice]:
+        """Each effect's columns in coefficients_ (widths_ side by side)."""
+        ends = np.cumsum(self.widths_).tolist()
+        return [slice(end - width, end) for end, width in zip(ends, self.widths_)]
+
     def effect_parameters(self) -> list[dict[str, Any]]:
         """Each effect's fitted physical parameters (units of its Parameter list)."""
-        out, start = [], 0
-        for effect, width in zip(self.effects, self.widths_):
-            coef = self.coefficients_[start : start + width]
-            out.append({"effect": effect.id, "params": effect.from_coefficients(coef)})
-            start += width
-        return out
+        return [
+            {"effect": effect.id, "params": effect.from_coefficients(self.coefficients_[block])}
+            for effect, block in zip(self.effects, self.coefficient_blocks())
+        ]
 
     # -- DeviationModel --------------------------------------------------------------------------
     def fit(self, campaign: Campaign, train: ArrayLike | None = None) -> Self:
@@ -236,10 +239,9 @@ class HybridModel(DeviationModel):
         model.widths_ = list(record["widths"])
         # A shape's coefficients come from its saved knot values: a folder written before the
         # P-spline coordinates (2026-12-01) stored the values themselves as its coefficients.
-        starts = np.cumsum([0] + model.widths_[:-1])
-        for effect, saved, start, width in zip(effects, record["effects"], starts, model.widths_):
+        for effect, saved, block in zip(effects, record["effects"], model.coefficient_blocks()):
             if isinstance(effect, ErrorFunction):
-                model.coefficients_[start : start + width] = type(effect)(**saved["params"]).coefficients()
+                model.coefficients_[block] = type(effect)(**saved["params"]).coefficients()
         model.ridge_ = float(record["ridge"])
         return model
 
