@@ -86,6 +86,26 @@ def test_a_healthy_head_stops_within_a_few_plans_with_its_reason() -> None:
     assert upper <= tolerance and run.campaign.n_orientations < 40
 
 
+def test_a_full_lattice_whose_model_misses_gets_fresh_check_rings_between_its_rows_once_then_stops() -> None:
+    """A paper-style lattice has no lattice ring left to add: while its model misses more than the
+    tolerance at unseen rings, the next plan measures fresh check rings at its cells' centres, between
+    its A rows (where an error of the A axis that the rows interpolate shows), once; then it stops."""
+    from ph_explorer.twin import load_scenario, simulate
+
+    campaign = simulate(load_scenario("head_3"))
+    result = adaptive.plan_diagnosis(campaign)
+    plan = adaptive.next_rings(campaign, result, tolerance_um=1e-4)  # no model is within so tight a tolerance
+    rings = np.array([[r.a_deg, r.b_deg] for r in plan.rings])
+    assert not plan.stop and plan.reason.endswith("no lattice ring is left to add") and adaptive.FRESH in plan.questions
+    assert len(rings) == adaptive.START_CHECK_RINGS and all(r.check for r in plan.rings)
+    rows = np.unique(campaign.orientations[~campaign.holdout_mask(), 0])
+    assert ((rings[:, 0] > rows.min()) & (rings[:, 0] < rows.max())).all() and not np.isin(rings[:, 0], rows).any()
+    assert len(np.unique(rings[:, 0])) == len(rings)  # one A interval each
+    assert not orientation_match(rings, campaign.orientations).any()
+    again = adaptive.next_rings(campaign, result, tolerance_um=1e-4, asked=plan.questions)
+    assert again.stop and not again.rings and "fresh check rings measured after the lattice was full did not settle it" in again.reason
+
+
 def test_a_plan_within_a_budget_stops_at_the_budget() -> None:
     scenario = random_head(100_005)
     first = adaptive.first_rings()

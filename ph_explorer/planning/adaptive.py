@@ -4,7 +4,8 @@ badly again, once; rings that decide its questions; lattice rings where the data
 fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
 a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring
 measured badly that was not measured again, and what the model misses at its check rings within
-the tolerance (95 % upper bound); else the budget, or no lattice ring left. One tolerance sets the
+the tolerance (95 % upper bound); else the budget, or no lattice ring left (a full lattice whose
+model fails: once fresh check rings at its cells' centres have not settled it). One tolerance sets the
 repetitions too. The closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
 """
 
@@ -28,12 +29,13 @@ from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
-from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations, distinct_rings, propose_rings
+from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations, cell_centres, distinct_rings, propose_rings
 
 START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
 START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
 NEXT_DATA_RINGS = 3  # lattice rings a step adds for the data part
 NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
+FRESH = "test the model at fresh check rings"  # asked once a full lattice's model still fails
 # The verdicts a campaign can stop at: every claim, catalog effect or shape, replicated over rings.
 KNOWN_VERDICTS = ("none", "missing", "uncatalogued")
 CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off the lattice
@@ -363,23 +365,27 @@ def next_rings(
     ]
     planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
     data, distance = data_rings(campaign, NEXT_DATA_RINGS, planned)
-    if not len(data) and not rings:
+    # A full lattice whose model still fails: fresh check rings at its cells' centres, once.
+    full = not len(data) and not rings
+    known = np.concatenate([campaign.orientations, planned, data])
+    fresh = check_rings(known, NEXT_CHECK_RINGS, campaign.geometry) if not full else ()
+    fresh = cell_centres(campaign, START_CHECK_RINGS) if full and FRESH not in asked else fresh
+    if full and not len(fresh):
+        after = "; fresh check rings measured after the lattice was full did not settle it" if FRESH in asked else ""
         reason = (
             f"no lattice ring is left to add (a ring a B value, as the trilinear's lattice keeps them) and no ring decides "
-            f"what is open: the verdict stays {result.verdict}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
+            f"what is open{after}: the verdict stays {result.verdict}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
             f"(95 % up to {unseen_upper:.3f} um, the tolerance {tolerance:.3f} um)"
         )
         return Plan((), True, reason, 0.0, **done)
+    if full:
+        done["questions"] = (*done["questions"], FRESH)
     batch = len(data) > NEXT_DATA_RINGS
     gap = "every B value one ring more (the lattice keeps them so)" if batch else "the data part's widest gap"
     fitted = [
         PlannedRing(float(a), float(b), f"{gap}: {near:.0f} deg from the nearest ring", False) for (a, b), near in zip(data, distance)
     ]
-    known = np.concatenate([campaign.orientations, planned, data])
-    checks = [
-        PlannedRing(float(a), float(b), "a fresh check ring: the model where it has not been tested", True)
-        for a, b in check_rings(known, NEXT_CHECK_RINGS, campaign.geometry)
-    ]
+    checks = [PlannedRing(float(a), float(b), "a fresh check ring: the model where it has not been tested", True) for a, b in fresh]
     if budget_minutes is not None:
         # Within the budget: the rings measured again and those that decide first, the lattice rings
         # whole or none (a part of them could drop rings from the lattice), then the check rings.
@@ -398,4 +404,5 @@ def next_rings(
         why = "a shape no catalog holds, claimed on these rings: fresh rings confirm it or not"
     else:
         why = f"at unseen rings the model misses up to {unseen_upper:.3f} um (95 %), more than the tolerance {tolerance:.3f} um"
+    why += "; no lattice ring is left to add" if full else ""
     return Plan(tuple(rings), False, why, len(rings) * per_ring, **done)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.campaign import Campaign, orientation_keys, orientation_match
+from ph_explorer.campaign import Campaign, lattice_axes, orientation_keys, orientation_match
 from ph_explorer.effects import DEFAULT_CATALOG, Effect, effect_label
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import A_LIMIT_DEG, DEFAULT_GEOMETRY, Geometry, stylus_direction
@@ -86,6 +86,28 @@ def candidate_orientations(
     grid = np.array([(a, b) for a in a_values for b in (b_values if a > 0 else [0.0])])
     reachable = touch_kinematics(grid, geometry).reachable[:, 0, :].all(axis=1)
     return grid[reachable]
+
+
+def cell_centres(campaign: Campaign, count: int) -> NDArray[np.float64]:
+    """`count` reachable check rings at the centres of the cells of a campaign's lattice (half-way
+    between its A rows and between its B columns, where its rings interpolate from farthest), in
+    distinct A intervals while there are any, each the centre farthest (in stylus direction) from
+    every ring measured or chosen. On a row, an error of one axis interpolates along the row."""
+    a_axis, b_axis = lattice_axes(campaign.orientations[~campaign.holdout_mask()])
+    a_mid, b_mid = (a_axis[:-1] + a_axis[1:]) / 2, (b_axis[:-1] + b_axis[1:]) / 2
+    cells = np.stack(np.meshgrid(a_mid, b_mid, indexing="ij"), axis=-1).reshape(-1, 2)
+    cells = cells[touch_kinematics(cells, campaign.geometry).reachable[:, 0, :].all(axis=1)] if len(cells) else cells
+    directions = stylus_direction(cells[:, 0], cells[:, 1])
+    known = campaign.orientations
+    nearest = _angle_deg(directions, stylus_direction(known[:, 0], known[:, 1])).min(axis=1, initial=180.0)
+    chosen: list[int] = []
+    while len(chosen) < min(count, len(cells)):
+        free = ~np.isin(np.arange(len(cells)), chosen)
+        spread = free & ~np.isin(cells[:, 0], cells[chosen, 0])
+        pick = int(np.argmax(np.where(spread if spread.any() else free, nearest, -1.0)))
+        chosen.append(pick)
+        nearest = np.minimum(nearest, _angle_deg(directions, directions[pick : pick + 1])[:, 0])
+    return cells[chosen]
 
 
 def distinct_rings(pool: NDArray[np.float64], known: NDArray[np.float64]) -> NDArray[np.float64]:
