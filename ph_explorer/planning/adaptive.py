@@ -29,7 +29,15 @@ from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
-from ph_explorer.planning.ring_design import A_STEP_DEG, B_STEP_DEG, candidate_orientations, cell_centres, distinct_rings, propose_rings
+from ph_explorer.planning.ring_design import (
+    A_STEP_DEG,
+    B_STEP_DEG,
+    candidate_orientations,
+    cell_centres,
+    distinct_rings,
+    farthest_first,
+    propose_rings,
+)
 
 START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
 START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
@@ -162,13 +170,7 @@ def check_rings(known: NDArray[np.float64], count: int, geometry: Geometry) -> N
     pool = candidate_orientations(geometry, CHECK_A_STEP_DEG, CHECK_B_STEP_DEG)
     on_lattice = np.isclose(np.mod(pool[:, 0], A_STEP_DEG), 0.0) & np.isclose(np.mod(pool[:, 1], B_STEP_DEG), 0.0)
     pool = pool[~on_lattice & (pool[:, 0] > 0)]
-    nearest = _angles_deg(pool, known).min(axis=1) if len(known) else np.full(len(pool), 180.0)
-    chosen: list[int] = []
-    for _ in range(min(count, len(pool))):
-        pick = int(np.argmax(nearest))
-        chosen.append(pick)
-        nearest = np.minimum(nearest, _angles_deg(pool, pool[pick : pick + 1])[:, 0])
-    return pool[chosen]
+    return pool[farthest_first(pool, known, count)]
 
 
 def first_rings(
@@ -367,9 +369,10 @@ def next_rings(
     data, distance = data_rings(campaign, NEXT_DATA_RINGS, planned)
     # A full lattice whose model still fails: fresh check rings at its cells' centres, once.
     full = not len(data) and not rings
-    known = np.concatenate([campaign.orientations, planned, data])
-    fresh = check_rings(known, NEXT_CHECK_RINGS, campaign.geometry) if not full else ()
-    fresh = cell_centres(campaign, START_CHECK_RINGS) if full and FRESH not in asked else fresh
+    if not full:
+        fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), NEXT_CHECK_RINGS, campaign.geometry)
+    else:
+        fresh = cell_centres(campaign, START_CHECK_RINGS) if FRESH not in asked else np.zeros((0, 2))
     if full and not len(fresh):
         after = "; fresh check rings measured after the lattice was full did not settle it" if FRESH in asked else ""
         reason = (

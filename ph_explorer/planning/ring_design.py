@@ -97,17 +97,24 @@ def cell_centres(campaign: Campaign, count: int) -> NDArray[np.float64]:
     a_mid, b_mid = (a_axis[:-1] + a_axis[1:]) / 2, (b_axis[:-1] + b_axis[1:]) / 2
     cells = np.stack(np.meshgrid(a_mid, b_mid, indexing="ij"), axis=-1).reshape(-1, 2)
     cells = cells[touch_kinematics(cells, campaign.geometry).reachable[:, 0, :].all(axis=1)] if len(cells) else cells
-    directions = stylus_direction(cells[:, 0], cells[:, 1])
-    known = campaign.orientations
+    return cells[farthest_first(cells, campaign.orientations, count, groups=cells[:, 0])]
+
+
+def farthest_first(
+    pool: NDArray[np.float64], known: NDArray[np.float64], count: int, groups: NDArray[np.float64] | None = None
+) -> list[int]:
+    """Indices of `count` pool orientations, each the farthest (in stylus direction) from every known
+    ring and every one chosen before it; groups: one of each group while any is left unchosen."""
+    directions = stylus_direction(pool[:, 0], pool[:, 1])
     nearest = _angle_deg(directions, stylus_direction(known[:, 0], known[:, 1])).min(axis=1, initial=180.0)
     chosen: list[int] = []
-    while len(chosen) < min(count, len(cells)):
-        free = ~np.isin(np.arange(len(cells)), chosen)
-        spread = free & ~np.isin(cells[:, 0], cells[chosen, 0])
+    while len(chosen) < min(count, len(pool)):
+        free = ~np.isin(np.arange(len(pool)), chosen)
+        spread = free if groups is None else free & ~np.isin(groups, groups[chosen])
         pick = int(np.argmax(np.where(spread if spread.any() else free, nearest, -1.0)))
         chosen.append(pick)
         nearest = np.minimum(nearest, _angle_deg(directions, directions[pick : pick + 1])[:, 0])
-    return cells[chosen]
+    return chosen
 
 
 def distinct_rings(pool: NDArray[np.float64], known: NDArray[np.float64]) -> NDArray[np.float64]:
