@@ -26,14 +26,23 @@ if not Path(CHROMIUM).exists() and not os.environ.get("CI"):
 SCENARIO = "head_4"
 
 
-def scrolled(locator) -> bool:
+def scrolled(locator, *, to_top: bool = False) -> bool:
     from playwright.sync_api import Error
 
     try:
-        locator.scroll_into_view_if_needed(timeout=2000)
+        if to_top:
+            locator.evaluate("element => element.scrollIntoView({block: 'start'})", timeout=2000)
+        else:
+            locator.scroll_into_view_if_needed(timeout=2000)
     except Error:  # detached while the panel redrew it: the next try finds the new one
         return False
     return True
+
+
+def within_viewport(locator) -> bool:
+    box = locator.bounding_box()
+    height = (locator.page.viewport_size or {"height": 900})["height"]
+    return box is not None and box["y"] >= 0 and box["y"] + box["height"] <= height
 
 
 def measure_until_known(page, session, shots: Path) -> None:
@@ -52,9 +61,11 @@ def measure_until_known(page, session, shots: Path) -> None:
     status = session.physics.adaptive_status.content
     assert "10 rings, " in status and "minutes at the machine" in status and "Verdict" in session.physics.verdict.content, status
     # The folder's top at the panel's top: its buttons, the rings and minutes so far and the plan in view.
-    start.evaluate("button => button.scrollIntoView({block: 'start'})")
     # (the status line, not a test's "better on 6 of 10 rings, p = ..." in the verdict above it)
-    in_view(page.get_by_text(re.compile(r"10 rings, \d+ minutes at the machine")).first, "the rings and minutes so far")
+    so_far = page.get_by_text(re.compile(r"10 rings, \d+ minutes at the machine")).first
+    # The diagnosis's lines above the folder may still be arriving (a loaded machine): scroll until they stand.
+    assert wait_for(lambda: scrolled(start, to_top=True) and within_viewport(so_far), timeout=60)
+    in_view(so_far, "the rings and minutes so far")
     step_shot(page, shots, "planning_1_started")
 
     # 2. Measure next, twice: the campaign grows, and the check-ring error is drawn against the rings.
