@@ -626,7 +626,8 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     holds every verdict, effect and figure the diagnosis gave before the record (the figures of
     04d23b5, tests/data/diagnoses_before_the_record.json; evidence and texts left out there; one
     partner added since: head_6's B-axis radial motion 5/rev shares 93 % with the tilt motion at
-    its own setting, which diagnosis.partners now tries)."""
+    its own setting, which diagnosis.partners now tries; head_4's radial motion, once told apart at
+    24/rev, is now put to the rings at 23-25/rev too and is not told apart at 23: test_partners)."""
     result = diagnoses[(name, True)]
     record = result.to_json()
     jsonschema.Draft202012Validator(diagnosis_schema()).validate(json.loads(json.dumps(record)))

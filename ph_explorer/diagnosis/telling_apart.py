@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from dataclasses import replace
 
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
+from ph_explorer.diagnosis.partners import partner_settings
 from ph_explorer.diagnosis.replication import replication, ring_gains
 from ph_explorer.diagnosis.rival_shapes import untold_shape
 from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
@@ -61,10 +62,14 @@ def tell_apart(
             if p.separated_by is None:  # beyond the closest partners (no separation asked) the rings are not asked either
                 partners.append(p)
                 continue
-            # The partner at the settings that stand in for the claim best (partners.partner_settings).
-            other = by_id[p.effect].with_settings(**(p.settings[0] if p.settings else settings.get(p.effect, {})))
-            test = rings_prefer(search, effect, other, start, seed)
-            partners.append(replace(p, test=test, params={} if test.told_apart else fitted_beside(search, other, start)))
+            # The partner at each setting that stands in for the claim (partners.partner_settings),
+            # put to the rings where they favour it most: told apart only from every one of them.
+            standing_in = by_id[p.effect].with_settings(**(p.settings[0] if p.settings else settings.get(p.effect, {})))
+            tests = [(rings_prefer(search, effect, o, start, seed), o) for o in partner_settings(effect, standing_in)]
+            test, other = max(tests, key=lambda t: t[0].p_value)
+            first = (other.settings(), *(s for s in p.settings if s != other.settings()))
+            params = {} if test.told_apart else fitted_beside(search, other, start)
+            partners.append(replace(p, settings=first, test=test, params=params))
         candidate = replace(candidate, confounded_with=tuple(partners))
         if candidate.effect in claimed:
             candidate = replace(candidate, untold_shape=untold_shape(search, effect, start, seed))
