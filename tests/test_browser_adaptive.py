@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 from fake_browser import wait_for
-from test_browser_loop import CHROMIUM, colour_census, in_view, scenario_loaded, step_shot, walk_in_chromium
+from test_browser_loop import CHROMIUM, colour_census, in_view, scenario_loaded, step_shot, walk_in_chromium, within_height
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -41,8 +41,7 @@ def scrolled(locator, *, to_top: bool = False) -> bool:
 
 def within_viewport(locator) -> bool:
     box = locator.bounding_box()
-    height = (locator.page.viewport_size or {"height": 900})["height"]
-    return box is not None and box["y"] >= 0 and box["y"] + box["height"] <= height
+    return box is not None and within_height(box, locator.page)
 
 
 def measure_until_known(page, session, shots: Path) -> None:

@@ -94,6 +94,12 @@ def steady_box(locator, what: str, timeout: float = 10.0) -> dict:
     return box
 
 
+def within_height(box: dict, page) -> bool:
+    """The box lies between the viewport's top and bottom (1440x900, or the page's)."""
+    height = (page.viewport_size or {"height": HEIGHT})["height"]
+    return box["y"] >= 0 and box["y"] + box["height"] <= height
+
+
 def in_view(locator, what: str) -> dict:
     """The element is shown and wholly inside the viewport (1440x900, or the page's), once it stands still."""
     locator.wait_for(state="visible", timeout=30_000)
@@ -101,7 +107,7 @@ def in_view(locator, what: str) -> dict:
     size = locator.page.viewport_size or {"width": WIDTH, "height": HEIGHT}
     print(f"{what}: x {box['x']:.0f}-{box['x'] + box['width']:.0f}, y {box['y']:.0f}-{box['y'] + box['height']:.0f}")
     if not os.environ.get("PH_EXPLORER_LOOP_MEASURE"):
-        assert box["y"] >= 0 and box["y"] + box["height"] <= size["height"], (what, box)
+        assert within_height(box, locator.page), (what, box)
         assert box["x"] >= 0 and box["x"] + box["width"] <= size["width"], (what, box)
     return box
 

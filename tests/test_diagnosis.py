@@ -627,7 +627,7 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     04d23b5, tests/data/diagnoses_before_the_record.json; evidence and texts left out there; one
     partner added since: head_6's B-axis radial motion 5/rev shares 93 % with the tilt motion at
     its own setting, which diagnosis.partners now tries; head_4's radial motion, once told apart at
-    24/rev, is now put to the rings at 23-25/rev too and is not told apart at 23: test_partners)."""
+    24/rev, is now put to the rings at 23-25/rev too and is not told apart at 23: the test below)."""
     result = diagnoses[(name, True)]
     record = result.to_json()
     jsonschema.Draft202012Validator(diagnosis_schema()).validate(json.loads(json.dumps(record)))
@@ -637,6 +637,27 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     assert again.verdict == result.verdict and [c.effect for c in again.found] == [c.effect for c in result.found]
     before = json.loads((Path(__file__).parent / "data" / "diagnoses_before_the_record.json").read_text())[name]
     assert differences(before, json.loads(json.dumps(record))) == []
+
+
+def test_a_partner_is_told_apart_only_at_every_setting_that_stands_in(diagnoses) -> None:
+    """head_4 hides an A-axis angular error at 24/rev. Over a ring's +-6.5 deg A sweep, an A-axis
+    radial motion at 23, 24 or 25/rev reads almost the same (99.6 % shared). The rings reject it at
+    24/rev but not at 23: told apart means rejected at each setting (an intersection-union test), so
+    the pair is named, the partner at the setting the rings favour most."""
+    campaign, result = simulate(load_scenario("head_4")), diagnoses[("head_4", True)]
+    (claim,) = result.found
+    (partner,) = claim.untold
+    assert (claim.effect, partner.effect) == ("a_axis_cyclic", "a_axis_radial_motion")
+    search = CandidateSearch(campaign, ~campaign.holdout_mask())
+    effect = DEFAULT_CATALOG[claim.effect]().with_settings(**claim.settings)
+    tests = {
+        s["cycles_per_rev"]: rings_prefer(search, effect, DEFAULT_CATALOG[partner.effect]().with_settings(**s), [])
+        for s in partner.settings
+    }
+    assert set(tests) == {23, 24, 25} and tests[24].told_apart and not all(t.told_apart for t in tests.values())
+    standing_in = max(tests, key=lambda k: tests[k].p_value)
+    assert partner.settings[0]["cycles_per_rev"] == standing_in and partner.test == tests[standing_in]
+    assert "or a_axis_radial_motion 23-25 cycles/rev (these rings cannot tell)" in verdict_headline(result.headline, DEFAULT_CATALOG)
 
 
 def differences(before, now, path: str = "$", tolerance: float = 0.0) -> list[str]:
