@@ -27,13 +27,16 @@ def test_the_first_rings_of_a_head_with_no_data_fit_the_budget_and_hold_check_ri
     plan = adaptive.first_rings(budget_minutes=300.0)
     fitted = np.array([[r.a_deg, r.b_deg] for r in plan.rings if not r.check])
     checks = np.array([[r.a_deg, r.b_deg] for r in plan.rings if r.check])
-    assert len(fitted) == adaptive.START_RINGS and len(checks) == adaptive.START_CHECK_RINGS and not plan.stop
+    assert len(fitted) == adaptive.START_RINGS + adaptive.A0_RINGS and len(checks) == adaptive.START_CHECK_RINGS and not plan.stop
     # the TP20's 0.175 um and the default tolerance (a 10-repetition ring mean's noise): 10 repetitions
     assert plan.repetitions == 10 and plan.minutes <= 300.0
-    assert plan.minutes == pytest.approx(10 * 10 * (64 * 2.0 + 8.0) / 60.0)
-    # the fitted rings are lattice nodes the trilinear keeps, the check rings lie off it
+    assert plan.minutes == pytest.approx(12 * 10 * (64 * 2.0 + 8.0) / 60.0)
+    # the fitted rings are lattice nodes the trilinear keeps, two of them at A0 = 0 (its row, each
+    # predicted by the other), the check rings lie off it
     nodes = candidate_orientations()
-    assert orientation_match(fitted, nodes).any(axis=1).all() and not orientation_match(checks, nodes).any()
+    at_zero = fitted[:, 0] == 0
+    assert at_zero.sum() == 2 and orientation_match(fitted[~at_zero], nodes).any(axis=1).all()
+    assert not orientation_match(checks, nodes).any()
     a_axis, b_axis = lattice_axes(fitted)
     assert set(fitted[:, 0]) <= set(a_axis) and set(np.mod(fitted[:, 1] + 180, 360) - 180) <= set(np.mod(b_axis + 180, 360) - 180)
     report = plan.to_json()
@@ -67,6 +70,7 @@ def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> No
         if not len(rings):
             break
         grown = np.concatenate([train, rings])
+        grown = grown[grown[:, 0] > 0]  # the A0 = 0 rings are their row whatever it holds (TrilinearModel)
         a_axis, b_axis = lattice_axes(grown)
         assert np.isin(grown[:, 0], a_axis).all() and np.isin(np.round(grown[:, 1]), np.round(b_axis)).all()
         measured = replace(last.at_rings(rings), repetitions=plan.repetitions, check_orientations=np.zeros((0, 2)))
@@ -119,7 +123,7 @@ def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tm
     code, out, err = cli("design", "--start", "--json", "--out", str(plan_csv))
     assert code == 0, err
     plan = json.loads(out)
-    assert not plan["stop"] and len(plan["rings"]) == 10 and plan["minutes"] > 0
+    assert not plan["stop"] and len(plan["rings"]) == 12 and plan["minutes"] > 0
     plan_json.write_text(out)
     rings, check = read_planned_rings(plan_csv)
     assert check is not None and check.sum() == 4 and np.allclose(rings, [[r["A_deg"], r["B_deg"]] for r in plan["rings"]])
