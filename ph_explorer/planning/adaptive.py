@@ -186,9 +186,8 @@ def first_rings(
     do not fit the budget."""
     repetitions = repetitions_for(sigma_um, tolerance_um)
     design = propose_rings(START_RINGS, geometry=geometry, catalog=catalog.values()).orientations
-    # Two A0 = 0 rings too: the data part's A0 row (models.trilinear.a0_row_rings), where the head
-    # turns near its singular orientation and no row above predicts it; every A0 = 0 ring is the same
-    # ring, so each predicts the other out of sample (a lone one could not be cross-validated).
+    # Two A0 = 0 rings: the data part's A0 row near the head's singular orientation, each predicting
+    # the other out of sample (models.trilinear.a0_row_rings; a lone one cannot be cross-validated).
     low = A0_RINGS * (not (design[:, 0] == 0.0).any())
     a0_rings = np.column_stack([np.zeros(low), design[:low, 1]])  # at B0 of the design: on its columns
     design = np.concatenate([design, a0_rings])
