@@ -171,16 +171,26 @@ def orientation_match(orientations: ArrayLike, targets: ArrayLike, atol: float =
     return (da <= atol) & (db <= atol)
 
 
+def b_free_rings(orientations: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The rings at A0 = 0, where B0 means nothing (unless every ring is one): the stylus lies along
+    the B axis and the B joint sweeps the full turn over the ring, so every A0 = 0 ring is the same
+    ring whatever B0 (docs/methods/trilinear.md#the-a0-0-row)."""
+    at_zero = np.abs(orientations[:, 0]) <= ORIENTATION_TOLERANCE_DEG
+    return at_zero & (~at_zero).any()
+
+
 def lattice_axes(orientations: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The A and B values of the regular lattice the orientations lie on.
 
     A value belongs to the lattice when it is shared by at least half as many orientations as the
-    most common value of that angle; a few off-grid rings then never pull in their own angles.
+    most common value of that angle; a few off-grid rings then never pull in their own angles. An
+    A0 = 0 ring's B0 counts for no B value (b_free_rings).
     """
     o = np.asarray(orientations, dtype=float).reshape(-1, 2)
     axes = []
+    b_free = b_free_rings(o)
     for column in (0, 1):
-        values, counts = np.unique(orientation_keys(o[:, column]), return_counts=True)
+        values, counts = np.unique(orientation_keys(o[~b_free, 1] if column else o[:, 0]), return_counts=True)
         if values.size == 0:
             axes.append(values)
             continue

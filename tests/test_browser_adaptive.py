@@ -48,7 +48,7 @@ def measure_until_known(page, session, shots: Path) -> None:
     scenario_loaded(page, session, SCENARIO)
     assert session.dataset.campaign.n_orientations > 100  # the scenario's full campaign, before
 
-    # 1. Start from six rings: the twin measures the first plan; the campaign of its 10 rings is diagnosed.
+    # 1. Start from six rings: the twin measures the first plan; the campaign of its 12 rings is diagnosed.
     page.get_by_role("tab", name="Physics").click()
     page.get_by_text("Measure until you know (the twin)").click()
     start = page.get_by_role("button", name="Start from six rings")
@@ -56,12 +56,12 @@ def measure_until_known(page, session, shots: Path) -> None:
     start.click()
     assert wait_for(lambda: len(session.loop.adaptive_points) == 1, timeout=900)
     session.wait(timeout=300)
-    assert session.dataset.campaign.n_orientations == 10 and session.loop.diagnosis is not None
+    assert session.dataset.campaign.n_orientations == 12 and session.loop.diagnosis is not None
     status = session.physics.adaptive_status.content
-    assert "10 rings, " in status and "minutes at the machine" in status and "Verdict" in session.physics.verdict.content, status
+    assert "12 rings, " in status and "minutes at the machine" in status and "Verdict" in session.physics.verdict.content, status
     # The folder's top at the panel's top: its buttons, the rings and minutes so far and the plan in view.
-    # (the status line, not a test's "better on 6 of 10 rings, p = ..." in the verdict above it)
-    so_far = page.get_by_text(re.compile(r"10 rings, \d+ minutes at the machine")).first
+    # (the status line, not a test's "better on 6 of 12 rings, p = ..." in the verdict above it)
+    so_far = page.get_by_text(re.compile(r"12 rings, \d+ minutes at the machine")).first
     # The diagnosis's lines above the folder may still be arriving (a loaded machine): scroll until they stand.
     assert wait_for(lambda: scrolled(start, to_top=True) and within_viewport(so_far), timeout=60)
     in_view(so_far, "the rings and minutes so far")

@@ -72,6 +72,26 @@ def test_trilinear_fills_a_whole_missing_a_row_along_a(campaign):
     np.testing.assert_allclose(model.predict([[45, 40]]), expected, atol=1e-12)
 
 
+def test_one_a0_ring_is_the_whole_a0_row_where_the_lattice_would_leave_it_out(campaign):
+    """Every A0 = 0 ring is the same ring whatever B0: one ring (at a B0 no other row holds) is the
+    A0 row at every B, and A0 7.5 lies half-way to the A 15 row instead of holding A 15's curves.
+    A full A0 row stays node by node, as the paper's lattice."""
+    rows = np.isin(campaign.orientations[:, 0], [15.0, 30.0]) & ~campaign.off_grid_mask()
+    train = rows | (np.arange(campaign.n_orientations) == campaign.index_of(0, -160))
+    sparse = TrilinearModel().fit(campaign, train)
+    assert sparse.a_axis.tolist() == [0, 15, 30] and sparse.measured[0].all()
+    a0 = campaign.mean_curves()[campaign.index_of(0, -160)]
+    for b in (-160.0, 33.0, 170.0):
+        np.testing.assert_allclose(sparse.interpolate([[0.0, b]])[0], a0, atol=1e-12)
+        half = (sparse.interpolate([[0.0, b]]) + sparse.interpolate([[15.0, b]])) / 2
+        np.testing.assert_allclose(sparse.interpolate([[7.5, b]]), half, atol=1e-12)
+    full = TrilinearModel().fit(campaign, train | (campaign.orientations[:, 0] == 0))
+    at0 = campaign.orientations[:, 0] == 0
+    np.testing.assert_allclose(full.interpolate(campaign.orientations[at0]), campaign.mean_curves()[at0], atol=1e-12)
+    without = TrilinearModel().fit(campaign, rows)  # no A0 ring: the lowest row held below it
+    np.testing.assert_allclose(without.interpolate([[5.0, 40.0]]), without.interpolate([[15.0, 40.0]]), atol=1e-12)
+
+
 def test_trilinear_interpolates_off_grid_close_to_the_truth(campaign):
     model = TrilinearModel().fit(campaign, ~campaign.off_grid_mask())
     truth = systematic_curves([[43, 91]])

@@ -12,8 +12,8 @@ ADAPTIVE_INTRO = """\
 
 `adaptive_campaign`: each head of the population (healthy heads, heads with a catalog effect, heads
 with a shape no catalog holds, the families in turn) measured twice on its twin: adaptively
-([planning](planning.md#measure-until-you-know-an-adaptive-campaign): six designed rings and four
-check rings, then each plan after a diagnosis with its [base model](planning.md#the-base-model),
+([planning](planning.md#measure-until-you-know-an-adaptive-campaign): six designed rings, two at A0 = 0 and
+four check rings, then each plan after a diagnosis with its [base model](planning.md#the-base-model),
 to its stop, with no budget) and in full (the
 population's paper-style campaign). Both are judged on {rings} evaluation rings of their own, off
 both campaigns' grids, measured at {repetitions} repetitions after the campaign: the MAE of the model

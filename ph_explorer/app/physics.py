@@ -212,8 +212,8 @@ class PhysicsLoop:
         if twin is None:
             p.adaptive_status.content = "_Only a teaching scenario's twin can measure: load one (Data tab)._"
             return
-        p.adaptive_status.content = "_the twin measures the first 10 rings…_"
         plan = adaptive.first_rings(geometry=twin.geometry, cadence=closed_loop.cadence_of(twin), catalog=self.catalog)
+        p.adaptive_status.content = f"_the twin measures the first {len(plan.rings)} rings…_"
         last, campaign = closed_loop.measured_plan(twin, plan)
         self._adaptive_step(twin, last, campaign, f"{twin.name}: an adaptive campaign, its first {campaign.n_orientations} rings")
 

@@ -181,7 +181,8 @@ class PhysicsPanel:
         # campaign of the same head from six rings, each plan's rings after a diagnosis, until it stops.
         with gui.add_folder("Measure until you know (the twin)", expand_by_default=False, visible=False) as self.adaptive_folder:
             self.adaptive_start = gui.add_button(
-                "Start from six rings", hint="the twin measures the first rings of this head (6 designed, 4 check rings), then diagnoses"
+                "Start from six rings",
+                hint="the twin measures the first rings of this head (6 designed, 2 at A0 = 0, 4 check rings), then diagnoses",
             )
             self.adaptive_next = gui.add_button(
                 "Measure next", visible=False, hint="the twin measures the next plan's rings; the merged campaign is diagnosed again"

@@ -17,7 +17,7 @@ from typing import Self
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, lattice_axes, orientation_keys
+from ph_explorer.campaign import ORIENTATION_TOLERANCE_DEG, Campaign, b_free_rings, lattice_axes, orientation_keys
 from ph_explorer.geometry import point_angles_deg, wrap_deg
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, pooled_repetition_variance, save_arrays, training_mask
@@ -101,21 +101,27 @@ class TrilinearModel(DeviationModel):
             raise ValueError("the trilinear model needs at least one training orientation")
         orientations = campaign.orientations[mask]
         a_axis, b_values = lattice_axes(orientations)
+        zero_row = a0_row_rings(orientations, a_axis)
+        a_axis = np.r_[0.0, a_axis] if zero_row.any() else a_axis
         b_axis = np.unique(orientation_keys(wrap_deg(b_values)))
         # Node index of each training orientation, or -1 off the lattice.
         ia = _node_index(orientations[:, 0], a_axis)
         ib = _node_index(wrap_deg(orientations[:, 1]), b_axis)
-        on = (ia >= 0) & (ib >= 0)
-        if not on.any():
+        on = (ia >= 0) & (ib >= 0) & ~zero_row
+        if not (on.any() or zero_row.any()):
             raise ValueError("no training orientation lies on the campaign's lattice")
         n_pt = campaign.n_points
-        deviations = campaign.deviations[mask][on]  # (n_on, n_rep, n_pt)
+        deviations = campaign.deviations[mask]  # (n_train, n_rep, n_pt)
         # Pool the repetitions of every orientation on each node (a node measured twice pools both).
         shape = (a_axis.size, b_axis.size)
         node = np.ravel_multi_index((ia[on], ib[on]), shape)
-        total = _node_sums(node, deviations.sum(axis=1), shape)
-        total_sq = _node_sums(node, (deviations**2).sum(axis=1), shape)
+        total = _node_sums(node, deviations[on].sum(axis=1), shape)
+        total_sq = _node_sums(node, (deviations[on] ** 2).sum(axis=1), shape)
         count = _node_sums(node, np.full(node.size, float(deviations.shape[1])), shape)
+        # The A0 = 0 rings pooled at every node of their row (a0_row_rings).
+        total[0] += deviations[zero_row].sum(axis=(0, 1))
+        total_sq[0] += (deviations[zero_row] ** 2).sum(axis=(0, 1))
+        count[0] += float(zero_row.sum() * deviations.shape[1])
         measured = count > 0
         c = np.where(measured, count, 1.0)[..., None]
         mean = total / c
@@ -235,14 +241,25 @@ class MeanCurveModel(TrilinearModel):
         return self
 
 
+def a0_row_rings(orientations: NDArray[np.float64], a_axis: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """The rings at A0 = 0 when the lattice's rule leaves their row out (fewer of them than its rows
+    hold): every A0 = 0 ring is the same ring whatever B0 (the stylus along the B axis, its B joint
+    sweeping the full turn), so they are pooled into the whole row, and the model interpolates from
+    it below the lowest row instead of holding that row's curves there (docs/methods/trilinear.md)."""
+    held = (np.abs(a_axis) <= ORIENTATION_TOLERANCE_DEG).any()
+    return b_free_rings(orientations) & ~held
+
+
 def _node_sums(node: NDArray[np.intp], values: NDArray[np.float64], shape: tuple[int, int]) -> NDArray[np.float64]:
     """Sums of values (n, ...) over rows with the same flat node index, on the lattice shape: each
     node's first row assigned, the few repeats then added in order (np.add.at's sums bit for bit;
     np.add.at alone scatters slowly, and most nodes are measured once)."""
+    out = np.zeros((shape[0] * shape[1],) + values.shape[1:])
+    if not node.size:  # every ring in the pooled A0 row (a0_row_rings)
+        return out.reshape(shape + values.shape[1:])
     order = np.argsort(node, kind="stable")
     nodes = node[order]
     first = np.r_[True, nodes[1:] != nodes[:-1]]
-    out = np.zeros((shape[0] * shape[1],) + values.shape[1:])
     out[nodes[first]] = values[order[first]]
     if not first.all():
         np.add.at(out, nodes[~first], values[order[~first]])
@@ -275,7 +292,10 @@ def leave_one_ring_out_weights(unit: Campaign, train: NDArray[np.bool_]) -> tupl
     a0, a1, wa = linear_weights(o[:, 0], full.a_axis)
     b0, b1, wb = periodic_weights(o[:, 1], full.b_axis)
     exact = (((wa == 0) & (a0 == ia)) | ((wa == 1) & (a1 == ia))) & (((wb == 0) & (b0 == ib)) | ((wb == 1) & (b1 == ib)))
-    fast = alone & exact & _axis_kept_without_each(o[:, 0]) & _axis_kept_without_each(o[:, 1])
+    b_kept, b_free = np.ones(len(o), dtype=bool), b_free_rings(o)
+    b_kept[~b_free] = _axis_kept_without_each(o[~b_free, 1])  # as lattice_axes: an A0 = 0 ring's B0 counts for none
+    fast = alone & exact & _axis_kept_without_each(o[:, 0]) & b_kept
+    fast &= ~a0_row_rings(o, lattice_axes(o)[0])  # its row pooled: without it, the row may be gone
     rows_with_data = full.measured.any(axis=1)
     for k in np.flatnonzero(fast):  # a few small arrays per ring: the fill at one node
         ra, rb = ia[k], ib[k]

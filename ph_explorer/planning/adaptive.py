@@ -40,6 +40,7 @@ from ph_explorer.planning.ring_design import (
 )
 
 START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
+A0_RINGS = 2  # the data part's A0 = 0 row: two, so that each is predicted out of sample by the other
 START_CHECK_RINGS = 4  # the check rings' group test needs 3 (the worst left out): one more
 NEXT_DATA_RINGS = 3  # lattice rings a step adds for the data part
 NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
@@ -185,6 +186,11 @@ def first_rings(
     do not fit the budget."""
     repetitions = repetitions_for(sigma_um, tolerance_um)
     design = propose_rings(START_RINGS, geometry=geometry, catalog=catalog.values()).orientations
+    # Two A0 = 0 rings: the data part's A0 row near the head's singular orientation, each predicting
+    # the other out of sample (models.trilinear.a0_row_rings; a lone one cannot be cross-validated).
+    low = A0_RINGS * (not (design[:, 0] == 0.0).any())
+    a0_rings = np.column_stack([np.zeros(low), design[:low, 1]])  # at B0 of the design: on its columns
+    design = np.concatenate([design, a0_rings])
     checks = check_rings(design, START_CHECK_RINGS, geometry)
     minutes = (len(design) + len(checks)) * cadence.ring_minutes(repetitions, geometry.points_per_circle)
     if budget_minutes is not None and minutes > budget_minutes:
@@ -194,8 +200,10 @@ def first_rings(
             option="--budget-minutes",
         )
     rings = [
-        PlannedRing(float(a), float(b), "designed: the catalog's effects identifiable, the data part covered", False) for a, b in design
+        PlannedRing(float(a), float(b), "designed: the catalog's effects identifiable, the data part covered", False)
+        for a, b in design[: len(design) - low]
     ]
+    rings += [PlannedRing(0.0, float(b), "the A0 = 0 row: every B0 is the same ring there", False) for a, b in a0_rings]
     rings += [PlannedRing(float(a), float(b), "check ring: tests the model where no ring is near", True) for a, b in checks]
     reason = "the first rings of a head nothing is known about"
     return Plan(tuple(rings), False, reason, minutes, repetitions, budget_minutes=budget_minutes)
@@ -218,9 +226,10 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
     no ring or pair keeps it (every B value held once: a second ring at one would drop the others),
     every B value takes one more ring at once."""
     train = campaign.orientations[~campaign.holdout_mask()]
+    train = train[train[:, 0] > 0]  # an A0 = 0 ring is its whole row whatever the lattice holds (models.trilinear.a0_row_rings)
     known = np.concatenate([campaign.orientations, taken])
     nodes = distinct_rings(candidate_orientations(campaign.geometry), known)
-    nodes = nodes[nodes[:, 0] > 0]
+    nodes = nodes[nodes[:, 0] > 0]  # A0 = 0 rings come in the first plan (first_rings), as a pair
     keys = [np.stack([orientation_keys(o[:, 0]), orientation_keys(np.mod(o[:, 1] + 180.0, 360.0))], axis=1) for o in (train, nodes)]
     counts, onehot = [], []
     for angle in (0, 1):  # each node as one-hot over the values of its angle, and the training rings' counts
