@@ -190,20 +190,18 @@ def first_rings(
     # the other out of sample (models.trilinear.a0_row_rings; a lone one cannot be cross-validated).
     low = A0_RINGS * (not (design[:, 0] == 0.0).any())
     a0_rings = np.column_stack([np.zeros(low), design[:low, 1]])  # at B0 of the design: on its columns
-    design = np.concatenate([design, a0_rings])
-    checks = check_rings(design, START_CHECK_RINGS, geometry)
-    minutes = (len(design) + len(checks)) * cadence.ring_minutes(repetitions, geometry.points_per_circle)
+    checks = check_rings(np.concatenate([design, a0_rings]), START_CHECK_RINGS, geometry)
+    minutes = (len(design) + low + len(checks)) * cadence.ring_minutes(repetitions, geometry.points_per_circle)
     if budget_minutes is not None and minutes > budget_minutes:
         raise InputError(
-            f"{budget_minutes:g} minutes is less than the first {len(design)} rings and {len(checks)} check rings take "
+            f"{budget_minutes:g} minutes is less than the first {len(design) + low} rings and {len(checks)} check rings take "
             f"at {repetitions} repetitions ({minutes:.0f} min)",
             option="--budget-minutes",
         )
     rings = [
-        PlannedRing(float(a), float(b), "designed: the catalog's effects identifiable, the data part covered", False)
-        for a, b in design[: len(design) - low]
+        PlannedRing(float(a), float(b), "designed: the catalog's effects identifiable, the data part covered", False) for a, b in design
     ]
-    rings += [PlannedRing(0.0, float(b), "the A0 = 0 row: every B0 is the same ring there", False) for a, b in a0_rings]
+    rings += [PlannedRing(0.0, float(b), "the A0 = 0 row: every B0 is the same ring there", False) for b in a0_rings[:, 1]]
     rings += [PlannedRing(float(a), float(b), "check ring: tests the model where no ring is near", True) for a, b in checks]
     reason = "the first rings of a head nothing is known about"
     return Plan(tuple(rings), False, reason, minutes, repetitions, budget_minutes=budget_minutes)
