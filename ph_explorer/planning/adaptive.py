@@ -373,11 +373,12 @@ def next_rings(
         if not orientation_match(np.array([[r["A_deg"], r["B_deg"]]]), suspect).any()
     ]
     planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
-    data, distance = data_rings(campaign, NEXT_DATA_RINGS, planned)
-    # A full lattice whose model still fails: fresh check rings at its cells' centres, once.
-    full = not len(data) and not rings
+    # A model that holds at unseen rings needs only the rings that decide (check rings) and those measured again.
+    deciding = bool(rings) and known_well and result.verdict in KNOWN_VERDICTS and not unconfirmed
+    data, distance = (planned[:0], np.zeros(0)) if deciding else data_rings(campaign, NEXT_DATA_RINGS, planned)
+    full = not len(data) and not rings  # a full lattice whose model fails: fresh check rings at its cells' centres, once
     if not full:
-        fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), NEXT_CHECK_RINGS, campaign.geometry)
+        fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), 0 if deciding else NEXT_CHECK_RINGS, campaign.geometry)
     else:
         fresh = cell_centres(campaign, START_CHECK_RINGS) if FRESH not in asked else np.zeros((0, 2))
     if full and not len(fresh):
@@ -410,6 +411,7 @@ def next_rings(
         why = f"the verdict is {result.verdict}"
     elif decision.rings or again:
         why = "questions left open" if decision.rings else "a ring measured badly"
+        why += "; the model holds at unseen rings: no lattice or fresh check ring" if deciding else ""
     elif unconfirmed:
         why = "a shape no catalog holds, claimed on these rings: fresh rings confirm it or not"
     else:
