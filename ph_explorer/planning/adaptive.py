@@ -1,12 +1,13 @@
 """Measure until you know: the first rings of a head nothing is known about (designed lattice rings
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
-badly again, once; rings that decide its questions; lattice rings where the data part is thinnest;
-fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
-a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring
-measured badly that was not measured again, and what the model misses at its check rings within
-the tolerance (95 % upper bound); else the budget, or no lattice ring left (a full lattice whose
-model fails: once fresh check rings at its cells' centres have not settled it). One tolerance sets the
-repetitions too. The closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
+badly again, once; rings that decide its questions; lattice rings where the data part is thinnest
+and fresh check rings, unless the model already holds at unseen rings), and a stated stop: the
+verdict `none`, `missing` or `uncatalogued` (a claim or a shape replicated; a shape claimed again
+after fresh rings), nothing a ring decides, no ring measured badly that was not measured again, and
+what the model misses at its check rings within the tolerance (95 % upper bound); else the budget,
+or no lattice ring left (a full lattice whose model fails: once fresh check rings at its cells'
+centres have not settled it). One tolerance sets the repetitions too. The closed loop on the twin:
+planning.closed_loop. Method: docs/planning.md.
 """
 
 from __future__ import annotations
@@ -321,10 +322,9 @@ def next_rings(
     asked: Collection[str] = (),
     tolerance_um: float | None = None,
 ) -> Plan:
-    """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the
-    questions earlier plans asked (the last plan's Plan.questions): their rings are measured, and a
-    question they did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
-    unseen rings (default_tolerance_um of the campaign's own noise)."""
+    """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the questions
+    earlier plans asked (the last plan's Plan.questions): their rings are measured, and a question they did not
+    decide is one no ring of this stylus decides. tolerance_um: what the model may miss at unseen rings."""
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
     tolerance = tolerance_um if tolerance_um is not None else default_tolerance_um(campaign.noise_sigma_um())
