@@ -191,8 +191,9 @@ def test_a_rings_file_with_a_bad_check_cell_names_its_row(tmp_path: Path) -> Non
 def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> None:
     """A population head hiding an A-axis radial motion at 31 cycles/rev: the first rings claim it
     but tell it neither from the A axis's angular error (its partner) nor from 30 cycles/rev; the
-    next plan measures the rings that decide both, and the stop comes with the effect at 31 and
-    nothing left open."""
+    model already holds at unseen rings, so the next plan measures only the rings that decide (no
+    lattice ring, no fresh check ring: with a tolerance no model meets, the same diagnosis's plan
+    adds them), and the stop comes with the effect at 31 and nothing left open."""
     from benchmarks.population import head_of
 
     scenario, truth = head_of({"group": "catalog_effect", "seed": 200_039})
@@ -202,6 +203,12 @@ def test_a_catalog_effect_is_found_and_its_rival_decided_before_the_stop() -> No
     asked = [q for p in run.plans[:-1] for q in p.questions]
     assert "a_axis_radial_motion vs a_axis_cyclic" in asked and any("a_axis_radial_motion 31 cycles/rev vs" in q for q in asked)
     assert [(c.effect, c.settings.get("cycles_per_rev")) for c in run.results[-1].found] == [("a_axis_radial_motion", 31)]
+    deciding = run.plans[1]
+    assert deciding.unseen_um[1] <= deciding.unseen_um[2] and deciding.reason.endswith("no lattice or fresh check ring")
+    assert deciding.rings and all(r.check and r.reason.startswith("tells ") for r in deciding.rings)
+    tight = adaptive.next_rings(run.campaigns[0], run.results[0], tolerance_um=1e-4, asked=run.plans[0].questions)
+    assert {r.reason for r in deciding.rings} < {r.reason for r in tight.rings}
+    assert any(not r.check for r in tight.rings) and any(r.reason.startswith("a fresh check ring") for r in tight.rings)
 
 
 def test_a_shape_no_catalog_holds_is_claimed_confirmed_on_fresh_rings_and_stops_the_campaign() -> None:

@@ -1,12 +1,13 @@
 """Measure until you know: the first rings of a head nothing is known about (designed lattice rings
 and check rings off the lattice), the next rings from what its diagnosis leaves open (rings measured
-badly again, once; rings that decide its questions; lattice rings where the data part is thinnest;
-fresh check rings), and a stated stop: the verdict `none`, `missing` or `uncatalogued` (a claim or
-a shape replicated; a shape claimed again after fresh rings), nothing a ring decides, no ring
-measured badly that was not measured again, and what the model misses at its check rings within
-the tolerance (95 % upper bound); else the budget, or no lattice ring left (a full lattice whose
-model fails: once fresh check rings at its cells' centres have not settled it). One tolerance sets the
-repetitions too. The closed loop on the twin: planning.closed_loop. Method: docs/planning.md.
+badly again, once; rings that decide its questions; lattice rings where the data part is thinnest
+and fresh check rings, unless the model already holds at unseen rings), and a stated stop: the
+verdict `none`, `missing` or `uncatalogued` (a claim or a shape replicated; a shape claimed again
+after fresh rings), nothing a ring decides, no ring measured badly that was not measured again, and
+what the model misses at its check rings within the tolerance (95 % upper bound); else the budget,
+or no lattice ring left (a full lattice whose model fails: once fresh check rings at its cells'
+centres have not settled it). One tolerance sets the repetitions too. The closed loop on the twin:
+planning.closed_loop. Method: docs/planning.md.
 """
 
 from __future__ import annotations
@@ -321,10 +322,9 @@ def next_rings(
     asked: Collection[str] = (),
     tolerance_um: float | None = None,
 ) -> Plan:
-    """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the
-    questions earlier plans asked (the last plan's Plan.questions): their rings are measured, and a
-    question they did not decide is one no ring of this stylus decides. tolerance_um: what the model may miss at
-    unseen rings (default_tolerance_um of the campaign's own noise)."""
+    """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the questions
+    earlier plans asked (the last plan's Plan.questions): their rings are measured, and a question they did not
+    decide is one no ring of this stylus decides. tolerance_um: what the model may miss at unseen rings."""
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
     tolerance = tolerance_um if tolerance_um is not None else default_tolerance_um(campaign.noise_sigma_um())
@@ -373,11 +373,12 @@ def next_rings(
         if not orientation_match(np.array([[r["A_deg"], r["B_deg"]]]), suspect).any()
     ]
     planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
-    data, distance = data_rings(campaign, NEXT_DATA_RINGS, planned)
-    # A full lattice whose model still fails: fresh check rings at its cells' centres, once.
-    full = not len(data) and not rings
+    # A model that holds at unseen rings needs only the rings that decide (check rings) and those measured again.
+    deciding = bool(rings) and known_well and result.verdict in KNOWN_VERDICTS and not unconfirmed
+    data, distance = (planned[:0], np.zeros(0)) if deciding else data_rings(campaign, NEXT_DATA_RINGS, planned)
+    full = not len(data) and not rings  # a full lattice whose model fails: fresh check rings at its cells' centres, once
     if not full:
-        fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), NEXT_CHECK_RINGS, campaign.geometry)
+        fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), 0 if deciding else NEXT_CHECK_RINGS, campaign.geometry)
     else:
         fresh = cell_centres(campaign, START_CHECK_RINGS) if FRESH not in asked else np.zeros((0, 2))
     if full and not len(fresh):
@@ -410,6 +411,7 @@ def next_rings(
         why = f"the verdict is {result.verdict}"
     elif decision.rings or again:
         why = "questions left open" if decision.rings else "a ring measured badly"
+        why += "; the model holds at unseen rings: no lattice or fresh check ring" if deciding else ""
     elif unconfirmed:
         why = "a shape no catalog holds, claimed on these rings: fresh rings confirm it or not"
     else:
