@@ -186,6 +186,18 @@ def test_rings_left_out_by_the_hat_matrix_equal_the_ring_by_ring_refit() -> None
     assert deletion.best_ridge() == pytest.approx(least_squares.choose_ridge(design, targets))
 
 
+def test_a_group_the_rings_cannot_see_fits_nothing_and_gains_nothing() -> None:
+    # A function of the A joint on a lattice with no ring off its A rows: the interpolator carries
+    # it exactly, its residualised columns are zero, and no direction of them is kept. The fit is
+    # then zero and every ring's left-out sum of squares is its own (it raised before).
+    rng = np.random.default_rng(2)
+    y = rng.normal(size=(12, 3, 16, 1))
+    deletion = RingDeletion(Design(np.zeros((12, 3, 16, 5)), None), Design(y, None))
+    coefficients, without, squares = deletion.at(deletion.best_ridge())
+    assert not coefficients.any() and not without.any()
+    assert np.allclose(squares[:, 0], (y[..., 0] ** 2).sum(axis=(1, 2)))
+
+
 def test_the_best_of_many_groups_pays_for_being_chosen() -> None:
     # Twenty groups of pure noise gains: the best one's own sign-flip p-value would often pass
     # 0.05; the family-wise p-value (max over groups under the same flips) does so about 5 % of

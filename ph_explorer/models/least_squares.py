@@ -325,7 +325,7 @@ class RingDeletion:
         self.z = design.mean @ self.vectors  # (n_o, n_pt, k): each ring's columns in eigen coordinates
         self.y = targets.mean  # (n_o, n_pt, t)
         n_o, n_pt, k = self.z.shape
-        self.u = self.n_rep * self.z.reshape(-1, k).T @ self.y.reshape(n_o * n_pt, -1)  # V' X'y
+        self.u = self.n_rep * self.z.reshape(n_o * n_pt, k).T @ self.y.reshape(n_o * n_pt, -1)  # V' X'y (k = 0: nothing the rings can see)
         within = 0.0 if targets.within is None else (targets.within**2).sum(axis=(1, 2))
         self.within_squares = np.broadcast_to(within, (self.z.shape[0], self.y.shape[-1]))  # (n_o, t)
 
