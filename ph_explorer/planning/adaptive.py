@@ -223,7 +223,7 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
     B value shared by at least half as many rings as the most common one, and by two when one is):
     up to `count` rings are taken one at a time where that holds, or two at once (a new A row); when
     no ring or pair keeps it (every B value held once: a second ring at one would drop the others),
-    every B value takes one more ring at once."""
+    every B value takes one more ring at once (a count of 0 takes none)."""
     train = campaign.orientations[~campaign.holdout_mask()]
     train = train[train[:, 0] > 0]  # an A0 = 0 ring is its whole row whatever the lattice holds (models.trilinear.a0_row_rings)
     known = np.concatenate([campaign.orientations, taken])
@@ -262,7 +262,7 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
             i, j = np.unravel_index(int(np.argmax(pair_score)), pair_score.shape)
             take(int(i))
             take(int(j))
-    if not chosen and free.any():
+    if not chosen and count > 0 and free.any():
         # Every B value one ring more, each where the data part is farthest, in the A rows held and
         # spread over them evenly (so that every row keeps its share), farthest B values first.
         held_b, rows = np.flatnonzero(counts[1] > 0), counts[0] > 0
@@ -375,7 +375,7 @@ def next_rings(
     planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
     # A model that holds at unseen rings needs only the rings that decide (check rings) and those measured again.
     deciding = bool(rings) and known_well and result.verdict in KNOWN_VERDICTS and not unconfirmed
-    data, distance = (planned[:0], np.zeros(0)) if deciding else data_rings(campaign, NEXT_DATA_RINGS, planned)
+    data, distance = data_rings(campaign, 0 if deciding else NEXT_DATA_RINGS, planned)
     full = not len(data) and not rings  # a full lattice whose model fails: fresh check rings at its cells' centres, once
     if not full:
         fresh = check_rings(np.concatenate([campaign.orientations, planned, data]), 0 if deciding else NEXT_CHECK_RINGS, campaign.geometry)
