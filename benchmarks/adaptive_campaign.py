@@ -85,8 +85,12 @@ def evaluation_rings(seed: int, known: np.ndarray) -> np.ndarray:
 
 
 def model_of(result: Any, campaign: Any) -> Any:
-    """A diagnosis's model: its hybrid (the effects it claimed), else its data part alone."""
-    return result.hybrid or HybridModel([]).fit(campaign, ~campaign.holdout_mask())
+    """A diagnosis's model: its hybrid (the effects it claimed), else its data part alone, fitted on
+    the campaign as the diagnosis judged it."""
+    if result.hybrid is not None:
+        return result.hybrid
+    judged = result.judged(campaign)
+    return HybridModel([]).fit(judged, ~judged.holdout_mask())
 
 
 def mae_vs_mean(model: Any, rings: np.ndarray, mean: np.ndarray) -> float:

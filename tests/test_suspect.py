@@ -133,7 +133,10 @@ def test_an_effect_of_the_head_is_not_a_suspect_ring(healthy):
 
 def test_touch_outliers_beyond_what_touch_noise_gives_are_named_beside_the_verdict(healthy):
     """Debris: 1.5 % of the touches read 2 um off (about 10 robust sigmas of this head's noise): named
-    with their share and the rings that hold most; the head measured well names none."""
+    with their share and the rings that hold most, and read at their point's repetition median, so
+    that the noise floor every test reads is the head's (taken as they are, 1.5 times it; at the
+    median 4 % below it, as this Student-t head's own tail is trimmed too); the head measured well
+    names none."""
     from ph_explorer.diagnosis.touch_outliers import touch_outliers
 
     assert not touch_outliers(healthy).named
@@ -144,5 +147,9 @@ def test_touch_outliers_beyond_what_touch_noise_gives_are_named_beside_the_verdi
     assert outliers.named and outliers.count >= 0.9 * hit.sum() and outliers.largest_um > 1.8
     result = diagnose(dirty, nested=False)
     (verdict,) = [s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict"]
-    assert any(line.startswith("Touch outliers: ") and "Clean the stylus" in line for line in verdict.lines)
+    assert any(line.startswith("Touch outliers: ") and "Clean the stylus" in line and "repetition median" in line for line in verdict.lines)
     assert json.loads(json.dumps(result.to_json()))["touch_outliers"]["named"] is True
+    clean = healthy.noise_sigma_um()
+    assert dirty.noise_sigma_um() > 1.4 * clean
+    assert result.judged(dirty).noise_sigma_um() == pytest.approx(clean, rel=0.06)
+    assert result.noise_floor_um["single"] == pytest.approx(diagnose(healthy, nested=False).noise_floor_um["single"], rel=0.06)

@@ -30,7 +30,7 @@ from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.diagnosis.telling_apart import tell_apart
-from ph_explorer.diagnosis.touch_outliers import touch_outliers
+from ph_explorer.diagnosis.touch_outliers import at_repetition_median, touch_outliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
@@ -147,9 +147,10 @@ def diagnose(
     lies beyond them. on_verdict: called with the verdict as soon as it stands (a front end says
     it first). Method: docs/diagnosis.md.
     """
-    # Touches read far off are named (the fit takes them as they are); rings measured badly are
-    # named and left out of the fit and of the claims.
+    # Touches read far off are named and read at their point's repetition median; rings measured
+    # badly are named and left out of the fit and of the claims (result.judged).
     outliers = touch_outliers(campaign)
+    campaign = at_repetition_median(campaign, outliers)
     suspects = suspect_rings(campaign, seed)
     campaign = without_suspects(campaign, suspects)
     held_out = campaign.holdout_mask()
@@ -296,5 +297,5 @@ def honest_after(
     if not result.found:
         return None
     start = result.chain[: result.started_from]  # the effects the search started from
-    campaign = without_suspects(campaign, result.suspect_rings)
+    campaign = result.judged(campaign)
     return nested_after(campaign, [cls() for cls in catalog.candidates().values()], start, max_steps, seed)

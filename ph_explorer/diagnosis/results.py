@@ -15,13 +15,14 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import (
     Candidate,
     rounded,
 )
 from ph_explorer.diagnosis.replication import Replication
 from ph_explorer.diagnosis.shapes import Shape
-from ph_explorer.diagnosis.suspect import SuspectRing
+from ph_explorer.diagnosis.suspect import SuspectRing, judged_campaign
 from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
@@ -236,6 +237,10 @@ class Diagnosis:
     hybrid: HybridModel | None = field(default=None, compare=False, repr=False)
 
     schema_version = SCHEMA_VERSION
+
+    def judged(self, campaign: Campaign) -> Campaign:
+        """The campaign as this diagnosis judged it (suspect.judged_campaign): what its model was fitted on."""
+        return judged_campaign(campaign, self.suspect_rings, self.touch_outliers)
 
     def with_nested(self, nested: NestedAfter | None) -> Diagnosis:
         """The same diagnosis with its honest "after" measured (diagnosis.loop.honest_after)."""

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign, orientation_match
+from ph_explorer.diagnosis.touch_outliers import TouchOutliers, at_repetition_median
 from ph_explorer.diagnosis.within_noise import kept_null, low_harmonic_share, ring_sigma, within_p_value
 from ph_explorer.kinematics import campaign_touches, near_pole
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -176,3 +177,9 @@ def without_suspects(campaign: Campaign, suspects: Sequence[SuspectRing]) -> Cam
     if not left_out:
         return campaign
     return campaign.subset(~orientation_match(campaign.orientations, left_out).any(axis=1))
+
+
+def judged_campaign(campaign: Campaign, suspects: Sequence[SuspectRing], outliers: TouchOutliers | None) -> Campaign:
+    """The campaign as a diagnosis judges it: its named touch outliers at their point's repetition
+    median (the suspect rings are found on that), then without its suspect training rings."""
+    return without_suspects(at_repetition_median(campaign, outliers), suspects)

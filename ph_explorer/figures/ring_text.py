@@ -36,7 +36,7 @@ def outliers_text(outliers: TouchOutliers) -> str:
         f"Touch outliers: {100 * outliers.share:.2f} % of the touches ({outliers.count} of {outliers.touches}) read more than "
         f"{OUTLIER_Z:g} robust sigmas off their point's other repetitions, up to {outliers.largest_um:.2f} um; healthy touch "
         f"noise gives at most {100 * OUTLIER_SHARE:.1f} %: debris or a sticking trigger. Clean the stylus and the ring; "
-        f"most are on {most}. The fit takes them as they are."
+        f"most are on {most}. The fit and the tests read each at its point's repetition median."
     )
 
 

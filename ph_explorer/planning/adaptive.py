@@ -23,7 +23,6 @@ from scipy import stats
 
 from ph_explorer.campaign import Campaign, orientation_keys, orientation_label, orientation_match
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.suspect import without_suspects
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
@@ -289,8 +288,8 @@ def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float
     the A0 of the check rings it read (deg).
     Each check ring is predicted as the error history measures it: left out of the physical fit,
     which reads every ring's out-of-sample residual (predict_held_out), on the campaign the
-    diagnosis fitted (its suspect rings left out)."""
-    fitted = without_suspects(campaign, result.suspect_rings)
+    diagnosis fitted (result.judged)."""
+    fitted = result.judged(campaign)
     train = ~fitted.holdout_mask()
     held_out = np.flatnonzero(~train)
     model = result.hybrid or HybridModel([]).fit(fitted, train)

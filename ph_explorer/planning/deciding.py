@@ -22,7 +22,6 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, Partner, RivalSetting
 from ph_explorer.diagnosis.replication import replication
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.suspect import without_suspects
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.kinematics import campaign_touches, touch_kinematics
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -284,7 +283,7 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
     if not asked:
         note = "nothing to decide: every claimed candidate is told from its partners, none is only suggested"
         return Decision([], {}, 0.0, note=note, budget=budget)
-    campaign = without_suspects(campaign, result.suspect_rings)  # the rings the diagnosis judged
+    campaign = result.judged(campaign)  # the rings the diagnosis judged
     pool = distinct_rings(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
     # Within the measured A0 range: beyond it the data model extrapolates, and what a ring would
     # show of a term is the extrapolation's as much as the term's.
