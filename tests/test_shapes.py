@@ -149,6 +149,7 @@ def test_an_error_of_the_a_joint_is_found_with_whole_a_rows_left_out_and_added()
     assert shape.variable == "a_joint_deg" and shape.leave_out == "row" and shape.replicated
     assert result.steps[-1].added == (shape.id,)
     assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]
+    assert "Judged with each inner A row's rings predicted from the rows beside it" in report_text(result, DEFAULT_CATALOG)
 
 
 class StylusKnock(Effect):
