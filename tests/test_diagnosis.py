@@ -21,7 +21,6 @@ from command_line import run_cli
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis import Diagnosis, diagnose, loop
 from ph_explorer.diagnosis.candidates import PairTest, RivalSetting
-from ph_explorer.diagnosis.choice import within_noise_after
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import within_noise
@@ -394,8 +393,8 @@ def test_the_rings_that_alone_carry_an_effect_are_judged_within_noise_on_a_fit_w
     mean, _ = design.apply(least_squares.fit(design, search.targets)[0][:, 0])
     on_itself = within_noise(search.residual - mean[:, None, :], search.smoother.weights, campaign.deviations)
     assert not on_itself.fails
-    assert within_noise_after(search, campaign, wrong).fails
-    assert not within_noise_after(search, campaign, right).fails
+    assert search.within_noise_after(wrong).fails
+    assert not search.within_noise_after(right).fails
 
 
 @pytest.mark.slow

@@ -182,6 +182,25 @@ def test_the_trilinear_weights_from_one_fit_are_those_of_a_refit_per_ring(a_rows
         assert np.array_equal(weights, generic) and np.array_equal(np.signbit(weights), np.signbit(generic))
 
 
+def test_the_row_view_predicts_each_inner_row_from_the_rows_beside_it():
+    """leave_out="row": a training ring of an inner A row is predicted from the other rows only, an
+    end row's and a held-out ring as in the ring view; a pattern of A0 alone, which each lattice
+    ring's B neighbours carry exactly, is left at the inner rows' rings and nowhere else."""
+    grid = np.array([(a, b) for a in (0.0, 15.0, 30.0, 45.0, 60.0) for b in np.arange(-180.0, 180.0, 30.0)])
+    orientations = np.concatenate([grid, [[22.0, 41.0], [50.0, -73.0]]])
+    train = np.arange(len(orientations)) < len(grid)
+    ring, row = OutOfSampleSmoother(orientations, train), OutOfSampleSmoother(orientations, train, leave_out="row")
+    a = orientations[:, 0]
+    inner = train & (a > 0.0) & (a < 60.0)
+    same_row = np.isclose(a[:, None], a[None, :])
+    assert not (row.weights[inner] * same_row[inner]).any() and np.allclose(row.weights.sum(axis=1), 1.0)
+    assert np.array_equal(row.weights[~inner], ring.weights[~inner])
+    pattern = np.sin(np.radians(7.3 * a))[:, None] * np.ones((1, 4))  # (n_o, points): A0 alone
+    assert np.abs(ring.residual(pattern[:, None])[train]).max() < 1e-12
+    left = np.abs(row.residual(pattern[:, None])).max(axis=(1, 2))
+    assert (left[inner] > 1e-3).all() and left[train & ~inner].max() < 1e-12
+
+
 def test_trilinear_save_load_round_trip(campaign, tmp_path):
     held = ~campaign.off_grid_mask()
     model = TrilinearModel().fit(campaign, held)

@@ -17,8 +17,8 @@ from fake_browser import open_session, wait_for
 
 from ph_explorer.app.server import build_server
 from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.replication import family_test
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.diagnosis.shapes import family_test
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
 from ph_explorer.effects.error_functions import error_function, hat_functions, load_shapes, roughness_factor
@@ -123,6 +123,33 @@ def test_a_period_beyond_the_catalog_scan_is_named_within_one_cycle() -> None:
     assert shape.group == "b_angular" and shape.period_cycles is not None
     assert abs(shape.period_cycles - 48.0) <= 1.0
     assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]
+
+
+class FineGearA(Effect):
+    """Test-only: a 47-tooth gear on the A axis, 1 arcsec: beyond the catalog's scan of 1-40 cycles/rev."""
+
+    candidate: ClassVar[bool] = False
+    id, name = "test_fine_gear_a", "An A-axis cyclic error of 47 cycles/rev"
+    parameters = (Parameter("amplitude_arcsec", "arcsec", 1.0, "amplitude", plausible=(0.0, 6.0)),)
+
+    def forward(self, touches, rng):
+        error = self.params["amplitude_arcsec"] * np.sin(np.radians(47.0 * joint_angle_deg(touches, "A") + 20.0))
+        return np.broadcast_to(error * rotation_deviation_um_per_arcsec(touches, "A"), touches.shape).copy()
+
+
+def test_an_error_of_the_a_joint_is_found_with_whole_a_rows_left_out_and_added() -> None:
+    """Each lattice ring's B neighbours in its A row carry a function of the A joint exactly: by
+    ring, only the check rings could show it. Judged with each inner A row left out, its rings show
+    it; the shape is claimed on the A axis (by ring, its family p-value was 0.09), and added (fitted
+    in both views) the check rings' error falls (0.122 to 0.080 um)."""
+    result = diagnose(random_campaign(SEED, "paper", [FineGearA()]), nested=False)
+    assert result.verdict == "uncatalogued" and not result.found
+    shape = result.claimed_shapes[0]
+    assert shape.group == "a_angular" or "a_angular" in shape.untold
+    assert shape.variable == "a_joint_deg" and shape.leave_out == "row" and shape.replicated
+    assert result.steps[-1].added == (shape.id,)
+    assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]
+    assert "Judged with each inner A row's rings predicted from the rows beside it" in report_text(result, DEFAULT_CATALOG)
 
 
 class StylusKnock(Effect):

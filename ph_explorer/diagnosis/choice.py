@@ -27,20 +27,8 @@ from ph_explorer.diagnosis.search import (
     rank_candidates,
 )
 from ph_explorer.diagnosis.telling_apart import rings_prefer
-from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
+from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma
 from ph_explorer.effects import Effect
-from ph_explorer.models import least_squares
-
-
-def within_noise_after(search: CandidateSearch, campaign: Campaign, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
-    """The within-noise test of what the effects, fitted through the smoother, leave out of sample:
-    each ring's terms fitted without that ring (as the replication test fits them), so that the
-    rings that alone carry an effect are not judged on a fit to themselves."""
-    design = search.design(effects)
-    mean, within = design.apply_each(least_squares.jackknife(design, search.targets, np.arange(campaign.n_orientations)))
-    changing = 0.0 if within is None else within
-    residual = search.residual - mean[:, None, :] - changing
-    return within_noise(residual, search.smoother.weights, campaign.deviations - changing, seed, held_out=~search.train)
 
 
 def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect]) -> float:
@@ -132,7 +120,7 @@ def next_found(
     for index, candidate in enumerate(ranked):
         if not candidate.significant and not (candidate.beyond_noise and current is not None and current.fails):
             continue
-        test = within_noise_after(search, campaign, [*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
+        test = search.within_noise_after([*chain, by_id[candidate.effect].with_settings(**candidate.settings)], seed)
         if not candidate.significant:
             brought = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))
             if test is None or test.failing_rings > current.failing_rings - brought:
@@ -185,7 +173,7 @@ def claimed_together(
         and pair[0].id == pair[1].id
     ):
         return None
-    test = within_noise_after(search, campaign, [*start, *pair], seed)
+    test = search.within_noise_after([*start, *pair], seed)
     before = search.design(start) if start else None
     both = search.design([*start, *pair])
     reduction = search.check_reduction(both, search.check_residual(before))
@@ -335,11 +323,11 @@ def choose_effects(
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
-    before = within_noise(search.residual, search.smoother.weights, campaign.deviations, seed, held_out=~search.train)
+    before = search.within_noise_after([], seed)
     base = usable_base(search, base)
     chain = [*base, *start]
-    based = within_noise_after(search, campaign, base, seed) if base else before
-    current = within_noise_after(search, campaign, chain, seed) if start else based
+    based = search.within_noise_after(base, seed) if base else before
+    current = search.within_noise_after(chain, seed) if start else based
     after = current if chain else None
     rankings = [rank_candidates(search, effects, fixed=search.design(chain) if chain else None, progress=progress)]
     found: list[Candidate] = []
@@ -360,7 +348,7 @@ def choose_effects(
             found.append(pick)
             chain.append(by_id[pick.effect].with_settings(**pick.settings))
         if len(found) > 1 and refitted(search, chain, found, rankings, by_id, seed, last_settled=taken is not None):
-            current = within_noise_after(search, campaign, chain, seed)
+            current = search.within_noise_after(chain, seed)
         after = current
         # Search again with the chain in the model; an effect found may be found again at another
         # setting (a second period of the same axis error).
@@ -369,6 +357,6 @@ def choose_effects(
         kept = usable_base(search, base, chain[len(base) :])
         if len(kept) < len(base):
             base, chain = kept, [*kept, *chain[len(base) :]]
-            after = within_noise_after(search, campaign, chain, seed)
+            after = search.within_noise_after(chain, seed)
             rankings[-1] = rank_candidates(search, effects, fixed=search.design(chain), progress=progress)
     return Choice(search, before, found, chain, after, rankings, based, base)

@@ -56,7 +56,7 @@ class RivalShape:
 
     group: str  # error_functions.SHAPE_GROUPS key, e.g. "probe_time"
     words: str  # what it is, e.g. "pre-travel lobes of the probe ... changing over the campaign"
-    p_value: float  # family-wise over the rival groups (shapes.family_test)
+    p_value: float  # family-wise over the rival groups (family_test)
     p_without_top: float
 
     def words_why(self) -> str:
@@ -225,3 +225,27 @@ def determined_size(params: dict[str, float], params_u: dict[str, float], amplit
     if not judged:
         return True
     return any(abs(params[name]) > params_u[name] for name in judged)
+
+
+def family_test(
+    gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int = 0, standardise: bool = False
+) -> tuple[NDArray[np.float64], float]:
+    """Each group's weighted gain over rings, and the family-wise p-value of the largest.
+
+    gains: (groups, n_o), each ring's gain with each group (in noise variances); a group's statistic
+    is the rings' weighted sum of gains (check rings and lattice rings weighing half each, as a
+    claim's), the group that predicts the rings best scoring highest. The null flips every ring's
+    sign in all groups at once, so the largest statistic over the groups is compared with the
+    largest under each flip (Westfall and Young's max-T): the correction for taking the best of
+    correlated groups, exact under the sign-flip null (docs/methods/shapes.md). standardise: each
+    statistic over its own null spread, so that a group whose gains differ much (both ways) does
+    not carry the null's maximum (differences of gains, which may be negative)."""
+    weighted = gains * ring_weights(check)[None]
+    if standardise:
+        weighted = weighted / np.maximum(np.sqrt((weighted**2).sum(axis=1, keepdims=True)), 1e-300)
+    statistics = weighted.sum(axis=1)
+    rng = np.random.default_rng(seed)
+    signs = rng.integers(0, 2, size=(SIGN_FLIPS, gains.shape[1]), dtype=np.int64) * 2.0 - 1.0
+    null = (signs @ weighted.T).max(axis=1)  # (flips,): the best group under each flip
+    observed = float(statistics.max())
+    return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))

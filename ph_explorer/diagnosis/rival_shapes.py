@@ -15,9 +15,9 @@ from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.candidates import PairTest, UntoldShape
 from ph_explorer.diagnosis.fitted_bases import settings_key
-from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, RivalShape, replication, ring_residual_squares
+from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, RivalShape, family_test, replication, ring_residual_squares
 from ph_explorer.diagnosis.search import CandidateSearch
-from ph_explorer.diagnosis.shapes import family_test, fit_group, fit_groups
+from ph_explorer.diagnosis.shapes import fit_group, fit_groups
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS

@@ -24,10 +24,11 @@ from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
 from ph_explorer.diagnosis.separation import orthonormal_span, span_share
+from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
-from ph_explorer.models.crossval import OutOfSampleSmoother
+from ph_explorer.models.crossval import LeaveOut, OutOfSampleSmoother
 from ph_explorer.models.deviation_model import draw_repetitions
 from ph_explorer.models.hybrid import fitted_basis
 from ph_explorer.models.least_squares import Design
@@ -95,7 +96,13 @@ class CandidateSearch:
     """Scores candidate effects against what the baseline cannot predict out of sample."""
 
     def __init__(
-        self, campaign: Campaign, train: NDArray[np.bool_], seed: int = 0, detail: bool = True, bases: FittedBases | None = None
+        self,
+        campaign: Campaign,
+        train: NDArray[np.bool_],
+        seed: int = 0,
+        detail: bool = True,
+        bases: FittedBases | None = None,
+        leave_out: LeaveOut = "ring",
     ) -> None:
         self.campaign = campaign
         # detail: each candidate with its parameters' uncertainty (a jackknife over rings) and its
@@ -114,7 +121,10 @@ class CandidateSearch:
         self.rival_shapes: dict[tuple, Any] = {}
         self._before: tuple[Design | None, tuple[NDArray, NDArray]] | None = None  # judge's last check_residual
         self._design_bytes = self._within_design_bytes = 0
-        self.smoother = OutOfSampleSmoother(campaign.orientations, self.train)
+        self.seed = seed
+        self._in_rows: CandidateSearch | None = None
+        self.group_views: dict[str, CandidateSearch] = {}  # the search each shape group is judged in (shapes.view_of)
+        self.smoother = OutOfSampleSmoother(campaign.orientations, self.train, leave_out=leave_out)
         self.residual = self.smoother.residual(campaign.deviations)
         sigma = campaign.noise_sigma_um()
         self.sigma = sigma if np.isfinite(sigma) and sigma > 0 else float(np.std(self.residual))
@@ -131,6 +141,25 @@ class CandidateSearch:
         self.targets = Design(columns, None, owned=True)
         del columns
         self.targets_total = self.targets.total()  # every scan's starting sums of squares
+
+    def in_rows(self) -> CandidateSearch:
+        """The same search with each inner A row's training rings predicted without their whole row
+        (crossval.inner_rows), on the same fitted columns; made once (docs/methods/shapes.md)."""
+        if self._in_rows is None:
+            self._in_rows = CandidateSearch(self.campaign, self.train, self.seed, detail=False, bases=self.bases, leave_out="row")
+        return self._in_rows
+
+    def within_noise_after(self, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
+        """The within-noise test of what the effects (none: the baseline) leave out of sample, each
+        ring's terms fitted without that ring (as the replication test fits them), so that the
+        rings that alone carry an effect are not judged on a fit to themselves."""
+        residual, spread = self.residual, self.campaign.deviations
+        if effects:
+            design = self.design(effects)
+            mean, within = design.apply_each(least_squares.jackknife(design, self.targets, np.arange(self.campaign.n_orientations)))
+            changing = 0.0 if within is None else within
+            residual, spread = residual - mean[:, None, :] - changing, spread - changing
+        return within_noise(residual, self.smoother.weights, spread, seed, held_out=~self.train)
 
     def design(self, effects: Sequence[Effect]) -> Design:
         """The effects' fitted basis columns, side by side, through the smoother."""

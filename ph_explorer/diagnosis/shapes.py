@@ -27,11 +27,10 @@ from ph_explorer.blas import PARTS_AT_ONCE
 from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.diagnosis.replication import (
     REPLICATION_LEVEL,
-    SIGN_FLIPS,
     Replication,
+    family_test,
     replication,
     ring_residual_squares,
-    ring_weights,
 )
 from ph_explorer.diagnosis.search import (
     JACKKNIFE_INFLATION,
@@ -80,6 +79,7 @@ class Shape:
     aliasing_deg: float | None = None  # shortest period it resolves (angles), deg
     period_cycles: float | None = None  # the curve's dominant period, cycles/rev (None: no period dominates)
     widest_at: float | None = None  # where its band is widest, in the variable's unit
+    leave_out: str = "ring"  # what each training ring was predicted without when it was judged (crossval.LeaveOut)
 
     @property
     def id(self) -> str:
@@ -128,6 +128,7 @@ class Shape:
             "aliasing_deg": self.aliasing_deg,
             "period_cycles_per_rev": self.period_cycles,
             "widest_at": self.widest_at,
+            "leave_out": self.leave_out,
         }
 
     @classmethod
@@ -148,6 +149,7 @@ class Shape:
             data.get("aliasing_deg"),
             data.get("period_cycles_per_rev"),
             data.get("widest_at"),
+            data.get("leave_out", "ring"),
         )
 
 
@@ -190,6 +192,19 @@ class GroupFit:
     gain: NDArray[np.float64]  # (n_o,) in noise variances
     aliasing: float | None
     squares: NDArray[np.float64]  # (n_o,): each ring's left-out sum of squares with it (the next group's "before")
+
+
+def view_of(search: CandidateSearch, group: str) -> CandidateSearch:
+    """The search a group is judged in: its own, or its in_rows() view when its own smoother predicts
+    the group's columns exactly at more than least_squares.UNSEEN_SHARE of the training rings (an
+    error of the A joint on a lattice, which each ring's B neighbours in its row carry)."""
+    if group not in search.group_views:
+        grid, periodic, _ = knots(group, search.touches, search.train)
+        seen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).seen_rings()
+        unseen = 1.0 - seen[search.train].mean() if search.train.any() else 0.0
+        ring_view = search.smoother.leave_out == "ring"
+        search.group_views[group] = search.in_rows() if unseen > least_squares.UNSEEN_SHARE and ring_view else search
+    return search.group_views[group]
 
 
 def fit_group(
@@ -266,28 +281,9 @@ def dominant_period(effect: ErrorFunction, weight_x: NDArray[np.float64]) -> flo
     return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
 
 
-def family_test(
-    gains: NDArray[np.float64], check: NDArray[np.bool_], seed: int = 0, standardise: bool = False
-) -> tuple[NDArray[np.float64], float]:
-    """Each group's weighted gain over rings, and the family-wise p-value of the largest.
-
-    gains: (groups, n_o), each ring's gain with each group (in noise variances); a group's statistic
-    is the rings' weighted sum of gains (check rings and lattice rings weighing half each, as a
-    claim's), the group that predicts the rings best scoring highest. The null flips every ring's
-    sign in all groups at once, so the largest statistic over the groups is compared with the
-    largest under each flip (Westfall and Young's max-T): the correction for taking the best of
-    correlated groups, exact under the sign-flip null (docs/methods/shapes.md). standardise: each
-    statistic over its own null spread, so that a group whose gains differ much (both ways) does
-    not carry the null's maximum (differences of gains, which may be negative)."""
-    weighted = gains * ring_weights(check)[None]
-    if standardise:
-        weighted = weighted / np.maximum(np.sqrt((weighted**2).sum(axis=1, keepdims=True)), 1e-300)
-    statistics = weighted.sum(axis=1)
-    rng = np.random.default_rng(seed)
-    signs = rng.integers(0, 2, size=(SIGN_FLIPS, gains.shape[1]), dtype=np.int64) * 2.0 - 1.0
-    null = (signs @ weighted.T).max(axis=1)  # (flips,): the best group under each flip
-    observed = float(statistics.max())
-    return statistics, float((1.0 + (null >= observed - 1e-12 * abs(observed)).sum()) / (null.size + 1.0))
+# The look with whole A rows left out is a second look at the same rings, taken when the first
+# claims nothing: its family-wise p-value is doubled (Bonferroni over the two looks).
+LOOKS = 2
 
 
 def find_shapes(
@@ -299,12 +295,30 @@ def find_shapes(
 ) -> list[Shape]:
     """The shapes claimed beside the chain, at most MAX_SHAPES, each with the others before it in
     the model; then the best tried that was not claimed (the module docstring). `current`: the
-    within-noise test of the chain (None: one repetition, nothing is claimed)."""
+    within-noise test of the chain (None: one repetition, nothing is claimed). When nothing is
+    claimed, the groups the search's smoother cannot see at most rings (view_of) are looked at
+    again with whole A rows left out."""
     # A group already in the model (a resumed study's shape) is not searched again.
     held = {effect.group.key for effect in chain if isinstance(effect, ErrorFunction)}
     groups = [g for g in (groups or SHAPE_GROUPS) if g not in held]
     if current is None or not current.fails or not groups:
         return []
+    out = _look(search, chain, current, groups, seed)
+    unseen = [g for g in groups if view_of(search, g) is not search]
+    if unseen and not any(shape.claimed for shape in out):
+        rows = search.in_rows()
+        current = rows.within_noise_after(list(chain), seed)
+        if current is not None and current.fails:
+            out += _look(rows, chain, current, unseen, seed, LOOKS)
+    return out
+
+
+def _look(
+    search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest, groups: list[str], seed: int, looks: int = 1
+) -> list[Shape]:
+    """One look at the groups in one search: the best claimed while the model fails, at most
+    MAX_SHAPES, then the best tried that was not (find_shapes); `looks`: the family-wise p-value's
+    Bonferroni factor."""
     noise = ring_sigma(search.campaign.deviations) ** 2
     check = ~search.train
     fixed = search.design(list(chain)) if chain else None
@@ -316,6 +330,7 @@ def find_shapes(
     while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
         fits = fit_groups(search, fixed, before, groups, noise)
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
+        family_p = min(1.0, looks * family_p)
         best = list(fits)[int(np.argmax(statistics))]
         fit = fits[best]
         test = replication(fit.gain, check, True, seed)
@@ -355,6 +370,7 @@ def find_shapes(
             fit.aliasing,
             dominant_period(fitted, sampled) if variable.angle else None,
             float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
+            search.smoother.leave_out,
         )
         out.append(shape)
         if not shape.claimed:

@@ -52,6 +52,11 @@ def shape_lines(shape: Shape) -> list[str]:
         f"{shape.rings_brought_within} rings brought within noise; gain over rings p = {shape.family_p:.3g} as the best of the groups "
         f"(without its top ring {test.p_without_top:.3g}).",
     ]
+    if shape.leave_out == "row":
+        lines.append(
+            "  Judged with each inner A row's rings predicted from the rows beside it (a second look, its p doubled): "
+            "a ring's neighbours in its own row carry an error of the A joint."
+        )
     if shape.aliasing_deg is not None:
         period = f"its curve is mostly {shape.period_cycles:g} cycles/rev; " if shape.period_cycles is not None else ""
         lines.append(

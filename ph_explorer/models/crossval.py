@@ -13,17 +13,21 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Sequence
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from ph_explorer import metrics
-from ph_explorer.campaign import Campaign
+from ph_explorer.campaign import ORIENTATION_DECIMALS, ORIENTATION_TOLERANCE_DEG, Campaign
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations
 from ph_explorer.models.trilinear import TrilinearModel, leave_one_ring_out_weights
 
 ModelFactory = Callable[[], DeviationModel]
+# What a training ring is predicted without: itself ("ring"), or its whole A row ("row": the
+# training rings of its nominal A0, when training rows lie on both sides of it; the others by ring).
+LeaveOut = Literal["ring", "row"]
 
 
 def _out_of_sample(
@@ -120,15 +124,20 @@ def _interpolate(model: DeviationModel, at: NDArray[np.float64]) -> NDArray[np.f
     return model.interpolate(at)
 
 
-def out_of_sample_weights(orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel) -> NDArray[np.float64]:
+def out_of_sample_weights(
+    orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel, leave_out: LeaveOut = "ring"
+) -> NDArray[np.float64]:
     """W (n_o x n_o) of a model linear in its data: row i predicts orientation i out of sample
     (its interpolation of unit vectors, before any circle fit: unit_campaign). Read-only.
-    model_type: a model class, or a hashable factory (a GP with its kernel fixed)."""
+    model_type: a model class, or a hashable factory (a GP with its kernel fixed). leave_out: what
+    a training ring is predicted without (LeaveOut; docs/methods/crossval.md)."""
     o, mask = as_orientations(orientations), np.asarray(train, dtype=bool)
-    key = (model_type, o.shape, o.tobytes(), mask.tobytes())
+    key = (model_type, o.shape, o.tobytes(), mask.tobytes(), leave_out)
     weights = _WEIGHTS.get(key)
     if weights is None:
-        if model_type is TrilinearModel and mask.any():
+        if leave_out == "row":
+            weights = _row_weights(o, mask, model_type)
+        elif model_type is TrilinearModel and mask.any():
             weights = _trilinear_weights(o, mask)
         else:
             weights = _out_of_sample(model_type, unit_campaign(o), mask, _interpolate)
@@ -154,6 +163,27 @@ def _trilinear_weights(orientations: NDArray[np.float64], train: NDArray[np.bool
     return weights
 
 
+def inner_rows(orientations: NDArray[np.float64], train: NDArray[np.bool_]) -> list[NDArray[np.int64]]:
+    """The training rings of each nominal A0 with training rings at a lower and a higher A0 (an A row
+    the data part interpolates from the rows on both sides), as index arrays."""
+    a = orientations[:, 0]
+    levels = np.unique(np.round(a[train], ORIENTATION_DECIMALS))
+    return [np.flatnonzero(train & np.isclose(a, level, rtol=0.0, atol=ORIENTATION_TOLERANCE_DEG)) for level in levels[1:-1]]
+
+
+def _row_weights(orientations: NDArray[np.float64], train: NDArray[np.bool_], model_type: ModelFactory) -> NDArray[np.float64]:
+    """W with each inner A row's training rings predicted without their whole row (inner_rows),
+    every other ring as out_of_sample_weights predicts it: an error of the A joint, the same along
+    its row, is carried exactly by a lattice ring's B neighbours and shows only without them."""
+    weights = np.array(out_of_sample_weights(orientations, train, model_type))
+    rows = inner_rows(orientations, train)
+    if rows:
+        by_row = _out_of_sample(model_type, unit_campaign(orientations), train, _interpolate, groups=rows, held_out=False)
+        every = np.concatenate(rows)
+        weights[every] = by_row[every]
+    return weights
+
+
 def weights_operator(weights: NDArray[np.float64]) -> NDArray[np.float64] | sparse.csr_array:
     """W as weighted() applies it: an interpolator's W has a few neighbours a row (2-8 of hundreds
     of rings), and as a sparse matrix its product costs that many multiplications a value, not n_o."""
@@ -171,10 +201,13 @@ def weighted(operator: NDArray[np.float64] | sparse.csr_array, values: NDArray[n
 class OutOfSampleSmoother:
     """W (n_o x n_o) and what it does to arrays over orientations (see out_of_sample_weights)."""
 
-    def __init__(self, orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel) -> None:
+    def __init__(
+        self, orientations: ArrayLike, train: ArrayLike, model_type: ModelFactory = TrilinearModel, leave_out: LeaveOut = "ring"
+    ) -> None:
         self.train = np.asarray(train, dtype=bool)
         self.model_name = model_type.name  # the model whose out-of-sample predictions W makes
-        self.weights = out_of_sample_weights(orientations, self.train, model_type)
+        self.leave_out = leave_out
+        self.weights = out_of_sample_weights(orientations, self.train, model_type, leave_out)
         self._operator = weights_operator(self.weights)
 
     def predict(self, values: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -145,11 +145,20 @@ class HybridModel(DeviationModel):
         self.geometry = campaign.geometry
         self.n_points = campaign.n_points
         touches = campaign_touches(campaign)
-        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, smoother_type(self.data_part, campaign, mask))
+        linear = smoother_type(self.data_part, campaign, mask)
+        self.smoother_ = OutOfSampleSmoother(campaign.orientations, mask, linear)
         self.fit_targets_ = Design(self.smoother_.residual(campaign.deviations)[..., None], None)
         if self.effects:
             self._report("physical terms", 0.0)
-            self.fit_design_ = Design(self.physical_basis(touches), self.smoother_)
+            basis = self.physical_basis(touches)
+            self.fit_design_ = Design(basis, self.smoother_)
+            if self._rows_needed(mask):
+                # Each inner A row's rings also predicted without their row, where they show such terms.
+                rows = OutOfSampleSmoother(campaign.orientations, mask, linear, leave_out="row")
+                inner = np.any(rows.weights != self.smoother_.weights, axis=1)
+                self.fit_design_ = self.fit_design_.beside(Design(basis, rows), inner)
+                self.fit_targets_ = self.fit_targets_.beside(Design(rows.residual(campaign.deviations)[..., None], None), inner)
+            del basis
             self.ridge_ = least_squares.choose_ridge(self.fit_design_, self.fit_targets_)
             self.coefficients_ = least_squares.fit(self.fit_design_, self.fit_targets_, self.ridge_)[0][:, 0]
             remainder = campaign.deviations - self.physical_part(touches)
@@ -162,6 +171,16 @@ class HybridModel(DeviationModel):
         self.data_part.fit(residual_campaign, mask)
         self._report("done", 1.0)
         return self
+
+    def _rows_needed(self, train: NDArray[np.bool_]) -> bool:
+        """An effect that the data part's neighbours in an A row carry at most training rings
+        (least_squares.UNSEEN_SHARE), and that fewer rings show than it has columns (a shape's
+        knots): the rings by themselves leave it undetermined (docs/methods/shapes.md)."""
+        for block in self.coefficient_blocks():
+            seen = self.fit_design_.seen_rings(block)
+            if 1.0 - seen[train].mean() > least_squares.UNSEEN_SHARE and seen.sum() < block.stop - block.start:
+                return True
+        return False
 
     def predict_held_out(self, campaign: Campaign, rings: NDArray[np.int64]) -> NDArray[np.float64]:
         """Predictions (m, n_rep, n_pt) of the given rings with each ring left out of the physical fit.

@@ -16,6 +16,12 @@ from numpy.typing import NDArray
 
 from ph_explorer.models.crossval import OutOfSampleSmoother
 
+# Columns the smoother predicts exactly at more than this share of the training rings (an error of
+# the A joint on a lattice: each ring's B neighbours in its row carry it) are read with whole A
+# rows left out too (crossval.LeaveOut "row"), where those rings can show them: a shape's search
+# (diagnosis.shapes.view_of), and a hybrid's fit when fewer rings show them than they have columns.
+UNSEEN_SHARE = 0.5
+
 
 def _ring_products(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """(n_o, c, k): each ring's a^T b over its touches, for a (n_o, ..., c) and b (n_o, ..., k) (a
@@ -104,6 +110,24 @@ class Design:
         (mean part (n_o, n_pt), within part (n_o, n_rep, n_pt) or None)."""
         within = None if self.within is None else np.einsum("orpc,oc->orp", self.within, coef)
         return np.einsum("opc,oc->op", self.mean, coef), within
+
+    def seen_rings(self, columns: slice = slice(None)) -> NDArray[np.bool_]:
+        """(n_o,): the rings at which the smoother does not predict the columns exactly (where a
+        ring's out-of-sample residual can show them)."""
+        energy = (self.mean[..., columns] ** 2).reshape(self.mean.shape[0], -1).sum(axis=1)
+        if self.within is not None:
+            energy = energy + (self.within[..., columns] ** 2).reshape(self.within.shape[0], -1).sum(axis=1)
+        return energy > 1e-12 * max(float(energy.max(initial=0.0)), 1e-300)
+
+    def beside(self, other: Design, rings: NDArray[np.bool_]) -> Design:
+        """For fits (fit, jackknife, choose_ridge): this design with another view's mean part at the
+        given rings appended as further points of each ring (zeros elsewhere), so that a fit
+        minimises both views' sums of squares and a ring's two parts are left out together."""
+        out = object.__new__(Design)
+        out._flat = out._ring_gram = None
+        out.n_rep, out.scale, out.within = self.n_rep, max(self.scale, other.scale), self.within
+        out.mean = np.concatenate([self.mean, other.mean * np.asarray(rings, dtype=bool)[:, None, None]], axis=1)
+        return out
 
     def first_column(self) -> Design:
         """A view of column 0 only (the data, where the other columns are noise draws)."""
