@@ -8,7 +8,9 @@ ring left out of the fit. The group that gains most is claimed when it is signif
 of the groups (a max-T sign-flip test over rings, `family_test`), its gain holds without its most
 influential ring, and it is material: the check rings' error falls by MATERIAL_REDUCTION, or rings
 are brought within noise. Groups whose gains the rings cannot tell from its own are named beside
-it. Method: docs/methods/shapes.md.
+it. When nothing is claimed, the groups that each ring's neighbours in its A row carry (an error of
+the A joint) get a second look with whole A rows left out (view_of), at a doubled p-value.
+Method: docs/methods/shapes.md.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS, ErrorFunction, error_function, value_name
 from ph_explorer.kinematics import Touches
 from ph_explorer.models import least_squares
+from ph_explorer.models.crossval import LeaveOut
 from ph_explorer.models.least_squares import Design, RingDeletion
 from ph_explorer.uncertainty.jackknife import COVERAGE_FACTOR, jackknife_parameters
 
@@ -79,7 +82,7 @@ class Shape:
     aliasing_deg: float | None = None  # shortest period it resolves (angles), deg
     period_cycles: float | None = None  # the curve's dominant period, cycles/rev (None: no period dominates)
     widest_at: float | None = None  # where its band is widest, in the variable's unit
-    leave_out: str = "ring"  # what each training ring was predicted without when it was judged (crossval.LeaveOut)
+    leave_out: LeaveOut = "ring"  # what each training ring was predicted without when it was judged
 
     @property
     def id(self) -> str:
@@ -304,8 +307,8 @@ def find_shapes(
     if current is None or not current.fails or not groups:
         return []
     out = _look(search, chain, current, groups, seed)
-    unseen = [g for g in groups if view_of(search, g) is not search]
-    if unseen and not any(shape.claimed for shape in out):
+    unseen = [] if any(shape.claimed for shape in out) else [g for g in groups if view_of(search, g) is not search]
+    if unseen:
         rows = search.in_rows()
         current = rows.within_noise_after(list(chain), seed)
         if current is not None and current.fails:
