@@ -1,15 +1,13 @@
 """A shape for what no catalog holds: the remainder as error functions of the head's own variables.
 
 When the catalog's claims leave the model failing beyond noise, each group of error functions
-(effects/error_functions.py: the ISO 230-7 component groups of each axis as functions of its joint
-angle, the probe's lobes as functions of time) is fitted on the out-of-sample residual beside the
-chain, with a ridge penalty chosen by leaving rings out, and each ring's gain is measured with that
-ring left out of the fit. The group that gains most is claimed when it is significant as the best
-of the groups (a max-T sign-flip test over rings, `family_test`), its gain holds without its most
-influential ring, and it is material: the check rings' error falls by MATERIAL_REDUCTION, or rings
-are brought within noise. Groups whose gains the rings cannot tell from its own are named beside
-it. When nothing is claimed, the groups that each ring's neighbours in its A row carry (an error of
-the A joint) get a second look with whole A rows left out (view_of), at a doubled p-value.
+(effects/error_functions.py: ISO 230-7 component groups of each axis's joint angle, the probe's
+lobes in time) is fitted on the out-of-sample residual beside the chain (a ridge chosen by leaving
+rings out), each ring's gain measured with that ring left out. The group that gains most is claimed
+when it is significant as the best of the groups (`family_test`), still without its most
+influential ring, and material (MATERIAL_REDUCTION, or rings brought within noise); groups the
+rings cannot tell from it are named beside it. When nothing is claimed, the groups a ring's
+neighbours in its A row carry get a second look with A rows left out (view_of), p doubled.
 Method: docs/methods/shapes.md.
 """
 
