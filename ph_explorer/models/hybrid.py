@@ -28,7 +28,7 @@ from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.harmonics import remove_size_and_centre
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
-from ph_explorer.models.crossval import ModelFactory, OutOfSampleSmoother
+from ph_explorer.models.crossval import ModelFactory, OutOfSampleSmoother, inner_rows
 from ph_explorer.models.deviation_model import DeviationModel, as_orientations, training_mask
 from ph_explorer.models.folder import MODEL_TYPES, model_class
 from ph_explorer.models.least_squares import Design
@@ -155,7 +155,9 @@ class HybridModel(DeviationModel):
             if self._rows_needed(mask):
                 # Each inner A row's rings also predicted without their row, where they show such terms.
                 rows = OutOfSampleSmoother(campaign.orientations, mask, linear, leave_out="row")
-                inner = np.any(rows.weights != self.smoother_.weights, axis=1)
+                inner = np.zeros(campaign.n_orientations, dtype=bool)
+                for row in inner_rows(campaign.orientations, mask):
+                    inner[row] = True
                 self.fit_design_ = self.fit_design_.beside(Design(basis, rows), inner)
                 self.fit_targets_ = self.fit_targets_.beside(Design(rows.residual(campaign.deviations)[..., None], None), inner)
             del basis
