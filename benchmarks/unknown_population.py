@@ -23,7 +23,8 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   plain_within, the share of those plain heads within 1.25 floors, bounds the first;
 - oracle_passes: the head's own shape, its function known exactly, passes the shapes' replication
   test beside the chain (benchmarks/shape_oracle.py): where it does not, no shape search over these
-  rings can; shape_right_where_oracle_passes; and by_axis (a function of the A joint shows only at
+  rings can (by ring, or with whole A rows left out where the search gives a second look);
+  shape_right_where_oracle_passes; and by_axis (a function of the A joint shows by ring only at
   rings off the lattice's A rows).
 
 MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_effects.py): the
