@@ -367,6 +367,7 @@ def check_population_unknown(results: dict) -> None:
         for key in ("none", "catalog_name", "honest", "none_silent", "suspect_named"):
             assert summary[key]["of"] >= 1 and len(summary[key]["ci95"]) == 2, key
     assert unknown["all"]["none"]["of"] == 2 and unknown["bad_ring_named"]["of"] == 2
+    assert unknown["all"]["none_head_error"]["of"] == 1  # the step head's: the bad ring's head holds no error
     # the step head's own shape through the oracle's test (shape_oracle); the bad ring holds none
     assert unknown["all"]["oracle_passes"]["of"] == 1 and list(unknown["by_axis"]) in (["A"], ["B"])
     multi = unknown["multi_effect"]
