@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.models.hybrid import fitted_columns
-from ph_explorer.models.least_squares import UNSEEN_SHARE, Design
+from ph_explorer.models.least_squares import Design
 
 
 def oracle_record(campaign: Campaign, result: Diagnosis, shape: Effect) -> dict[str, Any]:
@@ -34,8 +34,7 @@ def oracle_record(campaign: Campaign, result: Diagnosis, shape: Effect) -> dict[
     deviations = shape.forward(search.touches, np.random.default_rng(0))[..., None]
     fitted = fitted_columns(deviations, search.touches)
     record = _tested(search, result, fitted)
-    unseen = 1.0 - Design(fitted, search.smoother).seen_rings()[search.train].mean() if search.train.any() else 0.0
-    if unseen > UNSEEN_SHARE:
+    if Design(fitted, search.smoother).unseen_at_most(search.train):
         by_row = _tested(search.in_rows(), result, fitted)
         record = record | {"by_row": by_row, "passes": record["passes"] or by_row["passes"]}
     return record

@@ -201,10 +201,8 @@ def view_of(search: CandidateSearch, group: str) -> CandidateSearch:
     error of the A joint on a lattice, which each ring's B neighbours in its row carry)."""
     if group not in search.group_views:
         grid, periodic, _ = knots(group, search.touches, search.train)
-        seen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).seen_rings()
-        unseen = 1.0 - seen[search.train].mean() if search.train.any() else 0.0
-        ring_view = search.smoother.leave_out == "ring"
-        search.group_views[group] = search.in_rows() if unseen > least_squares.UNSEEN_SHARE and ring_view else search
+        unseen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).unseen_at_most(search.train)
+        search.group_views[group] = search.in_rows() if unseen and search.smoother.leave_out == "ring" else search
     return search.group_views[group]
 
 

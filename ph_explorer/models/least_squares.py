@@ -119,6 +119,11 @@ class Design:
             energy = energy + (self.within[..., columns] ** 2).reshape(self.within.shape[0], -1).sum(axis=1)
         return energy > 1e-12 * max(float(energy.max(initial=0.0)), 1e-300)
 
+    def unseen_at_most(self, train: NDArray[np.bool_], columns: slice = slice(None)) -> bool:
+        """Whether the smoother predicts the columns exactly at more than UNSEEN_SHARE of the
+        training rings (their out-of-sample residual cannot show them there)."""
+        return bool(train.any()) and 1.0 - float(self.seen_rings(columns)[train].mean()) > UNSEEN_SHARE
+
     def beside(self, other: Design, rings: NDArray[np.bool_]) -> Design:
         """For fits (fit, jackknife, choose_ridge): this design with another view's mean part at the
         given rings appended as further points of each ring (zeros elsewhere), so that a fit
