@@ -19,6 +19,8 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   over its family's heads and as many more of seeds of their own; bad_ring_named_on_lattice: the
   same over those whose bad ring is not a check ring (a check ring is named, never left out);
 - the check rings' error over their floor (median of each head's mean ratio): what a user sees;
+- group_right: the shape's axis and group named (issue 56's line), by a shape on it or by a catalog
+  claim of the shape's own mechanism in that group (group_right);
 - where a shape is claimed (issue 56): the check rings' error once it is added, over the floor
   (after_shape_within) and over that of the same head without the shape, diagnosed alike
   (after_shape_within_plain): the background's interpolation error stays whatever the shape, so
@@ -341,6 +343,18 @@ def shape_right(record: dict[str, Any]) -> bool:
     return any(s["claimed"] and truth is not None and (s["group"] == truth or truth in s["untold"]) for s in record.get("shapes", []))
 
 
+def group_right(record: dict[str, Any]) -> bool:
+    """The shape's axis and group named (issue 56): a shape on it (shape_right), or a catalog claim
+    of the shape's own mechanism in that group (own_mechanism: its axis's angular positioning at a
+    period within 1 cycle/rev of one the shape has, or named with the shape's own group as untold).
+    A probe that changes named as lobing names the probe, not the lobes' change in time: no."""
+    if shape_right(record):
+        return True
+    if record["family"] in ("seat_wear", "stylus_knock"):
+        return any(c.get("untold_shape") is not None and c["untold_shape"] == shape_truth(record) for c in record.get("claims", []))
+    return shape_truth(record) is not None and any(own_mechanism(record, c) for c in record.get("claims", []))
+
+
 def shape_wrong(record: dict[str, Any]) -> bool:
     """A shape claimed that does not hold the truth (any claim on a head with no shape to find)."""
     truth = shape_truth(record)
@@ -372,6 +386,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "check_ratio_median": round(float(np.median(ratios)), 3) if ratios else None,
             # shapes (diagnosis.shapes, issue 56): claimed on the truth's group, over the heads a group holds
             "shape_right": rate(sum(shape_right(r) for r in shaped), len(shaped)),
+            "group_right": rate(sum(group_right(r) for r in shaped), len(shaped)),
             "shape_wrong": rate(sum(shape_wrong(r) for r in group), len(group)),
             "after_shape_within": rate(sum(r["step_ratios"][-1] <= TARGETS["after_shape_within"] for r in claimed), len(claimed)),
             # the same heads without their shape: within 1.25 floors (what the wording above can reach
@@ -400,7 +415,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         "by_family": {family: summary(group) for family, group in by_family.items()},
         # the shape's axis (a function of the A joint shows only at rings off the lattice's A rows)
         "by_axis": {
-            axis: {key: summary(group)[key] for key in ("shape_right", "oracle_passes", "shape_right_where_oracle_passes")}
+            axis: {key: summary(group)[key] for key in ("shape_right", "group_right", "oracle_passes", "shape_right_where_oracle_passes")}
             for axis, group in ((axis, [r for r in judged if shape_axis(r) == axis]) for axis in ("A", "B", "probe"))
             if group
         },

@@ -96,6 +96,28 @@ def test_a_pair_holds_the_truth_only_when_the_rings_did_not_tell_it_apart() -> N
     assert holds_truth(claim, "a_axis_axial_motion", {"cycles_per_rev": 20.0})
 
 
+def test_the_shapes_axis_and_group_are_named_by_a_shape_or_by_its_own_mechanism() -> None:
+    """Issue 56's line read over what the diagnosis names (unknown_population.group_right): an A-axis
+    angular error of 17.3 cycles/rev is named by a shape on its group, or by the A axis's angular
+    positioning at 17/rev; not by it at 19/rev, not by a radial motion, and a seat that wears is
+    not named by lobing (the probe, not its change in time)."""
+    from benchmarks.unknown_population import group_right
+
+    def head(family: str, claims: list[dict], shapes: list[dict] = ()) -> dict:
+        truth = {"family": family, "axis": 0, "cycles_per_rev": 17.3} if family != "seat_wear" else {"family": family}
+        return {"family": family, "truth": truth, "claims": claims, "shapes": list(shapes)}
+
+    def claim(effect: str, cycles: float) -> dict:
+        return {"effect": effect, "cycles": [cycles], "confounded_with": [], "untold_shape": None}
+
+    shape = {"claimed": True, "group": "a_angular", "untold": []}
+    assert group_right(head("non_integer_period", [], [shape]))
+    assert group_right(head("non_integer_period", [claim("a_axis_cyclic", 17.0)]))
+    assert not group_right(head("non_integer_period", [claim("a_axis_cyclic", 19.0)]))
+    assert not group_right(head("non_integer_period", [claim("a_axis_radial_motion", 17.0)]))
+    assert not group_right(head("seat_wear", [{"effect": "lobing", "cycles": [], "confounded_with": [], "untold_shape": None}]))
+
+
 def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> None:
     """The population's false alarms (benchmarks/population.py): a verdict that names only terms the
     head has, at their settings, is a finding; a wrong setting, a term it lacks or a failing model
@@ -368,6 +390,7 @@ def check_population_unknown(results: dict) -> None:
             assert summary[key]["of"] >= 1 and len(summary[key]["ci95"]) == 2, key
     assert unknown["all"]["none"]["of"] == 2 and unknown["bad_ring_named"]["of"] == 2
     assert unknown["all"]["none_head_error"]["of"] == 1  # the step head's: the bad ring's head holds no error
+    assert unknown["all"]["group_right"]["of"] == 1 and unknown["all"]["group_right"]["count"] >= unknown["all"]["shape_right"]["count"]
     # the step head's own shape through the oracle's test (shape_oracle); the bad ring holds none
     assert unknown["all"]["oracle_passes"]["of"] == 1 and list(unknown["by_axis"]) in (["A"], ["B"])
     multi = unknown["multi_effect"]
