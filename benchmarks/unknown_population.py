@@ -290,6 +290,11 @@ def catalog_name(record: dict[str, Any]) -> bool:
     return record["verdict"] == "missing" and any(effect != companion for effect in record["found"])
 
 
+def untold_with_truth(record: dict[str, Any], claim: dict[str, Any]) -> bool:
+    """A claim named with the group that holds the unknown shape (the rings cannot tell them)."""
+    return claim.get("untold_shape") is not None and claim["untold_shape"] == shape_truth(record)
+
+
 def own_mechanism(record: dict[str, Any], claim: dict[str, Any]) -> bool:
     """A catalog claim that is the unknown shape's own mechanism at what the catalog can say of it:
     the angular positioning error of the shape's axis (or its seat's lobing for a probe that changes),
@@ -300,7 +305,7 @@ def own_mechanism(record: dict[str, Any], claim: dict[str, Any]) -> bool:
     period beyond the scan have none in the catalog."""
     truth = record["truth"]
     family = truth.get("family")
-    if claim.get("untold_shape") is not None and claim["untold_shape"] == shape_truth(record):
+    if untold_with_truth(record, claim):
         return True  # named with the shape that holds the truth: the rings cannot tell
     if family in ("seat_wear", "stylus_knock"):
         return "lobing" in (claim["effect"], *claim["confounded_with"])
@@ -351,7 +356,7 @@ def group_right(record: dict[str, Any]) -> bool:
     if shape_right(record):
         return True
     if record["family"] in ("seat_wear", "stylus_knock"):
-        return any(c.get("untold_shape") is not None and c["untold_shape"] == shape_truth(record) for c in record.get("claims", []))
+        return any(untold_with_truth(record, c) for c in record.get("claims", []))
     return shape_truth(record) is not None and any(own_mechanism(record, c) for c in record.get("claims", []))
 
 

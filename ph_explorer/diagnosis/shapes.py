@@ -200,9 +200,11 @@ def view_of(search: CandidateSearch, group: str) -> CandidateSearch:
     the group's columns exactly at more than least_squares.UNSEEN_SHARE of the training rings (an
     error of the A joint on a lattice, which each ring's B neighbours in its row carry)."""
     if group not in search.group_views:
-        grid, periodic, _ = knots(group, search.touches, search.train)
-        unseen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).unseen_at_most(search.train)
-        search.group_views[group] = search.in_rows() if unseen and search.smoother.leave_out == "ring" else search
+        unseen = False
+        if search.smoother.leave_out == "ring":  # a row view has no further look to choose
+            grid, periodic, _ = knots(group, search.touches, search.train)
+            unseen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).unseen_at_most(search.train)
+        search.group_views[group] = search.in_rows() if unseen else search
     return search.group_views[group]
 
 

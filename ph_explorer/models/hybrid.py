@@ -178,11 +178,11 @@ class HybridModel(DeviationModel):
         """An effect that the data part's neighbours in an A row carry at most training rings
         (least_squares.UNSEEN_SHARE), and that fewer rings show than it has columns (a shape's
         knots): the rings by themselves leave it undetermined (docs/methods/shapes.md)."""
-        design = self.fit_design_
-        return any(
-            design.unseen_at_most(train, block) and design.seen_rings(block).sum() < block.stop - block.start
-            for block in self.coefficient_blocks()
-        )
+        for block in self.coefficient_blocks():
+            seen = self.fit_design_.seen_rings(block)  # once a block: the energy of its columns at every ring
+            if least_squares.unseen_at_most(seen, train) and seen.sum() < block.stop - block.start:
+                return True
+        return False
 
     def predict_held_out(self, campaign: Campaign, rings: NDArray[np.int64]) -> NDArray[np.float64]:
         """Predictions (m, n_rep, n_pt) of the given rings with each ring left out of the physical fit.

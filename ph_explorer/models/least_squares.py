@@ -23,6 +23,12 @@ from ph_explorer.models.crossval import OutOfSampleSmoother
 UNSEEN_SHARE = 0.5
 
 
+def unseen_at_most(seen: NDArray[np.bool_], train: NDArray[np.bool_]) -> bool:
+    """Whether the rings that see some columns (Design.seen_rings) are fewer than 1 - UNSEEN_SHARE of
+    the training rings."""
+    return bool(train.any()) and 1.0 - float(seen[train].mean()) > UNSEEN_SHARE
+
+
 def _ring_products(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """(n_o, c, k): each ring's a^T b over its touches, for a (n_o, ..., c) and b (n_o, ..., k) (a
     batched matrix product: einsum's loop is ten times slower on these shapes)."""
@@ -122,7 +128,7 @@ class Design:
     def unseen_at_most(self, train: NDArray[np.bool_], columns: slice = slice(None)) -> bool:
         """Whether the smoother predicts the columns exactly at more than UNSEEN_SHARE of the
         training rings (their out-of-sample residual cannot show them there)."""
-        return bool(train.any()) and 1.0 - float(self.seen_rings(columns)[train].mean()) > UNSEEN_SHARE
+        return unseen_at_most(self.seen_rings(columns), train)
 
     def beside(self, other: Design, rings: NDArray[np.bool_]) -> Design:
         """For fits (fit, jackknife, choose_ridge): this design with another view's mean part at the
