@@ -95,6 +95,10 @@ class Shape:
         return SHAPE_GROUPS[self.group].components
 
     @property
+    def plausible(self) -> bool:
+        return plausible_curve(self.group, self.value)
+
+    @property
     def replicated(self) -> bool:
         """Its gain over rings significant as the best of the groups (family_p), and still without its top ring."""
         return self.family_p < REPLICATION_LEVEL and self.replication.p_without_top < REPLICATION_LEVEL
@@ -193,6 +197,12 @@ class GroupFit:
     gain: NDArray[np.float64]  # (n_o,) in noise variances
     aliasing: float | None
     squares: NDArray[np.float64]  # (n_o,): each ring's left-out sum of squares with it (the next group's "before")
+
+
+def plausible_curve(group: str, value: Any) -> bool:
+    """Every value within its group's plausible size (error_functions.ShapeGroup.plausible): an
+    implausible fit is no explanation, however well it predicts the rings it was fitted on."""
+    return bool(np.abs(np.asarray(value, dtype=float)).max(initial=0.0) <= SHAPE_GROUPS[group].plausible[1])
 
 
 def view_of(search: CandidateSearch, group: str) -> CandidateSearch:
@@ -366,7 +376,7 @@ def _look(
             float(family_p),
             float(reduction),
             int(brought),
-            bool(significant and material),
+            bool(significant and material and plausible_curve(best, value)),
             untold,
             fit.aliasing,
             dominant_period(fitted, sampled) if variable.angle else None,

@@ -43,6 +43,9 @@ def shape_lines(shape: Shape) -> list[str]:
         why = f" (its gain over rings is not significant as the best of the groups tried: p = {shape.family_p:.3g})"
     elif test.p_without_top >= REPLICATION_LEVEL:
         why = f" (it rests on one ring: without it p = {test.p_without_top:.3g})"
+    elif not shape.plausible:
+        limit = SHAPE_GROUPS[shape.group].plausible[1]
+        why = f" (implausible: its curve reaches {np.abs(values).max():.3g} {unit}, beyond the {limit:g} {unit} an error motion of its kind reaches)"
     else:
         why = f" (not material: the check rings' error falls less than {f'{100 * MATERIAL_REDUCTION:.0f} %'} and it brings too few rings within noise)"
     lines = [
