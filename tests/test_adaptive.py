@@ -305,3 +305,31 @@ def test_a_location_error_the_rings_predict_better_without_is_left_out_of_the_ba
     assert result.base_unused == ("b_axis_orientation", "a_axis_position")
     chain = ["b_axis_position", "a_axis_squareness", "b_axis_cyclic", "lobing"]
     assert [e.id for e in result.chain] == chain and not result.within_noise["after"].fails
+
+
+def test_a_location_error_of_implausible_size_is_left_out_of_the_base_whatever_its_gain() -> None:
+    """head_3's first twelve rings with its B axis line 2 um and 20 um off along y (plausible: 0-3 um).
+    At 2 um the base fits it, plausibly; at 20 um it would still predict rings left out better
+    (its gain is positive), yet its fit is implausible, so the base leaves it out and no claim
+    rests on it: a size the rings cannot determine is one the data part undoes only where rings
+    were measured (head 550087, docs/planning.md)."""
+    from dataclasses import replace
+
+    from ph_explorer.diagnosis.choice import base_gain, implausible_in_fit
+    from ph_explorer.diagnosis.search import CandidateSearch
+    from ph_explorer.effects import DEFAULT_CATALOG
+    from ph_explorer.twin import load_scenario
+
+    head = load_scenario("head_3")
+    position = DEFAULT_CATALOG["b_axis_position"]
+    based = {}
+    for y_um in (2.0, 20.0):
+        offset = replace(head, effects=[*head.effects, position(x_offset_um=0.0, y_offset_um=y_um)], hidden=[*head.hidden, True])
+        campaign = closed_loop.measured_plan(offset, adaptive.first_rings(geometry=offset.geometry))[1]
+        result = adaptive.plan_diagnosis(campaign)
+        based[y_um] = {link.effect: link.params for link in result.base}
+        assert all(not DEFAULT_CATALOG[link.effect].implausible(link.params) for link in result.base)
+        search = CandidateSearch(campaign, ~campaign.holdout_mask(), 0)
+        assert base_gain(search, position(), []) > 0.0 and implausible_in_fit(search, [], position()) == (y_um == 20.0)
+    assert abs(based[2.0]["b_axis_position"]["y_offset_um"] - 2.0) < 1.0
+    assert "b_axis_position" not in based[20.0] and "b_axis_position" not in [c.effect for c in result.found]

@@ -29,6 +29,7 @@ from ph_explorer.diagnosis.search import (
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma
 from ph_explorer.effects import Effect
+from ph_explorer.models import least_squares
 
 
 def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect]) -> float:
@@ -40,20 +41,34 @@ def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect])
     return float(ring_weights(~search.train) @ gain)
 
 
+def implausible_in_fit(search: CandidateSearch, chain: Sequence[Effect], effect: Effect) -> bool:
+    """Whether `effect`'s parameters, fitted beside the chain's others, lie outside its plausible
+    ranges (Effect.implausible): a size the rings cannot determine, which the data part would undo
+    only where rings were measured."""
+    joint = search.design([*(e for e in chain if e is not effect), effect])
+    own = least_squares.fit(joint, search.targets)[0][-search.design([effect]).n_columns :, 0]
+    return bool(effect.implausible(effect.from_coefficients(own)))
+
+
 def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequence[Effect] = ()) -> list[Effect]:
-    """The base model's effects that predict rings left out better than the model without them.
-    Before the search (no claims): each in turn, kept when its gain beside those kept is positive.
-    With the claims: those kept, the one of least gain beside all the rest dropped while its gain
-    is not positive. A location error a few rings cannot determine adds more to what they miss than
-    it removes; one that stood in for a claim is not needed beside it."""
+    """The base model's effects that predict rings left out better than the model without them, at
+    a plausible size (implausible_in_fit). Before the search (no claims): each in turn, kept when
+    its gain beside those kept is positive and its fit there plausible. With the claims: those
+    kept, an implausible one, else the one of least gain beside all the rest, dropped while its
+    gain is not positive. A location error a few rings cannot determine adds more to what they
+    miss than it removes; one that stood in for a claim is not needed beside it."""
     kept: list[Effect] = []
     if not claims:
         for effect in base:
-            kept += [effect] if base_gain(search, effect, kept) > 0.0 else []
+            usable = base_gain(search, effect, kept) > 0.0 and not implausible_in_fit(search, kept, effect)
+            kept += [effect] if usable else []
         return kept
     kept = list(base)
     while kept:
-        gains = [base_gain(search, e, [*(k for k in kept if k is not e), *claims]) for e in kept]
+        gains = [
+            -math.inf if implausible_in_fit(search, [*kept, *claims], e) else base_gain(search, e, [*(k for k in kept if k is not e), *claims])
+            for e in kept
+        ]
         if min(gains) > 0.0:
             break
         kept.pop(int(np.argmin(gains)))
