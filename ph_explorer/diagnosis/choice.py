@@ -66,7 +66,9 @@ def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequenc
     kept = list(base)
     while kept:
         gains = [
-            -math.inf if implausible_in_fit(search, [*kept, *claims], e) else base_gain(search, e, [*(k for k in kept if k is not e), *claims])
+            -math.inf
+            if implausible_in_fit(search, [*kept, *claims], e)
+            else base_gain(search, e, [*(k for k in kept if k is not e), *claims])
             for e in kept
         ]
         if min(gains) > 0.0:
