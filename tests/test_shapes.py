@@ -116,6 +116,21 @@ def test_a_step_in_an_axis_angle_is_found_on_that_axis_and_added(step) -> None:
     assert Diagnosis.from_json(data).to_json() == data
 
 
+def test_a_shape_of_implausible_size_is_not_claimed_and_the_report_says_why(step) -> None:
+    """The step's shape is within what a B-axis angular error motion reaches (6 arcsec); the same
+    curve 100 times larger is no explanation however well it predicts, and its line says so."""
+    from dataclasses import replace
+
+    from ph_explorer.diagnosis.shapes import plausible_curve
+    from ph_explorer.figures.shape_text import shape_lines
+
+    shape = step.claimed_shapes[0]
+    assert shape.plausible and plausible_curve(shape.group, shape.value)
+    larger = replace(shape, value=tuple(tuple(100.0 * v for v in row) for row in shape.value), claimed=False)
+    assert not larger.plausible and larger.replicated
+    assert "not claimed (implausible: its curve reaches" in shape_lines(larger)[0] and "beyond the 6 arcsec" in shape_lines(larger)[0]
+
+
 def test_a_period_beyond_the_catalog_scan_is_named_within_one_cycle() -> None:
     result = diagnose(random_campaign(SEED, "paper", [FineGearB()]), nested=False)
     assert result.verdict == "uncatalogued"
