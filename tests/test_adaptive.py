@@ -330,6 +330,6 @@ def test_a_location_error_of_implausible_size_is_left_out_of_the_base_whatever_i
         based[y_um] = {link.effect: link.params for link in result.base}
         assert all(not DEFAULT_CATALOG[link.effect].implausible(link.params) for link in result.base)
         search = CandidateSearch(campaign, ~campaign.holdout_mask(), 0)
-        assert base_gain(search, position(), []) > 0.0 and implausible_in_fit(search, [], position()) == (y_um == 20.0)
+        assert base_gain(search, position(), []) > 0.0 and implausible_in_fit(search, [position()]) == [y_um == 20.0]
     assert abs(based[2.0]["b_axis_position"]["y_offset_um"] - 2.0) < 1.0
     assert "b_axis_position" not in based[20.0] and "b_axis_position" not in [c.effect for c in result.found]

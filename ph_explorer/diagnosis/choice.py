@@ -41,13 +41,13 @@ def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect])
     return float(ring_weights(~search.train) @ gain)
 
 
-def implausible_in_fit(search: CandidateSearch, chain: Sequence[Effect], effect: Effect) -> bool:
-    """Whether `effect`'s parameters, fitted beside the chain's others, lie outside its plausible
-    ranges (Effect.implausible): a size the rings cannot determine, which the data part would undo
-    only where rings were measured."""
-    joint = search.design([*(e for e in chain if e is not effect), effect])
-    own = least_squares.fit(joint, search.targets)[0][-search.design([effect]).n_columns :, 0]
-    return bool(effect.implausible(effect.from_coefficients(own)))
+def implausible_in_fit(search: CandidateSearch, chain: Sequence[Effect]) -> list[bool]:
+    """Per effect of the chain, whether its parameters in the chain's joint fit lie outside its
+    plausible ranges (Effect.implausible): a size the rings cannot determine, which the data part
+    would undo only where rings were measured."""
+    coefficients = least_squares.fit(search.design(chain), search.targets)[0][:, 0]
+    edges = np.cumsum([0, *(search.design([effect]).n_columns for effect in chain)])
+    return [bool(e.implausible(e.from_coefficients(coefficients[a:b]))) for e, a, b in zip(chain, edges[:-1], edges[1:])]
 
 
 def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequence[Effect] = ()) -> list[Effect]:
@@ -60,16 +60,14 @@ def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequenc
     kept: list[Effect] = []
     if not claims:
         for effect in base:
-            usable = base_gain(search, effect, kept) > 0.0 and not implausible_in_fit(search, kept, effect)
+            usable = base_gain(search, effect, kept) > 0.0 and not implausible_in_fit(search, [*kept, effect])[-1]
             kept += [effect] if usable else []
         return kept
     kept = list(base)
     while kept:
+        implausible = implausible_in_fit(search, [*kept, *claims])  # one joint fit for every kept effect
         gains = [
-            -math.inf
-            if implausible_in_fit(search, [*kept, *claims], e)
-            else base_gain(search, e, [*(k for k in kept if k is not e), *claims])
-            for e in kept
+            -math.inf if bad else base_gain(search, e, [*(k for k in kept if k is not e), *claims]) for e, bad in zip(kept, implausible)
         ]
         if min(gains) > 0.0:
             break
