@@ -333,3 +333,25 @@ def test_a_location_error_of_implausible_size_is_left_out_of_the_base_whatever_i
         assert base_gain(search, position(), []) > 0.0 and implausible_in_fit(search, [position()]) == [y_um == 20.0]
     assert abs(based[2.0]["b_axis_position"]["y_offset_um"] - 2.0) < 1.0
     assert "b_axis_position" not in based[20.0] and "b_axis_position" not in [c.effect for c in result.found]
+
+
+def test_a_base_effect_plausible_beside_those_before_it_but_not_beside_them_all_is_left_out() -> None:
+    """A healthy random head's first rings (seed 980000): kept one at a time, the B axis's position
+    is plausible beside those kept before it, yet implausible in the fit of the whole base; the
+    base then leaves it out, keeps the others, and every effect it keeps is plausible in their
+    joint fit (docs/planning.md#the-base-model)."""
+    from ph_explorer.diagnosis.choice import base_gain, implausible_in_fit, usable_base
+    from ph_explorer.diagnosis.search import CandidateSearch
+
+    scenario = random_head(980000)
+    campaign = closed_loop.measured_plan(scenario, adaptive.first_rings(geometry=scenario.geometry))[1]
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), 0)
+    offered = adaptive.base_model()
+    forward: list = []
+    for effect in offered:
+        if base_gain(search, effect, forward) > 0.0 and not implausible_in_fit(search, [*forward, effect])[-1]:
+            forward.append(effect)
+    assert "b_axis_position" in [e.id for e in forward] and any(implausible_in_fit(search, forward))
+    kept = usable_base(search, offered)
+    assert kept and "b_axis_position" not in [e.id for e in kept] and not any(implausible_in_fit(search, kept))
+    assert [e.id for e in kept] == [e.id for e in forward if e.id != "b_axis_position"]

@@ -53,15 +53,18 @@ def implausible_in_fit(search: CandidateSearch, chain: Sequence[Effect]) -> list
 def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequence[Effect] = ()) -> list[Effect]:
     """The base model's effects that predict rings left out better than the model without them, at
     a plausible size (implausible_in_fit). Before the search (no claims): each in turn, kept when
-    its gain beside those kept is positive and its fit there plausible. With the claims: those
-    kept, an implausible one, else the one of least gain beside all the rest, dropped while its
-    gain is not positive. A location error a few rings cannot determine adds more to what they
-    miss than it removes; one that stood in for a claim is not needed beside it."""
+    its gain beside those kept is positive and its fit there plausible; then, while one is
+    implausible in the fit of them all, the first such dropped. With the claims: those kept, an
+    implausible one, else the one of least gain beside all the rest, dropped while its gain is not
+    positive. A location error a few rings cannot determine adds more to what they miss than it
+    removes; one that stood in for a claim is not needed beside it."""
     kept: list[Effect] = []
     if not claims:
         for effect in base:
             usable = base_gain(search, effect, kept) > 0.0 and not implausible_in_fit(search, [*kept, effect])[-1]
             kept += [effect] if usable else []
+        while any(implausible := implausible_in_fit(search, kept) if kept else []):
+            kept.pop(implausible.index(True))  # plausible beside those before it, not beside them all
         return kept
     kept = list(base)
     while kept:
