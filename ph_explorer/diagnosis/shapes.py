@@ -17,7 +17,7 @@ import math
 import threading
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -81,6 +81,9 @@ class Shape:
     period_cycles: float | None = None  # the curve's dominant period, cycles/rev (None: no period dominates)
     widest_at: float | None = None  # where its band is widest, in the variable's unit
     leave_out: LeaveOut = "ring"  # what each training ring was predicted without when it was judged
+    # A second look's shape: the first look's best group of another variable, and its check
+    # rings' fall, when that predicts the check rings at least as well (find_shapes).
+    rival: tuple[str, float] | None = None
 
     @property
     def id(self) -> str:
@@ -134,6 +137,7 @@ class Shape:
             "period_cycles_per_rev": self.period_cycles,
             "widest_at": self.widest_at,
             "leave_out": self.leave_out,
+            "rival": None if self.rival is None else {"group": self.rival[0], "check_reduction": round(self.rival[1], 4)},
         }
 
     @classmethod
@@ -155,6 +159,7 @@ class Shape:
             data.get("period_cycles_per_rev"),
             data.get("widest_at"),
             data.get("leave_out", "ring"),
+            None if data.get("rival") is None else (str(data["rival"]["group"]), float(data["rival"]["check_reduction"])),
         )
 
 
@@ -320,7 +325,13 @@ def find_shapes(
         rows = search.in_rows()
         current = rows.within_noise_after(list(chain), seed)
         if current is not None and current.fails:
-            out += _look(rows, chain, current, unseen, seed, LOOKS)
+            second = _look(rows, chain, current, unseen, seed, LOOKS)
+            # Both looks predict the check rings alike: a second look's shape that predicts them no
+            # better than the first look's best of another variable is not what these rings show.
+            first = out[-1] if out and out[-1].group not in unseen else None
+            if first is not None and second[0].claimed and second[0].check_reduction <= first.check_reduction:
+                second = [replace(second[0], claimed=False, rival=(first.group, first.check_reduction))]
+            out += second
     return out
 
 

@@ -43,6 +43,12 @@ def shape_lines(shape: Shape) -> list[str]:
         why = f" (its gain over rings is not significant as the best of the groups tried: p = {shape.family_p:.3g})"
     elif test.p_without_top >= REPLICATION_LEVEL:
         why = f" (it rests on one ring: without it p = {test.p_without_top:.3g})"
+    elif shape.rival is not None:
+        group, fall = shape.rival
+        why = (
+            f" (the first look's best, {SHAPE_GROUPS[group].words}, predicts the check rings as well: their error "
+            f"{'falls' if fall >= 0 else 'rises'} {100 * abs(fall):.0f} % with it, {100 * shape.check_reduction:.0f} % with this one)"
+        )
     elif not shape.plausible:
         limit = SHAPE_GROUPS[shape.group].plausible[1]
         why = f" (implausible: its curve reaches {np.abs(values).max():.3g} {unit}, beyond the {limit:g} {unit} an error motion of its kind reaches)"
