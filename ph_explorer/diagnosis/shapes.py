@@ -81,8 +81,8 @@ class Shape:
     period_cycles: float | None = None  # the curve's dominant period, cycles/rev (None: no period dominates)
     widest_at: float | None = None  # where its band is widest, in the variable's unit
     leave_out: LeaveOut = "ring"  # what each training ring was predicted without when it was judged
-    # A second look's shape: the first look's best group of another variable, and its check
-    # rings' fall, when that predicts the check rings at least as well (find_shapes).
+    # A second look's shape not claimed: the first look's best group of another variable, which
+    # gains significantly more at the check rings, and their fall with it (find_shapes).
     rival: tuple[str, float] | None = None
 
     @property
@@ -319,37 +319,53 @@ def find_shapes(
     groups = [g for g in (groups or SHAPE_GROUPS) if g not in held]
     if current is None or not current.fails or not groups:
         return []
-    out = _look(search, chain, current, groups, seed)
-    unseen = [] if any(shape.claimed for shape in out) else [g for g in groups if view_of(search, g) is not search]
+    looked = _look(search, chain, current, groups, seed)
+    unseen = [] if any(shape.claimed for shape, _ in looked) else [g for g in groups if view_of(search, g) is not search]
     if unseen:
         rows = search.in_rows()
         current = rows.within_noise_after(list(chain), seed)
         if current is not None and current.fails:
-            second = _look(rows, chain, current, unseen, seed, LOOKS)
-            # Both looks predict the check rings alike: a second look's shape that predicts them no
-            # better than the first look's best of another variable is not what these rings show.
-            first = out[-1] if out and out[-1].group not in unseen else None
-            if first is not None and second[0].claimed and second[0].check_reduction <= first.check_reduction:
-                second = [replace(second[0], claimed=False, rival=(first.group, first.check_reduction))]
-            out += second
-    return out
+            looked += _across_looks(looked[-1], _look(rows, chain, current, unseen, seed, LOOKS), unseen, ~search.train, seed)
+    return [shape for shape, _ in looked]
+
+
+def _across_looks(
+    first: tuple[Shape, NDArray[np.float64]],
+    second: list[tuple[Shape, NDArray[np.float64]]],
+    unseen: list[str],
+    check: NDArray[np.bool_],
+    seed: int,
+) -> list[tuple[Shape, NDArray[np.float64]]]:
+    """The second look's shapes beside the first look's best, when that is of another variable.
+    Both looks predict the check rings alike, so their gains there compare them (the sign-flip
+    test of replication over the check rings): a rival significantly better there takes the
+    claim back; one not significantly worse is named beside it (these rings cannot tell)."""
+    (rival, rival_gain), (shape, gain) = first, second[0]
+    if rival.group in unseen or not shape.claimed:
+        return second
+    if replication(np.where(check, rival_gain - gain, 0.0), check, True, seed).p_value < REPLICATION_LEVEL:
+        return [(replace(shape, claimed=False, rival=(rival.group, rival.check_reduction)), gain)]
+    if replication(np.where(check, gain - rival_gain, 0.0), check, True, seed).p_value >= REPLICATION_LEVEL:
+        second[0] = (replace(shape, untold=(*shape.untold, rival.group)), gain)
+    return second
 
 
 def _look(
     search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest, groups: list[str], seed: int, looks: int = 1
-) -> list[Shape]:
+) -> list[tuple[Shape, NDArray[np.float64]]]:
     """One look at the groups in one search: the best claimed while the model fails, at most
-    MAX_SHAPES, then the best tried that was not (find_shapes); `looks`: the family-wise p-value's
-    Bonferroni factor."""
+    MAX_SHAPES, then the best tried that was not (find_shapes), each with its rings' gains;
+    `looks`: the family-wise p-value's Bonferroni factor."""
     noise = ring_sigma(search.campaign.deviations) ** 2
     check = ~search.train
     fixed = search.design(list(chain)) if chain else None
-    out: list[Shape] = []
+    out: list[tuple[Shape, NDArray[np.float64]]] = []
     # Each ring's left-out sum of squares before the next group: the chain's (as a claim's), then
     # with the shapes claimed, as their ridge fit left it (an unpenalised refit of hundreds of
     # columns would overfit, and every next group would seem to gain).
     before = ring_residual_squares(search.residual, fixed, search.targets)
-    while len([s for s in out if s.claimed]) < MAX_SHAPES and groups:
+    check_before = search.check_residual(fixed)[0]
+    while len([s for s, _ in out if s.claimed]) < MAX_SHAPES and groups:
         fits = fit_groups(search, fixed, before, groups, noise)
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         family_p = min(1.0, looks * family_p)
@@ -357,7 +373,6 @@ def _look(
         fit = fits[best]
         test = replication(fit.gain, check, True, seed)
         residual = _left_out_residual(search, fit)
-        check_before = search.check_residual(fixed)[0]
         reduction = 1.0 - _rms(residual[check].mean(axis=1)) / max(_rms(check_before), 1e-300)
         after = within_noise(residual, search.smoother.weights, search.campaign.deviations, seed, held_out=check)
         brought = current.failing_rings - (after.failing_rings if after is not None else current.failing_rings)
@@ -394,10 +409,12 @@ def _look(
             float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
             search.smoother.leave_out,
         )
-        out.append(shape)
+        out.append((shape, fit.gain))
         if not shape.claimed:
             break
-        fixed, before = fit.joint, fit.squares
+        # The check rings as the ridge fit left them (an unpenalised refit of the shape's hundreds
+        # of columns would leave them far off, and every next group would seem material).
+        fixed, before, check_before = fit.joint, fit.squares, residual[check].mean(axis=1)
         current = after
         groups = [g for g in groups if g != best]
         if after is None or not after.fails:

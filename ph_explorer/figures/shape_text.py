@@ -46,7 +46,7 @@ def shape_lines(shape: Shape) -> list[str]:
     elif shape.rival is not None:
         group, fall = shape.rival
         why = (
-            f" (the first look's best, {SHAPE_GROUPS[group].words}, predicts the check rings as well: their error "
+            f" (the first look's best, {SHAPE_GROUPS[group].words}, predicts the check rings better: their error "
             f"{'falls' if fall >= 0 else 'rises'} {100 * abs(fall):.0f} % with it, {100 * shape.check_reduction:.0f} % with this one)"
         )
     elif not shape.plausible:
