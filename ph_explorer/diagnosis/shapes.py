@@ -329,13 +329,10 @@ def find_shapes(
     return [shape for shape, _ in looked]
 
 
-def _across_looks(
-    first: tuple[Shape, NDArray[np.float64]],
-    second: list[tuple[Shape, NDArray[np.float64]]],
-    unseen: list[str],
-    check: NDArray[np.bool_],
-    seed: int,
-) -> list[tuple[Shape, NDArray[np.float64]]]:
+Looked = tuple[Shape, NDArray[np.float64]]  # a shape tried, with its rings' gains
+
+
+def _across_looks(first: Looked, second: list[Looked], unseen: list[str], check: NDArray[np.bool_], seed: int) -> list[Looked]:
     """The second look's shapes beside the first look's best, when that is of another variable.
     Both looks predict the check rings alike, so their gains there compare them (the sign-flip
     test of replication over the check rings): a rival significantly better there takes the
@@ -352,14 +349,14 @@ def _across_looks(
 
 def _look(
     search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest, groups: list[str], seed: int, looks: int = 1
-) -> list[tuple[Shape, NDArray[np.float64]]]:
+) -> list[Looked]:
     """One look at the groups in one search: the best claimed while the model fails, at most
     MAX_SHAPES, then the best tried that was not (find_shapes), each with its rings' gains;
     `looks`: the family-wise p-value's Bonferroni factor."""
     noise = ring_sigma(search.campaign.deviations) ** 2
     check = ~search.train
     fixed = search.design(list(chain)) if chain else None
-    out: list[tuple[Shape, NDArray[np.float64]]] = []
+    out: list[Looked] = []
     # Each ring's left-out sum of squares before the next group: the chain's (as a claim's), then
     # with the shapes claimed, as their ridge fit left it (an unpenalised refit of hundreds of
     # columns would overfit, and every next group would seem to gain).
