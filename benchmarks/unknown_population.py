@@ -45,9 +45,11 @@ The verdicts are what the code says today; the issue's targets (none <= 10 %, a 
 
 from __future__ import annotations
 
+import json
 import time
 from collections import Counter
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -71,6 +73,8 @@ if TYPE_CHECKING:
 COUNT_PER_FAMILY, QUICK_COUNT_PER_FAMILY = 25, 1
 QUICK_FAMILIES = ("step", "bad_ring")
 FIRST_SEED = 550_000
+# Every diagnosis's record of a full run, beside results.json: rules can be weighed on them offline.
+RECORDS = Path(__file__).with_name("unknown_records.json")
 BAD_RING_SEED = 560_000  # the bad-ring heads beyond the families' turn (>= 50 in all)
 CALIBRATION_SEED, CALIBRATION_HEADS, QUICK_CALIBRATION_HEADS = 900_000, 300, 2  # population.py's tolerance heads
 TRIED = (1.25, 1.5, 2.0, 2.5, 3.0)  # check-ring tolerances whose cost and power are measured
@@ -166,7 +170,18 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "check_exceedance": check_exceedance(result.within_noise["baseline"]),
         "signature_first": None if first is None else first["variable"],
         "shapes": [
-            {"group": s.group, "claimed": s.claimed, "untold": list(s.untold), "family_p": round(s.family_p, 5), "period": s.period_cycles}
+            {
+                "group": s.group,
+                "claimed": s.claimed,
+                "untold": list(s.untold),
+                "family_p": round(s.family_p, 5),
+                "period": s.period_cycles,
+                "look": s.leave_out,
+                "p_without_top": round(s.replication.p_without_top, 5),
+                "check_reduction": round(s.check_reduction, 4),
+                "rings_brought_within": s.rings_brought_within,
+                "rival": None if s.rival is None else s.rival[0],
+            }
             for s in result.shapes
         ],
         "step_ratios": [round(step.mae_um["mean"] / step.noise_floor_um["mean"], 3) for step in result.steps],
@@ -486,7 +501,12 @@ def run(
     healthy = [r for r in run_tasks(client, healthy_exceedance, seeds).results if r["check_exceedance"] is not None]
     # Heads with several catalog effects at once (item 6).
     multi = [{"seed": MULTI_SEED + i} for i in range(QUICK_MULTI_COUNT if quick else MULTI_COUNT)]
-    out["multi_effect"] = multi_figures(sorted(run_tasks(client, diagnose_multi, multi).results, key=lambda r: r["seed"]))
+    multi_records = sorted(run_tasks(client, diagnose_multi, multi).results, key=lambda r: r["seed"])
+    out["multi_effect"] = multi_figures(multi_records)
+    if not quick:
+        RECORDS.write_text(
+            json.dumps({"code_sha256": code, "records": records, "multi_effect": multi_records}, separators=(",", ":")) + "\n"
+        )
     # The suspect test's thresholds over healthy and bad-ring heads of their own seeds.
     n_suspect = QUICK_SUSPECT_HEADS if quick else SUSPECT_HEADS
     calibration = [{"seed": SUSPECT_SEEDS[kind] + i, "kind": kind} for kind in SUSPECT_SEEDS for i in range(n_suspect[kind])]
