@@ -45,6 +45,27 @@ def test_one_harmonic_alone_is_not_claimed_with_a_passenger() -> None:
     assert not any(c.note.startswith("claimed together") for c in result.found)
 
 
+def test_a_pair_is_tried_from_the_next_candidate_when_the_best_is_an_untold_partner_whose_form_breaks() -> None:
+    # B tilt motion 6/rev and B axial motion 7/rev on a coarse lattice: the best candidate beyond
+    # noise is the radial motion 6/rev, which the rings cannot tell from the tilt motion by its
+    # gain but whose parameters differ between low and high A beside any second effect; from it,
+    # no pair was taken. From the next candidate, the tilt motion, the pair holds.
+    hidden = [
+        BAxisTiltMotion(
+            about_x_amplitude_arcsec=-1.0252,
+            about_x_phase_deg=147.85,
+            about_y_amplitude_arcsec=1.0252,
+            about_y_phase_deg=41.54,
+            cycles_per_rev=6,
+        ),
+        BAxisAxialMotion(amplitude_um=-0.7003, phase_deg=307.08, cycles_per_rev=7),
+    ]
+    result = diagnose(random_campaign(975009, "coarse", hidden), nested=False)
+    assert sorted((c.effect, c.settings["cycles_per_rev"]) for c in result.found) == [("b_axis_axial_motion", 7), ("b_axis_tilt_motion", 6)]
+    assert all(c.note.startswith("claimed together with") for c in result.found)
+    assert result.candidates[0].effect == "b_axis_radial_motion"
+
+
 def test_a_setting_chosen_before_a_later_effect_is_refitted_beside_it() -> None:
     # Three effects on a coarse lattice: the A-axis radial motion 11/rev was taken at 13/rev while
     # the B-axis tilt motion was still missing; scanned again beside it, it moves.

@@ -161,8 +161,8 @@ def claimed_together(
     seed: int = 0,
 ) -> tuple[list[Candidate], list[Candidate], list[Candidate], NoiseTest | None] | None:
     """Two effects that only replicate together (two harmonics of one axis's error: a beat), taken
-    where one at a time stalls (docs/diagnosis.md, step 2): the best candidate beyond noise, the
-    best beyond noise with it in the model, and the first again with the second in it (its setting
+    where one at a time stalls (docs/diagnosis.md, step 2): a candidate beyond noise (the best,
+    else the next, at most PAIR_FIRSTS), the best beyond noise with it in the model, and the first again with the second in it (its setting
     refitted). Taken when each is beyond noise beside the other, their gain together is replicated
     over rings and material (the check rings' error, or rings brought within noise), and each one's
     own gain beside the other is replicated too, so that no passenger rides on its partner.
@@ -171,10 +171,31 @@ def claimed_together(
     if current is None or not current.fails:
         return None
     seen = [c for c in ranked if c.beyond_noise or c.significant]
-    if not seen:
-        return None
+    for first in seen[:PAIR_FIRSTS]:
+        taken = _pair_from(first, ranked, current, search, campaign, chain, by_id, seed)
+        if taken is not None:
+            return taken
+    return None
+
+
+# Candidates tried in turn as a pair's first: the best beyond noise may be one the rings cannot
+# tell from the effect the head holds (radial motion for tilt motion of the same period), whose
+# form breaks beside any second.
+PAIR_FIRSTS = 3
+
+
+def _pair_from(
+    first: Candidate,
+    ranked: Sequence[Candidate],
+    current: NoiseTest,
+    search: CandidateSearch,
+    campaign: Campaign,
+    chain: Sequence[Effect],
+    by_id: dict[str, Effect],
+    seed: int,
+) -> tuple[list[Candidate], list[Candidate], list[Candidate], NoiseTest | None] | None:
+    """claimed_together's pair with `first` as its first, or None."""
     start = list(chain)
-    first = seen[0]
     step = rank_candidates(search, list(by_id.values()), fixed=search.design([*start, by_id[first.effect].with_settings(**first.settings)]))
     same = (first.effect, first.settings)
     second = next((c for c in step if (c.beyond_noise or c.significant) and (c.effect, c.settings) != same), None)
