@@ -151,6 +151,12 @@ def next_found(
     return ranked, None
 
 
+# Candidates tried in turn as a pair's first: the best beyond noise may be one the rings cannot
+# tell from the effect the head holds (radial motion for tilt motion of the same period), whose
+# form breaks beside any second.
+PAIR_FIRSTS = 3
+
+
 def claimed_together(
     ranked: Sequence[Candidate],
     current: NoiseTest | None,
@@ -162,10 +168,11 @@ def claimed_together(
 ) -> tuple[list[Candidate], list[Candidate], list[Candidate], NoiseTest | None] | None:
     """Two effects that only replicate together (two harmonics of one axis's error: a beat), taken
     where one at a time stalls (docs/diagnosis.md, step 2): a candidate beyond noise (the best,
-    else the next, at most PAIR_FIRSTS), the best beyond noise with it in the model, and the first again with the second in it (its setting
-    refitted). Taken when each is beyond noise beside the other, their gain together is replicated
-    over rings and material (the check rings' error, or rings brought within noise), and each one's
-    own gain beside the other is replicated too, so that no passenger rides on its partner.
+    else the next, at most PAIR_FIRSTS), the best beyond noise with it in the model, and the first
+    again with the second in it (its setting refitted). Taken when each is beyond noise beside the
+    other, their gain together is replicated over rings and material (the check rings' error, or
+    rings brought within noise), and each one's own gain beside the other is replicated too, so
+    that no passenger rides on its partner.
     Returns (the ranking it started from, the ranking with the first in the model, both holding
     the claims; the two claims; the test with both), None when none is taken."""
     if current is None or not current.fails:
@@ -176,12 +183,6 @@ def claimed_together(
         if taken is not None:
             return taken
     return None
-
-
-# Candidates tried in turn as a pair's first: the best beyond noise may be one the rings cannot
-# tell from the effect the head holds (radial motion for tilt motion of the same period), whose
-# form breaks beside any second.
-PAIR_FIRSTS = 3
 
 
 def _pair_from(

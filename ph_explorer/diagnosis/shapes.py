@@ -343,7 +343,7 @@ def _across_looks(first: Looked, second: list[Looked], unseen: list[str], check:
     if replication(np.where(check, rival_gain - gain, 0.0), check, True, seed).p_value < REPLICATION_LEVEL:
         return [(replace(shape, claimed=False, rival=(rival.group, rival.check_reduction)), gain)]
     if replication(np.where(check, gain - rival_gain, 0.0), check, True, seed).p_value >= REPLICATION_LEVEL:
-        second[0] = (replace(shape, untold=(*shape.untold, rival.group)), gain)
+        return [(replace(shape, untold=(*shape.untold, rival.group)), gain), *second[1:]]
     return second
 
 
