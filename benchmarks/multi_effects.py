@@ -21,6 +21,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.detection import hidden_effect_of
 from ph_explorer.effects import DEFAULT_CATALOG, Effect
+from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.errors import InputError
 from ph_explorer.twin.random_heads import design_of, random_campaign
 
@@ -113,3 +114,16 @@ def found_each(effects: list[Effect], found: list[dict[str, Any]], exact: bool =
         return holds_truth(claim, effect.id, settings)
 
     return [any(holds(effect, claim) for claim in found) for effect in effects]
+
+
+def shaped_each(effects: list[Effect], shapes: list[dict[str, Any]]) -> list[bool]:
+    """For each effect the head holds: a claimed shape of the effect's axis and ISO 230-7 component
+    group holds it (its group, or one of the groups the rings cannot tell it from). Not a catalog
+    claim: the error motion named at what the rings tell of it, without its period."""
+    return [
+        any(
+            any(SHAPE_GROUPS[g].axis == effect.axis and SHAPE_GROUPS[g].kind == effect.kind for g in (s["group"], *s["untold"]))
+            for s in shapes
+        )
+        for effect in effects
+    ]
