@@ -1,4 +1,4 @@
-"""`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS] [--scheduler ADDRESS]`: every benchmark, one JSON and PNG plots.
+"""`python -m benchmarks [--quick] [--out DIR] [--only SECTIONS] [--scheduler ADDRESS] [--stale]`: every benchmark, one JSON and PNG plots.
 
 Writes DIR/results.json (default: this folder) and DIR/data_efficiency.png, DIR/speed.png,
 DIR/calibration.png. The full run takes about 45 minutes on 2 cores (the diagnosis
@@ -303,6 +303,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
     parser.add_argument("--out", type=Path, default=HERE, help="folder for results.json and the PNGs")
     parser.add_argument("--replot", action="store_true", help="only redraw the PNGs from OUT/results.json")
+    parser.add_argument("--stale", action="store_true", help="only say which sections of OUT/results.json describe this checkout's code")
     parser.add_argument(
         "--only",
         default="",
@@ -325,6 +326,12 @@ def main(argv: list[str] | None = None) -> int:
     out: Path = args.out
     if args.replot:
         write_plots(json.loads((out / "results.json").read_text()), out)
+        return 0
+    if args.stale:
+        from benchmarks import freshness
+
+        for state in freshness.states(json.loads((out / "results.json").read_text())):
+            print(state.line())
         return 0
     only = [name.strip() for name in args.only.split(",") if name.strip()]
     not_sections = [name for name in only if name not in SECTIONS]

@@ -110,6 +110,41 @@ def test_a_shape_holds_an_effect_of_its_axis_and_component_group_only() -> None:
     assert shaped_each([tilt, position], [{"group": "b_radial", "untold": ["b_tilt"]}]) == [False, False]
 
 
+def test_a_section_is_stale_only_when_a_module_it_can_import_changed(tmp_path: Path) -> None:
+    from benchmarks import freshness
+
+    files = {
+        "ph_explorer/__init__.py": "",
+        "ph_explorer/diagnosis.py": "import numpy\n",
+        "ph_explorer/wording.py": "",  # imported by no benchmark: the text a verdict is worded in
+        "benchmarks/__init__.py": "",
+        "benchmarks/run.py": "import json\n\ndef run_speed():\n    from ph_explorer import wording\n",
+        "benchmarks/population.py": "def run():\n    from ph_explorer.diagnosis import x  # a lazy import counts\n",
+    }
+    for path, text in files.items():
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text(text)
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t", "-C", str(tmp_path)]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-qm", "measured"], check=True)
+    commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
+    results = {"population": {}, "speed": {}, "fleet": {}, "updated": {s: {"commit": commit, "date": "d"} for s in ("population", "speed")}}
+    results["updated"]["fleet"] = {"commit": commit + "+changes", "date": "d"}
+
+    def state(section: str) -> freshness.SectionState:
+        return next(s for s in freshness.states(results, tmp_path) if s.section == section)
+
+    assert not state("population").changed and not state("speed").changed and "describes this checkout" in state("population").line()
+    assert not state("fleet").known  # measured on uncommitted changes: nothing can be said
+    (tmp_path / "ph_explorer/wording.py").write_text("WORDS = 1\n")
+    assert not state("population").changed and state("speed").changed == ("ph_explorer.wording",)
+    (tmp_path / "ph_explorer/diagnosis.py").write_text("import numpy as np\n")
+    assert state("population").changed == ("ph_explorer.diagnosis",) and "stale, 1 of the 2" in state("population").line()
+    (tmp_path / "benchmarks/population.py").write_text(files["benchmarks/population.py"] + "# a figure defined anew\n")
+    assert state("population").benchmark_changed == ("benchmarks.population",)
+
+
 def test_the_shapes_axis_and_group_are_named_by_a_shape_or_by_its_own_mechanism() -> None:
     """Issue 56's line read over what the diagnosis names (unknown_population.group_right): an A-axis
     angular error of 17.3 cycles/rev is named by a shape on its group, or by the A axis's angular

@@ -4,6 +4,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # docs/, where the package stands
+sys.path.insert(1, str(Path(__file__).resolve().parent.parent.parent))  # the checkout: benchmarks.freshness
 
 from benchmarks_page import PLOTS, RESULTS, load, render  # noqa: E402
 

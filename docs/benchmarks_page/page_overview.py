@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import subprocess
 from collections.abc import Iterable, Mapping
 from typing import Any
+
+from benchmarks import freshness  # imported with the page (mkdocs puts the checkout on sys.path only then)
 
 from .page_format import get, holds, interval, joined, num, pct, pct_interval, table
 
@@ -22,6 +25,7 @@ def overview(results: Mapping[str, Any]) -> str:
         ".venv/bin/python -m benchmarks --only speed,hidden_effects             # some sections, updated in results.json",
         ".venv/bin/python -m benchmarks --replot                                # redraw the PNGs from the JSON",
         ".venv/bin/python -m benchmarks --scheduler tcp://HOST:8786              # the many diagnoses on a Dask cluster",
+        ".venv/bin/python -m benchmarks --stale                                 # which sections describe this checkout",
         "```",
         "",
         "A run writes `benchmarks/results.json` and the plots `benchmarks/data_efficiency.png`, "
@@ -55,13 +59,19 @@ def overview(results: Mapping[str, Any]) -> str:
     ]
     updated = results.get("updated") or {}
     if updated:
+        current = describes_this_build(results)
         out += [
             "Sections run again since (with `--only`), each measured on the code named by its sha256 (and its commit, "
-            "recorded since 2026-11-27):",
+            "recorded since 2026-11-27). The last column says whether its figures describe the code this page was built "
+            "from: none of the package's modules its benchmark can import changed since its commit "
+            "(`python -m benchmarks --stale` names them; `benchmarks/freshness.py`).",
             "",
             table(
-                ["section", "date", "mode", "code sha256", "commit"],
-                [[name, s.get("date"), s.get("mode"), s.get("code_sha256"), s.get("commit", "")] for name, s in updated.items()],
+                ["section", "date", "mode", "code sha256", "commit", "describes this build"],
+                [
+                    [name, s.get("date"), s.get("mode"), s.get("code_sha256"), s.get("commit", ""), current.get(name, "unknown")]
+                    for name, s in updated.items()
+                ],
             ),
         ]
     seconds = results.get("section_seconds") or {}
@@ -69,6 +79,15 @@ def overview(results: Mapping[str, Any]) -> str:
         out += ["", "Wall seconds of each section at its last run: " + joined([f"{k} {num(v, 's')}" for k, v in seconds.items()]) + "."]
     out += ["## Targets at a glance", "", table(["section", "target", "result"], list(target_rows(results)))]
     return "\n".join(out)
+
+
+def describes_this_build(results: Mapping[str, Any]) -> dict[str, str]:
+    """Section -> "yes", "no: N modules changed" or "unknown" (benchmarks/freshness.py); {} without git."""
+    try:
+        states = freshness.states(dict(results))
+    except (OSError, subprocess.CalledProcessError):  # a build from files that git does not hold
+        return {}
+    return {s.section: "unknown" if not s.known else (f"no: {len(s.changed)} modules changed" if s.changed else "yes") for s in states}
 
 
 def target_rows(results: Mapping[str, Any]) -> Iterable[list[Any]]:
