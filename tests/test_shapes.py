@@ -116,6 +116,24 @@ def test_a_step_in_an_axis_angle_is_found_on_that_axis_and_added(step) -> None:
     assert Diagnosis.from_json(data).to_json() == data
 
 
+def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_left_open(step) -> None:
+    """The Next line of a shape claimed beside an open suggestion (the multi-effect heads' common
+    case: a shape of the A axis, its catalog motion suggested) asks for the rings that decide, then
+    for those that would narrow the shape's band."""
+    from ph_explorer.diagnosis.candidates import Candidate
+    from ph_explorer.figures.diagnosis_text import next_step
+
+    actions = {"decide": "decide", "add": "add", "own": "own"}
+    shape = step.claimed_shapes[0]
+    assert f"to pin {shape.id} down, measure rings whose" in next_step(step, actions)
+    suggestion = Candidate("b_axis_cyclic", "B-axis cyclic", 0.1, 0.1, 0.01, True, {}, {}, {}, "", suggested=True)
+    open_ = dataclasses.replace(step, suggested=(suggestion,))
+    assert open_.leaves_open
+    line = next_step(open_, actions)
+    assert line.startswith("measure the rings that would confirm the suggestion (decide).")
+    assert f"Then, to pin {shape.id} down, measure rings whose" in line and line.endswith("where its band is widest.")
+
+
 def test_a_shape_of_implausible_size_is_not_claimed_and_the_report_says_why(step) -> None:
     """The step's shape is within what a B-axis angular error motion reaches (6 arcsec); the same
     curve 100 times larger is no explanation however well it predicts, and its line says so."""

@@ -168,14 +168,17 @@ def why_lines(result: Diagnosis) -> list[str]:
 def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
     """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions;
     with the decision found, what rings can decide and what they cannot (no button says no ring does)."""
+    # A claimed shape's band narrows where its variable's band is widest, whatever else is open.
+    pins = "; ".join(f"to pin {shape.id} down, {pin_text(shape)}" for shape in result.claimed_shapes)
     if result.leaves_open:
         what = "confirm the suggestion" if result.open_suggestions and not result.found else "decide what these rings cannot tell"
         if decision is None:
-            return f"measure the rings that would {what} ({actions['decide']})."
+            return f"measure the rings that would {what} ({actions['decide']})." + (f" Then, {pins}." if pins else "")
         undecided = undecided_text(decision)
         rest = "the rest" if undecided else "what these rings leave open"
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
-        return f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
+        text = f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
+        return f"{text} {pins[:1].upper()}{pins[1:]}.".strip() if pins else text
     # The shape that came closest and was not claimed: the rings that would pin it down come before
     # an effect file of the user's own (what neither the catalog nor a shape holds).
     tried = next((shape for shape in result.shapes if not shape.claimed), None)
@@ -187,9 +190,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
         "partial": f"add the effects found, then look at what is left: {closest}an effect outside the catalog ({actions['own']}) may explain it.",
         "unexplained": f"no catalog effect explains the failure: {closest or look}else write the effect that has that signature ({actions['own']}).",
-        "uncatalogued": "the shape found is added in the error history below; "
-        + "; ".join(f"to pin {shape.id} down, {pin_text(shape)}" for shape in result.claimed_shapes)
-        + ".",
+        "uncatalogued": f"the shape found is added in the error history below; {pins}.",
     }[result.verdict]
 
 
