@@ -18,10 +18,13 @@ intervals:
   a sparse campaign's data part interpolates less of the background, whose effects then show);
 - the same answer about what the head hides (same_answer): a hidden catalog effect held by a claim
   of both or of neither (multi_effects.holds_truth: a pair the rings did not tell apart holding it
-  counts, as the diagnosis names both); on the other heads both quiet (`none`, or claims of the head's own background
-  only, as the population judges a healthy head's alarm) or both not. The words differ where the
-  sparse campaign's model, physical where the full one's trilinear interpolates, names background
-  effects the full campaign leaves to its data part.
+  counts, as the diagnosis names both); on an unknown-shape head whose shape has a group, the same
+  of four answers (unknown_answer: its axis and group named, `none`, a catalog effect of another
+  mechanism, or left open), for its own mechanism named is an answer about it even where the
+  head's background holds that effect too; on the other heads both quiet (`none`, or claims of the
+  head's own background only, as the population judges a healthy head's alarm) or both not. The
+  words differ where the sparse campaign's model, physical where the full one's trilinear
+  interpolates, names background effects the full campaign leaves to its data part.
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ import numpy as np
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.multi_effects import claim_record, holds_truth
 from benchmarks.population import FIRST_SEED, head_of
-from benchmarks.unknown_population import FIRST_SEED as UNKNOWN_SEED
+from benchmarks.unknown_population import FIRST_SEED as UNKNOWN_SEED, catalog_name_other_mechanism, group_right, shape_truth
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer import metrics
 from ph_explorer.campaign import orientation_match
@@ -61,14 +64,14 @@ RECORDS = Path(__file__).with_name("adaptive_records.json")
 TARGETS = {"median_rings_max": 20, "mae_ratio": 1.1, "mae_within_ratio_min": 0.90, "verdict_agreement_min": 0.90}
 
 
-def head(job: dict[str, Any]) -> tuple[Any, Any]:
-    """(the head's scenario, its full campaign as the population diagnosed it)."""
+def head(job: dict[str, Any]) -> tuple[Any, Any, dict[str, Any] | None]:
+    """(the head's scenario, its full campaign as the population diagnosed it, an unknown shape's truth)."""
     if job["kind"] == "unknown_shape":
         unknown = unknown_shape_head(job["seed"], job["family"])
-        return unknown.scenario, unknown.campaign
+        return unknown.scenario, unknown.campaign, {k: v for k, v in unknown.truth.items() if isinstance(v, (int, float, str, dict))}
     scenario, truth = head_of({"group": "healthy" if job["kind"] == "healthy" else "catalog_effect", "seed": job["seed"]})
     seed = job["seed"] if truth is None else truth["head_seed"]
-    return scenario, random_campaign(seed, None, scenario.effects[-1:] if truth is not None else ())
+    return scenario, random_campaign(seed, None, scenario.effects[-1:] if truth is not None else ()), None
 
 
 def evaluation_rings(seed: int, known: np.ndarray) -> np.ndarray:
@@ -99,7 +102,7 @@ def mae_vs_mean(model: Any, rings: np.ndarray, mean: np.ndarray) -> float:
 
 def one_head(job: dict[str, Any]) -> dict[str, Any]:
     """The head's adaptive campaign and its full one, judged on the same evaluation rings."""
-    scenario, full = head(job)
+    scenario, full, truth = head(job)
     rings = evaluation_rings(job["seed"], full.orientations)
     after = replace(scenario.at_rings(rings), repetitions=EVALUATION_REPETITIONS)
     evaluation = simulate(after)
@@ -126,6 +129,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "verdict": full_result.verdict,
             "found": sorted(c.effect for c in full_result.found),
             "claims": [claim_record(c) for c in full_result.found],
+            "shapes": shape_records(full_result),
             "suggested": sorted(c.effect for c in full_result.suggested),
             "trilinear_mae_um": round(mae_vs_mean(trilinear, rings, mean), 5),
             "seconds": round(full_seconds, 2),
@@ -140,6 +144,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
             "verdict": last.verdict,
             "found": sorted(c.effect for c in last.found),
             "claims": [claim_record(c) for c in last.found],
+            "shapes": shape_records(last),
             "suggested": sorted(c.effect for c in last.suggested),
             "mae_um": trajectory[-1][2],  # the model at the stop: the trajectory's last
             "rings_by_plan": [len(p.rings) for p in run.plans],
@@ -149,7 +154,8 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
                 {
                     "verdict": result.verdict,
                     "found": sorted(c.effect for c in result.found),
-                    "shapes": sorted(s.group for s in result.claimed_shapes),
+                    "claims": [claim_record(c) for c in result.found],
+                    "shapes": shape_records(result),
                     "suggested": sorted(c.effect for c in result.suggested),
                     "unseen_um": None if plan.unseen_um is None else list(plan.unseen_um),
                     "check_rings": int(measured.holdout_mask().sum()),
@@ -162,7 +168,13 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
         "in_head": sorted({effect.id for effect in scenario.effects}),
         "hidden": scenario.hidden_ids,
         "hidden_settings": {e.id: {k: float(v) for k, v in e.settings().items()} for e in scenario.effects if e.id in scenario.hidden_ids},
+        "truth": truth,  # an unknown shape's (None: a healthy or catalog-effect head)
     }
+
+
+def shape_records(result: Any) -> list[dict[str, Any]]:
+    """The shapes a diagnosis tried, as unknown_population judges them (group_right)."""
+    return [{"group": s.group, "claimed": s.claimed, "untold": list(s.untold)} for s in result.shapes]
 
 
 def quiet(side: dict[str, Any], background: set[str]) -> bool:
@@ -174,7 +186,8 @@ def quiet(side: dict[str, Any], background: set[str]) -> bool:
 
 def same_answer(record: dict[str, Any]) -> bool:
     """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
-    held by a claim of both or of neither (holds_truth); else both quiet, or both not (quiet)."""
+    held by a claim of both or of neither (holds_truth); an unknown shape answered alike
+    (unknown_answer); else both quiet, or both not (quiet)."""
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
@@ -183,8 +196,23 @@ def same_answer(record: dict[str, Any]) -> bool:
             return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
 
         return all(held(record["full"], effect) == held(record["adaptive"], effect) for effect in catalog)
+    if record["kind"] == "unknown_shape" and shape_truth(record) is not None:
+        return unknown_answer(record, record["full"]) == unknown_answer(record, record["adaptive"])
     background = set(record["in_head"]) - set(hidden)
     return quiet(record["full"], background) == quiet(record["adaptive"], background)
+
+
+def unknown_answer(record: dict[str, Any], side: dict[str, Any]) -> str:
+    """What one campaign said of a head's unknown shape, as the unknown-shape population judges it:
+    its axis and group named (group_right: a shape on its group, or a claim of its own mechanism),
+    `none`, a catalog claim of another mechanism (catalog_name_other_mechanism), or left open
+    (unexplained, partial, suggested, a shape of another group)."""
+    judged = {"family": record["family"], "truth": record["truth"], **{k: side[k] for k in ("verdict", "claims", "shapes")}}
+    if group_right(judged):
+        return "named"
+    if side["verdict"] == "none":
+        return "none"
+    return "another mechanism" if catalog_name_other_mechanism(judged) else "open"
 
 
 def jobs(count: int) -> list[dict[str, Any]]:

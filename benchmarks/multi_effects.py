@@ -82,8 +82,10 @@ def partner_settings(candidate: Candidate, untold: bool = False) -> dict[str, li
 
 
 def claim_record(candidate: Candidate) -> dict[str, Any]:
-    """A claim as the benchmarks judge it (holds_truth): its effect, settings, the settings it cannot
-    exclude, its confounded partners at theirs, and of those the untold ones."""
+    """A claim as the benchmarks judge it (holds_truth; for an unknown shape, unknown_population's
+    own_mechanism): its effect, settings, the settings it cannot exclude, its confounded partners at
+    theirs, of those the untold ones, its periods (claimed or not excluded), and the group of a
+    shape its rings cannot tell it from."""
     return {
         "effect": candidate.effect,
         "settings": {k: float(v) for k, v in candidate.settings.items()},
@@ -91,6 +93,8 @@ def claim_record(candidate: Candidate) -> dict[str, Any]:
         "confounded_with": [o.effect for o in candidate.confounded_with],
         "partner_settings": partner_settings(candidate),
         "untold_settings": partner_settings(candidate, untold=True),
+        "cycles": [float(o["cycles_per_rev"]) for o in (candidate.settings, *candidate.settings_not_excluded) if "cycles_per_rev" in o],
+        "untold_shape": None if candidate.untold_shape is None else candidate.untold_shape.group,
     }
 
 

@@ -152,15 +152,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         "truth": {k: v for k, v in head.truth.items() if isinstance(v, (int, float, str, dict))},
         "verdict": result.verdict,
         "found": [c.effect for c in result.found],
-        "claims": [
-            {
-                "effect": c.effect,
-                "cycles": [float(o["cycles_per_rev"]) for o in (c.settings, *c.settings_not_excluded) if "cycles_per_rev" in o],
-                "confounded_with": [o.effect for o in c.confounded_with],
-                "untold_shape": None if c.untold_shape is None else c.untold_shape.group,
-            }
-            for c in result.found
-        ],
+        "claims": [claim_record(c) for c in result.found],
         "suggested": [c.effect for c in result.suggested],
         "suspect_rings": [[r.a_deg, r.b_deg] for r in result.suspect_rings],
         "outliers_named": bool(result.touch_outliers is not None and result.touch_outliers.named),

@@ -194,6 +194,33 @@ def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> No
     assert alarm(record("partial", [("b_axis_cyclic", 4.0)]))
 
 
+def test_the_adaptive_and_the_full_campaign_answer_alike_about_an_unknown_shape_by_what_they_name() -> None:
+    """benchmarks/adaptive_campaign.same_answer on a B-axis error at 27.4 cycles/rev: its own
+    mechanism claimed (B-axis angular positioning near its period) and a shape on its group are the
+    same answer, though the head's background holds b_axis_cyclic too (the old quiet rule called the
+    claim quiet); `none`, a shape elsewhere and a claim of another mechanism are other answers."""
+    from benchmarks.adaptive_campaign import same_answer
+
+    own = {"effect": "b_axis_cyclic", "cycles": [27.0], "confounded_with": [], "untold_shape": None}
+    other = {"effect": "a_axis_tilt_motion", "cycles": [9.0], "confounded_with": [], "untold_shape": None}
+    shape = {"group": "b_angular", "claimed": True, "untold": []}
+    elsewhere = {"group": "a_radial", "claimed": True, "untold": []}
+
+    def side(verdict: str, claims: list = (), shapes: list = ()) -> dict:
+        return {"verdict": verdict, "found": [c["effect"] for c in claims], "claims": list(claims), "shapes": list(shapes), "suggested": []}
+
+    def alike(full: dict, adaptive: dict) -> bool:
+        truth = {"family": "non_integer_period", "axis": 1, "cycles_per_rev": 27.4}
+        record = {"kind": "unknown_shape", "family": "non_integer_period", "truth": truth, "hidden": ["non_integer_period"]}
+        return same_answer(record | {"in_head": ["b_axis_cyclic", "lobing"], "full": full, "adaptive": adaptive})
+
+    assert alike(side("missing", [own]), side("uncatalogued", shapes=[shape]))
+    assert not alike(side("none"), side("missing", [own]))
+    assert not alike(side("uncatalogued", shapes=[shape]), side("uncatalogued", shapes=[elsewhere]))
+    assert alike(side("unexplained"), side("uncatalogued", shapes=[elsewhere]))  # both left open
+    assert not alike(side("missing", [other]), side("partial"))
+
+
 # The quick run, section by section: each group is one `--quick --only` run in a folder of its own,
 # a test of its own, so that pytest-xdist spreads the groups over the workers (conftest.py) instead
 # of one test holding a worker for the whole run. Together the groups cover every section, and

@@ -22,7 +22,11 @@ campaign's trilinear model. The verdict is compared word for word with the full 
 claim "in the head" names an effect the head holds (its background's or the hidden one); **same
 answer**: about what the head hides, the words aside: a hidden catalog effect held by a claim of
 both or of neither (a claim holds it at its own setting or one it cannot exclude, or through a
-partner the rings did not tell it from, which the verdict names beside it), else both quiet (`none`, or claims of the head's own background only) or both not. A sparse
+partner the rings did not tell it from, which the verdict names beside it); for a shape no catalog
+holds, the same of four answers (its axis and group named, by a shape or a claim of its own
+mechanism; `none`; a catalog effect of another mechanism; left open), as the
+[unknown-shape population](#effects-no-catalog-holds) judges them; else both quiet (`none`, or
+claims of the head's own background only) or both not. A sparse
 campaign's model is physical where the full one's trilinear interpolates, so it names background
 effects the full campaign leaves to its data part: the words differ where the answer does not.
 """
