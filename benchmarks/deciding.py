@@ -136,7 +136,9 @@ def loop_once(scenario: Scenario, seed: int, with_times: bool = True, catalog: A
     if decision.rings:
         rings = np.array(record["rings"], dtype=float)
         new = measured(replace(scenario, seed=seed).at_rings(rings), None, with_times)
-        second = diagnose(merged_campaign(base, new)[0], nested=False)
+        # A ring left out as measured badly is not among the rings judged, so it may be proposed
+        # again: measured again, it replaces the old one (as in the adaptive campaign's loop).
+        second = diagnose(merged_campaign(base, new, replace=True)[0], nested=False)
     record["after"] = {"verdict": second.verdict, "claimed": claims(second), "suggested": suggestions(second)}
     record["seconds"] = round(time.perf_counter() - started, 1)
     return record
