@@ -123,3 +123,13 @@ def test_new_rings_off_the_lattice_join_the_base_check_rings_when_the_new_file_n
     held = merged.holdout_mask()
     assert held[-1] and not held[-3:-1].any()  # the ring off the lattice is a check ring, the lattice ones train
     assert held[: base.n_orientations].sum() == base.holdout_mask().sum()
+
+
+def test_a_campaign_made_in_memory_is_named_by_what_it_is_in_a_refusal(head):
+    from ph_explorer.errors import InputError
+    from ph_explorer.io.merge import merged_campaign
+
+    base = dataclasses.replace(head.subset([0, 1]), source=None)  # a merge, or the twin's rings
+    with pytest.raises(InputError, match="already in the base campaign:") as refused:
+        merged_campaign(base, dataclasses.replace(head.subset([1]), source=None))
+    assert "None" not in str(refused.value)

@@ -31,7 +31,7 @@ def merged_campaign(
     if same.any() and not replace:
         j = np.argwhere(same)[0, 1]
         raise InputError(
-            f"{orientation_label(*new.orientations[j])} is already in {base.source}: "
+            f"{orientation_label(*new.orientations[j])} is already in {_named(base, 'the base campaign')}: "
             f"{int(same.any(axis=0).sum())} ring(s) measured twice; give --replace to let the new ones stand",
             file=new.source,
         )
@@ -69,20 +69,27 @@ def merged_campaign(
 
 
 def _check_compatible(base: Campaign, new: Campaign) -> None:
+    where = _named(base, "the base campaign")
     for key in GEOMETRY_KEYS:
         a, b = getattr(base.geometry, key), getattr(new.geometry, key)
         if not np.isclose(a, b, rtol=0.0, atol=1e-9):
-            raise InputError(f"{key} is {b:g} here and {a:g} in {base.source}: not the same set-up", file=new.source)
+            raise InputError(f"{key} is {b:g} here and {a:g} in {where}: not the same set-up", file=new.source)
     if new.n_points != base.n_points:
-        raise InputError(f"{new.n_points} points per circle here and {base.n_points} in {base.source}", file=new.source)
+        raise InputError(f"{new.n_points} points per circle here and {base.n_points} in {where}", file=new.source)
     if new.n_repetitions != base.n_repetitions:
         raise InputError(
-            f"{new.n_repetitions} repetitions here and {base.n_repetitions} in {base.source}: a campaign has one count per ring",
+            f"{new.n_repetitions} repetitions here and {base.n_repetitions} in {where}: a campaign has one count per ring",
             file=new.source,
         )
     if (base.times_s is None) != (new.times_s is None):
-        has, lacks = (base.source, new.source) if new.times_s is None else (new.source, base.source)
+        named = where, _named(new, "the new rings")
+        has, lacks = named if new.times_s is None else named[::-1]
         raise InputError(f"{has} has touch times (t_s) and {lacks} has none: the merged campaign would hold half of them", file=new.source)
+
+
+def _named(campaign: Campaign, otherwise: str) -> str:
+    """The campaign's file, or what it is when it was made in memory (a merge, the twin's rings)."""
+    return str(campaign.source) if campaign.source is not None else otherwise
 
 
 def _time_offset(base: Campaign, new: Campaign) -> float:
