@@ -17,7 +17,14 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
-from ph_explorer.diagnosis.replication import Replication, determined_size, replication, ring_gains, ring_weights
+from ph_explorer.diagnosis.replication import (
+    Replication,
+    determined_size,
+    replication,
+    ring_gains,
+    ring_residual_squares,
+    ring_weights,
+)
 from ph_explorer.diagnosis.rival_shapes import outpredicting_shape
 from ph_explorer.diagnosis.search import (
     MATERIAL_REDUCTION,
@@ -34,11 +41,13 @@ from ph_explorer.models import least_squares
 
 def base_gain(search: CandidateSearch, effect: Effect, beside: Sequence[Effect]) -> float:
     """The rings' weighted out-of-sample gain (ring_gains; check and lattice rings half each) of a
-    base effect added beside the others."""
-    noise = ring_sigma(search.campaign.deviations) ** 2
-    before = search.design(beside) if beside else None
-    gain = ring_gains(search.residual, before, search.design([*beside, effect]), search.targets, noise)
-    return float(ring_weights(~search.train) @ gain)
+    base effect added beside the others: none (0) within the rounding of the sums it is the fall
+    of, as for an effect the others span (on any rings the location errors of two axes share
+    directions), whatever the sign the rounding gives it."""
+    weights = ring_weights(~search.train) / np.maximum(ring_sigma(search.campaign.deviations) ** 2, 1e-300)
+    before = float(weights @ ring_residual_squares(search.residual, search.design(beside) if beside else None, search.targets))
+    gain = before - float(weights @ ring_residual_squares(search.residual, search.design([*beside, effect]), search.targets))
+    return gain if abs(gain) > 1e-9 * before else 0.0
 
 
 def implausible_in_fit(search: CandidateSearch, chain: Sequence[Effect]) -> list[bool]:
@@ -74,7 +83,7 @@ def usable_base(search: CandidateSearch, base: Sequence[Effect], claims: Sequenc
         ]
         if min(gains) > 0.0:
             break
-        kept.pop(int(np.argmin(gains)))
+        kept.pop(len(gains) - 1 - int(np.argmin(gains[::-1])))  # of equal gains, the last in the base's order
     return kept
 
 
