@@ -5,7 +5,7 @@ DIR/calibration.png. The full run takes about 45 minutes on 2 cores (the diagnos
 calibration about 22 of them); --quick is a smoke-test mode (two subsets, a
 short network, 2 browsers for 1 s, a few diagnoses) that keeps every key. --only runs some
 sections and updates them in the last run's results.json, each stamped under "updated" with its
-date and the code it was measured on. The many diagnoses of the calibration, the population, the
+date, the code it was measured on and the machine. The many diagnoses of the calibration, the population, the
 hidden effects and the coverage are tasks of ph_explorer.task_runner: on a LocalCluster of this
 machine's cores (quick: one worker thread in this process), or on the cluster of --scheduler.
 """
@@ -298,6 +298,16 @@ def torch_threads() -> int:
     return torch.get_num_threads()
 
 
+def machine() -> dict[str, Any]:
+    """The machine a run measures on: times from two runs compare only on the same one."""
+    return {
+        "cpu_count": os.cpu_count(),
+        "python": platform.python_version(),
+        "torch_threads": torch_threads(),
+        "platform": platform.platform(),
+    }
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke-test mode: small and fast, same keys")
@@ -348,18 +358,14 @@ def main(argv: list[str] | None = None) -> int:
         # A partial run updates its sections in the results of the last run, each stamped.
         results: dict[str, Any] = json.loads((out / "results.json").read_text())
         for name in sections:
-            results.setdefault("updated", {})[name] = {**stamp, "code_sha256": calibration.code_version(), "commit": calibration.commit()}
+            results.setdefault("updated", {})[name] = {
+                **stamp,
+                "code_sha256": calibration.code_version(),
+                "commit": calibration.commit(),
+                "machine": machine(),  # a partial run's machine may not be the last full run's
+            }
     else:
-        results = {
-            **stamp,
-            "commit": calibration.commit(),
-            "machine": {
-                "cpu_count": os.cpu_count(),
-                "python": platform.python_version(),
-                "torch_threads": torch_threads(),
-                "platform": platform.platform(),
-            },
-        }
+        results = {**stamp, "commit": calibration.commit(), "machine": machine()}
 
     if "data_efficiency" in sections:
         with section("data efficiency", "data_efficiency", results):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -589,6 +590,7 @@ def test_a_quick_run_writes_its_sections_keys_and_plots(group: str, tmp_path: Pa
         CHECKS[name](results)
         stamp = results["updated"][name]
         assert stamp["mode"] == "quick" and stamp["code_sha256"] and stamp["commit"] and stamp["run_seconds"] > 0
+        assert stamp["machine"]["cpu_count"] == os.cpu_count() and stamp["machine"]["platform"]
         if name in PLOTS:
             assert (tmp_path / PLOTS[name]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     if group != "hidden_effects":

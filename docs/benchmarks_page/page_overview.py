@@ -31,7 +31,7 @@ def overview(results: Mapping[str, Any]) -> str:
         "A run writes `benchmarks/results.json` and the plots `benchmarks/data_efficiency.png`, "
         "`benchmarks/speed.png`, `benchmarks/calibration.png` and `benchmarks/peers.png`. A run with `--only` keeps every other "
         "section of the last `results.json` as it was and stamps the ones it ran under `updated` (date, mode, "
-        "a sha256 of the package's sources): each section below says which run it comes from. "
+        "a sha256 of the package's sources, the machine since 2026-12-03): each section below says which run it comes from. "
         "The many diagnoses of the calibration, the population, the hidden effects and the coverage are tasks "
         "of one runner ([`ph_explorer.task_runner`](fleet.md#where-it-runs), the fleet's): on a LocalCluster of the "
         "machine's cores, or with `--scheduler` on a Dask cluster, each random head simulated on its worker from its seed. "
@@ -67,9 +67,17 @@ def overview(results: Mapping[str, Any]) -> str:
             "(`python -m benchmarks --stale` names them; `benchmarks/freshness.py`).",
             "",
             table(
-                ["section", "date", "mode", "code sha256", "commit", "describes this build"],
+                ["section", "date", "mode", "code sha256", "commit", "machine", "describes this build"],
                 [
-                    [name, s.get("date"), s.get("mode"), s.get("code_sha256"), s.get("commit", ""), current.get(name, "unknown")]
+                    [
+                        name,
+                        s.get("date"),
+                        s.get("mode"),
+                        s.get("code_sha256"),
+                        s.get("commit", ""),
+                        machine_text(s.get("machine")),
+                        current.get(name, "unknown"),
+                    ]
                     for name, s in updated.items()
                 ],
             ),
@@ -79,6 +87,13 @@ def overview(results: Mapping[str, Any]) -> str:
         out += ["", "Wall seconds of each section at its last run: " + joined([f"{k} {num(v, 's')}" for k, v in seconds.items()]) + "."]
     out += ["## Targets at a glance", "", table(["section", "target", "result"], list(target_rows(results)))]
     return "\n".join(out)
+
+
+def machine_text(machine: Mapping[str, Any] | None) -> str:
+    """A section's machine in a cell: "the run's" when it has none of its own (stamped before 2026-12-03)."""
+    if not machine:
+        return "the run's"
+    return f"{machine.get('cpu_count')} cores, {machine.get('torch_threads')} torch threads, {machine.get('platform')}"
 
 
 def describes_this_build(results: Mapping[str, Any]) -> dict[str, str]:
