@@ -23,7 +23,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
-from ph_explorer.diagnosis.separation import orthonormal_span, span_share
+from ph_explorer.diagnosis.separation import block_span, span_share
 from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
@@ -409,10 +409,8 @@ CONFOUNDED = 0.8
 
 def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
     """An orthonormal basis of the design's columns over every touch: (mean rows, within rows or None)."""
-    mean, within = design.flat()
-    rows = np.sqrt(design.n_rep) * mean if within is None else np.concatenate([np.sqrt(design.n_rep) * mean, within])
-    q = orthonormal_span(rows)
-    return q[: mean.shape[0]], (q[mean.shape[0] :] if within is not None else None)
+    mean, within = block_span(design.touch_blocks())
+    return mean, within
 
 
 def shared_variance(a: Design, b: Design) -> float:

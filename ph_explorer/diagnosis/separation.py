@@ -21,25 +21,35 @@ from ph_explorer.diagnosis.fitted_bases import settings_key
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models.hybrid import fitted_basis
+from ph_explorer.models.least_squares import Design
 
 LONGER_STYLUS_MM = 20.0  # a second stylus this much longer than the campaign's
 NEAR_VERTICAL_A_DEG = (5.0, 10.0)  # rings between A0 = 0 and the first lattice row
 SEPARATES = 0.02  # a measurement that lowers the shared variance by less separates nothing
 
 
-def _columns(effect: Effect, touch_sets: Sequence[Touches]) -> NDArray[np.float64]:
-    """An effect's fitted columns over several sets of touches, as (rows, columns)."""
-    parts = []
-    for touches in touch_sets:
-        columns = fitted_basis(effect, touches)[0]
-        parts.append(columns.reshape(-1, columns.shape[-1]))
-    return np.concatenate(parts)
+Blocks = list[NDArray[np.float64] | None]  # rows in blocks (touch_blocks'), None: rows of zeros
+
+
+def _blocks(effect: Effect, touches: Touches) -> Blocks:
+    """An effect's fitted columns at the touches as Design.touch_blocks: the same products as over
+    single touches, in n_rep times fewer rows when nothing changes between repetitions."""
+    return list(Design(fitted_basis(effect, touches)[0], None).touch_blocks())
 
 
 def orthonormal_span(m: NDArray[np.float64]) -> NDArray[np.float64]:
     """An orthonormal basis of the columns of m (rows, columns), numerically null directions left out."""
     u, singular, _ = np.linalg.svd(m, full_matrices=False)
     return u[:, singular > 1e-9 * max(singular.max(initial=0.0), 1e-300)]
+
+
+def block_span(blocks: Sequence[NDArray[np.float64] | None]) -> Blocks:
+    """orthonormal_span of the blocks stacked (None: rows of zeros), given back in the same blocks."""
+    present = [b for b in blocks if b is not None]
+    q = orthonormal_span(np.concatenate(present) if len(present) > 1 else present[0])
+    edges = np.cumsum([0, *(b.shape[0] for b in present)])
+    parts = iter(q[start:stop] for start, stop in zip(edges[:-1], edges[1:]))
+    return [None if b is None else next(parts) for b in blocks]
 
 
 def span_share(qx: Sequence[NDArray[np.float64] | None], qy: Sequence[NDArray[np.float64] | None]) -> float:
@@ -51,15 +61,9 @@ def span_share(qx: Sequence[NDArray[np.float64] | None], qy: Sequence[NDArray[np
     return float(np.linalg.svd(product, compute_uv=False).max() ** 2)
 
 
-def canonical_share(x: NDArray[np.float64], y: NDArray[np.float64]) -> float:
-    """The largest squared canonical correlation between the columns of x and y (rows, columns):
-    1 when some combination of one is a combination of the other, 0 when they are orthogonal."""
-    return span_share([orthonormal_span(x)], [orthonormal_span(y)])
-
-
-def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
-    """The largest squared canonical correlation of two effects' columns over the touch sets."""
-    return canonical_share(_columns(a, touch_sets), _columns(b, touch_sets))
+def shared_over(a: Effect, b: Effect, touches: Touches) -> float:
+    """The largest squared canonical correlation of two effects' fitted columns over the touches."""
+    return span_share(block_span(_blocks(a, touches)), block_span(_blocks(b, touches)))
 
 
 def _near_vertical(campaign: Campaign) -> Touches | None:
@@ -111,26 +115,26 @@ class Separations:
         self.texts = [""] + [text for text, _ in MEASUREMENTS]
         # Set 0: the campaign's own touches; set i: what MEASUREMENTS[i - 1] adds (None: nothing new).
         self.touch_sets = [campaign_touches(campaign)] + [make(campaign) for _, make in MEASUREMENTS]
-        self._fitted: dict[tuple, NDArray[np.float64]] = {}  # each effect's columns at each set
-        self._spans: dict[tuple, NDArray[np.float64]] = {}
+        self._fitted: dict[tuple, Blocks] = {}  # each effect's columns at each set
+        self._spans: dict[tuple, Blocks] = {}
 
-    def _columns_at(self, effect: Effect, i: int) -> NDArray[np.float64]:
+    def _blocks_at(self, effect: Effect, i: int) -> Blocks:
         key = (settings_key(effect), i)
         if key not in self._fitted:
-            self._fitted[key] = _columns(effect, [self.touch_sets[i]])
+            self._fitted[key] = _blocks(effect, self.touch_sets[i])
         return self._fitted[key]
 
-    def _span(self, effect: Effect, i: int) -> NDArray[np.float64]:
+    def _span(self, effect: Effect, i: int) -> Blocks:
         """The effect's orthonormal span over the own touches and, for i > 0, set i's."""
         key = (settings_key(effect), i)
         if key not in self._spans:
-            own = self._columns_at(effect, 0)
-            self._spans[key] = orthonormal_span(own if i == 0 else np.concatenate([own, self._columns_at(effect, i)]))
+            own = self._blocks_at(effect, 0)
+            self._spans[key] = block_span(own if i == 0 else own + self._blocks_at(effect, i))
         return self._spans[key]
 
     def shared(self, a: Effect, b: Effect, i: int) -> float:
         """shared_over(a, b, own touches + set i's), from the spans made once."""
-        return span_share([self._span(a, i)], [self._span(b, i)])
+        return span_share(self._span(a, i), self._span(b, i))
 
     def __call__(self, pairs: Sequence[tuple[Effect, Effect]]) -> list[dict[str, float | str]]:
         out = []

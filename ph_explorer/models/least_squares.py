@@ -90,6 +90,12 @@ class Design:
             self._flat = (np.ascontiguousarray(self.mean.reshape(-1, c)), within)
         return self._flat
 
+    def touch_blocks(self) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """Rows whose products are those over single touches: (sqrt(n_rep) * mean rows, within rows
+        or None), n_rep times fewer rows than the touches when nothing changes between repetitions."""
+        mean, within = self.flat()
+        return np.sqrt(self.n_rep) * mean, within
+
     def gram(self) -> NDArray[np.float64]:
         mean, within = self.flat()
         g = self.n_rep * mean.T @ mean
