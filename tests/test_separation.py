@@ -33,7 +33,7 @@ def test_a_reversed_scan_separates_lost_motion_from_its_forward_image():
     campaign = forward_campaign()
     direction, frozen = DEFAULT_CATALOG["direction"](), ForwardOnlyDirection()
     # Scanned forward, the two are the same columns: no fit can tell them apart ...
-    assert shared_over(direction, frozen, campaign_touches(campaign)) > 0.999
+    assert shared_over(direction, frozen, [campaign_touches(campaign)]) > 0.999
     (separated,) = separating_measurements([(direction, frozen)], campaign)
     # ... and scanning the rings again backwards is what separates them.
     assert separated["shared_now"] > 0.999 and "reversed" in separated["measurement"]

@@ -61,9 +61,10 @@ def span_share(qx: Sequence[NDArray[np.float64] | None], qy: Sequence[NDArray[np
     return float(np.linalg.svd(product, compute_uv=False).max() ** 2)
 
 
-def shared_over(a: Effect, b: Effect, touches: Touches) -> float:
-    """The largest squared canonical correlation of two effects' fitted columns over the touches."""
-    return span_share(block_span(_blocks(a, touches)), block_span(_blocks(b, touches)))
+def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
+    """The largest squared canonical correlation of two effects' fitted columns over the touch sets."""
+    spans = [block_span([block for touches in touch_sets for block in _blocks(e, touches)]) for e in (a, b)]
+    return span_share(*spans)
 
 
 def _near_vertical(campaign: Campaign) -> Touches | None:
