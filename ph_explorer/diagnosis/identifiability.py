@@ -90,8 +90,8 @@ def orthonormal(design: Design, reference: Design) -> tuple[NDArray[np.float64],
     """An orthonormal basis of design's columns over single touches (as search.shared_variance
     builds it), split into its mean and within rows; directions that keep less than SURVIVES of
     their size in `reference` (what the smoother reproduces exactly) are dropped."""
-    mean, within = design.flat()
-    rows = np.sqrt(design.n_rep) * mean if within is None else np.concatenate([np.sqrt(design.n_rep) * mean, within])
+    mean, within = design.touch_blocks()
+    rows = mean if within is None else np.concatenate([mean, within])
     u, singular, vt = np.linalg.svd(rows, full_matrices=False)
     if not singular.size:
         return u[: mean.shape[0]], None
