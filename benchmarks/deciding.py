@@ -152,6 +152,11 @@ def named_and_told_apart(record: dict[str, Any], truth: dict[str, Any], when: st
     return False
 
 
+def promised_power(record: dict[str, Any]) -> float | None:
+    """The least power the planner stated for a question it proposed rings for (None: no rings)."""
+    return min((e["power"] for e in record["expected"].values() if e["decided_by_rings"]), default=None)
+
+
 def closest_share(record: dict[str, Any], truth: dict[str, Any], when: str) -> float | None:
     """The largest share of the true effect's claim with a confounded partner (None: not claimed, or no partner)."""
     for claim in record[when]["claimed"]:
@@ -195,6 +200,12 @@ def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, An
             "named_and_told_apart_before": rate(sum(named_and_told_apart(r, spec, "before") for r in records), n),
             "named_and_told_apart_after": rate(sum(named_and_told_apart(r, spec) for r in records), n),
             "rings_proposed": [len(r["rings"]) for r in records],
+            # The planner's promise against what its rings did: the power it stated for the rings
+            # it proposed (None: none proposed), and how many of those rings decided.
+            "promised_power": [promised_power(r) for r in records],
+            "proposed_decided": rate(
+                sum(named_and_told_apart(r, spec) for r in records if r["rings"]), sum(bool(r["rings"]) for r in records)
+            ),
             "minutes": [r["minutes"] for r in records],
             # What the claim's columns share with its closest partner: a property of the rings, not
             # of the evidence (docs/methods/deciding.md: why it stays near 1 when the rings decide).

@@ -761,19 +761,23 @@ def test_an_untold_pair_is_named_as_a_pair_in_the_verdict_line(diagnoses):
 def test_the_verdict_says_what_rings_can_decide_before_offering_them(diagnoses):
     """Issue 55 (never a dead end): near the vertical the B line's offset and its tilt are one pair no
     ring of this stylus decides; the next step says so (the name stays a pair) instead of sending the
-    user to rings that answer "no ring decides"; where rings decide (head_6), it offers them."""
+    user to rings that answer "no ring decides". head_6's pair takes more rings than the default
+    budget: the step says how many would, and with that budget it offers them."""
     from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
 
-    for name, decided in (("near_vertical", False), ("head_6", True)):
+    for name, budget, decided in (("near_vertical", DECIDE_BUDGET, False), ("head_6", DECIDE_BUDGET, False), ("head_6", 10, True)):
         result = diagnoses[(name, True)]
-        decision = rings_that_decide(simulate(load_scenario(name)), result, DEFAULT_CATALOG, DECIDE_BUDGET)
+        decision = rings_that_decide(simulate(load_scenario(name)), result, DEFAULT_CATALOG, budget)
         (verdict,) = [s for s in report_sections(result, DEFAULT_CATALOG, decision=decision) if s.key == "verdict"]
         step = verdict.lines[-1]
         assert step.startswith("Next: ") and bool(decision.rings) == decided
+        needed = next(iter(decision.expected.values())).get("rings_needed")
         if decided:
             assert f"measure the {len(decision.rings)} rings that would decide" in step and "--decide" in step
+        elif name == "head_6":  # more rings would: said, with the budget that gets them
+            assert DECIDE_BUDGET < needed <= 10 and f"{needed} rings would (a budget of {needed})" in step and "stays a pair" not in step
         else:
-            assert "name stays a pair" in step and "--decide" not in step
+            assert needed is None and "name stays a pair" in step and "--decide" not in step
             pair = {result.found[0].effect, *(partner.effect for partner in result.found[0].untold)}
             assert len(pair) == 2 and all(effect in step for effect in pair)
 

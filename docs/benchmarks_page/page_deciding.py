@@ -21,6 +21,15 @@ errors is real); success is that suggestion not claimed after the rings.
 """
 
 
+def promised(case: Mapping[str, Any]) -> str:
+    """How many of the proposals decided, and the power each promised ("-" in a run before it was kept)."""
+    if "proposed_decided" not in case:
+        return "-"
+    powers = [f"{p:.2f}" for p in case.get("promised_power") or [] if p is not None]
+    x = case["proposed_decided"]
+    return f"{num(x.get('count'))} of {num(x.get('of'))} ({joined(powers)})"
+
+
 def deciding(results: Mapping[str, Any]) -> str:
     d = results.get("deciding", {})
 
@@ -39,6 +48,7 @@ def deciding(results: Mapping[str, Any]) -> str:
                 rate(case.get("named_and_told_apart_before")),
                 rate(case.get("named_and_told_apart_after")),
                 joined([str(n) for n in case.get("rings_proposed") or []]),
+                promised(case),
                 joined(shared),
             ]
         )
@@ -50,7 +60,15 @@ def deciding(results: Mapping[str, Any]) -> str:
             f"{rate(false.get('refuted_or_left_suggested'))} (any false claim after: {rate(false.get('false_claims_after'))})",
             joined([str(n) for n in false.get("rings_proposed") or []]),
             "",
+            "",
         ]
     )
-    header = ["case", "before the rings", "after the rings", "rings proposed", "share with the closest partner after"]
+    header = [
+        "case",
+        "before the rings",
+        "after the rings",
+        "rings proposed",
+        "proposals that decided (power promised)",
+        "share with the closest partner after",
+    ]
     return DECIDING_INTRO.format(budget=d.get("budget")) + "\n" + table(header, rows) + "\n"

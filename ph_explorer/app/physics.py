@@ -175,13 +175,18 @@ class PhysicsLoop:
             p.decision.content = "_Diagnose first: the rings to measure answer what its verdict leaves open._"
             return
         p.decision.content = "_finding the rings that would decide…_"
-        decision = self.decision or rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET)
+        budget = int(p.budget.value)  # the rings the user would measure at most (the verdict says how many would do)
+        decision = (
+            self.decision
+            if self.decision and self.decision.budget == budget
+            else rings_that_decide(ds.campaign, result, self.catalog, budget)
+        )
         if ds.campaign is not self.current().campaign:
             return
         self.decision = decision
         self.proposed = np.array([[r["A_deg"], r["B_deg"]] for r in decision.rings]).reshape(-1, 2)
         twin = twin_scenario(ds.campaign, self.catalog)
-        p.show_decision(decision_words(decision, DECIDE_BUDGET), twin is not None)
+        p.show_decision(decision_words(decision, budget), twin is not None)
         if decision.rings and twin is None:
             p.decision.content += (
                 "\n\n_Measure them on your CMM (**Download rings.csv** gives them to a CMM program), "

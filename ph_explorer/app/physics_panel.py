@@ -22,7 +22,7 @@ from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
 from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.figures.shape_text import shape_svg
-from ph_explorer.planning.deciding import Decision, DecisionWords
+from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, DecisionWords
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -145,6 +145,9 @@ class PhysicsPanel:
             visible=False,
             hint="the rings to measure next that would tell confounded candidates apart or confirm a suggestion",
         )
+        self.budget = gui.add_number(
+            "Rings at most", DECIDE_BUDGET, min=3, max=30, step=1, visible=False, hint="how many rings you would measure to decide"
+        )
         self.decision = gui.add_markdown("")
         self.measure = gui.add_button(
             "Measure them",
@@ -244,7 +247,7 @@ class PhysicsPanel:
             self.decision,
         ):
             handle.content = ""
-        self.decide.visible = self.measure.visible = self.download_rings.visible = False
+        self.decide.visible = self.budget.visible = self.measure.visible = self.download_rings.visible = False
         self.candidates.content = self.evidence.content = self.fit.content = self.shape_chart.content = ""
         self.shape_chart.visible = False
         self.progress.visible = self.refit_progress.visible = False
@@ -317,15 +320,16 @@ class PhysicsPanel:
         self.evidence_of.visible = bool(options)
         self.fit.content = fit_html(result, self.catalog)
         self.results_folder.visible = True
-        # Only when rings would decide something (the verdict says what they cannot): never a button
-        # that answers that no ring decides; else the loop keeps its place on the page.
-        self.decide.visible = result.leaves_open and (decision is None or bool(decision.rings))
+        # Only when rings would decide something, at the budget they need: never a button that says no ring does.
+        needed = [q["rings_needed"] for q in (decision.expected.values() if decision else ()) if q.get("rings_needed")]
+        self.budget.value = max(needed) if needed and not decision.rings else decision.budget if decision else DECIDE_BUDGET
+        self.decide.visible = self.budget.visible = result.leaves_open and (decision is None or bool(decision.rings) or bool(needed))
         self.decision.content = ""
         self.measure.visible = self.download_rings.visible = False
 
     def show_decision(self, words: DecisionWords, measurable: bool) -> None:
         """The rings that would decide (planning.deciding.decision_words); Measure them when the twin can."""
-        listed = "\n".join(" ".join(line.split()) for line in words.rings)  # "1. A10 B-20 tells ...": a numbered list
+        listed = "\n\n".join(words.by_question)  # "a vs b (147 ...): 1. A10 B-20 (31), 2. ...": a line a question
         rest = [*words.undecided, *([words.time] if words.time else [])]
         self.decision.content = "\n\n".join([f"**{words.head}**", *([listed] if listed else []), *rest])
         self.measure.visible = bool(words.rings) and measurable

@@ -200,11 +200,14 @@ def undecided_text(decision: Decision) -> str:
     return " ".join(
         f"No {decision.budget} rings of this stylus decide {q.get('words', label.replace(' vs ', ' or '))} "
         f"(their test over rings would pass {100 * q['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides): "
-        + (
-            f"{q['separated_by']} would."
-            if q.get("separated_by")
-            else "no measurement tried here separates them, so the name stays a pair."
+        + " and ".join(
+            [
+                *([f"{q['rings_needed']} rings would (a budget of {q['rings_needed']})"] if q.get("rings_needed") else []),
+                *([f"{q['separated_by']} would"] if q.get("separated_by") else []),
+            ]
+            or ["no measurement tried here separates them, so the name stays a pair"]
         )
+        + "."
         for label, q in undecided
     )
 

@@ -27,7 +27,6 @@ from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.models.hybrid import HybridModel
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
 from ph_explorer.planning.ring_design import (
     A_STEP_DEG,
@@ -38,6 +37,7 @@ from ph_explorer.planning.ring_design import (
     farthest_first,
     propose_rings,
 )
+from ph_explorer.planning.ring_evidence import check_residual
 
 START_RINGS = 6  # lattice rings first: as many as the catalog's low orders need to be told apart
 A0_RINGS = 2  # the data part's A0 = 0 row: two, so that each is predicted out of sample by the other
@@ -289,11 +289,8 @@ def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float
     Each check ring is predicted as the error history measures it: left out of the physical fit,
     which reads every ring's out-of-sample residual (predict_held_out), on the campaign the
     diagnosis fitted (result.judged)."""
-    fitted = result.judged(campaign)
+    fitted, held_out, residual = check_residual(campaign, result)
     train = ~fitted.holdout_mask()
-    held_out = np.flatnonzero(~train)
-    model = result.hybrid or HybridModel([]).fit(fitted, train)
-    residual = (fitted.deviations[held_out] - model.predict_held_out(fitted, held_out)).mean(axis=1)
     # The touch noise in a residual: the ring's own mean's, and that of the training rings' means the
     # data part predicts it from (their weights' squares).
     neighbours = (OutOfSampleSmoother(fitted.orientations, train).weights[held_out] ** 2).sum(axis=1)
