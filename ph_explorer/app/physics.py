@@ -143,7 +143,7 @@ class PhysicsLoop:
         if ds.campaign is not self.current().campaign:
             return  # the data changed meanwhile: this diagnosis is about data no longer shown
         self.diagnosis = result
-        # What rings can decide of what the verdict leaves open, said with the verdict (a second or so).
+        # What rings can decide of what the verdict leaves open, said with the verdict (one to a few seconds).
         self.decision = rings_that_decide(ds.campaign, result, self.catalog, DECIDE_BUDGET) if result.leaves_open else None
         p.show_diagnosis(result, self.decision)
         if p.evidence_of.visible:
