@@ -14,7 +14,7 @@ from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.io import read_campaign
 from ph_explorer.io.rings import read_rings, rings_csv_text
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.planning.deciding import DECIDE_A_STEP_DEG, DECIDING_POWER, DECIDING_RINGS, rings_for
+from ph_explorer.planning.deciding import DECIDE_A_STEP_DEG, DECIDING_POWER, DECIDING_RINGS, rings_for, rings_needed
 from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
 from ph_explorer.planning.ring_evidence import Evidence, Question, decision_power, one_sided, scatter_ratio, spectral_products
 from ph_explorer.twin import load_scenario, simulate, twin_scenario
@@ -48,6 +48,9 @@ def test_an_angular_error_and_the_radial_motion_that_mimics_it_are_decided_by_a_
     rings, each, power = rings_for(evidence, np.ones(len(pool), dtype=bool), 8)
     assert DECIDING_RINGS <= len(rings) <= 8 and len(set(rings)) == len(rings)
     assert power >= DECIDING_POWER > before and len(each) == len(rings)
+    # How many would, counted without proposing them: as many as rings_for takes; none within too few.
+    assert rings_needed(evidence, np.ones(len(pool), dtype=bool), 3 * 8) == len(rings)
+    assert rings_needed(evidence, np.ones(len(pool), dtype=bool), len(rings) - 1) is None
     # Fewer rings than a decision needs: none proposed, and the power they would reach is said.
     rings, each, power = rings_for(evidence, np.ones(len(pool), dtype=bool), DECIDING_RINGS - 1)
     assert rings == [] and power < DECIDING_POWER

@@ -119,30 +119,54 @@ BEYOND_BUDGET = 3  # an undecided question is said how many rings would decide i
 TIE = 1e-6  # relative: evidence closer than this to the best ring's is a tie (rings_for)
 
 
+def next_ring(evidence: Evidence, rings: list[int], free: NDArray[np.bool_]) -> tuple[int, list[float]]:
+    """The pool ring that joins `rings` next (one of `free`): the one whose set leaves most without
+    its strongest ring, so that no single ring decides; with each ring's evidence in that set."""
+    candidates = np.flatnonzero(free)
+    each = evidence.per_ring(rings, candidates)  # (n_candidates, len(rings) + 1)
+    robust = each.sum(axis=1) - each.max(axis=1)
+    score = robust + 1e-9 * each.sum(axis=1)
+    # Rings equal to rounding (turns of B an A-axis term does not see) go to the first in the
+    # pool's order, so the choice does not hang on the BLAS's last digits.
+    pick = int(np.flatnonzero(score >= score.max() - TIE * abs(score.max()))[0])
+    return int(candidates[pick]), [float(v) for v in each[pick]]
+
+
 def rings_for(evidence: Evidence, free: NDArray[np.bool_], budget: int) -> tuple[list[int], list[float], float]:
-    """The question's rings, best first, until the test over rings would pass with DECIDING_POWER
-    or the budget ends: (rings, each one's evidence, the power); no rings when the budget ends first."""
+    """The question's rings, best first (next_ring), until the test over rings would pass with
+    DECIDING_POWER or the budget ends: (rings, each one's evidence, the power); no rings when the
+    budget ends first."""
     rings: list[int] = []
     each_ring: list[float] = []
     power = decision_power(*evidence.every_ring([]))
+    free = free.copy()
     while len(rings) < budget and free.any():
-        candidates = np.flatnonzero(free)
-        each = evidence.per_ring(rings, candidates)  # (n_candidates, len(rings) + 1)
-        # The ring whose set leaves most without its strongest ring: no single ring decides.
-        robust = each.sum(axis=1) - each.max(axis=1)
-        score = robust + 1e-9 * each.sum(axis=1)
-        # Rings equal to rounding (turns of B an A-axis term does not see) go to the first in the
-        # pool's order, so the choice does not hang on the BLAS's last digits.
-        pick = int(np.flatnonzero(score >= score.max() - TIE * abs(score.max()))[0])
-        rings.append(int(candidates[pick]))
-        free = free.copy()
-        free[rings[-1]] = False
-        each_ring = [float(v) for v in each[pick]]
+        ring, each_ring = next_ring(evidence, rings, free)
+        rings.append(ring)
+        free[ring] = False
         if len(rings) >= DECIDING_RINGS:
             power = decision_power(*evidence.every_ring(rings))
             if power >= DECIDING_POWER:
                 return rings, each_ring, power
     return [], each_ring, power
+
+
+def rings_needed(evidence: Evidence, free: NDArray[np.bool_], most: int) -> int | None:
+    """How many rings, in rings_for's order, would decide the question: the fewest whose test would
+    pass with DECIDING_POWER, found by bisection (the power grows as rings join), None when not even
+    `most` would. A number to weigh against a budget, not a proposal."""
+    rings: list[int] = []
+    free = free.copy()
+    while len(rings) < most and free.any():
+        rings.append(next_ring(evidence, rings, free)[0])
+        free[rings[-1]] = False
+    if len(rings) < DECIDING_RINGS or decision_power(*evidence.every_ring(rings)) < DECIDING_POWER:
+        return None
+    low, high = DECIDING_RINGS, len(rings)
+    while low < high:
+        middle = (low + high) // 2
+        low, high = (low, middle) if decision_power(*evidence.every_ring(rings[:middle])) >= DECIDING_POWER else (middle + 1, high)
+    return low
 
 
 def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, budget: int, skip: Collection[str] = ()) -> Decision:
@@ -183,9 +207,8 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         }
         if question.other is not None:
             expected[question.label]["shared_now"] = question.shared
-        if not rings:  # how many would, beyond the budget (a number to weigh, not a proposal)
-            more = rings_for(evidence, free, BEYOND_BUDGET * max(budget, DECIDING_RINGS))[0]
-            expected[question.label]["rings_needed"] = len(more) if more else None
+        if not rings:  # how many would, beyond the budget
+            expected[question.label]["rings_needed"] = rings_needed(evidence, free, BEYOND_BUDGET * max(budget, DECIDING_RINGS))
         if not rings and question.separated_by:
             expected[question.label]["separated_by"] = question.separated_by
     entries = []
