@@ -150,14 +150,13 @@ class Evidence:
         if not self.fits:
             scatter = None if self.term_scatter is None else 4.0 * self.scale**2 * self.term_scatter[at]
             return self.scale * self.term[at], check, scatter
-        left, scatter = [], []
-        for fit, spectral in self.fits:
-            beta = self._refit(fit, fit[0][at].sum(axis=0), fit[1][at].sum(axis=0), at)
-            left.append(self._left(fit, beta, at))
-            scatter.append(None if spectral is None else self._left(spectral, beta, at))
+        betas = [self._refit(fit, fit[0][at].sum(axis=0), fit[1][at].sum(axis=0), at) for fit, _ in self.fits]
+        left = [self._left(fit, beta, at) for (fit, _), beta in zip(self.fits, betas)]
         least = int(np.argmin(np.stack(left).sum(axis=1)))
+        spectral = self.fits[least][1]
         # The gain's cross term with the residual: 2 x scale x (what is left) . (the residual).
-        return self.scale * left[least], check, None if scatter[least] is None else 4.0 * self.scale**2 * scatter[least]
+        scatter = None if spectral is None else 4.0 * self.scale**2 * self._left(spectral, betas[least], at)
+        return self.scale * left[least], check, scatter
 
 
 def spectral_products(
@@ -186,7 +185,7 @@ def check_residual(
     train = ~fitted.holdout_mask()
     held_out = np.flatnonzero(~train)
     model = result.hybrid
-    if model is None or not result.chain and (result.found or result.claimed_shapes):
+    if model is None or (not result.chain and (result.found or result.claimed_shapes)):
         found = [catalog[c.effect]().with_settings(**c.settings) for c in result.found]
         model = HybridModel([*found, *(shape.effect() for shape in result.claimed_shapes)]).fit(fitted, train)
     return fitted, held_out, (fitted.deviations[held_out] - model.predict_held_out(fitted, held_out)).mean(axis=1)
@@ -221,9 +220,7 @@ def decision_power(
     influential ring) passes when each ring's gain scatters about its expectation g with variance
     `scatter` (every_ring: its cross term with what the model leaves at the ring), never below 4 g
     (its cross term with the touch noise alone); rings that see nothing (g = 0) are no units."""
-    gains = np.maximum(np.asarray(gains, dtype=float), 0.0)
-    seen = gains > max(SEES_NOTHING * float(gains.max(initial=0.0)), SEES_NOTHING)
-    variance = 4.0 * gains if scatter is None else np.maximum(4.0 * gains, scatter)
+    gains, seen, variance = units(gains, scatter)
     noise = np.random.default_rng(0).standard_normal((draws, gains.size))
     drawn = np.where(seen, gains + np.sqrt(variance) * noise, 0.0)
     return float(np.mean([replication(d, check, True, seed=k).replicated for k, d in enumerate(drawn)]))
@@ -231,8 +228,15 @@ def decision_power(
 
 def scatter_ratio(gains: NDArray[np.float64], scatter: NDArray[np.float64] | None) -> float:
     """How many times the touch noise's 4 g the gains scatter, over the rings that see the question (1: the touch noise alone)."""
+    gains, seen, variance = units(gains, scatter)
+    return float(variance[seen].sum() / (4.0 * gains[seen].sum())) if seen.any() else 1.0
+
+
+def units(
+    gains: NDArray[np.float64], scatter: NDArray[np.float64] | None
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+    """The rings' expected gains (none below 0), which see the question (no rounding of the largest,
+    nor of one noise variance: the test's units), and each gain's variance (never below 4 g)."""
     gains = np.maximum(np.asarray(gains, dtype=float), 0.0)
     seen = gains > max(SEES_NOTHING * float(gains.max(initial=0.0)), SEES_NOTHING)
-    if scatter is None or not seen.any():
-        return 1.0
-    return float(np.maximum(4.0 * gains, scatter)[seen].sum() / (4.0 * gains[seen].sum()))
+    return gains, seen, 4.0 * gains if scatter is None else np.maximum(4.0 * gains, scatter)
