@@ -185,6 +185,27 @@ def test_an_error_of_the_a_joint_is_found_with_whole_a_rows_left_out_and_added()
     assert "Judged with each inner A row's rings predicted from the rows beside it" in report_text(result, DEFAULT_CATALOG)
 
 
+def test_two_harmonics_of_the_a_axis_a_shape_shows_are_named_from_the_catalog_in_its_place() -> None:
+    """Two A-axis tilt motions of 19 and 15 cycles/rev (0.54 and 0.59 arcsec; the population's
+    multi-effect head 570023, another probe geometry). By ring only the check rings see an error of
+    the A joint: the catalog's best is suggested (Student's t p = 0.054 on them); with A rows left
+    out an A-axis shape is claimed. The catalog's tilt motion, taken in that look and replicated
+    there, leaves the shape nothing significant over rings: it is claimed in the shape's place, and
+    says why (diagnosis.catalog_behind). The 47 cycles/rev error above stays a shape: no catalog
+    period holds it."""
+    from benchmarks.multi_effects import multi_effect_head
+
+    result = diagnose(multi_effect_head(570023).campaign, nested=False)
+    claim = next(c for c in result.found if c.effect == "a_axis_tilt_motion")
+    assert claim.settings["cycles_per_rev"] in (15, 19) and claim.replication.replicated
+    assert claim.note.startswith("claimed on the shape of the axial motion of the A axis") and "A rows left out" in claim.note
+    assert "gains nothing significant over rings" in claim.note
+    assert result.verdict in ("missing", "partial") and not result.claimed_shapes
+    assert claim.on_shape == "a_axial" and "  Claimed on the shape of the axial motion of the A axis" in report_text(
+        result, DEFAULT_CATALOG
+    )
+
+
 class StylusKnock(Effect):
     """Test-only: a knock reseats the stylus 60 % into the campaign; from then on a 2-lobe
     pre-travel term in the force azimuth that was not there before."""

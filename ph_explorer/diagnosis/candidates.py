@@ -159,6 +159,8 @@ class Candidate:
     rival_setting: RivalSetting | None = None
     # A shape of another variable its rings cannot tell a claim from (diagnosis.rival_shapes.untold_shape).
     untold_shape: UntoldShape | None = None
+    # The shape group whose look carried the claim (diagnosis.catalog_behind; its note says how); "" for the search's own.
+    on_shape: str = ""
 
     @classmethod
     def untested(cls, effect_id: str, name: str, teaching: str, note: str = "") -> Candidate:

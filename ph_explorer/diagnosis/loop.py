@@ -21,7 +21,8 @@ from ph_explorer import metrics
 from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
-from ph_explorer.diagnosis.choice import choose_effects
+from ph_explorer.diagnosis.catalog_behind import held_by_catalog
+from ph_explorer.diagnosis.choice import Choice, choose_effects
 from ph_explorer.diagnosis.nested import nested_after
 from ph_explorer.diagnosis.partners import confounding
 from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
@@ -98,6 +99,16 @@ def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, sugge
         fails = before is not None and before.fails
         return ("suggested" if suggested else "unexplained") if fails else "none"
     return "partial" if after is not None and after.fails else "missing"
+
+
+UNEXPLAINED = ("partial", "unexplained", "suggested")  # verdicts whose remainder a shape may describe
+
+
+def verdict_of(choice: Choice, based: int) -> Verdict:
+    """The verdict of a choice (decide): found when the chain holds claims beyond the `based` base
+    effects; a suggestion whose form breaks over the head is no catalog effect the rings could confirm."""
+    open_suggestion = any(not c.form_broken for c in flagged_in(choice.rankings, "suggested"))
+    return decide(choice.based, choice.after, bool(choice.chain[based:]), open_suggestion)
 
 
 def add_effects(
@@ -180,14 +191,22 @@ def diagnose(
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
     choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base)
-    search, before, chain = choice.search, choice.before, choice.chain
+    search, before = choice.search, choice.before
     offered, base = base, choice.base  # the base model's effects these rings can use (choice.usable_base)
     fixed = len(base) + len(start)  # the chain's effects in the model before the search
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
-    # A suggestion whose form breaks over the head is no catalog effect the rings could confirm.
-    open_suggestion = any(not c.form_broken for c in flagged_in(choice.rankings, "suggested"))
-    verdict = decide(choice.based, choice.after, bool(chain[len(base) :]), open_suggestion)
+    verdict = verdict_of(choice, len(base))
+    # A shape for what the catalog does not explain: an error function of the head's own variables
+    # no catalog holds; catalog effects of its own kind that hold it are claimed in its place
+    # (diagnosis.catalog_behind), and the shapes are looked for again beside them.
+    shapes = find_shapes(search, choice.chain, choice.after if choice.chain else before, seed) if verdict in UNEXPLAINED else []
+    if any(shape.claimed for shape in shapes):
+        held, shapes = held_by_catalog(choice, shapes, effects, seed)
+        if held is not choice:
+            choice, verdict = held, verdict_of(held, len(base))
+            shapes = find_shapes(search, choice.chain, choice.after, seed) if verdict in UNEXPLAINED else []
+    chain = choice.chain
     # What the search learnt of its first ranking, each stage returning new candidates.
     candidates = choice.candidates
     if chain:
@@ -205,10 +224,7 @@ def diagnose(
         rankings.append(ranking)
     candidates = rankings[0]
     found = tuple(learnt.get(id(c), c) for c in choice.found)
-    # A shape for what the catalog does not explain: an error function of the head's own variables
-    # no catalog holds; then the verdict stands, and what is left is described in those variables.
-    unexplained = verdict in ("partial", "unexplained", "suggested")
-    shapes = find_shapes(search, chain, choice.after if chain else before, seed) if unexplained else []
+    unexplained = verdict in UNEXPLAINED
     shape_effects = [shape.effect() for shape in shapes if shape.claimed]
     if shape_effects:
         verdict = "uncatalogued"

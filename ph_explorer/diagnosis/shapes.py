@@ -265,7 +265,7 @@ def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.flo
     return search.residual - mean[:, None, :] - (0.0 if within is None else within)
 
 
-def _rms(x: NDArray[np.float64]) -> float:
+def rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
 
 
@@ -319,13 +319,13 @@ def find_shapes(
     groups = [g for g in (groups or SHAPE_GROUPS) if g not in held]
     if current is None or not current.fails or not groups:
         return []
-    looked = _look(search, chain, current, groups, seed)
+    looked = look_at(search, chain, current, groups, seed)
     unseen = [] if any(shape.claimed for shape, _ in looked) else [g for g in groups if view_of(search, g) is not search]
     if unseen:
         rows = search.in_rows()
         current = rows.within_noise_after(list(chain), seed)
         if current is not None and current.fails:
-            looked += _across_looks(looked[-1], _look(rows, chain, current, unseen, seed, LOOKS), unseen, ~search.train, seed)
+            looked += _across_looks(looked[-1], look_at(rows, chain, current, unseen, seed, LOOKS), unseen, ~search.train, seed)
     return [shape for shape, _ in looked]
 
 
@@ -347,7 +347,7 @@ def _across_looks(first: Looked, second: list[Looked], unseen: list[str], check:
     return second
 
 
-def _look(
+def look_at(
     search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest, groups: list[str], seed: int, looks: int = 1
 ) -> list[Looked]:
     """One look at the groups in one search: the best claimed while the model fails, at most
@@ -370,7 +370,7 @@ def _look(
         fit = fits[best]
         test = replication(fit.gain, check, True, seed)
         residual = _left_out_residual(search, fit)
-        reduction = 1.0 - _rms(residual[check].mean(axis=1)) / max(_rms(check_before), 1e-300)
+        reduction = 1.0 - rms(residual[check].mean(axis=1)) / max(rms(check_before), 1e-300)
         after = within_noise(residual, search.smoother.weights, search.campaign.deviations, seed, held_out=check)
         brought = current.failing_rings - (after.failing_rings if after is not None else current.failing_rings)
         needed = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))

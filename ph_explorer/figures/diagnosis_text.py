@@ -222,8 +222,9 @@ def left_line(result: Diagnosis) -> str:
 
 
 def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str], with_fit: bool = True) -> list[str]:
-    """A claim with its parameters +- U (k = 2), then at most two lines: the partners these rings
-    cannot tell it from, in one voice, and the settings they cannot exclude."""
+    """A claim with its parameters +- U (k = 2), then at most three lines: the shape whose look
+    carried it, the partners these rings cannot tell it from, in one voice, and the settings they
+    cannot exclude."""
     effect = catalog[candidate.effect]().with_settings(**candidate.settings)
     fit = " (its fit: the table below)"
     if with_fit:
@@ -234,6 +235,8 @@ def claim_lines(candidate: Candidate, catalog: Catalog, actions: dict[str, str],
         if with_fit or candidate.untold or told or candidate.rival_setting or candidate.untold_shape
         else []
     )
+    if candidate.on_shape:
+        lines.append(f"  {candidate.note[0].upper()}{candidate.note[1:]}.")
     partners = [untold_text(candidate.effect, candidate.untold, actions, catalog)] if candidate.untold else []
     partners += [told_text(candidate.effect, p, catalog) for p in told]
     if candidate.untold_shape is not None:
