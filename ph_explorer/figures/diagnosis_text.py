@@ -23,7 +23,7 @@ from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
 from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
-from ph_explorer.planning.deciding import DECIDING_POWER, Decision
+from ph_explorer.planning.deciding import Decision, undecided_sentence
 
 Detail = Literal["short", "full"]
 Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
@@ -196,20 +196,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
 
 def undecided_text(decision: Decision) -> str:
     """What rings cannot decide, each question with what else would (or that its name stays a pair)."""
-    undecided = [(label, q) for label, q in decision.expected.items() if not q["decided_by_rings"]]
-    return " ".join(
-        f"No {decision.budget} rings of this stylus decide {q.get('words', label.replace(' vs ', ' or '))} "
-        f"(their test over rings would pass {100 * q['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides): "
-        + " and ".join(
-            [
-                *([f"{q['rings_needed']} rings would (a budget of {q['rings_needed']})"] if q.get("rings_needed") else []),
-                *([f"{q['separated_by']} would"] if q.get("separated_by") else []),
-            ]
-            or ["no measurement tried here separates them, so the name stays a pair"]
-        )
-        + "."
-        for label, q in undecided
-    )
+    return " ".join(undecided_sentence(label, q, decision.budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
 
 
 def left_line(result: Diagnosis) -> str:

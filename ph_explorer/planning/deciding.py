@@ -250,28 +250,31 @@ class DecisionWords:
         return [self.head, *self.rings, *self.undecided, *([self.time] if self.time is not None else [])]
 
 
+def undecided_sentence(label: str, question: dict[str, Any], budget: int) -> str:
+    """A question no `budget` rings decide, in one sentence (the command line's, the explorer's and
+    the verdict's next step): the power its best rings reach, how far its gains scatter when more
+    than the touch noise makes them, and how many rings or what measurement would decide it, or
+    that the name stays a pair."""
+    scatter = question.get("scatter", 1.0)
+    why = f"; what the model leaves at its check rings scatters their gains {scatter:.1f}x the touch noise's" if scatter > 1.05 else ""
+    needed, separated_by = question.get("rings_needed"), question.get("separated_by")
+    would = [*([f"{needed} rings would (a budget of {needed})"] if needed else []), *([f"{separated_by} would"] if separated_by else [])]
+    beyond = BEYOND_BUDGET * max(budget, DECIDING_RINGS)
+    return (
+        f"No {budget} rings of this stylus decide {question.get('words', label.replace(' vs ', ' or '))} (their test over rings "
+        f"would pass {100 * question['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides{why}): "
+        + (" and ".join(would) or f"not even {beyond} rings would, and no measurement tried here separates them, so the name stays a pair")
+        + "."
+    )
+
+
 def decision_words(decision: Decision, budget: int) -> DecisionWords:
     """The decision in words (DecisionWords); the command line prints its lines, the explorer lays out its parts."""
     head = (
         f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
     )
     rings = tuple(f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings)
-    undecided = []
-    for label, expected in decision.expected.items():
-        if not expected["decided_by_rings"]:
-            other = f"; {expected['separated_by']} would" if expected.get("separated_by") else ""
-            scatter = expected.get("scatter", 1.0)
-            why = (
-                f"; what the model leaves at its check rings scatters their gains {scatter:.1f}x the touch noise's"
-                if scatter > 1.05
-                else ""
-            )
-            needed = expected.get("rings_needed")
-            beyond = f"; {needed} rings would" if needed else f"; nor would {BEYOND_BUDGET * max(budget, DECIDING_RINGS)}"
-            undecided.append(
-                f"{expected.get('words', label)}: no {budget} rings of this stylus decide it (the test over rings would pass "
-                f"{100 * expected['power']:.0f} % of the time with them, {100 * DECIDING_POWER:.0f} % decides{why}){beyond}{other}"
-            )
+    undecided = tuple(undecided_sentence(label, q, budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
     by_question = tuple(
         f"{label} ({expected['expected_gain']:.0f} noise variances of evidence): "
         + ", ".join(
@@ -285,4 +288,4 @@ def decision_words(decision: Decision, budget: int) -> DecisionWords:
     time = None
     if decision.rings:
         time = f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note
-    return DecisionWords(head, rings, tuple(undecided), time, by_question)
+    return DecisionWords(head, rings, undecided, time, by_question)
