@@ -109,7 +109,7 @@ def one_head(job: dict[str, Any]) -> dict[str, Any]:
     mean = evaluation.deviations.mean(axis=1)
     floor = metrics.noise_floor(evaluation.noise_sigma_um(), EVALUATION_REPETITIONS)["mean"]
     started = time.perf_counter()
-    full_result = diagnose(full, nested=False)
+    full_result = diagnose(full)
     full_seconds = time.perf_counter() - started
     trilinear = TrilinearModel().fit(full, ~full.holdout_mask())
     started = time.perf_counter()

@@ -122,7 +122,7 @@ def loop_once(scenario: Scenario, seed: int, with_times: bool = True, catalog: A
     """Diagnose, decide, measure the rings (the twin, another noise draw), merge, diagnose again."""
     started = time.perf_counter()
     base = measured(scenario, seed, with_times)
-    first = diagnose(base, nested=False)
+    first = diagnose(base)
     decision = rings_that_decide(base, first, DEFAULT_CATALOG, BUDGET)
     record: dict[str, Any] = {
         "seed": seed,
@@ -138,7 +138,7 @@ def loop_once(scenario: Scenario, seed: int, with_times: bool = True, catalog: A
         new = measured(replace(scenario, seed=seed).at_rings(rings), None, with_times)
         # A ring left out as measured badly is not among the rings judged, so it may be proposed
         # again: measured again, it replaces the old one (as in the adaptive campaign's loop).
-        second = diagnose(merged_campaign(base, new, replace=True)[0], nested=False)
+        second = diagnose(merged_campaign(base, new, replace=True)[0])
     record["after"] = {"verdict": second.verdict, "claimed": claims(second), "suggested": suggestions(second)}
     record["seconds"] = round(time.perf_counter() - started, 1)
     return record

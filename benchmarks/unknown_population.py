@@ -2,7 +2,7 @@
 
 Each head is a random head (twin.random_heads: its design, background and noise law drawn from its
 seed) holding one shape of a family of benchmarks/unknown_shapes.py, the families taken in turn so
-that each has COUNT_PER_FAMILY heads; it is diagnosed as a user would (`diagnose`, nested=False).
+that each has COUNT_PER_FAMILY heads; it is diagnosed as a user would (`diagnose`).
 Per family and over all, each with its 95 % Clopper-Pearson interval:
 
 - none: the verdict says the campaign is within noise (the shape went unseen); none_head_error:
@@ -126,7 +126,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
     try:
         head = unknown_shape_head(job["seed"], job["family"])
         started = time.perf_counter()
-        result = diagnose(head.campaign, nested=False)
+        result = diagnose(head.campaign)
         record["seconds"] = round(time.perf_counter() - started, 2)
     except Exception as error:  # recorded, never lost
         return record | {"verdict": "error", "error": f"{type(error).__name__}: {error}"}
@@ -137,7 +137,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         # (the background's interpolation error stays).
         seed = head.truth["head_seed"]
         try:
-            plain = diagnose(random_campaign(seed, design_of(seed)), nested=False).steps[-1]
+            plain = diagnose(random_campaign(seed, design_of(seed))).steps[-1]
             record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
@@ -186,7 +186,7 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
     record: dict[str, Any] = {"seed": job["seed"]}
     try:
         head = multi_effect_head(job["seed"])
-        result = diagnose(head.campaign, nested=False)
+        result = diagnose(head.campaign)
     except Exception as error:  # recorded, never lost
         return record | {"verdict": "error", "error": f"{type(error).__name__}: {error}"}
     found = [claim_record(c) for c in result.found]

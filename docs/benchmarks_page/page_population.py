@@ -109,7 +109,7 @@ def population(results: Mapping[str, Any]) -> str:
             f"`diagnose` prints its verdict {num(get(command, 'verdict_s', 'median'), 's')} after launch (median, imports included; "
             f"max {num(get(command, 'verdict_s', 'max'), 's')}) and the nested figures {num(get(command, 'nested_s', 'median'), 's')} "
             f"after it (median); in one process the verdict takes {num(get(speed, 'in_process', 'verdict_s', 'median'), 's')}, the "
-            f"nested cross-validation {num(get(speed, 'in_process', 'nested_after_s'), 's')}. {clicked}Targets: verdict median "
+            f"{num(get(speed, 'in_process', 'without_nested_s'), 's')} without testing its claims on rings left out of the choice. {clicked}Targets: verdict median "
             f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} and max {num(get(speed, 'targets', 'verdict_max_s'), 's')}, "
             f"nested {num(get(speed, 'targets', 'nested_s'), 's')}: {holds(speed.get('holds'))}.\n"
         )

@@ -130,12 +130,12 @@ class PhysicsLoop:
         # An adaptive campaign's diagnosis offers the base model, as its plans read it (planning.adaptive).
         base = adaptive.base_model(self.catalog) if self.adaptive_twin is not None else []
         try:
-            # The loaded model is the baseline, as in the command line. The verdict is shown first; the
-            # nested cross-validation (the honest "after") follows (honest_after), as the command line
-            # gives it too: a saved run records it, and the worker thread keeps the sliders live meanwhile.
+            # The loaded model is the baseline, as in the command line; a claim's gain is tested on rings
+            # left out of the choice (the nested cross-validation) before the verdict, and the worker
+            # thread keeps the sliders live meanwhile.
             baseline = baseline_of({k: v for k, v in ds.models.items() if k in MODEL_TYPES})
             result = diagnosis.diagnose(
-                ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start, nested=False, base=base
+                ds.campaign, add=[], baseline=baseline, catalog=self.catalog, progress=progress, start=start, base=base
             )
         except InputError as error:
             p.done(f"**Cannot diagnose** — {error.line()}")
@@ -157,14 +157,6 @@ class PhysicsLoop:
         p.show_history(self.steps)
         self.diagnosed = self.study_open
         continued = f", continuing the study from {' + '.join(effect_label(e) for e in start)}" if start else ""
-        if result.found:
-            p.show_progress("the verdict is in; now the honest 'after': the search again without each fold of rings…", None)
-            result = result.with_nested(diagnosis.honest_after(ds.campaign, result, self.catalog))
-            if ds.campaign is not self.current().campaign:
-                return
-            self.diagnosis = result
-            p.nested = result.nested
-            p.show_history(self.steps)
         # The verdict says what was found and what to do next; the status line only what it continued from.
         p.done(f"Diagnosed{continued}." if continued else "")
 

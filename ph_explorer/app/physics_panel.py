@@ -75,7 +75,7 @@ def verdicts_markdown(verdict: str) -> str:
 
 
 def nested_markdown(nested: NestedAfter) -> str:
-    """The honest "after" (nested cross-validation over the training rings): the renderer's sentence, its figures as a table."""
+    """The honest "after" (nested cross-validation): the renderer's sentence, its figures as a table."""
     rows = [("before", nested.before_um), ("after", nested.after_um), ("noise floor", nested.noise_floor_um)]
     table = ["| | vs mean, um | vs single, um |", "|---|---|---|"] + [
         f"| {name} | {f['mean']:.3f} | {f['single']:.3f} |" for name, f in rows

@@ -120,7 +120,7 @@ def decide_command(
         previous = Study.load(Path(study), catalog)
         start = previous.effects(catalog)
         previous.rings_added_on(file_sha256(Path(data)), str(data), campaign.scenario.get("merges", []))
-    result = diagnose(campaign, catalog=catalog, nested=False, start=start)
+    result = diagnose(campaign, catalog=catalog, start=start)
     decision = rings_that_decide(campaign, result, catalog, budget)
     if out is not None:
         atomic_write([(Path(out), rings_csv_text(decision.rings))])

@@ -34,12 +34,10 @@ def diagnose_command(
     """Diagnose the campaign (from a trained model's baseline if given) and print the report or its JSON;
     with --save or --resume, write the study."""
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
-    from ph_explorer.diagnosis.loop import honest_after
     from ph_explorer.diagnosis.results import Headline
     from ph_explorer.diagnosis.study import Study, study_campaign
     from ph_explorer.effects.error_functions import shapes_file_text
     from ph_explorer.figures.diagnosis_text import report_text, verdict_headline
-    from ph_explorer.figures.history_text import nested_lines
     from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
 
     if detail not in DETAILS:
@@ -79,18 +77,13 @@ def diagnose_command(
             network_progress=lambda epoch, loss, mae, lr: bar.update(
                 network_task, visible=True, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"
             ),
-            nested=False,
             on_verdict=None if json_output else say_verdict,
         )
-    # The verdict line as soon as it stands (say_verdict), the report up to the error history when it
-    # is measured, the nested figures, its last lines, after (the same text as one print at the end).
+    # The verdict line as soon as it stands (say_verdict), then the report (the same text as one print at the end).
     if not json_output:
         # What rings can decide of what the verdict leaves open, said with the verdict (design --decide lists them).
         decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET) if result.leaves_open else None
         print(report_text(result, catalog, detail, decision, headline=False), end="", flush=True)
-    with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
-        bar.add_task("measuring the chosen effects on rings that took no part in choosing them", total=None)
-        result = result.with_nested(honest_after(campaign, result, catalog))
     target = save if save is not None else resume
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
@@ -106,6 +99,4 @@ def diagnose_command(
             )
     if json_output:
         print(json.dumps(result.to_json()))
-    elif result.nested is not None:
-        print("\n".join(f"  {line}" for line in nested_lines(result.nested)))
     return 0

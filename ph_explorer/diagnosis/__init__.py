@@ -8,7 +8,7 @@ left, looks like in the head's variables), loop (diagnose, add_effects).
 
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import Choice, choose_effects
-from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, honest_after, repetition_sigma
+from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, repetition_sigma
 from ph_explorer.diagnosis.nested import NESTED_FOLDS, nested_after
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step, Verdict
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
@@ -35,7 +35,6 @@ __all__ = [
     "choose_effects",
     "nested_after",
     "diagnose",
-    "honest_after",
     "decide",
     "within_noise",
     "rank_candidates",

@@ -61,8 +61,7 @@ def diagnose_campaign(
 ) -> Diagnosis:
     """diagnose() with the command's options: a trained model folder's baseline (the folder, or its
     models already loaded by the caller, who shows them too), the data part by
-    name (the network retrained on what the physical terms leave, reporting each epoch); without
-    `nested`, the verdict first (honest_after adds the nested figures); on_verdict: as diagnose's."""
+    name (the network retrained on what the physical terms leave, reporting each epoch); nested and on_verdict: as diagnose's."""
     models = load_models(Path(model)) if isinstance(model, (str, Path)) else model
     baseline = baseline_of(models) if models is not None else None
     part: str | Callable[[], DeviationModel] = check_data_part(data_part)

@@ -18,10 +18,9 @@ from dataclasses import dataclass, replace
 
 from ph_explorer.diagnosis.candidates import Candidate, Partner
 from ph_explorer.diagnosis.choice import Choice, claim_test
-from ph_explorer.diagnosis.partners import partner_settings
 from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates, shared_variance
 from ph_explorer.diagnosis.shapes import Shape, look_at
-from ph_explorer.diagnosis.telling_apart import fitted_beside, rings_prefer
+from ph_explorer.diagnosis.telling_apart import fitted_beside, partner_test
 from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
 
@@ -110,12 +109,10 @@ def untold_partners(
     seed: int = 0,
 ) -> tuple[Partner, ...]:
     """The other effects of the shape's groups that the rings, in the shape's look, do not tell the
-    claim from (telling_apart.rings_prefer at each setting that could stand in for it, as a claim's
-    confounded partners are asked): the claim is named with them, a pair the rings cannot tell."""
+    claim from (telling_apart.partner_test, as a claim's confounded partners are asked): the claim is named with them, a pair the rings cannot tell."""
     out = []
     for other in others:
-        tried = partner_settings(effect, by_id[other.effect].with_settings(**other.settings))
-        test, standing_in = max(((rings_prefer(look, effect, o, chain, seed), o) for o in tried), key=lambda t: t[0].p_value)
+        test, standing_in = partner_test(look, effect, by_id[other.effect].with_settings(**other.settings), chain, seed)
         if not test.told_apart:
             shared = shared_variance(search.design([effect]), search.design([standing_in]))
             params = fitted_beside(search, standing_in, chain)

@@ -23,9 +23,9 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.catalog_behind import held_by_catalog
 from ph_explorer.diagnosis.choice import Choice, choose_effects
-from ph_explorer.diagnosis.nested import nested_after
+from ph_explorer.diagnosis.nested import held_out_claims
 from ph_explorer.diagnosis.partners import confounding
-from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, NestedAfter, Ring, Step, Verdict, flagged_in
+from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.shapes import find_shapes
 from ph_explorer.diagnosis.signature import signature
@@ -150,8 +150,9 @@ def diagnose(
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
     again (at most max_steps effects). baseline: a trained model to start from (default: the
-    trilinear model on the training rings). catalog: the effects to choose from. nested: measure
-    the effects found on rings that took no part in choosing them (diagnosis.nested).
+    trilinear model on the training rings). catalog: the effects to choose from. nested: a claim
+    stands only when its gain holds on rings that took no part in choosing it (diagnosis.nested;
+    False: the search's claims untested so, as tests of other parts and the folds themselves ask).
     start: effects already in the model at their settings (a resumed study's chain): the search
     continues from them. base: effects never claimed, those the rings can use in the model before
     the search (choice.usable_base; planning.adaptive's location errors): the verdict judges what
@@ -194,6 +195,9 @@ def diagnose(
     search, before = choice.search, choice.before
     offered, base = base, choice.base  # the base model's effects these rings can use (choice.usable_base)
     fixed = len(base) + len(start)  # the chain's effects in the model before the search
+    # A claim's gain must survive the choice made inside the folds, on rings left out of it (check
+    # rings included): else its effects are suggestions (diagnosis.nested).
+    choice, honest = held_out_claims(choice, campaign, effects, fixed, max_steps, seed) if nested else (choice, None)
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     verdict = verdict_of(choice, len(base))
@@ -234,7 +238,7 @@ def diagnose(
 
     # The base model's parameters +- U in the verdict's model (the search's chain, its claims in it).
     base_fit = [ChainLink(e.id, e.settings(), *fit) for e, fit in zip(base, search.fitted_u(chain, len(base)) if base else [])]
-    search.forget_designs()  # everything asked of them is answered; the nested folds need the memory
+    search.forget_designs()  # everything asked of them is answered; the history's fits need the memory
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
@@ -295,23 +299,4 @@ def diagnose(
         shapes=tuple(shapes),
         hybrid=hybrid,
     )
-    if nested:
-        result = result.with_nested(honest_after(campaign, result, catalog, max_steps, seed))
-    return result
-
-
-@one_blas_thread
-def honest_after(
-    campaign: Campaign,
-    result: Diagnosis,
-    catalog: Catalog = DEFAULT_CATALOG,
-    max_steps: int = 3,
-    seed: int = 0,
-) -> NestedAfter | None:
-    """The nested cross-validation of a diagnosis's search (ph_explorer.diagnosis.nested), None when it
-    found nothing: what the explorer shows after the verdict (diagnose(nested=False) first)."""
-    if not result.found:
-        return None
-    start = result.chain[: result.started_from]  # the effects the search started from
-    campaign = result.judged(campaign)
-    return nested_after(campaign, [cls() for cls in catalog.candidates().values()], start, max_steps, seed)
+    return result.with_nested(honest)

@@ -104,7 +104,7 @@ class NestedAfter:
     """Before and after the search's effects, each fold's rings predicted by what the others chose."""
 
     folds: int
-    rings: int  # training rings predicted (each once)
+    rings: int  # rings predicted (each once)
     before_um: dict[str, float]  # MAE of the starting model, {"mean", "single"}
     after_um: dict[str, float]  # MAE with the effects each fold's search chose
     noise_floor_um: dict[str, float]
@@ -112,12 +112,12 @@ class NestedAfter:
     # The replication test over the predicted rings of their fall in error from before to after;
     # None in a record written before it was measured.
     gain: Replication | None = None
+    check_rings: int = 0  # of `rings`, the check rings (0 in a record of the training rings alone)
 
     @property
     def gain_holds(self) -> bool:
         """The effects chosen in the folds lower the error of rings that took no part in choosing
-        them, replicated over those rings. Reported beside the claims, never a reason to withdraw
-        one: it lacks power where the interpolator follows an effect (docs/diagnosis.md)."""
+        them, replicated over those rings: the condition of a claim (nested.held_out_claims)."""
         return self.gain is None or self.gain.replicated
 
     def chosen_counts(self) -> dict[str, int]:
@@ -137,13 +137,15 @@ class NestedAfter:
             "noise_floor_um": rounded(self.noise_floor_um),
             "chosen": [list(fold) for fold in self.chosen],
             "gain": None if self.gain is None else self.gain.as_dict(),
+            "check_rings": self.check_rings,
         }
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> NestedAfter:
         figures = {k: {r: _number(v) for r, v in data[k].items()} for k in ("before_um", "after_um", "noise_floor_um")}
         gain = None if data.get("gain") is None else Replication.from_json(data["gain"])
-        return cls(data["folds"], data["rings"], **figures, chosen=tuple(tuple(fold) for fold in data.get("chosen", [])), gain=gain)
+        chosen = tuple(tuple(fold) for fold in data.get("chosen", []))
+        return cls(data["folds"], data["rings"], **figures, chosen=chosen, gain=gain, check_rings=int(data.get("check_rings", 0)))
 
 
 RING_TEST = "the within-noise test of one ring (level 1 %)"
@@ -243,7 +245,7 @@ class Diagnosis:
         return judged_campaign(campaign, self.suspect_rings, self.touch_outliers)
 
     def with_nested(self, nested: NestedAfter | None) -> Diagnosis:
-        """The same diagnosis with its honest "after" measured (diagnosis.loop.honest_after)."""
+        """The same diagnosis with its honest "after" (diagnosis.nested.held_out_claims)."""
         return replace(self, nested=nested)
 
     @property

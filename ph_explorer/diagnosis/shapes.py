@@ -265,7 +265,7 @@ def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.flo
     return search.residual - mean[:, None, :] - (0.0 if within is None else within)
 
 
-def rms(x: NDArray[np.float64]) -> float:
+def _rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
 
 
@@ -370,7 +370,7 @@ def look_at(
         fit = fits[best]
         test = replication(fit.gain, check, True, seed)
         residual = _left_out_residual(search, fit)
-        reduction = 1.0 - rms(residual[check].mean(axis=1)) / max(rms(check_before), 1e-300)
+        reduction = 1.0 - _rms(residual[check].mean(axis=1)) / max(_rms(check_before), 1e-300)
         after = within_noise(residual, search.smoother.weights, search.campaign.deviations, seed, held_out=check)
         brought = current.failing_rings - (after.failing_rings if after is not None else current.failing_rings)
         needed = max(RINGS_BROUGHT_WITHIN, math.ceil(SHARE_BROUGHT_WITHIN * current.failing_rings))

@@ -38,6 +38,16 @@ def rings_prefer(search: CandidateSearch, effect: Effect, partner: Effect, chain
     return PairTest(test.replicated, round(test.p_value, 5), round(test.p_without_top, 5), test.rings_gaining, test.rings)
 
 
+def partner_test(
+    search: CandidateSearch, effect: Effect, partner: Effect, chain: Sequence[Effect], seed: int = 0
+) -> tuple[PairTest, Effect]:
+    """The partner at each setting that stands in for the effect (partners.partner_settings), put to
+    the rings where they favour it most (rings_prefer, the largest p-value): told apart only from
+    every one of them. Returns that test and the partner at that setting."""
+    tests = [(rings_prefer(search, effect, o, chain, seed), o) for o in partner_settings(effect, partner)]
+    return max(tests, key=lambda t: t[0].p_value)
+
+
 def tell_apart(
     search: CandidateSearch,
     candidates: Sequence[Candidate],
@@ -62,11 +72,8 @@ def tell_apart(
             if p.separated_by is None:  # beyond the closest partners (no separation asked) the rings are not asked either
                 partners.append(p)
                 continue
-            # The partner at each setting that stands in for the claim (partners.partner_settings),
-            # put to the rings where they favour it most: told apart only from every one of them.
             standing_in = by_id[p.effect].with_settings(**(p.settings[0] if p.settings else settings.get(p.effect, {})))
-            tests = [(rings_prefer(search, effect, o, start, seed), o) for o in partner_settings(effect, standing_in)]
-            test, other = max(tests, key=lambda t: t[0].p_value)
+            test, other = partner_test(search, effect, standing_in, start, seed)
             first = (other.settings(), *(s for s in p.settings if s != other.settings()))
             params = {} if test.told_apart else fitted_beside(search, other, start)
             partners.append(replace(p, settings=first, test=test, params=params))

@@ -24,7 +24,7 @@ from ph_explorer.diagnosis.within_noise import CHECK_TOLERANCE
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, step_names
 from ph_explorer.figures.diagnosis_text import report_sections, signature_text
-from ph_explorer.figures.history_text import chosen_text, step_label
+from ph_explorer.figures.history_text import chosen_text, nested_rings, step_label
 from ph_explorer.figures.noise_text import tested_models
 from ph_explorer.figures.orientation_map import MapFigure
 from ph_explorer.figures.ring_text import ring_reason
@@ -227,8 +227,7 @@ def _nested(nested: NestedAfter | None, names: EffectNames) -> list[str]:
 
     return [
         "<h3>The honest after: nested cross-validation</h3>",
-        f"<p>The check rings took part in choosing the effects; here each of {nested.folds} folds of the {nested.rings} "
-        "training rings is predicted by what the search chose without it.</p>",
+        f"<p>Each of {nested.folds} folds of {_e(nested_rings(nested))} is predicted by what the search chose without it.</p>",
         "<table><tr><th></th><th>MAE vs mean, um</th><th>MAE vs single, um</th></tr>"
         f"<tr><td>before</td><td>{cell(before['mean'])}</td><td>{cell(before['single'])}</td></tr>"
         f"<tr><td>after</td><td>{cell(after['mean'])}</td><td>{cell(after['single'])}</td></tr>"

@@ -142,7 +142,7 @@ def plan_diagnosis(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, **opt
     (options: diagnose's others)."""
     from ph_explorer.diagnosis import diagnose
 
-    return diagnose(campaign, catalog=catalog, nested=False, base=base_model(catalog), **options)
+    return diagnose(campaign, catalog=catalog, base=base_model(catalog), **options)
 
 
 def default_tolerance_um(sigma_um: float) -> float:
