@@ -30,6 +30,10 @@ def test_the_nested_gain_is_tested_over_the_rings_that_took_no_part_and_reported
     nil = Replication(p_value=0.6, p_without_top=0.7, rings_gaining=40, rings=80, check_gain=float("nan"), lattice_gain=-0.01)
     weak = replace(result, nested=replace(result.nested, gain=nil))
     assert not weak.nested.gain_holds and "not replicated: no effect the search chose is claimed" in report_text(weak, DEFAULT_CATALOG)
+    # A campaign of too few training rings for the folds: its claims rest on the search's test, and the report says so.
+    assert "rest on the search's own test" not in report_text(result, DEFAULT_CATALOG)
+    few = replace(result, nested=None, rings=result.rings[:15])
+    assert "These claims rest on the search's own test: 15 training rings make no 5 folds" in report_text(few, DEFAULT_CATALOG)
     data = json.loads(json.dumps(result.to_json()))
     assert data["nested_after"]["gain"]["p_value"] == round(gain.p_value, 5)
     assert Diagnosis.from_json(data).to_json() == data

@@ -9,6 +9,7 @@ model, fitted on the other training rings, predict them: "before" and "after". E
 in error is tested over rings as a claim's gain is (diagnosis.replication), and a claim stands
 only when it is replicated (held_out_claims). Method: docs/diagnosis.md.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -31,6 +32,7 @@ from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import HybridModel
 
 NESTED_FOLDS = 5
+MIN_TRAIN_PER_FOLD = 4  # fewer training rings than this a fold make no folds: claims then rest on the search's test
 # The data-driven part of the models the folds fit: the interpolator, which refits in milliseconds
 # (a network's data part would be retrained twice per fold).
 NESTED_DATA_PART = "trilinear"
@@ -47,7 +49,7 @@ def nested_after(
     """The cross-validated before/after of the search (module docstring); None with too few rings."""
     held_out = campaign.holdout_mask()
     train = np.flatnonzero(~held_out)
-    if train.size < 4 * folds:
+    if train.size < MIN_TRAIN_PER_FOLD * folds:
         return None
     rng = np.random.default_rng(seed)
     # Each fold leaves out its share of the training rings and of the check rings: the check rings,

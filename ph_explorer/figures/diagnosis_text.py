@@ -16,6 +16,7 @@ from typing import Literal
 
 from ph_explorer.campaign import orientation_label
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, Partner, UntoldShape
+from ph_explorer.diagnosis.nested import MIN_TRAIN_PER_FOLD, NESTED_FOLDS
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
 from ph_explorer.effects import Catalog, effect_label, settings_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
@@ -57,6 +58,18 @@ class Section:
     lines: tuple[str, ...]
 
 
+def unfolded_lines(result: Diagnosis) -> list[str]:
+    """Why the claims were not tested on rings left out of the choice, when too few training rings
+    make no folds (diagnosis.nested): they rest on the search's own test."""
+    train = int((~result.held_out).sum())
+    if not result.found or result.nested is not None or train >= MIN_TRAIN_PER_FOLD * NESTED_FOLDS:
+        return []
+    return [
+        f"These claims rest on the search's own test: {train} training rings make no {NESTED_FOLDS} folds of "
+        f"{MIN_TRAIN_PER_FOLD} to leave out of the choice, so their gain on rings left out of it is not tested."
+    ]
+
+
 def report_sections(
     result: Diagnosis,
     catalog: Catalog,
@@ -71,6 +84,7 @@ def report_sections(
     `decision`: the rings that would decide what the verdict leaves open, when found (next_step)."""
     actions = ACTIONS[front]
     claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
+    claims += tuple(unfolded_lines(result))
     sections = [
         Section(
             "verdict", verdict_headline(result.headline, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))
