@@ -229,8 +229,11 @@ def test_a_canvas_that_changes_shape_has_its_view_placed_again_and_an_orbit_keep
     geometry = s.dataset.campaign.geometry
     fake.send(camera_message(400, 900))  # a narrow window
     position, look_at = ring_camera(43.0, 90.0, geometry, extent_mm=s.ring.extent_mm, aspect=400 / 900)
-    assert wait_for(lambda: np.allclose(s.client.camera.position, position, atol=1e-6)), (s.client.camera.position, position)
-    np.testing.assert_allclose(s.client.camera.look_at, look_at, atol=1e-6)
+    # Both placed: viser's position setter moves look_at with it before the View sets its own, in
+    # the handler's thread (the browser gets them in one atomic batch; this thread may look between).
+    camera = s.client.camera
+    placed = lambda: np.allclose(camera.position, position, atol=1e-6) and np.allclose(camera.look_at, look_at, atol=1e-6)  # noqa: E731
+    assert wait_for(placed), (camera.position, position, camera.look_at, look_at)
     wide = ring_camera(43.0, 90.0, geometry, extent_mm=s.ring.extent_mm, aspect=800 / 600)[0]
     assert np.linalg.norm(position - look_at) > 1.05 * np.linalg.norm(wide - look_at)  # farther: the chart fits the narrow canvas
     orbit = (300.0, 50.0, 20.0)
