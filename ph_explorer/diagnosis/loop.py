@@ -152,7 +152,7 @@ def diagnose(
     again (at most max_steps effects). baseline: a trained model to start from (default: the
     trilinear model on the training rings). catalog: the effects to choose from. nested: a claim
     stands only when its gain holds on rings that took no part in choosing it (diagnosis.nested;
-    False: the search's claims untested so, as tests of other parts and the folds themselves ask).
+    False: the search's claims untested so, as tests of other parts ask).
     start: effects already in the model at their settings (a resumed study's chain): the search
     continues from them. base: effects never claimed, those the rings can use in the model before
     the search (choice.usable_base; planning.adaptive's location errors): the verdict judges what
@@ -275,7 +275,7 @@ def diagnose(
         )
         for i, (a, b) in enumerate(campaign.orientations)
     )
-    result = Diagnosis(
+    return Diagnosis(
         verdict=verdict,
         # The touch noise once the modelled effects that change between repetitions are taken out.
         noise_floor_um=steps[-1].noise_floor_um,
@@ -298,5 +298,5 @@ def diagnose(
         touch_outliers=outliers,
         shapes=tuple(shapes),
         hybrid=hybrid,
+        nested=honest,
     )
-    return result.with_nested(honest)

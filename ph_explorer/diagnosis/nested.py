@@ -94,7 +94,7 @@ def nested_after(
     gain = fall / np.maximum(ring_sigma(measured) ** 2, 1e-300)
     predicted_check = held_out[rings]
     return NestedAfter(
-        folds=len(groups),
+        folds=folds,
         rings=int(rings.size),
         before_um=metrics.mae(before_all, measured),
         after_um=metrics.mae(after_all, measured),
@@ -119,10 +119,14 @@ def held_out_claims(
     assert honest.gain is not None  # gain_holds is True without it
     why = "; ".join(honest.gain.reasons()) if honest.gain.rings else "no fold's search chose an effect"
     note = f"its gain does not replicate on rings left out of the choice (nested cross-validation, {honest.folds} folds: {why})"
-    claimed = {(c.effect, repr(sorted(c.settings.items()))) for c in choice.found}
+
+    def claim_of(candidate: Candidate) -> tuple[str, str]:
+        return candidate.effect, repr(sorted(candidate.settings.items()))
+
+    claimed = {claim_of(c) for c in choice.found}
 
     def withdrawn(candidate: Candidate) -> Candidate:
-        if (candidate.effect, repr(sorted(candidate.settings.items()))) in claimed and not candidate.suggested:
+        if claim_of(candidate) in claimed and not candidate.suggested:
             return replace(candidate, suggested=True, note=note)
         return candidate
 

@@ -9,7 +9,7 @@ words are figures/diagnosis_text.py's. Method: docs/methods/diagnosis_loop.md.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -243,10 +243,6 @@ class Diagnosis:
     def judged(self, campaign: Campaign) -> Campaign:
         """The campaign as this diagnosis judged it (suspect.judged_campaign): what its model was fitted on."""
         return judged_campaign(campaign, self.suspect_rings, self.touch_outliers)
-
-    def with_nested(self, nested: NestedAfter | None) -> Diagnosis:
-        """The same diagnosis with its honest "after" (diagnosis.nested.held_out_claims)."""
-        return replace(self, nested=nested)
 
     @property
     def rankings(self) -> tuple[tuple[Candidate, ...], ...]:
