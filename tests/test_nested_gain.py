@@ -19,9 +19,12 @@ from ph_explorer.twin import load_scenario, simulate
 def test_the_nested_gain_is_tested_over_the_rings_that_took_no_part_and_reported():
     """head_3's hidden B-axis error, found: on the rings of the nested folds it gains, replicated
     over them, and the report says so; a gain that does not replicate is worded as such; the record
-    round-trips the test."""
-    result = diagnose(simulate(load_scenario("head_3")))
+    round-trips the test; a front end's progress says when the folds run."""
+    said: list[str] = []
+    result = diagnose(simulate(load_scenario("head_3")), progress=said.append)
     assert result.verdict == "missing" and result.nested.gain is not None
+    testing = said.index("testing the claims on rings left out of the choice (nested cross-validation)")
+    assert testing > 0 and all(s.startswith("scanning ") for s in said[:testing])
     gain = result.nested.gain
     assert result.nested.gain_holds and gain.p_value < 0.05 and gain.rings_gaining > gain.rings / 2
     check = load_scenario("head_3")

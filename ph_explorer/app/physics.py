@@ -120,9 +120,9 @@ class PhysicsLoop:
         n_effects = len(self.catalog.candidates())
         seen: list[str] = []
 
-        def progress(effect_id: str) -> None:
-            seen.append(str(effect_id))
-            p.show_progress(f"scanning {effect_id} against the out-of-sample residual…", len(seen) / (n_effects + 1))
+        def progress(activity: str) -> None:
+            seen.append(activity)
+            p.show_progress(f"{activity}…", min(len(seen) / (n_effects + 2), 0.95))
 
         p.show_progress("out-of-sample residuals of the baseline (leave one orientation out)…", 0.02)
         # A study continues from the model it reached, as `diagnose --resume` does.

@@ -72,7 +72,7 @@ def diagnose_command(
             model,
             data_part,
             start,
-            progress=lambda effect_id: bar.update(task, description=f"scanning {effect_id}"),
+            progress=lambda activity: bar.update(task, description=activity),
             # Retraining the network on what the physical terms leave: epochs, loss, validation MAE.
             network_progress=lambda epoch, loss, mae, lr: bar.update(
                 network_task, visible=True, description=f"network epoch {epoch}: loss {loss:.4f}, val MAE {mae:.4f} um"

@@ -73,7 +73,7 @@ def report_command(
                 campaign,
                 DEFAULT_CATALOG,
                 model=loaded,
-                progress=lambda effect_id: bar.update(task, description=f"diagnosing: scanning {effect_id}"),
+                progress=lambda activity: bar.update(task, description=f"diagnosing: {activity}"),
             )
         text = diagnosed_report_html(
             campaign, result, name, sha256, model, orientations=chosen, reveal=reveal, created=created, loaded=loaded

@@ -92,7 +92,7 @@ def catalog_behind(
         after = look.within_noise_after(model, seed)
         if after is None or not after.fails:
             break
-        if not look_at(look, model, after, groups, seed)[0][0].replicated:
+        if not look_at(look, model, after, groups, seed, most=1)[0][0].replicated:
             break  # the shape refitted beside them gains nothing significant over rings
     else:
         return None

@@ -150,7 +150,8 @@ def diagnose(
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
     again (at most max_steps effects). baseline: a trained model to start from (default: the
-    trilinear model on the training rings). catalog: the effects to choose from. nested: a claim
+    trilinear model on the training rings). catalog: the effects to choose from. progress: called
+    with what the loop is doing ("scanning <effect>", ...). nested: a claim
     stands only when its gain holds on rings that took no part in choosing it (diagnosis.nested;
     False: the search's claims untested so, as tests of other parts ask).
     start: effects already in the model at their settings (a resumed study's chain): the search
@@ -197,6 +198,8 @@ def diagnose(
     fixed = len(base) + len(start)  # the chain's effects in the model before the search
     # A claim's gain must survive the choice made inside the folds, on rings left out of it (check
     # rings included): else its effects are suggestions (diagnosis.nested).
+    if nested and choice.chain[fixed:] and progress is not None:
+        progress("testing the claims on rings left out of the choice (nested cross-validation)")
     choice, honest = held_out_claims(choice, campaign, effects, fixed, max_steps, seed) if nested else (choice, None)
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
@@ -204,6 +207,8 @@ def diagnose(
     # A shape for what the catalog does not explain: an error function of the head's own variables
     # no catalog holds; catalog effects of its own kind that hold it are claimed in its place
     # (diagnosis.catalog_behind), and the shapes are looked for again beside them.
+    if verdict in UNEXPLAINED and progress is not None:
+        progress("looking for a shape of what the catalog leaves")
     shapes = find_shapes(search, choice.chain, choice.after if choice.chain else before, seed) if verdict in UNEXPLAINED else []
     if any(shape.claimed for shape in shapes):
         held, shapes = held_by_catalog(choice, shapes, effects, seed)

@@ -394,7 +394,7 @@ def rank_candidates(
     scans: list[Scan | Candidate] = []
     for effect in effects:
         if progress is not None:
-            progress(effect.id)
+            progress(f"scanning {effect.id}")
         scans.append(search.scan(effect, fixed))
     levels = family_levels(scans)
     out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf"))) for s in scans]

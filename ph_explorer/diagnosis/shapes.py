@@ -25,13 +25,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.blas import PARTS_AT_ONCE
 from ph_explorer.diagnosis.candidates import DIGITS
-from ph_explorer.diagnosis.replication import (
-    REPLICATION_LEVEL,
-    Replication,
-    family_test,
-    replication,
-    ring_residual_squares,
-)
+from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, Replication, family_test, replication, ring_residual_squares
 from ph_explorer.diagnosis.search import (
     JACKKNIFE_INFLATION,
     MATERIAL_REDUCTION,
@@ -348,11 +342,17 @@ def _across_looks(first: Looked, second: list[Looked], unseen: list[str], check:
 
 
 def look_at(
-    search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest, groups: list[str], seed: int, looks: int = 1
+    search: CandidateSearch,
+    chain: Sequence[Effect],
+    current: NoiseTest,
+    groups: list[str],
+    seed: int,
+    looks: int = 1,
+    most: int = MAX_SHAPES,
 ) -> list[Looked]:
     """One look at the groups in one search: the best claimed while the model fails, at most
-    MAX_SHAPES, then the best tried that was not (find_shapes), each with its rings' gains;
-    `looks`: the family-wise p-value's Bonferroni factor."""
+    `most`, then the best tried that was not (find_shapes), each with its rings' gains; `looks`:
+    the family-wise p-value's Bonferroni factor."""
     noise = ring_sigma(search.campaign.deviations) ** 2
     check = ~search.train
     fixed = search.design(list(chain)) if chain else None
@@ -362,7 +362,7 @@ def look_at(
     # columns would overfit, and every next group would seem to gain).
     before = ring_residual_squares(search.residual, fixed, search.targets)
     check_before = search.check_residual(fixed)[0]
-    while len([s for s, _ in out if s.claimed]) < MAX_SHAPES and groups:
+    while len([s for s, _ in out if s.claimed]) < most and groups:
         fits = fit_groups(search, fixed, before, groups, noise)
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         family_p = min(1.0, looks * family_p)
