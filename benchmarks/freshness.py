@@ -4,8 +4,9 @@ A section's figures depend on the modules its benchmark can import: read with as
 statement anywhere in a file (a lazy import counts), from the section's module (or, for the
 sections benchmarks/run.py measures itself, its function there) and run.py's own imports. Each
 section is stamped with the commit it was measured at (results.json "updated", else the full run's
-"commit"). Its figures describe this checkout when none of those ph_explorer modules differs
-between that commit and the working tree: a change elsewhere (the explorer, the CLI, the text a
+"commit"). Its figures describe this checkout when none of those ph_explorer modules' code differs
+between that commit and the working tree (compared as syntax trees without docstrings: a docstring,
+a comment or a layout changes no figure): a change elsewhere (the explorer, the CLI, the text a
 verdict is worded in) leaves them measured. A benchmarks module that changed is named beside: the
 code measured is the same, the way its figures are made may not be.
 """
@@ -64,6 +65,21 @@ def sources(commit: str | None = None, root: Path = ROOT) -> tuple[dict[str, str
             at = header_end + 2 + size
     known = {path[:-3].replace("/", ".").removesuffix(".__init__"): text for path, text in read.items()}
     return known, {path[:-12].replace("/", ".") for path in read if path.endswith("/__init__.py")}
+
+
+@functools.cache
+def code_of(source: str | None) -> str | None:
+    """A module's code, its docstrings, comments and layout aside: its syntax tree without them."""
+    if source is None:
+        return None
+    tree = ast.parse(source)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body:
+            first = body[0]
+            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+                node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree)
 
 
 @functools.cache
@@ -177,7 +193,7 @@ def states(results: dict[str, Any], root: Path = ROOT) -> list[SectionState]:
             continue
         then, then_packages = held
         depends = section_modules(name, now, packages) | section_modules(name, then, then_packages)
-        differ = sorted(m for m in depends if now.get(m) != then.get(m))
+        differ = sorted(m for m in depends if code_of(now.get(m)) != code_of(then.get(m)))
         out.append(
             SectionState(
                 name,

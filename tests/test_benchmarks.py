@@ -140,9 +140,12 @@ def test_a_section_is_stale_only_when_a_module_it_can_import_changed(tmp_path: P
     assert not state("fleet").known  # measured on uncommitted changes: nothing can be said
     (tmp_path / "ph_explorer/wording.py").write_text("WORDS = 1\n")
     assert not state("population").changed and state("speed").changed == ("ph_explorer.wording",)
+    # a docstring, a comment or a layout changes no figure; code does
+    (tmp_path / "ph_explorer/diagnosis.py").write_text('"""What the rings say."""\n\nimport numpy  # the arrays\n')
+    assert not state("population").changed
     (tmp_path / "ph_explorer/diagnosis.py").write_text("import numpy as np\n")
     assert state("population").changed == ("ph_explorer.diagnosis",) and "stale, 1 of the 2" in state("population").line()
-    (tmp_path / "benchmarks/population.py").write_text(files["benchmarks/population.py"] + "# a figure defined anew\n")
+    (tmp_path / "benchmarks/population.py").write_text(files["benchmarks/population.py"] + "FIGURE = 1  # a figure defined anew\n")
     assert state("population").benchmark_changed == ("benchmarks.population",)
 
 

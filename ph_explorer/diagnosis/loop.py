@@ -150,15 +150,14 @@ def diagnose(
 
     add: effect ids to add in that order; None adds the best significant candidate, then searches
     again (at most max_steps effects). baseline: a trained model to start from (default: the
-    trilinear model on the training rings). catalog: the effects to choose from. progress: called
-    with what the loop is doing ("scanning <effect>", ...). nested: a claim
-    stands only when its gain holds on rings that took no part in choosing it (diagnosis.nested;
-    False: the search's claims untested so, as tests of other parts ask).
-    start: effects already in the model at their settings (a resumed study's chain): the search
-    continues from them. base: effects never claimed, those the rings can use in the model before
-    the search (choice.usable_base; planning.adaptive's location errors): the verdict judges what
-    lies beyond them. on_verdict: called with the verdict as soon as it stands (a front end says
-    it first). Method: docs/diagnosis.md.
+    trilinear model on the training rings). catalog: the effects to choose from. progress: told
+    what the loop does ("scanning <effect>", ...). nested: a claim stands only when its gain holds
+    on rings that took no part in choosing it (diagnosis.nested; False: untested so, for tests of
+    other parts). start: effects already in the model at their settings (a resumed study's chain):
+    the search continues from them. base: effects never claimed, those the rings can use in the
+    model before the search (choice.usable_base; planning.adaptive's location errors): the verdict
+    judges what lies beyond them. on_verdict: called with the verdict as soon as it stands.
+    Method: docs/diagnosis.md.
     """
     # Touches read far off are named and read at their point's repetition median; rings measured
     # badly are named and left out of the fit and of the claims (result.judged).
