@@ -28,7 +28,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
-from ph_explorer.planning import adaptive, closed_loop
+from ph_explorer.planning import adaptive, closed_loop, plans
 from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_words, rings_that_decide
 from ph_explorer.twin import Scenario, simulate, twin_scenario
 
@@ -78,7 +78,7 @@ class PhysicsLoop:
         # (rings, minutes, check-ring MAE, floor); None while no adaptive campaign is shown.
         self.adaptive_twin: Scenario | None = None
         self.adaptive_last: Scenario | None = None
-        self.next_plan: adaptive.Plan | None = None
+        self.next_plan: plans.Plan | None = None
         self.adaptive_points: list[tuple[int, float, float, float]] = []
         self._adaptive_loading = False
 
@@ -240,8 +240,9 @@ class PhysicsLoop:
         result = self.diagnosis
         if result is None or self.current().campaign is not campaign:
             return
-        asked = self.next_plan.questions if self.next_plan is not None else ()
-        plan = adaptive.next_rings(campaign, result, None, self.catalog, closed_loop.cadence_of(twin), asked)
+        last = self.next_plan
+        asked, previous = (last.questions, last.answer) if last is not None else ((), None)
+        plan = adaptive.next_rings(campaign, result, None, self.catalog, closed_loop.cadence_of(twin), asked, previous=previous)
         self.next_plan = plan
         final = result.steps[-1]
         self.adaptive_points.append((campaign.n_orientations, plan.spent_minutes, final.mae_um["mean"], final.noise_floor_um["mean"]))

@@ -15,6 +15,7 @@ from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
 from ph_explorer.planning.deciding import DECIDE_BUDGET
+from ph_explorer.planning.plans import Answer
 
 
 def design_command(
@@ -172,10 +173,10 @@ def plan_command(
             raise InputError("is for --start: with data the campaign's own repetitions say the noise", option="--sigma-um")
         from ph_explorer.io import read_campaign
 
-        asked = asked_before(after) if after is not None else ()
+        asked, previous = asked_before(after) if after is not None else ((), None)
         campaign = read_campaign(Path(data), geometry or {})
         result = adaptive.plan_diagnosis(campaign, catalog)
-        plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance)
+        plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance, previous=previous)
     report = plan.to_json()
     if out is not None and plan.rings:
         atomic_write([(Path(out), rings_csv_text(report["rings"]))])
@@ -189,8 +190,9 @@ def plan_command(
     return 0
 
 
-def asked_before(path: Path) -> tuple[str, ...]:
-    """The questions a previous plan's JSON (design --start/--next --json) says were asked."""
+def asked_before(path: Path) -> tuple[tuple[str, ...], Answer | None]:
+    """The questions a previous plan's JSON (design --start/--next --json) says were asked, and the
+    answer it read (None for a first plan's)."""
     from ph_explorer.io.csv_text import read_bytes
 
     name = str(path)
@@ -201,4 +203,9 @@ def asked_before(path: Path) -> tuple[str, ...]:
     questions = report.get("questions", []) if isinstance(report, dict) else None
     if not isinstance(questions, list) or not all(isinstance(q, str) for q in questions):
         raise InputError("its questions must be a list of strings", file=name, column="questions")
-    return tuple(questions)
+    answer = report.get("answer")
+    if answer is None:
+        return tuple(questions), None
+    if not (isinstance(answer, dict) and isinstance(answer.get("words"), str) and type(answer.get("check_rings")) is int):
+        raise InputError('its answer must be {"words": text, "check_rings": a whole number} or null', file=name, column="answer")
+    return tuple(questions), Answer.from_json(answer)

@@ -18,7 +18,7 @@ from ph_explorer.twin.random_heads import design_of, random_campaign, random_hea
 if TYPE_CHECKING:
     from ph_explorer.diagnosis.results import Diagnosis
     from ph_explorer.effects import Effect
-    from ph_explorer.planning.adaptive import Plan
+    from ph_explorer.planning.plans import Plan
 
 
 def simulate_command(

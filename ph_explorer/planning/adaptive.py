@@ -4,17 +4,18 @@ badly again, once; rings that decide its questions; lattice rings where the data
 and fresh check rings, unless the model already holds at unseen rings), and a stated stop: the
 verdict `none`, `missing` or `uncatalogued` (a claim or a shape replicated; a shape claimed again
 after fresh rings), nothing a ring decides, no ring measured badly that was not measured again, and
-what the model misses at its check rings within the tolerance (95 % upper bound); else the budget,
-or no lattice ring left (a full lattice whose model fails: once fresh check rings at its cells'
-centres have not settled it). One tolerance sets the repetitions too. The closed loop on the twin:
-planning.closed_loop. Method: docs/planning.md.
+what the model misses at its check rings within the tolerance (95 % upper bound); or a verdict that
+establishes something the same (plans.Answer) as the last plan's read, fresh check rings measured
+since, with nothing to decide or measure again; else the budget, or no lattice ring left (a full
+lattice whose model fails: once fresh check rings at its cells' centres have not settled it). One
+tolerance sets the repetitions too. The closed loop on the twin: planning.closed_loop. Method:
+docs/planning.md.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Collection
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,6 +29,7 @@ from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry, stylus_direction
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.planning.deciding import DECIDE_BUDGET, questions_of, ring_minutes, rings_that_decide
+from ph_explorer.planning.plans import DEFAULT_CADENCE, Answer, Cadence, Plan, PlannedRing
 from ph_explorer.planning.ring_design import (
     A_STEP_DEG,
     B_STEP_DEG,
@@ -47,6 +49,10 @@ NEXT_CHECK_RINGS = 2  # fresh check rings a step adds
 FRESH = "test the model at fresh check rings"  # asked once a full lattice's model still fails
 # The verdicts a campaign can stop at: every claim, catalog effect or shape, replicated over rings.
 KNOWN_VERDICTS = ("none", "missing", "uncatalogued")
+# Verdicts that establish nothing, which more rings are asked to change: nothing found (with a model
+# that misses beyond the tolerance: an effect these rings have not shown yet?), and a suggestion to
+# confirm. Any other stops once it holds with fresh check rings.
+UNSETTLED = ("none", "suggested")
 CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off the lattice
 # The tolerance: what the model may miss at a ring it never saw, um rms. By default the touch noise
 # of a PAPER_REPETITIONS-repetition ring mean: the model then predicts an unseen ring as well as the
@@ -56,76 +62,6 @@ CHECK_A_STEP_DEG, CHECK_B_STEP_DEG = 5.0, 10.0  # the pool of check rings, off t
 MIN_REPETITIONS = 3
 PAPER_REPETITIONS = 10  # the paper's: what the model misses at an unseen ring may be what its ring mean could not see
 TP20_SIGMA_UM = 0.175  # the TP20's repeatability per touch, 1 sigma (docs/twin.md)
-
-
-@dataclass(frozen=True)
-class Cadence:
-    """How long the machine takes: seconds per touch and per move between circles (the twin's defaults)."""
-
-    touch_s: float = 2.0
-    move_s: float = 8.0
-
-    def ring_minutes(self, repetitions: int, n_points: int) -> float:
-        """Minutes of one ring: its repetitions of n_points touches, a move before each."""
-        return repetitions * (n_points * self.touch_s + self.move_s) / 60.0
-
-
-@dataclass(frozen=True)
-class PlannedRing:
-    """A ring to measure and why; check rings are held out of every fit."""
-
-    a_deg: float
-    b_deg: float
-    reason: str
-    check: bool
-
-    def to_json(self, order: int = 0) -> dict[str, Any]:
-        return {"A_deg": self.a_deg, "B_deg": self.b_deg, "order": order, "reason": self.reason, "check": self.check}
-
-
-@dataclass(frozen=True)
-class Plan:
-    """The rings to measure next (in this order), or the reason to stop, and the time they take."""
-
-    rings: tuple[PlannedRing, ...]
-    stop: bool
-    reason: str
-    minutes: float  # at the machine, for these rings
-    repetitions: int
-    measured_rings: int = 0
-    spent_minutes: float = 0.0  # at the machine so far
-    budget_minutes: float | None = None
-    verdict: str | None = None  # the diagnosis the plan answers (None: no data yet)
-    questions: tuple[str, ...] = ()  # every question asked so far (planning.deciding): the next plan asks none again
-    unseen_um: tuple[float, float, float] | None = None  # missed at unseen rings: estimate, 95 % upper, tolerance
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "rings": [ring.to_json(order) for order, ring in enumerate(self.rings, start=1)],
-            "stop": self.stop,
-            "reason": self.reason,
-            "minutes": round(self.minutes, 1),
-            "repetitions": self.repetitions,
-            "measured_rings": self.measured_rings,
-            "spent_minutes": round(self.spent_minutes, 1),
-            "budget_minutes": self.budget_minutes,
-            "verdict": self.verdict,
-            "questions": list(self.questions),
-            "unseen_error_um": None if self.unseen_um is None else dict(zip(("estimate", "upper95", "tolerance"), self.unseen_um)),
-        }
-
-    def lines(self) -> list[str]:
-        """The plan in words: the head line, one line a ring, the time."""
-        so_far = f" after {self.measured_rings} rings ({self.spent_minutes:.0f} min)" if self.measured_rings else ""
-        if self.stop:
-            return [f"stop{so_far}: {self.reason}"]
-        head = f"measure {len(self.rings)} rings{so_far}, {self.repetitions} repetitions each, in this order: {self.reason}"
-        rings = [
-            f"{k:>3}. {orientation_label(r.a_deg, r.b_deg):<12} {'check' if r.check else 'fit  '}  {r.reason}"
-            for k, r in enumerate(self.rings, start=1)
-        ]
-        budget = "" if self.budget_minutes is None else f" of a budget of {self.budget_minutes:g}"
-        return [head, *rings, f"about {self.minutes:.0f} minutes at the machine ({self.spent_minutes + self.minutes:.0f}{budget} in all)"]
 
 
 def base_model(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
@@ -178,7 +114,7 @@ def first_rings(
     budget_minutes: float | None = None,
     geometry: Geometry = DEFAULT_GEOMETRY,
     sigma_um: float = TP20_SIGMA_UM,
-    cadence: Cadence = Cadence(),
+    cadence: Cadence = DEFAULT_CADENCE,
     catalog: Catalog = DEFAULT_CATALOG,
     tolerance_um: float | None = None,
 ) -> Plan:
@@ -301,7 +237,7 @@ def unseen_error_um(campaign: Campaign, result: Diagnosis) -> tuple[float, float
     return math.sqrt(max(mean, 0.0)), math.sqrt(max(upper, 0.0)), fitted.orientations[held_out, 0]
 
 
-def campaign_minutes(campaign: Campaign, cadence: Cadence = Cadence()) -> float:
+def campaign_minutes(campaign: Campaign, cadence: Cadence = DEFAULT_CADENCE) -> float:
     """Minutes at the machine the campaign took: its first touch to its last (with touch times),
     else its rings at the cadence."""
     if campaign.times_s is not None:
@@ -314,13 +250,15 @@ def next_rings(
     result: Diagnosis,
     budget_minutes: float | None = None,
     catalog: Catalog = DEFAULT_CATALOG,
-    cadence: Cadence = Cadence(),
+    cadence: Cadence = DEFAULT_CADENCE,
     asked: Collection[str] = (),
     tolerance_um: float | None = None,
+    previous: Answer | None = None,
 ) -> Plan:
     """The next rings of a measured campaign, or the reason to stop (module docstring). asked: the questions
     earlier plans asked (the last plan's Plan.questions): their rings are measured, and a question they did not
-    decide is one no ring of this stylus decides. tolerance_um: what the model may miss at unseen rings."""
+    decide is one no ring of this stylus decides. tolerance_um: what the model may miss at unseen rings.
+    previous: the answer the last plan read (Plan.answer): the same again with fresh check rings stops."""
     spent = campaign_minutes(campaign, cadence)
     per_ring = ring_minutes(campaign) or cadence.ring_minutes(campaign.n_repetitions, campaign.n_points)
     tolerance = tolerance_um if tolerance_um is not None else default_tolerance_um(campaign.noise_sigma_um())
@@ -349,18 +287,29 @@ def next_rings(
     unconfirmed = [question for question in shapes if question not in asked]
     asked_now = [*asked, *decision.questions, *remeasure, *shapes]
     done |= {"budget_minutes": budget_minutes, "verdict": result.verdict, "questions": tuple(dict.fromkeys(asked_now))}
-    done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4))}
+    answer = Answer.of(campaign, result)
+    done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4)), "answer": answer}
     known_well = unseen_upper <= tolerance
-    if result.verdict in KNOWN_VERDICTS and not decision.rings and not again and not unconfirmed and known_well:
+    # The same answer again with fresh check rings: the rings measured since did not change it, and
+    # more of them would refine the model, not what the campaign says (docs/planning.md#the-stop).
+    fresh_checks = answer.check_rings - previous.check_rings if previous is not None else 0
+    held = previous is not None and previous.words == answer.words and fresh_checks > 0 and result.verdict not in UNSETTLED
+    if (held or (result.verdict in KNOWN_VERDICTS and not unconfirmed and known_well)) and not decision.rings and not again:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
-        claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
-        claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
         kept_out = f"; {', '.join(repeated)} (its fault repeats there)" if repeated else ""
-        reason = (
-            f"you know: {claims}; {settled}{kept_out}; at unseen rings ({seen}) the model misses {unseen:.3f} um "
-            f"(95 % up to {unseen_upper:.3f} um), within the tolerance {tolerance:.3f} um"
-        )
+        missed = f"at unseen rings ({seen}) the model misses {unseen:.3f} um (95 % up to {unseen_upper:.3f} um)"
+        if result.verdict in KNOWN_VERDICTS and not unconfirmed and known_well:
+            claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
+            claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
+            reason = f"you know: {claims}; {settled}{kept_out}; {missed}, within the tolerance {tolerance:.3f} um"
+        else:
+            beyond = "within" if known_well else "more than"
+            reason = (
+                f"the answer held with {fresh_checks} fresh check ring{'s' * (fresh_checks > 1)}: {answer.words}, as before them; "
+                f"{settled}{kept_out}; {missed}, {beyond} the tolerance {tolerance:.3f} um: more rings would refine the model, "
+                "not the answer"
+            )
         return Plan((), True, reason, 0.0, **done)
     suspect = np.array([[r.a_deg, r.b_deg] for r in again]).reshape(-1, 2)
     rings = again + [

@@ -13,7 +13,8 @@ import numpy as np
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
-from ph_explorer.planning.adaptive import TP20_SIGMA_UM, Cadence, Plan, first_rings, next_rings, plan_diagnosis
+from ph_explorer.planning.adaptive import TP20_SIGMA_UM, first_rings, next_rings, plan_diagnosis
+from ph_explorer.planning.plans import Cadence, Plan
 from ph_explorer.twin import Scenario, simulate
 
 
@@ -75,7 +76,7 @@ def adaptive_campaign(
         result = judge(campaign)
         results.append(result)
         campaigns.append(campaign)
-        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, plans[-1].questions, tolerance_um)
+        plan = next_rings(campaign, result, budget_minutes, catalog, cadence, plans[-1].questions, tolerance_um, plans[-1].answer)
         plans.append(plan)
         if progress is not None:
             progress(plan, result)
