@@ -1,8 +1,8 @@
 """The verdicts over a population of heads (issue 28): false alarms, stability, power, honesty.
 
 Every campaign is a random head (ph_explorer.twin.random_heads; its design drawn from its seed),
-diagnosed as a user would with the default catalog (`diagnose`, Monte Carlo seed 0; without the
-nested cross-validation, which gives no verdict and which the explorer streams after it):
+diagnosed as a user would with the default catalog (`diagnose`, Monte Carlo seed 0; a claim's gain
+tested on rings left out of the choice, the nested cross-validation, before the verdict):
 
 1. healthy: heads with their background only. An alarm is any verdict but "none", except one that
    names only the head's own background terms at their true settings (e.g. `missing` a B-axis

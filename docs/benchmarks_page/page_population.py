@@ -14,8 +14,8 @@ POPULATION_INTRO = """\
 
 `population`: the verdicts over a population of random heads (`ph-explorer simulate
 --random-head`; distributions and designs in [Random heads](methods/random_heads.md)), each
-diagnosed as a user would with the default catalog, without the nested cross-validation (it gives
-no verdict). Healthy heads: any verdict but `none` is a false alarm, unless it names only the
+diagnosed as a user would with the default catalog (a claim's gain tested on rings left out of the
+choice, the nested cross-validation, before the verdict). Healthy heads: any verdict but `none` is a false alarm, unless it names only the
 head's own background terms at their true settings (a true finding of a term the lattice model
 leaves, e.g. a 4/rev B-axis error a 20 deg lattice cannot follow); both shares are shown.
 Stability: the same heads with another draw of their noise. One catalog effect at 1-3x its

@@ -101,8 +101,8 @@ def decide_command(
     out: Path | None,
     study: Path | None = None,
 ) -> int:
-    """design --decide: the campaign diagnosed (the verdict, without the nested figures; from the
-    study's chain with --study, as diagnose --resume does), then the rings that decide its questions
+    """design --decide: the campaign diagnosed (as diagnose does; from the study's chain with
+    --study, as diagnose --resume does), then the rings that decide its questions
     (planning.deciding)."""
     if data is None:
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
@@ -147,7 +147,7 @@ def plan_command(
     options: dict[str, Any],
 ) -> int:
     """design --start / --next (planning.adaptive): the first rings of a head with no data, or the
-    next rings of a measured campaign (diagnosed first, without the nested figures), or the stop."""
+    next rings of a measured campaign (diagnosed first, as planning.adaptive.plan_diagnosis does), or the stop."""
     budget, tolerance, sigma, after = (options[k] for k in ("--budget-minutes", "--tolerance-um", "--sigma-um", "--after"))
     for value, option in ((budget, "--budget-minutes"), (tolerance, "--tolerance-um"), (sigma, "--sigma-um")):
         if value is not None and not (math.isfinite(value) and value > 0):

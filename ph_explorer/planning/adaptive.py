@@ -74,8 +74,7 @@ def base_model(catalog: Catalog = DEFAULT_CATALOG) -> list[Effect]:
 
 
 def plan_diagnosis(campaign: Campaign, catalog: Catalog = DEFAULT_CATALOG, **options: Any) -> Diagnosis:
-    """The diagnosis a plan reads: diagnosis.diagnose with the base model, without the nested folds
-    (options: diagnose's others)."""
+    """The diagnosis a plan reads: diagnosis.diagnose with the base model (options: diagnose's others)."""
     from ph_explorer.diagnosis import diagnose
 
     return diagnose(campaign, catalog=catalog, base=base_model(catalog), **options)
