@@ -173,7 +173,7 @@ def plan_command(
             raise InputError("is for --start: with data the campaign's own repetitions say the noise", option="--sigma-um")
         from ph_explorer.io import read_campaign
 
-        asked, previous = asked_before(after) if after is not None else ((), None)
+        asked, previous = previous_plan(after) if after is not None else ((), None)
         campaign = read_campaign(Path(data), geometry or {})
         result = adaptive.plan_diagnosis(campaign, catalog)
         plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance, previous=previous)
@@ -190,7 +190,7 @@ def plan_command(
     return 0
 
 
-def asked_before(path: Path) -> tuple[tuple[str, ...], Answer | None]:
+def previous_plan(path: Path) -> tuple[tuple[str, ...], Answer | None]:
     """The questions a previous plan's JSON (design --start/--next --json) says were asked, and the
     answer it read (None for a first plan's)."""
     from ph_explorer.io.csv_text import read_bytes

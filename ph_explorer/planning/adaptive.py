@@ -289,16 +289,17 @@ def next_rings(
     answer = Answer.of(campaign, result)
     done |= {"unseen_um": (round(unseen, 4), round(unseen_upper, 4), round(tolerance, 4)), "answer": answer}
     known_well = unseen_upper <= tolerance
+    knows = result.verdict in KNOWN_VERDICTS and not unconfirmed and known_well  # the stop by knowing
     # The same answer again with fresh check rings: the rings measured since did not change it, and
     # more of them would refine the model, not what the campaign says (docs/planning.md#the-stop).
     fresh_checks = answer.check_rings - previous.check_rings if previous is not None else 0
     held = previous is not None and previous.words == answer.words and fresh_checks > 0 and result.verdict not in UNSETTLED
-    if (held or (result.verdict in KNOWN_VERDICTS and not unconfirmed and known_well)) and not decision.rings and not again:
+    if (held or knows) and not decision.rings and not again:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
         kept_out = f"; {', '.join(repeated)} (its fault repeats there)" if repeated else ""
         missed = f"at unseen rings ({seen}) the model misses {unseen:.3f} um (95 % up to {unseen_upper:.3f} um)"
-        if result.verdict in KNOWN_VERDICTS and not unconfirmed and known_well:
+        if knows:
             claims = "every claim replicated over rings" if result.found or result.claimed_shapes else "no effect beyond noise"
             claims += ", a shape no catalog holds among them" if result.claimed_shapes else ""
             reason = f"you know: {claims}; {settled}{kept_out}; {missed}, within the tolerance {tolerance:.3f} um"
@@ -318,7 +319,7 @@ def next_rings(
     ]
     planned = np.array([[r.a_deg, r.b_deg] for r in rings]).reshape(-1, 2)
     # A model that holds at unseen rings needs only the rings that decide (check rings) and those measured again.
-    deciding = bool(rings) and known_well and result.verdict in KNOWN_VERDICTS and not unconfirmed
+    deciding = bool(rings) and knows
     data, distance = data_rings(campaign, 0 if deciding else NEXT_DATA_RINGS, planned)
     full = not len(data) and not rings  # a full lattice whose model fails: fresh check rings at its cells' centres, once
     if not full:
