@@ -82,7 +82,7 @@ def nested_markdown(nested: NestedAfter) -> str:
     ]
     said = gain_text(nested) if nested.gain is not None else ""
     gain = [said[:1].upper() + said[1:] + "."] if said else []
-    return "\n\n".join([nested_summary(nested), "\n".join(table), f"Chosen in the folds: {chosen_text(nested)}.", *gain])
+    return "\n\n".join([nested_summary(nested), "\n".join(table), f"Set in the folds: {chosen_text(nested)}.", *gain])
 
 
 def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: int = 8) -> str:

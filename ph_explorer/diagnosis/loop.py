@@ -199,7 +199,7 @@ def diagnose(
     # rings included): else its effects are suggestions (diagnosis.nested).
     if nested and choice.chain[fixed:] and progress is not None:
         progress("testing the claims on rings left out of the choice (nested cross-validation)")
-    choice, honest = held_out_claims(choice, campaign, effects, fixed, max_steps, seed) if nested else (choice, None)
+    choice, honest = held_out_claims(choice, campaign, fixed, seed) if nested else (choice, None)
     interpolator = search.smoother.model_name
     mae, floors = out_of_sample_figures(search, campaign, None if baseline_name == interpolator else baseline, held_out)
     verdict = verdict_of(choice, len(base))

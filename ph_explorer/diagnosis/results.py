@@ -101,14 +101,14 @@ class Step:
 
 @dataclass(frozen=True)
 class NestedAfter:
-    """Before and after the search's effects, each fold's rings predicted by what the others chose."""
+    """Before and after the claimed effects, each fold's rings predicted by them fitted on the others."""
 
     folds: int
     rings: int  # rings predicted (each once)
     before_um: dict[str, float]  # MAE of the starting model, {"mean", "single"}
-    after_um: dict[str, float]  # MAE with the effects each fold's search chose
+    after_um: dict[str, float]  # MAE with the claims, each fold's at its settings
     noise_floor_um: dict[str, float]
-    chosen: tuple[tuple[str, ...], ...] = ()  # per fold, the effects chosen ("id 22/rev")
+    chosen: tuple[tuple[str, ...], ...] = ()  # per fold, the claims at the settings its scans chose ("id 22/rev")
     # The replication test over the predicted rings of their fall in error from before to after;
     # None in a record written before it was measured.
     gain: Replication | None = None
@@ -116,12 +116,12 @@ class NestedAfter:
 
     @property
     def gain_holds(self) -> bool:
-        """The effects chosen in the folds lower the error of rings that took no part in choosing
+        """The claims refitted in the folds lower the error of rings that took no part in fitting
         them, replicated over those rings: the condition of a claim (nested.held_out_claims)."""
         return self.gain is None or self.gain.replicated
 
     def chosen_counts(self) -> dict[str, int]:
-        """How many folds chose each effect, in the order first chosen."""
+        """How many folds chose each claim's setting, in the order first chosen."""
         counts: dict[str, int] = {}
         for fold in self.chosen:
             for label in fold:

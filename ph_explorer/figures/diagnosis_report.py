@@ -227,12 +227,12 @@ def _nested(nested: NestedAfter | None, names: EffectNames) -> list[str]:
 
     return [
         "<h3>The honest after: nested cross-validation</h3>",
-        f"<p>Each of {nested.folds} folds of {_e(nested_rings(nested))} is predicted by what the search chose without it.</p>",
+        f"<p>Each of {nested.folds} folds of {_e(nested_rings(nested))} is predicted by the claims fitted without it, each at the setting its scan there prefers.</p>",
         "<table><tr><th></th><th>MAE vs mean, um</th><th>MAE vs single, um</th></tr>"
         f"<tr><td>before</td><td>{cell(before['mean'])}</td><td>{cell(before['single'])}</td></tr>"
         f"<tr><td>after</td><td>{cell(after['mean'])}</td><td>{cell(after['single'])}</td></tr>"
         f"<tr><td>noise floor</td><td>{cell(floor['mean'])}</td><td>{cell(floor['single'])}</td></tr></table>",
-        f"<p>Chosen in the folds: {_e(chosen_text(nested, names.text))}.</p>",
+        f"<p>Set in the folds: {_e(chosen_text(nested, names.text))}.</p>",
     ]
 
 

@@ -37,7 +37,7 @@ def nested_rings(nested: NestedAfter) -> str:
 def nested_summary(nested: NestedAfter) -> str:
     """The honest after in one sentence: what the nested cross-validation measures."""
     return (
-        f"The same, measured honestly: the effects and periods chosen without the rings measured ({nested.folds}-fold "
+        f"The same, measured honestly: the claims fitted, at the periods chosen, without the rings measured ({nested.folds}-fold "
         f"cross-validation over {nested_rings(nested)}, trilinear data part):"
     )
 
@@ -48,7 +48,7 @@ def nested_lines(nested: NestedAfter) -> list[str]:
         nested_summary(nested),
         f"{'  before':50s} " + mae_text(nested.before_um, nested.noise_floor_um),
         f"{'  after':50s} " + mae_text(nested.after_um, nested.noise_floor_um),
-        f"  chosen in the folds: {chosen_text(nested)}",
+        f"  set in the folds: {chosen_text(nested)}",
         *([f"  {gain_text(nested)}"] if nested.gain is not None else []),
     ]
 
@@ -66,5 +66,5 @@ def gain_text(nested: NestedAfter) -> str:
 
 
 def chosen_text(nested: NestedAfter, name: Callable[[str], str] = str) -> str:
-    """'b_axis_cyclic 22 cycles/rev (5 of 5), ...': what the folds chose, each with how many folds."""
+    """'b_axis_cyclic 22 cycles/rev (5 of 5), ...': the settings the folds chose for the claims, each with how many folds."""
     return ", ".join(f"{name(label)} ({n} of {nested.folds})" for label, n in nested.chosen_counts().items()) or "nothing"
