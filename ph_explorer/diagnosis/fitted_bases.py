@@ -27,7 +27,7 @@ def settings_key(effect: Effect) -> tuple[str, tuple]:
 class FittedBases:
     """Effects' fitted basis columns (fitted_basis) over one campaign's touches, each made once.
 
-    The nested folds' searches run on the campaign without some rings: their columns are the
+    The nested folds' scans run on the campaign without some rings: their columns are the
     whole campaign's, sliced (`subset`). That is also the touches as they were measured: the
     approach of a fold's first touch at a ring comes from the touch before it in the campaign.
     Columns that change between repetitions (drift) are n_rep times larger: kept while they fit in

@@ -73,7 +73,7 @@ def nested_after(
         # lattice, which a row left out would change).
         sub = replace(campaign.subset(keep), check_orientations=campaign.orientations[held_out & keep])
         sub_train = ~held_out[keep]
-        search = CandidateSearch(sub, sub_train, seed, detail=False, bases=bases.subset(np.flatnonzero(keep)))
+        search = CandidateSearch(sub, sub_train, seed, detail=False, bases=bases.subset(np.flatnonzero(keep)), null_draws=0)
         chain = list(start)
         for effect in claimed:  # each at the setting its scan on these rings prefers
             scan = search.scan(effect, search.design(chain) if chain else None)

@@ -103,6 +103,7 @@ class CandidateSearch:
         detail: bool = True,
         bases: FittedBases | None = None,
         leave_out: LeaveOut = "ring",
+        null_draws: int = NULL_DRAWS,
     ) -> None:
         self.campaign = campaign
         # detail: each candidate with its parameters' uncertainty (a jackknife over rings) and its
@@ -129,12 +130,14 @@ class CandidateSearch:
         sigma = campaign.noise_sigma_um()
         self.sigma = sigma if np.isfinite(sigma) and sigma > 0 else float(np.std(self.residual))
         n_o, n_rep, n_pt = campaign.deviations.shape
-        # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother.
-        noise = draw_repetitions(np.zeros((n_o, n_pt)), self.sigma, n_rep * NULL_DRAWS, np.random.default_rng(seed))
-        noise = noise.reshape(n_o, n_rep, NULL_DRAWS, n_pt)
+        # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother
+        # (none for a search that only asks which setting explains the data most: a nested fold's).
+        self.null_draws = null_draws
+        noise = draw_repetitions(np.zeros((n_o, n_pt)), self.sigma, n_rep * null_draws, np.random.default_rng(seed))
+        noise = noise.reshape(n_o, n_rep, null_draws, n_pt)
         noise -= self.smoother.predict(noise.mean(axis=1))[:, None]  # smoother.residual, in place: it is big
         # Column 0: the data's residual; the others: what noise alone would leave.
-        columns = np.empty((n_o, n_rep, n_pt, 1 + NULL_DRAWS))
+        columns = np.empty((n_o, n_rep, n_pt, 1 + null_draws))
         columns[..., 0] = self.residual
         columns[..., 1:] = np.moveaxis(noise, 2, -1)  # (n_o, n_rep, n_pt, draws)
         del noise
@@ -186,7 +189,7 @@ class CandidateSearch:
         if key in self._designs:
             return self._designs[key]
         design = Design(self.bases(effect), self.smoother)
-        # Kept for the search: a ring's mean only, always (a nested fold's search, on shared bases
+        # Kept for the search: a ring's mean only, always (a nested fold's scan, on shared bases
         # and two at a time, within FOLD_DESIGN_BUDGET_BYTES); one that changes between
         # repetitions, n_rep times larger, within WITHIN_BUDGET_BYTES of the search's own (a nested
         # fold's shared bases keep its columns instead).
@@ -246,7 +249,7 @@ class CandidateSearch:
                 for i, settings in enumerate(every[start : start + chunk])
             ]
             part = [(settings, design) for settings, design in part if design.n_columns]
-            block = np.zeros((len(part), 1 + NULL_DRAWS))
+            block = np.zeros((len(part), 1 + self.null_draws))
             for count in {design.n_columns for _, design in part}:
                 same = [i for i, (_, design) in enumerate(part) if design.n_columns == count]
                 block[same] = least_squares.explained_beyond(fixed, [part[i][1] for i in same], self.targets)
