@@ -628,7 +628,8 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     partner added since: head_6's B-axis radial motion 5/rev shares 93 % with the tilt motion at
     its own setting, which diagnosis.partners now tries; head_4's radial motion, once told apart at
     24/rev, is now put to the rings at 23-25/rev too and is not told apart at 23: the test below;
-    head_3's nested figures since the check rings are in its folds, issue 55)."""
+    head_3's nested figures since the check rings are in its folds and the folds refit the claims
+    at their own settings, issue 55)."""
     result = diagnoses[(name, True)]
     record = result.to_json()
     jsonschema.Draft202012Validator(diagnosis_schema()).validate(json.loads(json.dumps(record)))

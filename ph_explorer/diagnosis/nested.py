@@ -3,14 +3,12 @@ played no part in fitting them or in choosing their settings.
 
 The check rings took part in choosing the effects, so their "after" is optimistic. Here the
 training rings and the check rings are each split into NESTED_FOLDS folds (seeded); for each, the
-search's claimed effects are fitted again without the fold's rings, each at the setting (its
-period, ...) its own scan there prefers beside those before it, and the hybrid with them
-(trilinear data part, NESTED_DATA_PART) and the starting model, fitted on the other training
-rings, predict them: "before" and "after". Each ring's fall in error is tested over rings as a
-claim's gain is (diagnosis.replication). A claim stands only when that gain is replicated and
-every fold's setting is one the whole campaign cannot exclude beside the claim's
-(held_out_claims). Which effects to claim is the search's choice, calibrated by its own family
-null (search.family_levels). Method: docs/diagnosis.md.
+claimed effects are fitted again without the fold's rings, each at the setting its own scan there
+prefers, and the hybrid with them (trilinear data part) and the starting model, fitted on the
+other training rings, predict them: "before" and "after". Each ring's fall in error is tested over
+rings as a claim's gain is (diagnosis.replication). A claim stands only when that gain replicates
+and every fold's setting is one the whole campaign cannot exclude (held_out_claims). Which effects
+to claim is the search's choice, at its family null's level. Method: docs/diagnosis.md.
 """
 
 from __future__ import annotations

@@ -130,8 +130,7 @@ class CandidateSearch:
         sigma = campaign.noise_sigma_um()
         self.sigma = sigma if np.isfinite(sigma) and sigma > 0 else float(np.std(self.residual))
         n_o, n_rep, n_pt = campaign.deviations.shape
-        # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother
-        # (none for a search that only asks which setting explains the data most: a nested fold's).
+        # Pure touch noise with the campaign's post-fit spread, through the same circle fit and smoother (none for a nested fold's).
         self.null_draws = null_draws
         noise = draw_repetitions(np.zeros((n_o, n_pt)), self.sigma, n_rep * null_draws, np.random.default_rng(seed))
         noise = noise.reshape(n_o, n_rep, null_draws, n_pt)
