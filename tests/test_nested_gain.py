@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
+from benchmarks.population import campaign_of
 from benchmarks.unknown_shapes import unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.choice import choose_effects
@@ -56,6 +57,19 @@ def test_claims_whose_settings_move_in_the_folds_are_no_claims():
     assert [c.effect for c in withdrawn] == ["b_axis_cyclic"] and withdrawn[0].replication.replicated
     assert "2 of 5 folds set b_axis_cyclic 9 cycles/rev at 5 cycles/rev, which the whole campaign excludes" in withdrawn[0].note
     assert "do not replicate on rings left out of the choice" in report_text(result, DEFAULT_CATALOG)
+
+
+def test_one_fold_that_moves_a_claim_by_a_cycle_does_not_withdraw_it():
+    """An A-axis tilt motion 11/rev near its detection limit (population head 200084): one fold of
+    five, without a fifth of the rings, sets it at 12/rev, which the whole campaign excludes; the
+    other four keep 11/rev and its gain replicates on the rings left out, so it stays claimed: no
+    single fold decides."""
+    campaign, truth = campaign_of({"group": "catalog_effect", "seed": 200084})
+    result = diagnose(campaign)
+    assert truth["id"] == "a_axis_tilt_motion" and truth["cycles_per_rev"] == 11
+    assert [(c.effect, c.settings) for c in result.found] == [("a_axis_tilt_motion", {"cycles_per_rev": 11})]
+    assert sorted(fold[0] for fold in result.nested.chosen) == ["a_axis_tilt_motion 11 cycles/rev"] * 4 + ["a_axis_tilt_motion 12 cycles/rev"]
+    assert result.verdict == "missing" and result.nested.gain_holds
 
 
 def test_a_claim_whose_gain_is_nil_on_rings_left_out_is_no_claim():
