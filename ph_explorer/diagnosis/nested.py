@@ -4,7 +4,7 @@ played no part in fitting them or in choosing their settings.
 The check rings took part in choosing the effects, so their "after" is optimistic. Here the
 training rings and the check rings are each split into NESTED_FOLDS folds (seeded); for each, the
 claimed effects are fitted again without the fold's rings, each at the setting its own scan there
-prefers, and the hybrid with them (trilinear data part) and the starting model, fitted on the
+prefers beside the others, and the hybrid with them (trilinear data part) and the starting model, fitted on the
 other training rings, predict them: "before" and "after". Each ring's fall in error is tested over
 rings as a claim's gain is (diagnosis.replication). A claim stands only when that gain replicates
 and no two folds set it where the whole campaign excludes (held_out_claims). Which effects
@@ -76,10 +76,15 @@ def nested_after(
         sub = replace(campaign.subset(keep), check_orientations=campaign.orientations[held_out & keep])
         sub_train = ~held_out[keep]
         search = CandidateSearch(sub, sub_train, seed, detail=False, bases=bases.subset(np.flatnonzero(keep)), null_draws=0)
-        chain = list(start)
-        for effect in claimed:  # each at the setting its scan on these rings prefers
-            scan = search.scan(effect, search.design(chain) if chain else None)
-            chain.append(effect if isinstance(scan, Candidate) else effect.with_settings(**scan.scanned[0][1]))
+        # Each claim at the setting its scan on these rings prefers beside every other claim, as the
+        # search's swaps chose it (one pass from the claimed settings): scanned before a claim it
+        # was chosen beside, a setting moves for want of it.
+        claims = list(claimed)
+        for i, effect in enumerate(claimed):
+            others = [*start, *claims[:i], *claims[i + 1 :]]
+            scan = search.scan(effect, search.design(others) if others else None)
+            claims[i] = effect if isinstance(scan, Candidate) else effect.with_settings(**scan.scanned[0][1])
+        chain = [*start, *claims]
         touches = campaign_touches(campaign.subset(fold))
         before, after = (HybridModel(list(c), NESTED_DATA_PART).fit(sub, sub_train).predict_touches(touches) for c in (start, chain))
         return fold, before, after, [effect_label(e) for e in chain[len(start) :]]
@@ -107,12 +112,22 @@ def nested_after(
     )
 
 
+def reproduced_settings(candidate: Candidate) -> list[dict[str, float]]:
+    """The settings at which a fold reproduces a claim: those the whole campaign does not exclude,
+    and a period's neighbours on the scan's grid of whole cycles/rev (a head's period need not be
+    whole: between two grid points, a fold with fewer rings takes either)."""
+    allowed = [candidate.settings, *candidate.settings_not_excluded]
+    periods = {s["cycles_per_rev"] for s in allowed if set(s) == {"cycles_per_rev"}}
+    return allowed + [{"cycles_per_rev": k + step} for k in periods for step in (-1.0, 1.0) if k + step >= 1.0]
+
+
 def unsettled_claims(found: Sequence[Candidate], claimed: Sequence[Effect], nested: NestedAfter) -> dict[int, list[str]]:
     """The claims (indices into `found`) that more than MAX_FOLDS_EXCLUDED folds set where the whole
-    campaign excludes, with those folds' labels: a setting the rings left out do not reproduce."""
+    campaign excludes, a grid step beyond (reproduced_settings), with those folds' labels: a setting
+    the rings left out do not reproduce."""
     unsettled = {}
     for i, (candidate, effect) in enumerate(zip(found, claimed)):
-        allowed = {effect_label(effect.with_settings(**s)) for s in (candidate.settings, *candidate.settings_not_excluded)}
+        allowed = {effect_label(effect.with_settings(**s)) for s in reproduced_settings(candidate)}
         excluded = [fold[i] for fold in nested.chosen if fold[i] not in allowed]
         if len(excluded) > MAX_FOLDS_EXCLUDED:
             unsettled[i] = excluded
@@ -160,4 +175,7 @@ def _claim_of(candidate: Candidate) -> tuple[str, str]:
 def _unsettled_text(effect: Effect, excluded: list[str], folds: int) -> str:
     """'2 of 5 folds set b_axis_cyclic 9 cycles/rev at 5 cycles/rev, which the whole campaign excludes'."""
     settings = sorted({f.removeprefix(effect.id).strip() for f in excluded})
-    return f"{len(excluded)} of {folds} folds set {effect_label(effect)} at {' or '.join(settings)}, which the whole campaign excludes"
+    return (
+        f"{len(excluded)} of {folds} folds set {effect_label(effect)} at {' or '.join(settings)}, "
+        "which the whole campaign excludes, beyond a step of its scan"
+    )
