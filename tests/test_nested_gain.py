@@ -6,15 +6,18 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
+from benchmarks.multi_effects import multi_effect_head
 from benchmarks.population import campaign_of
 from benchmarks.unknown_shapes import unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.choice import choose_effects
-from ph_explorer.diagnosis.nested import held_out_claims
+from ph_explorer.diagnosis.nested import held_out_claims, reproduced_settings, unsettled_claims
 from ph_explorer.diagnosis.replication import Replication
 from ph_explorer.diagnosis.results import Diagnosis
-from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.effects import DEFAULT_CATALOG, effect_label
+from ph_explorer.effects.axes import BAxisCyclic
 from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.twin import load_scenario, simulate
 
@@ -71,6 +74,34 @@ def test_one_fold_that_moves_a_claim_by_a_cycle_does_not_withdraw_it():
     folds = sorted(fold[0].removeprefix("a_axis_tilt_motion ") for fold in result.nested.chosen)
     assert folds == ["11 cycles/rev"] * 4 + ["12 cycles/rev"]
     assert result.verdict == "missing" and result.nested.gain_holds
+
+
+def test_a_fold_reproduces_a_period_within_one_step_of_the_scans_grid():
+    """A claim at 22/rev whose campaign does not exclude 21/rev: folds at 20 or 23/rev reproduce it
+    (a grid step from a setting not excluded: a period between two whole ones shows at either), two
+    folds at 24 and 19/rev do not, and one alone never withdraws it."""
+    effect = BAxisCyclic().with_settings(cycles_per_rev=22)
+    claim = SimpleNamespace(settings={"cycles_per_rev": 22.0}, settings_not_excluded=[{"cycles_per_rev": 21.0}])
+    assert sorted(s["cycles_per_rev"] for s in reproduced_settings(claim)) == [20.0, 21.0, 21.0, 22.0, 22.0, 23.0]
+
+    def unsettled(*periods: int) -> dict[int, list[str]]:
+        chosen = [(effect_label(effect.with_settings(cycles_per_rev=k)),) for k in periods]
+        return unsettled_claims([claim], [effect], SimpleNamespace(chosen=chosen))
+
+    assert unsettled(23, 20, 22, 22, 22) == {} and unsettled(24, 22, 22, 22, 22) == {}
+    assert unsettled(24, 19, 22, 22, 22) == {0: ["b_axis_cyclic 24 cycles/rev", "b_axis_cyclic 19 cycles/rev"]}
+
+
+def test_the_folds_scan_each_claim_beside_the_others():
+    """Three catalog effects at once (a head of its own seed, 975013: B-axis radial motion 13/rev,
+    B-axis axial motion 19/rev, A-axis axial motion 28/rev). While the folds scanned the claims in
+    the chain's order, each without those after it in the model, the verdict was `uncatalogued`:
+    the B-axis axial motion left to a shape. Each scanned beside the others, as the search chose
+    it, the folds keep the B-axis pair, and the verdict is `missing` with both."""
+    result = diagnose(multi_effect_head(975013).campaign)
+    claimed = {(c.effect, c.settings["cycles_per_rev"]) for c in result.found}
+    assert result.verdict == "missing" and {("b_axis_radial_motion", 13), ("b_axis_axial_motion", 19)} <= claimed
+    assert all(fold[:1] == ("b_axis_radial_motion 13 cycles/rev",) for fold in result.nested.chosen)
 
 
 def test_a_claim_whose_gain_is_nil_on_rings_left_out_is_no_claim():

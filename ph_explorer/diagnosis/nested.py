@@ -4,10 +4,11 @@ played no part in fitting them or in choosing their settings.
 The check rings took part in choosing the effects, so their "after" is optimistic. Here the
 training rings and the check rings are each split into NESTED_FOLDS folds (seeded); for each, the
 claimed effects are fitted again without the fold's rings, each at the setting its own scan there
-prefers beside the others, and the hybrid with them (trilinear data part) and the starting model, fitted on the
-other training rings, predict them: "before" and "after". Each ring's fall in error is tested over
-rings as a claim's gain is (diagnosis.replication). A claim stands only when that gain replicates
-and no two folds set it where the whole campaign excludes (held_out_claims). Which effects
+prefers beside the others, and the hybrid with them (trilinear data part) and the starting model,
+fitted on the other training rings, predict them: "before" and "after". Each ring's fall in error
+is tested over rings as a claim's gain is (diagnosis.replication). A claim stands only when that
+gain replicates and no two folds set it where the whole campaign excludes, beyond a step of the
+scan (held_out_claims). Which effects
 to claim is the search's choice, at its family null's level. Method: docs/diagnosis.md.
 """
 
@@ -173,7 +174,7 @@ def _claim_of(candidate: Candidate) -> tuple[str, str]:
 
 
 def _unsettled_text(effect: Effect, excluded: list[str], folds: int) -> str:
-    """'2 of 5 folds set b_axis_cyclic 9 cycles/rev at 5 cycles/rev, which the whole campaign excludes'."""
+    """'2 of 5 folds set b_axis_cyclic 9 cycles/rev at 5 cycles/rev, which the whole campaign excludes, beyond a step of its scan'."""
     settings = sorted({f.removeprefix(effect.id).strip() for f in excluded})
     return (
         f"{len(excluded)} of {folds} folds set {effect_label(effect)} at {' or '.join(settings)}, "
