@@ -9,6 +9,8 @@ can replicate that shape. A function of the A joint shows only at rings off the 
 (docs/physics.md, section 6): by ring, lattice rings add no unit there. The shapes' second look
 (whole inner A rows left out) is the oracle's too: where the shape's column is unseen at more than
 least_squares.UNSEEN_SHARE of training rings, it passes if either view passes (a bound: no Bonferroni).
+The heads with several catalog effects have theirs (effects_oracle): each effect at its own
+settings, beside the others, by ring.
 """
 
 from __future__ import annotations
@@ -33,18 +35,34 @@ def oracle_record(campaign: Campaign, result: Diagnosis, shape: Effect) -> dict[
     search = CandidateSearch(campaign, ~campaign.holdout_mask(), detail=False)
     deviations = shape.forward(search.touches, np.random.default_rng(0))[..., None]
     fitted = fitted_columns(deviations, search.touches)
-    record = _tested(search, result, fitted)
+    record = _beside_chain(search, result, fitted)
     if Design(fitted, search.smoother).unseen_at_most(search.train):
-        by_row = _tested(search.in_rows(), result, fitted)
+        by_row = _beside_chain(search.in_rows(), result, fitted)
         record = record | {"by_row": by_row, "passes": record["passes"] or by_row["passes"]}
     return record
 
 
-def _tested(search: CandidateSearch, result: Diagnosis, fitted: Any) -> dict[str, Any]:
+def effects_oracle(campaign: Campaign, effects: list[Effect]) -> list[dict[str, Any]]:
+    """A head's several catalog effects (benchmarks/multi_effects.py), each at its own settings
+    beside the others, through the same replication test by ring: where one fails, no search can
+    claim it replicated, whatever it chooses (a bound, as the shape's: it pays for no choice)."""
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), detail=False)
+    out = []
+    for i, effect in enumerate(effects):
+        others = [*effects[:i], *effects[i + 1 :]]
+        out.append(_tested(search, search.design(others) if others else None, search.design([*others, effect])))
+    return out
+
+
+def _beside_chain(search: CandidateSearch, result: Diagnosis, fitted: Any) -> dict[str, Any]:
     """The replication test of the fitted column beside the chain, in the search's view."""
     fixed = search.design(list(result.chain)) if result.chain else None
     column = Design(fitted, search.smoother)
-    joint = column if fixed is None else fixed.stacked(column)
+    return _tested(search, fixed, column if fixed is None else fixed.stacked(column))
+
+
+def _tested(search: CandidateSearch, fixed: Design | None, joint: Design) -> dict[str, Any]:
+    """The replication test of what `joint` adds to `fixed` (None: the baseline), by ring."""
     before = ring_residual_squares(search.residual, fixed, search.targets)
     after = ring_residual_squares(search.residual, joint, search.targets)
     gain = (before - after) / np.maximum(ring_sigma(search.campaign.deviations) ** 2, 1e-300)

@@ -35,7 +35,10 @@ MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_ef
 share on which every effect is claimed (multi_effects.found_each: as catalog-effect heads are
 judged, an untold pair holding it counts; all_found_exactly: its id at its settings), by kind
 (pair, triple, harmonics); beside it, all_found_or_shaped: an effect not claimed also counts when a
-claimed shape of its axis and ISO 230-7 component group holds it (multi_effects.shaped_each).
+claimed shape of its axis and ISO 230-7 component group holds it (multi_effects.shaped_each);
+oracle_passes: every effect, at its own settings beside the others, passes the claims' replication
+test by ring (shape_oracle.effects_oracle), a bound no search can beat replicated; and
+all_found_where_oracle_passes.
 
 The suspect test's thresholds are measured on heads of their own seeds (SUSPECT_SEEDS): healthy
 heads with a ring named, and bad-ring heads with theirs named, at each SUSPECT_ALONE tried.
@@ -57,7 +60,7 @@ import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.multi_effects import KINDS, claim_record, found_each, multi_effect_head, shaped_each
-from benchmarks.shape_oracle import oracle_record
+from benchmarks.shape_oracle import effects_oracle, oracle_record
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
@@ -193,6 +196,7 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
     each, exactly = found_each(head.effects, found), found_each(head.effects, found, exact=True)
     shapes = [{"group": s.group, "untold": list(s.untold)} for s in result.shapes if s.claimed]
     shaped = [f or s for f, s in zip(each, shaped_each(head.effects, shapes))]
+    oracle = effects_oracle(head.campaign, head.effects)  # what the rings can show of each at all
     return record | {
         "kind": head.kind,
         "head_seed": head.head_seed,
@@ -207,6 +211,8 @@ def diagnose_multi(job: dict[str, Any]) -> dict[str, Any]:
         "shapes": shapes,
         "found_or_shaped_each": shaped,
         "all_found_or_shaped": all(shaped),
+        "oracle": oracle,
+        "oracle_passes": all(o["passes"] for o in oracle),
     }
 
 
@@ -223,6 +229,12 @@ def multi_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         "by_kind": {
             kind: rate(sum(r["all_found"] for r in judged if r["kind"] == kind), sum(r["kind"] == kind for r in judged)) for kind in KINDS
         },
+        # the bound: every effect, at its own settings beside the others, passes the claims'
+        # replication test by ring (shape_oracle.effects_oracle); and every effect found where it does
+        "oracle_passes": rate(sum(r["oracle_passes"] for r in judged), len(judged)),
+        "all_found_where_oracle_passes": rate(
+            sum(r["all_found"] for r in judged if r["oracle_passes"]), sum(r["oracle_passes"] for r in judged)
+        ),
         "each_effect_found": rate(sum(sum(r["found_each"]) for r in judged), sum(len(r["found_each"]) for r in judged)),
         "verdicts": dict(Counter(r["verdict"] for r in judged)),
         "errors": [{"seed": r["seed"], "error": r["error"]} for r in records if r["verdict"] == "error"],

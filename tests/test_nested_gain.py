@@ -13,7 +13,7 @@ from benchmarks.population import campaign_of
 from benchmarks.unknown_shapes import unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.choice import choose_effects
-from ph_explorer.diagnosis.nested import held_out_claims, reproduced_settings, unsettled_claims
+from ph_explorer.diagnosis.nested import held_out_claims, nested_after, reproduced_settings, unsettled_claims
 from ph_explorer.diagnosis.replication import Replication
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG, effect_label
@@ -52,13 +52,17 @@ def test_claims_whose_settings_move_in_the_folds_are_no_claims():
     """A step in the B axis's angular position (a test-only shape no catalog holds, 944000): the
     search alone takes two B-axis cyclic periods, 7 and 9/rev, replicated over the rings it chose
     them on; refitted in the folds, each without a fifth of the rings, 2 of 5 folds set the second
-    at 5/rev, which the whole campaign excludes. Both, chosen together, are suggested, not claimed,
-    the verdict is not `missing`, and the report says why."""
+    at 5/rev, which the whole campaign excludes. Chosen together they fail the folds; the first
+    alone holds in all 5 (a fixed sequence), so 7/rev stays claimed beside the step's shape and
+    9/rev is suggested, not claimed: the verdict is not `missing`, and the report says why."""
     result = diagnose(unknown_shape_head(944000, "step").campaign)
-    assert result.verdict != "missing" and not result.found and result.nested.check_rings > 0
+    assert result.verdict == "uncatalogued" and result.nested.check_rings > 0
+    assert [(c.effect, c.settings) for c in result.found] == [("b_axis_cyclic", {"cycles_per_rev": 7})]
+    assert result.nested.chosen == (("b_axis_cyclic 7 cycles/rev",),) * 5
     withdrawn = [c for c in result.suggested if "rings left out of the choice" in c.note]
-    assert [c.effect for c in withdrawn] == ["b_axis_cyclic"] and withdrawn[0].replication.replicated
+    assert [(c.effect, c.settings) for c in withdrawn] == [("b_axis_cyclic", {"cycles_per_rev": 9})] and withdrawn[0].replication.replicated
     assert "2 of 5 folds set b_axis_cyclic 9 cycles/rev at 5 cycles/rev, which the whole campaign excludes" in withdrawn[0].note
+    assert withdrawn[0].note.endswith("; b_axis_cyclic 7 cycles/rev replicates without it")
     assert "do not replicate on rings left out of the choice" in report_text(result, DEFAULT_CATALOG)
 
 
@@ -117,3 +121,29 @@ def test_a_claim_whose_gain_is_nil_on_rings_left_out_is_no_claim():
     assert not honest.gain_holds and not kept.found and kept.chain == choice.chain
     note = next(c for c in kept.rankings[0] if c.effect == "a_axis_cyclic").note
     assert note.startswith("the claim does not replicate on rings left out of the choice (nested cross-validation, 5 folds: ")
+
+
+def test_a_claim_that_replicates_does_not_sink_with_one_taken_after_it():
+    """head_3's B-axis error, claimed, and after it an A-axis cyclic error forced at 3/rev, where
+    the folds' scans do not put it (they set it where the head's noise fits best): together the
+    claims fail the folds, so the first is put to them alone (a fixed sequence) and kept; only the
+    forced one is withdrawn, and its note says which claim replicates without it. The honest after
+    is the kept claim's."""
+    campaign = simulate(load_scenario("head_3"))
+    choice = choose_effects(campaign, ~campaign.holdout_mask(), [cls() for cls in DEFAULT_CATALOG.candidates().values()], detail=False)
+    (claim,) = choice.found
+    ranked = next(c for c in choice.rankings[-1] if c.effect == "a_axis_cyclic")
+    candidate = replace(ranked, settings={"cycles_per_rev": 3.0}, settings_not_excluded=())
+    last = [candidate if c is ranked else c for c in choice.rankings[-1]]
+    effect = DEFAULT_CATALOG["a_axis_cyclic"](cycles_per_rev=3.0)
+    forced = replace(choice, found=[claim, candidate], chain=[*choice.chain, effect], rankings=[*choice.rankings[:-1], last])
+    fixed = len(choice.chain) - 1
+    both = nested_after(campaign, forced.chain[fixed:], forced.chain[:fixed])
+    assert 1 in unsettled_claims(forced.found, forced.chain[fixed:], both)
+    kept, honest = held_out_claims(forced, campaign, fixed)
+    assert kept.found == [claim] and kept.chain == choice.chain and honest.gain_holds
+    assert all(len(fold) == 1 for fold in honest.chosen)
+    note = next(c for c in kept.rankings[-1] if c.effect == "a_axis_cyclic").note
+    assert note.startswith("the claims chosen together do not replicate") and note.endswith(
+        f"; {effect_label(choice.chain[-1])} replicates without it"
+    )

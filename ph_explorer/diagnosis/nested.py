@@ -138,35 +138,49 @@ def unsettled_claims(found: Sequence[Candidate], claimed: Sequence[Effect], nest
 def held_out_claims(choice: Choice, campaign: Campaign, fixed: int, seed: int = 0) -> tuple[Choice, NestedAfter | None]:
     """The search's claims (beyond the chain's first `fixed` effects) kept when no two folds set one
     where the whole campaign excludes and their gain on rings left out is replicated
-    (nested_after), else withdrawn together, for each was chosen beside the others: each a
-    suggestion, with why. A catalog effect that only fits what it cannot predict is no claim."""
-    claimed = choice.chain[fixed:]
+    (nested_after). Else the first claims the search took, one more at a time, are put to the same
+    test while they pass (a fixed sequence: a strong claim does not sink with a weak one taken after
+    it); the rest are withdrawn, each a suggestion, with why. A catalog effect that only fits what
+    it cannot predict is no claim."""
+    claimed, start = choice.chain[fixed:], choice.chain[:fixed]
     if not claimed:
         return choice, None
-    honest = nested_after(campaign, claimed, choice.chain[:fixed], seed)
-    if honest is None:
+    honest = nested_after(campaign, claimed, start, seed)
+    if honest is None or (why := _not_replicated(choice.found, claimed, honest)) is None:
         return choice, honest
-    unsettled = unsettled_claims(choice.found, claimed, honest)
-    if not unsettled and honest.gain_holds:
-        return choice, honest
-    if unsettled:
-        why = "; ".join(_unsettled_text(claimed[i], excluded, honest.folds) for i, excluded in unsettled.items())
-    else:
-        assert honest.gain is not None  # gain_holds is True without it
-        why = "; ".join(honest.gain.reasons()) if honest.gain.rings else "no ring left out gains"
+    kept, kept_honest = 0, honest
+    for count in range(1, len(claimed)):
+        fewer = nested_after(campaign, claimed[:count], start, seed)
+        if fewer is None or _not_replicated(choice.found[:count], claimed[:count], fewer) is not None:
+            break
+        kept, kept_honest = count, fewer
     subject = "the claims chosen together do" if len(claimed) > 1 else "the claim does"
     note = f"{subject} not replicate on rings left out of the choice (nested cross-validation, {honest.folds} folds: {why})"
-    claims = {_claim_of(c) for c in choice.found}
+    if kept:
+        note += f"; {', '.join(effect_label(e) for e in claimed[:kept])} {'replicates' if kept == 1 else 'replicate'} without it"
+    claims = {_claim_of(c) for c in choice.found[kept:]}
 
     def withdrawn(candidate: Candidate) -> Candidate:
         if _claim_of(candidate) in claims and not candidate.suggested:
             return replace(candidate, suggested=True, note=note)
         return candidate
 
-    chain = choice.chain[:fixed]
+    chain = choice.chain[: fixed + kept]
     rankings = [[withdrawn(c) for c in ranking] for ranking in choice.rankings]
     after = choice.search.within_noise_after(chain, seed) if chain else None
-    return replace(choice, found=[], chain=chain, after=after, rankings=rankings), honest
+    return replace(choice, found=list(choice.found[:kept]), chain=chain, after=after, rankings=rankings), kept_honest
+
+
+def _not_replicated(found: Sequence[Candidate], claimed: Sequence[Effect], honest: NestedAfter) -> str | None:
+    """Why the claims do not replicate on rings left out (unsettled settings, else the nested
+    gain's reasons); None when they do."""
+    unsettled = unsettled_claims(found, claimed, honest)
+    if unsettled:
+        return "; ".join(_unsettled_text(claimed[i], excluded, honest.folds) for i, excluded in unsettled.items())
+    if honest.gain_holds:
+        return None
+    assert honest.gain is not None  # gain_holds is True without it
+    return "; ".join(honest.gain.reasons()) if honest.gain.rings else "no ring left out gains"
 
 
 def _claim_of(candidate: Candidate) -> tuple[str, str]:
