@@ -131,7 +131,15 @@ def multi_text(u: Mapping[str, Any]) -> str:
         f"(target at least {pct((u.get('targets') or {}).get('multi_all_found_min'))}; as catalog-effect heads are judged: at its "
         f"settings or at settings the claim cannot exclude, or as an untold pair that names it at its settings; with its own id and settings "
         f"exactly: {share_of(multi.get('all_found_exactly'))}); by kind: {kinds}; of all their effects, "
-        f"{share_of(multi.get('each_effect_found'))} claimed.\n"
+        f"{share_of(multi.get('each_effect_found'))} claimed."
+        + (
+            f" The bound (benchmarks/shape_oracle.py): every effect, at its own settings beside the others, passes the claims' "
+            f"replication test by ring on {share_of(multi['oracle_passes'])}, and every effect is claimed on "
+            f"{share_of(multi.get('all_found_where_oracle_passes'))} of those."
+            if multi.get("oracle_passes")
+            else ""
+        )
+        + "\n"
     )
 
 
