@@ -14,7 +14,7 @@ to claim is the search's choice, at its family null's level. Method: docs/diagno
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 
@@ -26,9 +26,10 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import Choice
 from ph_explorer.diagnosis.fitted_bases import FittedBases
-from ph_explorer.diagnosis.replication import replication
+from ph_explorer.diagnosis.replication import replication, ring_gains
 from ph_explorer.diagnosis.results import NestedAfter
 from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect, effect_label
 from ph_explorer.kinematics import campaign_touches
@@ -43,6 +44,8 @@ NESTED_DATA_PART = "trilinear"
 # moved by one cycle/rev in one fold of five often enough to withdraw whole chains of claims (the
 # multi-effect heads, docs/diagnosis.md); no single fold decides, two do.
 MAX_FOLDS_EXCLUDED = 1
+# Whether the rings as units do not tell claim i from another setting of its effect (unsettled_claims).
+Untold = Callable[[int, Effect], bool]
 
 
 def nested_after(
@@ -51,9 +54,10 @@ def nested_after(
     start: Sequence[Effect] = (),
     seed: int = 0,
     folds: int = NESTED_FOLDS,
+    bases: FittedBases | None = None,
 ) -> NestedAfter | None:
     """The cross-validated before/after of the effects claimed beside `start` (module docstring);
-    None with too few rings."""
+    None with too few rings. bases: the campaign's fitted columns, shared between calls."""
     held_out = campaign.holdout_mask()
     train = np.flatnonzero(~held_out)
     if train.size < MIN_TRAIN_PER_FOLD * folds:
@@ -66,7 +70,7 @@ def nested_after(
     check_parts = np.array_split(rng.permutation(check), folds) if check.size >= 2 else [check[:0]] * folds
     groups = [np.concatenate(parts) for parts in zip(train_parts, check_parts)]
     # Every fold scans the same effects over subsets of the same touches: columns made once.
-    bases = FittedBases(campaign_touches(campaign))
+    bases = bases if bases is not None else FittedBases(campaign_touches(campaign))
 
     def one_fold(fold: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
         fold = np.sort(fold)
@@ -113,22 +117,30 @@ def nested_after(
     )
 
 
-def reproduced_settings(candidate: Candidate) -> list[dict[str, float]]:
-    """The settings at which a fold reproduces a claim: those the whole campaign does not exclude,
-    and a period's neighbours on the scan's grid of whole cycles/rev (a head's period need not be
-    whole: between two grid points, a fold with fewer rings takes either)."""
+def reproduced_settings(candidate: Candidate, effect: Effect) -> list[dict[str, float]]:
+    """The settings at which a fold reproduces a claim (`effect` at the candidate's settings): those
+    the whole campaign does not exclude, and a period's neighbours on the scan's grid of whole
+    cycles/rev (Effect.neighbour_settings: a head's period need not be whole; between two grid
+    points, a fold with fewer rings takes either)."""
     allowed = [candidate.settings, *candidate.settings_not_excluded]
-    periods = {s["cycles_per_rev"] for s in allowed if set(s) == {"cycles_per_rev"}}
-    return allowed + [{"cycles_per_rev": k + step} for k in periods for step in (-1.0, 1.0) if k + step >= 1.0]
+    periods = [s for s in allowed if set(s) == {"cycles_per_rev"}]
+    return allowed + [n for s in periods for n in effect.with_settings(**s).neighbour_settings()]
 
 
-def unsettled_claims(found: Sequence[Candidate], claimed: Sequence[Effect], nested: NestedAfter) -> dict[int, list[str]]:
+def unsettled_claims(
+    found: Sequence[Candidate], claimed: Sequence[Effect], nested: NestedAfter, untold: Untold | None = None
+) -> dict[int, list[str]]:
     """The claims (indices into `found`) that more than MAX_FOLDS_EXCLUDED folds set where the whole
     campaign excludes, a grid step beyond (reproduced_settings), with those folds' labels: a setting
-    the rings left out do not reproduce."""
+    the rings left out do not reproduce. untold(i, other): the rings as units do not tell claim i
+    from `other` (the report's "cannot exclude", diagnosis.telling_apart: a setting is excluded only
+    when the touches' profile likelihood and the rings both exclude it)."""
     unsettled = {}
     for i, (candidate, effect) in enumerate(zip(found, claimed)):
-        allowed = {effect_label(effect.with_settings(**s)) for s in reproduced_settings(candidate)}
+        allowed = {effect_label(effect.with_settings(**s)) for s in reproduced_settings(candidate, effect)}
+        grid = {effect_label(effect.with_settings(**s)): s for s in effect.scan_grid()}
+        moved = {fold[i] for fold in nested.chosen if fold[i] not in allowed}
+        allowed |= {label for label in moved if untold is not None and label in grid and untold(i, effect.with_settings(**grid[label]))}
         excluded = [fold[i] for fold in nested.chosen if fold[i] not in allowed]
         if len(excluded) > MAX_FOLDS_EXCLUDED:
             unsettled[i] = excluded
@@ -145,13 +157,27 @@ def held_out_claims(choice: Choice, campaign: Campaign, fixed: int, seed: int = 
     claimed, start = choice.chain[fixed:], choice.chain[:fixed]
     if not claimed:
         return choice, None
-    honest = nested_after(campaign, claimed, start, seed)
-    if honest is None or (why := _not_replicated(choice.found, claimed, honest)) is None:
+    bases = FittedBases(campaign_touches(campaign))
+    honest = nested_after(campaign, claimed, start, seed, bases=bases)
+
+    def untold(i: int, other: Effect) -> bool:
+        # Beside the chain before claim i, as the report asks it; and the fold's setting a gain the
+        # rings replicate there: of a claim that explains nothing, no two settings are told apart.
+        search, before = choice.search, choice.chain[: fixed + i]
+        if rings_prefer(search, claimed[i], other, before, seed).told_apart:
+            return False
+        noise = ring_sigma(search.campaign.deviations) ** 2
+        gain = ring_gains(
+            search.residual, search.design(before) if before else None, search.design([*before, other]), search.targets, noise
+        )
+        return replication(gain, ~search.train, True, seed).replicated
+
+    if honest is None or (why := _not_replicated(choice.found, claimed, honest, untold)) is None:
         return choice, honest
     kept, kept_honest = 0, honest
     for count in range(1, len(claimed)):
-        fewer = nested_after(campaign, claimed[:count], start, seed)
-        if fewer is None or _not_replicated(choice.found[:count], claimed[:count], fewer) is not None:
+        fewer = nested_after(campaign, claimed[:count], start, seed, bases=bases)
+        if fewer is None or _not_replicated(choice.found[:count], claimed[:count], fewer, untold) is not None:
             break
         kept, kept_honest = count, fewer
     subject = "the claims chosen together do" if len(claimed) > 1 else "the claim does"
@@ -171,10 +197,10 @@ def held_out_claims(choice: Choice, campaign: Campaign, fixed: int, seed: int = 
     return replace(choice, found=list(choice.found[:kept]), chain=chain, after=after, rankings=rankings), kept_honest
 
 
-def _not_replicated(found: Sequence[Candidate], claimed: Sequence[Effect], honest: NestedAfter) -> str | None:
+def _not_replicated(found: Sequence[Candidate], claimed: Sequence[Effect], honest: NestedAfter, untold: Untold) -> str | None:
     """Why the claims do not replicate on rings left out (unsettled settings, else the nested
     gain's reasons); None when they do."""
-    unsettled = unsettled_claims(found, claimed, honest)
+    unsettled = unsettled_claims(found, claimed, honest, untold)
     if unsettled:
         return "; ".join(_unsettled_text(claimed[i], excluded, honest.folds) for i, excluded in unsettled.items())
     if honest.gain_holds:
