@@ -118,6 +118,22 @@ def test_a_fold_at_a_setting_the_rings_do_not_tell_from_the_claims_reproduces_it
     assert asked == [(0, 2.0), (0, 2.0)]
 
 
+def test_a_claim_the_folds_withdraw_is_suggested_as_its_own_ranking_told_it():
+    """An A-axis tilt motion (38/rev) and a B-axis cyclic error (25/rev) on one head (975036): the
+    search takes the B error second, beside the tilt; 2 of 5 folds set it at 2/rev, which the rings
+    beside the tilt tell from 25/rev, so it is withdrawn. Its suggestion is the re-ranked one: fitted
+    beside the tilt, its settings asked there, so the report never lists as "not excluded" the
+    setting its note says the campaign excludes (asked beside nothing, 2/rev is not excluded)."""
+    result = diagnose(multi_effect_head(975036).campaign)
+    assert [c.effect for c in result.found] == ["a_axis_tilt_motion"]
+    withdrawn = next(c for c in result.suggested if c.effect == "b_axis_cyclic")
+    assert "2 of 5 folds set b_axis_cyclic 25 cycles/rev at 2 cycles/rev, which the whole campaign excludes" in withdrawn.note
+    assert withdrawn == next(c for c in result.reranked[0] if c.effect == "b_axis_cyclic")
+    assert {"cycles_per_rev": 2} not in withdrawn.settings_not_excluded
+    alone = next(c for c in result.candidates if c.effect == "b_axis_cyclic")
+    assert alone.suggested and {"cycles_per_rev": 2} in alone.settings_not_excluded
+
+
 def test_the_folds_scan_each_claim_beside_the_others():
     """Three catalog effects at once (a head of its own seed, 975013: B-axis radial motion 13/rev,
     B-axis axial motion 19/rev, A-axis axial motion 28/rev). While the folds scanned the claims in

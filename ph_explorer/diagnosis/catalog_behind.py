@@ -144,6 +144,11 @@ def held_by_catalog(choice: Choice, shapes: Sequence[Shape], effects: Sequence[E
         rankings += [spliced(r, c) for r, c in zip(behind.rankings[1:], behind.claims[1:])]
         rankings.append(rank_candidates(search, effects, fixed=search.design(chain)))
         choice = replace(
-            choice, found=[*choice.found, *behind.claims], chain=chain, rankings=rankings, after=search.within_noise_after(chain, seed)
+            choice,
+            found=[*choice.found, *behind.claims],
+            chain=chain,
+            rankings=rankings,
+            after=search.within_noise_after(chain, seed),
+            withdrawn=[c for c in choice.withdrawn if c.effect not in first],
         )
     return choice, left

@@ -340,6 +340,8 @@ class Choice:
     rankings: list[list[Candidate]]  # the ranking before every step and after the last
     based: NoiseTest | None = None  # with the base model in it (before when there is none): what the verdict judges
     base: list[Effect] = field(default_factory=list)  # the base model's effects kept (usable_base), first in the chain
+    # Claims the folds withdrew (nested.held_out_claims), each the ranking's own candidate it was taken from.
+    withdrawn: list[Candidate] = field(default_factory=list)
 
     @property
     def candidates(self) -> list[Candidate]:

@@ -225,7 +225,7 @@ def diagnose(
     rankings, learnt = [], {}
     for k, ranking in enumerate([candidates, *choice.rankings[1:]]):
         taken = [c.effect for c in choice.found] if k == 0 else [c.effect for c in choice.found if any(c is r for r in ranking)]
-        if k == 0 or taken:
+        if k == 0 or taken or any(c is w for c in ranking for w in choice.withdrawn):
             told = tell_apart(search, confounding(search, ranking, by_id), taken, by_id, chain[: fixed + k], seed)
             learnt |= {id(old): new for old, new in zip(ranking, told)}
             ranking = told
@@ -287,7 +287,8 @@ def diagnose(
         baseline_mae_um=baseline_mae,
         candidates=tuple(candidates),
         found=found,
-        suggested=flagged_in(rankings, "suggested"),
+        # A claim the folds withdrew is suggested as the ranking it was taken from told it apart.
+        suggested=flagged_in([[learnt[id(c)] for c in choice.withdrawn if id(c) in learnt], *rankings], "suggested"),
         not_needed=flagged_in(rankings, "not_needed"),
         signature=tuple(left),
         within_noise={"baseline": before, "after": choice.after} | ({"base": choice.based} if offered else {}),

@@ -193,8 +193,10 @@ def held_out_claims(choice: Choice, campaign: Campaign, fixed: int, seed: int = 
 
     chain = choice.chain[: fixed + kept]
     rankings = [[withdrawn(c) for c in ranking] for ranking in choice.rankings]
+    # Claim k was taken from ranking k: its suggestion is that ranking's, asked beside the claims before it.
+    taken = [rankings[k][next(j for j, c in enumerate(choice.rankings[k]) if c is choice.found[k])] for k in range(kept, len(choice.found))]
     after = choice.search.within_noise_after(chain, seed) if chain else None
-    return replace(choice, found=list(choice.found[:kept]), chain=chain, after=after, rankings=rankings), kept_honest
+    return replace(choice, found=list(choice.found[:kept]), chain=chain, after=after, rankings=rankings, withdrawn=taken), kept_honest
 
 
 def _not_replicated(found: Sequence[Candidate], claimed: Sequence[Effect], honest: NestedAfter, untold: Untold) -> str | None:
