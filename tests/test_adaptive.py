@@ -142,6 +142,9 @@ def test_design_start_and_next_on_the_command_line_plan_measure_and_read_back(tm
     bad.write_text(json.dumps(following | {"answer": {"words": following["answer"]["words"], "check_rings": "4"}}))
     code, out, err = cli("design", "--data", str(campaign_csv), "--next", "--after", str(bad))
     assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "bad.json" in err and "answer" in err, err
+    bad.write_text(json.dumps(following | {"answer": following["answer"] | {"named": [{"label": "gravity", "untold": "x"}]}}))
+    code, out, err = cli("design", "--data", str(campaign_csv), "--next", "--after", str(bad))
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1 and "bad.json" in err and "named" in err, err
     code, out, err = cli("design", "--data", str(campaign_csv), "--next")
     # head_3's first twelve rings: its hidden B-axis error claimed, the model beyond the tolerance at
     # the check rings: the next plan, as docs/planning.md quotes its head line
@@ -399,9 +402,21 @@ def test_an_answer_that_holds_with_fresh_check_rings_stops_the_campaign_unless_i
     assert held.stop and not held.rings and held.answer == answer
     assert held.reason.startswith(f"the answer held with 2 fresh check rings: {answer.words}, as before them")
     assert "more than the tolerance 0.000 um: more rings would refine the model, not the answer" in held.reason
-    assert json.loads(json.dumps(held.to_json()))["answer"] == {"words": answer.words, "check_rings": answer.check_rings}
+    named = [{"label": "b_axis_cyclic cycles_per_rev 22", "untold": []}]
+    assert json.loads(json.dumps(held.to_json()))["answer"] == {"words": answer.words, "check_rings": answer.check_rings, "named": named}
+    assert Answer.from_json(held.to_json()["answer"]) == answer
     for previous in (answer, Answer("partial (b_axis_cyclic cycles_per_rev 21)", answer.check_rings - 2)):
         assert not adaptive.next_rings(campaign, result, tolerance_um=1e-4, previous=previous).stop
+    # A claim at a setting the last answer's rings could not exclude beside its own is the same
+    # answer; at one they excluded, or beside one more claim, it is not.
+    words, n = "missing (b_axis_cyclic cycles_per_rev 21)", answer.check_rings - 2
+    untold = Answer(words, n, (("b_axis_cyclic cycles_per_rev 21", ("b_axis_cyclic cycles_per_rev 22", "b_axis_cyclic cycles_per_rev 23")),))
+    moved = adaptive.next_rings(campaign, result, tolerance_um=1e-4, previous=untold)
+    assert moved.stop and f"{answer.words}, as before them within what these rings cannot tell ({words})" in moved.reason
+    excluded = Answer(words, n, (("b_axis_cyclic cycles_per_rev 21", ("b_axis_cyclic cycles_per_rev 20",)),))
+    more = Answer("missing (b_axis_cyclic cycles_per_rev 22; gravity)", n, (*answer.named, ("gravity", ())))
+    assert not any(adaptive.next_rings(campaign, result, tolerance_um=1e-4, previous=p).stop for p in (excluded, more))
+    assert answer.same_as(untold) and untold.same_as(answer) and not answer.same_as(excluded) and not answer.same_as(more)
     healthy = random_campaign(100_002, "paper")
     quiet = adaptive.plan_diagnosis(healthy)
     assert quiet.verdict == "none"

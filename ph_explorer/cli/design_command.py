@@ -207,5 +207,18 @@ def previous_plan(path: Path) -> tuple[tuple[str, ...], Answer | None]:
     if answer is None:
         return tuple(questions), None
     if not (isinstance(answer, dict) and isinstance(answer.get("words"), str) and type(answer.get("check_rings")) is int):
-        raise InputError('its answer must be {"words": text, "check_rings": a whole number} or null', file=name, column="answer")
+        raise InputError(
+            'its answer must be {"words": text, "check_rings": a whole number, "named": [...]} or null', file=name, column="answer"
+        )
+    named = answer.get("named", [])
+    if not (isinstance(named, list) and all(_named_entry(n) for n in named)):
+        raise InputError('its answer\'s named must be a list of {"label": text, "untold": [text, ...]}', file=name, column="answer")
     return tuple(questions), Answer.from_json(answer)
+
+
+def _named_entry(entry: object) -> bool:
+    """One entry of a plan answer's named list: {"label": text, "untold": [text, ...]}."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("label"), str):
+        return False
+    untold = entry.get("untold")
+    return isinstance(untold, list) and all(isinstance(u, str) for u in untold)

@@ -293,7 +293,7 @@ def next_rings(
     # The same answer again with fresh check rings: the rings measured since did not change it, and
     # more of them would refine the model, not what the campaign says (docs/planning.md#the-stop).
     fresh_checks = answer.check_rings - previous.check_rings if previous is not None else 0
-    held = previous is not None and previous.words == answer.words and fresh_checks > 0 and result.verdict not in UNSETTLED
+    held = previous is not None and answer.same_as(previous) and fresh_checks > 0 and result.verdict not in UNSETTLED
     if (held or knows) and not decision.rings and not again:
         left = questions_of(result, catalog)
         settled = "nothing is left open" if not left else f"{len(left)} question(s) left open that no ring of this stylus decides"
@@ -306,7 +306,8 @@ def next_rings(
         else:
             beyond = "within" if known_well else "more than"
             reason = (
-                f"the answer held with {fresh_checks} fresh check ring{'s' * (fresh_checks > 1)}: {answer.words}, as before them; "
+                f"the answer held with {fresh_checks} fresh check ring{'s' * (fresh_checks > 1)}: {answer.words}, as before them"
+                f"{'' if answer.words == previous.words else f' within what these rings cannot tell ({previous.words})'}; "
                 f"{settled}{kept_out}; {missed}, {beyond} the tolerance {tolerance:.3f} um: more rings would refine the model, "
                 "not the answer"
             )

@@ -7,10 +7,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from itertools import permutations
 from typing import Any
 
 from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.results import Diagnosis
+from ph_explorer.effects.error_functions import SHAPE_GROUPS
 
 
 @dataclass(frozen=True)
@@ -92,20 +94,53 @@ class Plan:
 class Answer:
     """What a diagnosis answered, in words that compare (its verdict, its claims at their settings,
     the shapes it claimed), and the check rings it was judged on: an adaptive campaign stops once
-    the same answer comes again with fresh check rings (docs/planning.md#the-stop)."""
+    the same answer comes again with fresh check rings (docs/planning.md#the-stop). named: each claim
+    and claimed shape with what these rings cannot tell it from (settings not excluded, untold
+    partners and groups); the same answer is one these rings cannot tell from the last."""
 
     words: str
     check_rings: int
+    named: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     @classmethod
     def of(cls, campaign: Campaign, result: Diagnosis) -> Answer:
-        claims = sorted(c.effect + "".join(f" {k} {v:g}" for k, v in sorted(c.settings.items())) for c in result.found)
-        named = "; ".join([*claims, *sorted(f"a shape of the {s.words}" for s in result.claimed_shapes)])
-        return cls(result.verdict + (f" ({named})" if named else ""), int(campaign.holdout_mask().sum()))
+        claims = [
+            (
+                _label(c.effect, c.settings),
+                {_label(c.effect, s) for s in c.settings_not_excluded} | {_label(p.effect, s) for p in c.untold for s in p.settings},
+            )
+            for c in result.found
+        ]
+        shapes = [
+            (f"a shape of the {s.words}", {f"a shape of the {SHAPE_GROUPS[g].words}" for g in s.untold}) for s in result.claimed_shapes
+        ]
+        named = [(label, tuple(sorted(untold - {label}))) for label, untold in [*sorted(claims), *sorted(shapes)]]
+        words = "; ".join(label for label, _ in named)
+        return cls(result.verdict + (f" ({words})" if words else ""), int(campaign.holdout_mask().sum()), tuple(named))
+
+    def same_as(self, other: Answer) -> bool:
+        """The same verdict, and its claims and shapes one to one, each the other's or one these rings
+        cannot tell from it (the words alone for an answer without them: an older plan's)."""
+        if not (self.named and other.named) or self.words.partition(" ")[0] != other.words.partition(" ")[0]:
+            return self.words == other.words
+        if len(self.named) != len(other.named):
+            return False
+
+        def alike(mine: tuple[str, tuple[str, ...]], theirs: tuple[str, tuple[str, ...]]) -> bool:
+            return mine[0] == theirs[0] or mine[0] in theirs[1] or theirs[0] in mine[1]
+
+        return any(all(map(alike, self.named, order)) for order in permutations(other.named))
 
     def to_json(self) -> dict[str, Any]:
-        return {"words": self.words, "check_rings": self.check_rings}
+        named = [{"label": label, "untold": list(untold)} for label, untold in self.named]
+        return {"words": self.words, "check_rings": self.check_rings, "named": named}
 
     @classmethod
     def from_json(cls, data: Mapping[str, Any]) -> Answer:
-        return cls(str(data["words"]), int(data["check_rings"]))
+        named = tuple((str(n["label"]), tuple(str(u) for u in n["untold"])) for n in data.get("named", []))
+        return cls(str(data["words"]), int(data["check_rings"]), named)
+
+
+def _label(effect: str, settings: Mapping[str, float]) -> str:
+    """A claim's name at its settings, e.g. "b_axis_cyclic cycles_per_rev 22"."""
+    return effect + "".join(f" {k} {v:g}" for k, v in sorted(settings.items()))
