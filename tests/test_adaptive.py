@@ -410,7 +410,9 @@ def test_an_answer_that_holds_with_fresh_check_rings_stops_the_campaign_unless_i
     # A claim at a setting the last answer's rings could not exclude beside its own is the same
     # answer; at one they excluded, or beside one more claim, it is not.
     words, n = "missing (b_axis_cyclic cycles_per_rev 21)", answer.check_rings - 2
-    untold = Answer(words, n, (("b_axis_cyclic cycles_per_rev 21", ("b_axis_cyclic cycles_per_rev 22", "b_axis_cyclic cycles_per_rev 23")),))
+    untold = Answer(
+        words, n, (("b_axis_cyclic cycles_per_rev 21", ("b_axis_cyclic cycles_per_rev 22", "b_axis_cyclic cycles_per_rev 23")),)
+    )
     moved = adaptive.next_rings(campaign, result, tolerance_um=1e-4, previous=untold)
     assert moved.stop and f"{answer.words}, as before them within what these rings cannot tell ({words})" in moved.reason
     excluded = Answer(words, n, (("b_axis_cyclic cycles_per_rev 21", ("b_axis_cyclic cycles_per_rev 20",)),))
