@@ -14,7 +14,7 @@ the cross-validation chooses, a term is judged identifiable on the campaign's to
 
 - an **alias** of a term is a catalog effect (any scanned setting) whose columns share more than
   CONFOUNDED with the term's over the campaign's touches, through the data part's out-of-sample
-  smoother (what the hybrid's fit sees: diagnosis.search.shared_variance), although over the
+  smoother (what the hybrid's fit sees: diagnosis.separation.shared_variance), although over the
   prediction domain (the lattice at half the design's steps: between the rings) they share at most
   CONFOUNDED (separation.shared_over): the campaign cannot tell them apart, a denser one would;
 - a term whose prediction between the rings the data part reproduces anyway (the trilinear
@@ -53,8 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer import metrics
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.search import CONFOUNDED, touch_span
-from ph_explorer.diagnosis.separation import shared_over, span_share
+from ph_explorer.diagnosis.separation import CONFOUNDED, shared_over, span_share, touch_span
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect, effect_label
 from ph_explorer.kinematics import Touches, campaign_touches, touch_kinematics
 from ph_explorer.models import least_squares
@@ -162,7 +161,7 @@ class Identification:
         return self._designs[key]
 
     def shared(self, effect: Effect, other: Effect) -> float:
-        """diagnosis.search.shared_variance of the two designs, each one's span made once."""
+        """diagnosis.separation.shared_variance of the two designs, each one's span made once."""
         keys = effect_label(effect), effect_label(other)
         for key, e in zip(keys, (effect, other)):
             if key not in self._spans:

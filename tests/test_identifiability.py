@@ -9,7 +9,7 @@ import pytest
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.identifiability import describe_effect, effect_bases, identifiability, shared_between
-from ph_explorer.diagnosis.search import shared_variance
+from ph_explorer.diagnosis.separation import shared_variance
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, full_shape, radial_unit
 from ph_explorer.io import read_campaign

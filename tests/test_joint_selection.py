@@ -5,9 +5,19 @@ from __future__ import annotations
 
 import pytest
 
+from benchmarks.multi_effects import claim_record, holds_truth
 from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.effects.axes import BAxisCyclic
-from ph_explorer.effects.motions import AAxisAxialMotion, AAxisRadialMotion, BAxisAxialMotion, BAxisRadialMotion, BAxisTiltMotion
+from ph_explorer.effects.motions import (
+    AAxisAxialMotion,
+    AAxisRadialMotion,
+    AAxisTiltMotion,
+    BAxisAxialMotion,
+    BAxisRadialMotion,
+    BAxisTiltMotion,
+)
+from ph_explorer.models import least_squares
 from ph_explorer.twin.random_heads import random_campaign
 
 
@@ -108,3 +118,37 @@ def test_an_effect_that_stood_in_for_a_later_one_gives_way_beside_it() -> None:
         c for ranking in (result.candidates, *result.reranked) for c in ranking if c.effect == "b_axis_tilt_motion" and c.not_needed
     )
     assert "B-axis axial error motion explains more in its place" in gave_way.note
+
+
+def test_a_scan_whose_best_fit_is_implausible_takes_its_best_plausible_setting() -> None:
+    # Two harmonics of the A axis's tilt motion (31/rev at 0.97", 19/rev at 0.76") on a random
+    # head of the paper's design (975008, its own background and noise law). The A axis turns
+    # through part of a revolution only: the tilt's low periods fit the beat with tens of arcsec,
+    # and while the scan's best fit decided, the tilt was "implausible" and the verdict a shape.
+    hidden = [
+        AAxisTiltMotion(
+            about_y_amplitude_arcsec=0.9734,
+            about_y_phase_deg=286.49,
+            about_z_amplitude_arcsec=0.9734,
+            about_z_phase_deg=188.76,
+            cycles_per_rev=31,
+        ),
+        AAxisTiltMotion(
+            about_y_amplitude_arcsec=0.7571,
+            about_y_phase_deg=339.84,
+            about_z_amplitude_arcsec=-0.7571,
+            about_z_phase_deg=187.62,
+            cycles_per_rev=19,
+        ),
+    ]
+    campaign = random_campaign(975008, "paper", hidden)
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), detail=False)
+    scan = search.scan(AAxisTiltMotion())
+    best = AAxisTiltMotion().with_settings(**scan.scanned[0][1])
+    assert best.implausible(best.from_coefficients(least_squares.fit(search.design([best]), search.targets)[0][:, 0]))
+    tilt = search.judge(scan, float(scan.null_best.max()))
+    assert tilt.beyond_noise and not tilt.implausible and tilt.settings["cycles_per_rev"] >= 20
+    result = diagnose(campaign)
+    assert result.verdict == "missing"
+    held = [any(holds_truth(claim_record(c), "a_axis_tilt_motion", {"cycles_per_rev": float(n)}) for c in result.found) for n in (31, 19)]
+    assert held == [True, True]

@@ -8,7 +8,8 @@ import pytest
 
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.partners import partner_settings
-from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
+from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.separation import shared_variance
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.motions import AAxisAxialMotion, AAxisTiltMotion, BAxisRadialMotion
 from ph_explorer.figures.diagnosis_text import verdict_headline

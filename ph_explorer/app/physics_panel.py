@@ -15,7 +15,7 @@ import viser
 from ph_explorer.app.accessibility import bring_into_view
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.diagnosis import VERDICTS, Candidate, Diagnosis, NestedAfter, Step
-from ph_explorer.diagnosis.search import CONFOUNDED
+from ph_explorer.diagnosis.separation import CONFOUNDED
 from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
@@ -28,7 +28,7 @@ from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, DecisionWords
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
     """The effects the diagnosis found (else those beyond noise): parameters +- U (k = 2, jackknife
     over orientations) and identifiability: the other candidates each shares its variance with on
-    this campaign (above search.CONFOUNDED the two cannot be told apart), and what is left."""
+    this campaign (above separation.CONFOUNDED the two cannot be told apart), and what is left."""
     shown = list(result.found) or [c for c in result.candidates if c.beyond_noise or c.significant][:limit]
     cell = "padding:2px 4px;vertical-align:top;"
     rows = []

@@ -20,8 +20,7 @@ from numpy.typing import NDArray
 
 from ph_explorer.blas import one_blas_thread
 from ph_explorer.campaign import Campaign
-from ph_explorer.diagnosis.search import CONFOUNDED
-from ph_explorer.diagnosis.separation import span_share
+from ph_explorer.diagnosis.separation import CONFOUNDED, span_share
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import Touches, campaign_touches
 from ph_explorer.models.crossval import OutOfSampleSmoother
@@ -87,7 +86,7 @@ def effect_bases(effect: Effect, touches: Touches, smoother: OutOfSampleSmoother
 
 
 def orthonormal(design: Design, reference: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-    """An orthonormal basis of design's columns over single touches (as search.shared_variance
+    """An orthonormal basis of design's columns over single touches (as separation.shared_variance
     builds it), split into its mean and within rows; directions that keep less than SURVIVES of
     their size in `reference` (what the smoother reproduces exactly) are dropped."""
     mean, within = design.touch_blocks()
@@ -162,7 +161,7 @@ def figures(bases: Bases, noise_floor_um: float | None) -> dict[str, Any]:
 
 
 def shared_between(a: Bases, b: Bases) -> float:
-    """search.shared_variance of two effects' designs through the smoother, from their orthonormal
+    """separation.shared_variance of two effects' designs through the smoother, from their orthonormal
     bases (the same number; computed once per basis so that every pair of two scans is affordable)."""
     return span_share((a.q_mean, a.q_within), (b.q_mean, b.q_within))
 

@@ -17,8 +17,8 @@ from numpy.typing import NDArray
 
 from ph_explorer.diagnosis.candidates import Candidate, Partner, Separation
 from ph_explorer.diagnosis.fitted_bases import settings_key
-from ph_explorer.diagnosis.search import CONFOUNDED, CandidateSearch, touch_span
-from ph_explorer.diagnosis.separation import Separations, span_share
+from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.separation import CONFOUNDED, Separations, span_share, touch_span
 from ph_explorer.effects import Effect
 
 SEPARATIONS = 3  # the closest partners of each candidate told what would separate them

@@ -12,8 +12,9 @@ lowers the out-of-sample rms error against the reference that exposes it materia
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from itertools import islice
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,6 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.evidence import binned_evidence
 from ph_explorer.diagnosis.fitted_bases import WITHIN_BUDGET_BYTES, FittedBases, settings_key
-from ph_explorer.diagnosis.separation import block_span, span_share
 from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.kinematics import campaign_touches
@@ -284,26 +284,31 @@ class CandidateSearch:
     def judge(self, scan: Scan, null_level: float) -> Candidate:
         """The candidate's best scan value: beyond noise when it explains more than NULL_MARGIN
         times null_level (what pure noise explains at most in the look-elsewhere family, in this
-        effect's units); among those (most explained first, at most MAX_MATERIAL_TRIALS) the
-        first that also lowers the held-out error materially is chosen, so that a large but
-        harmless component of the same effect (a low-order cyclic error the grid resolves) does
-        not hide a short-period one that it does not.
+        effect's units); among those with a plausible fit (most explained first, at most
+        MAX_MATERIAL_TRIALS) the first that also lowers the held-out error materially is chosen, so
+        that a large but harmless component of the same effect (a low-order cyclic error the grid
+        resolves) does not hide a short-period one that it does not (docs/diagnosis.md, step 2).
         """
         effect, fixed, total, scanned = scan.effect, scan.fixed, scan.total, scan.scanned
         threshold = NULL_MARGIN * null_level
-        trials = [item for item in scanned if item[0] > threshold][:MAX_MATERIAL_TRIALS] or scanned[:1]
+        beyond = [item for item in scanned if item[0] > threshold]
         # What the fixed columns leave at the check rings: the same for every candidate of a ranking.
         if self._before is None or self._before[0] is not fixed:
             self._before = (fixed, self.check_residual(fixed))
         before = self._before[1]
         chosen = None
-        for explained, settings in trials:
-            design = self.design([effect.with_settings(**settings)])
-            joint = design if fixed is None else fixed.stacked(design)
-            reduction = self.check_reduction(joint, before)
-            if chosen is None or (reduction >= MATERIAL_REDUCTION and chosen[2] < MATERIAL_REDUCTION):
-                chosen = (explained, settings, reduction, design, joint)
-            if reduction >= MATERIAL_REDUCTION:
+        # An implausible fit is never the explanation: the settings tried are those beyond noise whose fit is
+        # plausible (a low period of an axis swept in part fits anything at a size no head has); else the best.
+        for trials in (islice(self._plausible(effect, fixed, beyond), MAX_MATERIAL_TRIALS), beyond[:MAX_MATERIAL_TRIALS] or scanned[:1]):
+            for explained, settings in trials:
+                design = self.design([effect.with_settings(**settings)])
+                joint = design if fixed is None else fixed.stacked(design)
+                reduction = self.check_reduction(joint, before)
+                if chosen is None or (reduction >= MATERIAL_REDUCTION and chosen[2] < MATERIAL_REDUCTION):
+                    chosen = (explained, settings, reduction, design, joint)
+                if reduction >= MATERIAL_REDUCTION:
+                    break
+            if chosen is not None:
                 break
         explained, settings, reduction, design, joint = chosen
         left = max(total - explained, 0.0) / self.residual.size  # what is left, per touch
@@ -335,6 +340,17 @@ class CandidateSearch:
             beyond_noise=bool(explained > threshold and not implausible),
             implausible=bool(implausible),
         )
+
+    def _plausible(
+        self, effect: Effect, fixed: Design | None, scanned: Sequence[tuple[float, dict[str, Any]]]
+    ) -> Iterator[tuple[float, dict[str, Any]]]:
+        """The scan values (in turn) whose fit beside `fixed` is plausible (Effect.implausible)."""
+        for item in scanned:
+            found = effect.with_settings(**item[1])
+            design = self.design([found])
+            joint = design if fixed is None else fixed.stacked(design)
+            if not found.implausible(found.from_coefficients(least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0])):
+                yield item
 
     def check_residual(self, design: Design | None) -> tuple[NDArray, NDArray]:
         """The held-out rings' residual (mean, single touches) left by design, each ring left out of its fit."""
@@ -402,19 +418,3 @@ def rank_candidates(
     out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf"))) for s in scans]
     out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
     return out
-
-
-# Two candidates whose columns share more than this (squared canonical correlation over every
-# touch, through the smoother) cannot be told apart by this campaign.
-CONFOUNDED = 0.8
-
-
-def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
-    """An orthonormal basis of the design's columns over every touch: (mean rows, within rows or None)."""
-    mean, within = block_span(design.touch_blocks())
-    return mean, within
-
-
-def shared_variance(a: Design, b: Design) -> float:
-    """The largest squared canonical correlation between two designs' columns over all touches."""
-    return span_share(touch_span(a), touch_span(b))

@@ -61,6 +61,22 @@ def span_share(qx: Sequence[NDArray[np.float64] | None], qy: Sequence[NDArray[np
     return float(np.linalg.svd(product, compute_uv=False).max() ** 2)
 
 
+# Two candidates whose columns share more than this (squared canonical correlation over every
+# touch, through the smoother) cannot be told apart by this campaign.
+CONFOUNDED = 0.8
+
+
+def touch_span(design: Design) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+    """An orthonormal basis of the design's columns over every touch: (mean rows, within rows or None)."""
+    mean, within = block_span(design.touch_blocks())
+    return mean, within
+
+
+def shared_variance(a: Design, b: Design) -> float:
+    """The largest squared canonical correlation between two designs' columns over all touches."""
+    return span_share(touch_span(a), touch_span(b))
+
+
 def shared_over(a: Effect, b: Effect, touch_sets: Sequence[Touches]) -> float:
     """The largest squared canonical correlation of two effects' fitted columns over the touch sets."""
     spans = [block_span([block for touches in touch_sets for block in _blocks(e, touches)]) for e in (a, b)]

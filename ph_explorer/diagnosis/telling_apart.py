@@ -19,7 +19,8 @@ from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
 from ph_explorer.diagnosis.partners import partner_settings
 from ph_explorer.diagnosis.replication import replication, ring_gains
 from ph_explorer.diagnosis.rival_shapes import untold_shape
-from ph_explorer.diagnosis.search import CandidateSearch, shared_variance
+from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.separation import shared_variance
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
 from ph_explorer.models import least_squares
@@ -89,17 +90,25 @@ def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: E
     rings do not tell from the chosen (rings_prefer, the chosen in the partner's place) in its
     settings_not_excluded, in scan order: a setting is excluded only when the touches' profile
     likelihood and the rings as units both exclude it. The closest of them (the largest p-value)
-    is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
+    with a plausible fit is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
     others = [s for s in chosen.scan_grid() if s != candidate.settings]
     tests = [(s, rings_prefer(search, chosen, chosen.with_settings(**s), start, seed)) for s in others]
     kept = [(s, test) for s, test in tests if not test.told_apart]
     if not kept:
         return candidate
     not_excluded = tuple(s for s in others if s in candidate.settings_not_excluded or any(s == k for k, _ in kept))
-    settings, test = max(kept, key=lambda item: item[1].p_value)
+    # The closest plausible one: an implausible fit is never the explanation (the closest when none is).
+    kept.sort(key=lambda item: item[1].p_value, reverse=True)
+    closest = None
+    for settings, test in kept:
+        params = fitted_beside(search, chosen.with_settings(**settings), start)
+        closest = closest or (settings, test, params)
+        if not chosen.implausible(params):
+            break
+    else:
+        settings, test, params = closest
     rival = chosen.with_settings(**settings)
     shared = shared_variance(search.design([chosen]), search.design([rival]))
-    params = fitted_beside(search, rival, start)
     return replace(candidate, settings_not_excluded=not_excluded, rival_setting=RivalSetting(settings, params, round(shared, 3), test))
 
 
