@@ -629,7 +629,9 @@ def test_every_shipped_scenarios_record_validates_round_trips_and_keeps_its_figu
     its own setting, which diagnosis.partners now tries; head_4's radial motion, once told apart at
     24/rev, is now put to the rings at 23-25/rev too and is not told apart at 23: the test below;
     head_3's nested figures since the check rings are in its folds and the folds refit the claims
-    at their own settings, issue 55)."""
+    at their own settings, issue 55; the candidates of head_2, head_4 and near_vertical since a scan
+    judges its best plausible setting, no longer an implausible low period: verdicts and claims
+    unchanged)."""
     result = diagnoses[(name, True)]
     record = result.to_json()
     jsonschema.Draft202012Validator(diagnosis_schema()).validate(json.loads(json.dumps(record)))

@@ -8,6 +8,7 @@ import pytest
 from benchmarks.multi_effects import claim_record, holds_truth
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.axes import BAxisCyclic
 from ph_explorer.effects.motions import (
     AAxisAxialMotion,
@@ -152,3 +153,6 @@ def test_a_scan_whose_best_fit_is_implausible_takes_its_best_plausible_setting()
     assert result.verdict == "missing"
     held = [any(holds_truth(claim_record(c), "a_axis_tilt_motion", {"cycles_per_rev": float(n)}) for c in result.found) for n in (31, 19)]
     assert held == [True, True]
+    # The setting the rings cannot tell from a claim's, named for the rings that would decide, is plausible too.
+    rivals = [(c.effect, c.rival_setting) for c in result.found if c.rival_setting is not None]
+    assert rivals and all(not DEFAULT_CATALOG[effect].implausible(rival.params) for effect, rival in rivals)
