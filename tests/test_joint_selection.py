@@ -10,14 +10,7 @@ from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.axes import BAxisCyclic
-from ph_explorer.effects.motions import (
-    AAxisAxialMotion,
-    AAxisRadialMotion,
-    AAxisTiltMotion,
-    BAxisAxialMotion,
-    BAxisRadialMotion,
-    BAxisTiltMotion,
-)
+from ph_explorer.effects.motions import AAxisAxialMotion, AAxisRadialMotion, BAxisAxialMotion, BAxisRadialMotion, BAxisTiltMotion
 from ph_explorer.models import least_squares
 from ph_explorer.twin.random_heads import random_campaign
 
@@ -126,15 +119,16 @@ def test_a_scan_whose_best_fit_is_implausible_takes_its_best_plausible_setting()
     # head of the paper's design (975008, its own background and noise law). The A axis turns
     # through part of a revolution only: the tilt's low periods fit the beat with tens of arcsec,
     # and while the scan's best fit decided, the tilt was "implausible" and the verdict a shape.
+    tilt_motion = DEFAULT_CATALOG["a_axis_tilt_motion"]
     hidden = [
-        AAxisTiltMotion(
+        tilt_motion(
             about_y_amplitude_arcsec=0.9734,
             about_y_phase_deg=286.49,
             about_z_amplitude_arcsec=0.9734,
             about_z_phase_deg=188.76,
             cycles_per_rev=31,
         ),
-        AAxisTiltMotion(
+        tilt_motion(
             about_y_amplitude_arcsec=0.7571,
             about_y_phase_deg=339.84,
             about_z_amplitude_arcsec=-0.7571,
@@ -144,8 +138,8 @@ def test_a_scan_whose_best_fit_is_implausible_takes_its_best_plausible_setting()
     ]
     campaign = random_campaign(975008, "paper", hidden)
     search = CandidateSearch(campaign, ~campaign.holdout_mask(), detail=False)
-    scan = search.scan(AAxisTiltMotion())
-    best = AAxisTiltMotion().with_settings(**scan.scanned[0][1])
+    scan = search.scan(tilt_motion())
+    best = tilt_motion().with_settings(**scan.scanned[0][1])
     assert best.implausible(best.from_coefficients(least_squares.fit(search.design([best]), search.targets)[0][:, 0]))
     tilt = search.judge(scan, float(scan.null_best.max()))
     assert tilt.beyond_noise and not tilt.implausible and tilt.settings["cycles_per_rev"] >= 20
