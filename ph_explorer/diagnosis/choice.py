@@ -206,7 +206,8 @@ def _pair_from(
 ) -> tuple[list[Candidate], list[Candidate], list[Candidate], NoiseTest | None] | None:
     """claimed_together's pair with `first` as its first, or None."""
     start = list(chain)
-    step = rank_candidates(search, list(by_id.values()), fixed=search.design([*start, by_id[first.effect].with_settings(**first.settings)]))
+    beside = search.design([*start, by_id[first.effect].with_settings(**first.settings)])
+    step = rank_candidates(search, list(by_id.values()), fixed=beside, beyond_only=True)  # the whole ranking only for a pair taken
     same = (first.effect, first.settings)
     second = next((c for c in step if (c.beyond_noise or c.significant) and (c.effect, c.settings) != same), None)
     if second is None:
@@ -249,7 +250,7 @@ def _pair_from(
         for i, c in enumerate((first, second))
     ]
     ranked = [claims[0] if c.effect == claims[0].effect else c for c in ranked]
-    step = [claims[1] if c.effect == claims[1].effect else c for c in step]
+    step = [claims[1] if c.effect == claims[1].effect else c for c in rank_candidates(search, list(by_id.values()), fixed=beside)]
     return ranked, step, claims, test
 
 

@@ -2,18 +2,18 @@
 out of sample.
 
 Its basis columns are put through the same out-of-sample smoother as the data, so that an effect
-is only credited with what the baseline does not already capture (docs/physics.md). The values of
-its scanned parameters are tried one by one (cycles per revolution 1-40 for the cyclic errors). A
+is only credited with what the baseline does not already capture (docs/physics.md). Its scanned
+parameters' values are tried one by one (cycles per revolution 1-40 for the cyclic errors). A
 candidate counts only when it explains more than the same scan explains on pure noise of the
-campaign's own repetition sigma (Monte Carlo, a look-elsewhere-corrected test), and when adding it
-lowers the out-of-sample rms error against the reference that exposes it materially
-(MATERIAL_REDUCTION).
+campaign's own repetition sigma (Monte Carlo, a look-elsewhere-corrected test), and when adding
+it lowers the out-of-sample rms error against the reference that exposes it materially.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from functools import reduce
 from itertools import islice
 from typing import Any
 
@@ -67,8 +67,7 @@ JACKKNIFE_INFLATION = 1.1
 
 @dataclass
 class Scan:
-    """One effect's scan: what each scan value explains of the data (best first), and the most
-    any scan value explains of each pure-noise draw."""
+    """One effect's scan: what each scan value explains of the data (best first), and the most any explains of each noise draw."""
 
     effect: Effect
     fixed: Design | None
@@ -165,11 +164,7 @@ class CandidateSearch:
 
     def design(self, effects: Sequence[Effect]) -> Design:
         """The effects' fitted basis columns, side by side, through the smoother."""
-        designs = [self._design(effect) for effect in effects]
-        joint = designs[0]
-        for other in designs[1:]:
-            joint = joint.stacked(other)
-        return joint
+        return reduce(Design.stacked, [self._design(effect) for effect in effects])
 
     def fitted_u(self, chain: Sequence[Effect], count: int) -> list[tuple[dict[str, float], dict[str, float]]]:
         """(params, params_u) of the chain's first `count` effects in the joint fit of the whole chain,
@@ -281,7 +276,7 @@ class CandidateSearch:
         scanned = self.scan(effect, fixed)
         return scanned if isinstance(scanned, Candidate) else self.judge(scanned, float(scanned.null_best.max()))
 
-    def judge(self, scan: Scan, null_level: float) -> Candidate:
+    def judge(self, scan: Scan, null_level: float, detail: bool = True) -> Candidate:
         """The candidate's best scan value: beyond noise when it explains more than NULL_MARGIN
         times null_level (what pure noise explains at most in the look-elsewhere family, in this
         effect's units); among those with a plausible fit (most explained first, at most
@@ -315,7 +310,7 @@ class CandidateSearch:
         not_excluded = [other for value, other in scanned if other != settings and explained - value <= SETTINGS_NOT_EXCLUDED * left]
         own = least_squares.fit(joint, self.targets)[0][-design.n_columns :, 0]
         found = effect.with_settings(**settings)
-        if self.detail:
+        if self.detail and detail:
             every_ring = np.arange(self.campaign.n_orientations)
             without = least_squares.jackknife(joint, self.targets, every_ring)[:, -design.n_columns :]
             params, params_u = jackknife_parameters(found, without, own, k=COVERAGE_FACTOR * JACKKNIFE_INFLATION)
@@ -335,7 +330,7 @@ class CandidateSearch:
             settings=settings,
             settings_not_excluded=tuple(not_excluded),
             teaching=effect.teaching,
-            evidence=self.evidence(found, design, own) if self.detail else {},
+            evidence=self.evidence(found, design, own) if self.detail and detail else {},
             note="best catalog fit implausible: " + "; ".join(implausible) if implausible else "",
             beyond_noise=bool(explained > threshold and not implausible),
             implausible=bool(implausible),
@@ -398,11 +393,13 @@ def rank_candidates(
     effects: Sequence[Effect],
     fixed: Design | None = None,
     progress: Callable[[str], None] | None = None,
+    beyond_only: bool = False,
 ) -> list[Candidate]:
     """Every given effect scored, best first: significant ones, then by how far what each explains
     is beyond its threshold of "beyond noise" (NULL_MARGIN times what pure noise explains with its
     own columns and scan), so that of two effects that explain the same, the one with fewer
-    columns and scan values comes first.
+    columns and scan values comes first. beyond_only: only the candidates some setting of which
+    is beyond that threshold, judged without detail (the same ones first: what a pair looks for).
 
     Look-elsewhere over the whole family: each effect's noise maxima are put on a common scale
     (divided by their mean over the draws); the family's null in each draw is the largest of
@@ -415,6 +412,8 @@ def rank_candidates(
             progress(f"scanning {effect.id}")
         scans.append(search.scan(effect, fixed))
     levels = family_levels(scans)
-    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf"))) for s in scans]
+    if beyond_only:  # judge() finds none of the others beyond noise: their best explains no more than the threshold
+        scans = [s for s in scans if isinstance(s, Scan) and s.scanned[0][0] > NULL_MARGIN * levels.get(id(s), float("inf"))]
+    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf")), not beyond_only) for s in scans]
     out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
     return out

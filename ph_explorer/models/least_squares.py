@@ -98,13 +98,13 @@ class Design:
 
     def gram(self) -> NDArray[np.float64]:
         mean, within = self.flat()
-        g = self.n_rep * mean.T @ mean
+        g = self.n_rep * (mean.T @ mean)  # the small product scaled: no scaled copy of the columns
         return g if within is None else g + within.T @ within
 
     def dot(self, targets: Design) -> NDArray[np.float64]:
         mean, within = self.flat()
         t_mean, t_within = targets.flat()
-        b = self.n_rep * mean.T @ t_mean
+        b = self.n_rep * (mean.T @ t_mean)
         return b if within is None or t_within is None else b + within.T @ t_within
 
     def total(self) -> NDArray[np.float64]:
@@ -369,10 +369,17 @@ class RingDeletion:
         self.u = self.n_rep * self.z.reshape(n_o * n_pt, k).T @ self.y.reshape(n_o * n_pt, -1)  # V' X'y (k = 0: nothing the rings can see)
         within = 0.0 if targets.within is None else (targets.within**2).sum(axis=(1, 2))
         self.within_squares = np.broadcast_to(within, (self.z.shape[0], self.y.shape[-1]))  # (n_o, t)
+        self._at: dict[float, tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]] = {}
 
     def at(self, ridge: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         """(coefficients (c, t), coefficients without each ring (n_o, c) of the first target,
-        each ring's left-out sum of squares over single touches (n_o, t)) at this penalty."""
+        each ring's left-out sum of squares over single touches (n_o, t)) at this penalty; each
+        penalty's once (best_ridge tries those that are asked for again)."""
+        if ridge not in self._at:
+            self._at[ridge] = self._solved(ridge)
+        return self._at[ridge]
+
+    def _solved(self, ridge: float) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
         d = 1.0 / (self.values + ridge)
         b = d[:, None] * self.u  # (k, t)
         e = self.y - self.z @ b  # (n_o, n_pt, t)
