@@ -9,7 +9,7 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   the same over the heads whose shape is an error of the head (a ring measured badly and touch
   outliers leave the head's own verdict `none` by design: their fault is named instead);
 - catalog_name: `missing` with a catalog effect named for the unknown part (for a shape beside a
-  hidden catalog effect: any claim but that effect); catalog_name_other_mechanism: of those, the
+  hidden catalog effect: any claim that names neither it nor it as an untold partner); catalog_name_other_mechanism: of those, the
   ones where a claim is not the shape's own mechanism either (own_mechanism: its axis's angular
   positioning at a period within 1 cycle/rev of the shape's, or its seat's lobing);
 - honest: `unexplained`, `partial` or `suggested`;
@@ -312,10 +312,17 @@ def suspect_figures(records: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def names_companion(record: dict[str, Any], claim: dict[str, Any]) -> bool:
+    """A claim that names the hidden catalog companion (for a shape on top of one): its effect, or a
+    partner the rings cannot tell from it, as own_mechanism credits the shape's (the pair's credit:
+    issue 55, and multi_effects.holds_truth)."""
+    companion = (record["truth"].get("catalog") or {}).get("id")
+    return companion is not None and companion in (claim["effect"], *claim["confounded_with"])
+
+
 def catalog_name(record: dict[str, Any]) -> bool:
     """`missing` with a catalog effect claimed for the unknown part (beside a hidden catalog effect: any other claim)."""
-    companion = (record["truth"].get("catalog") or {}).get("id")
-    return record["verdict"] == "missing" and any(effect != companion for effect in record["found"])
+    return record["verdict"] == "missing" and not all(names_companion(record, c) for c in record.get("claims", []))
 
 
 def untold_with_truth(record: dict[str, Any], claim: dict[str, Any]) -> bool:
@@ -348,10 +355,9 @@ def own_mechanism(record: dict[str, Any], claim: dict[str, Any]) -> bool:
 
 
 def catalog_name_other_mechanism(record: dict[str, Any]) -> bool:
-    """`missing` with a catalog claim that is neither the hidden companion nor the shape's own mechanism (own_mechanism)."""
-    companion = (record["truth"].get("catalog") or {}).get("id")
+    """`missing` with a catalog claim that is neither the hidden companion (names_companion) nor the shape's own mechanism (own_mechanism)."""
     claims = record.get("claims", [])
-    return record["verdict"] == "missing" and any(c["effect"] != companion and not own_mechanism(record, c) for c in claims)
+    return record["verdict"] == "missing" and any(not names_companion(record, c) and not own_mechanism(record, c) for c in claims)
 
 
 def shape_truth(record: dict[str, Any]) -> str | None:

@@ -171,6 +171,24 @@ def test_the_shapes_axis_and_group_are_named_by_a_shape_or_by_its_own_mechanism(
     assert not group_right(head("seat_wear", [{"effect": "lobing", "cycles": [], "confounded_with": [], "untold_shape": None}]))
 
 
+def test_a_claim_untold_from_the_hidden_companion_names_the_companion() -> None:
+    """Issue 55's pair credit in the unknown population's line (catalog_name_other_mechanism): beside
+    a hidden A-axis cyclic error, a claim of the A radial motion that the rings cannot tell from it
+    names the companion, as own_mechanism credits the shape's partners; a B-axis claim, untold from
+    nothing the head holds, is another mechanism."""
+    from benchmarks.unknown_population import catalog_name, catalog_name_other_mechanism
+
+    def head(*claims: tuple[str, list[str]]) -> dict:
+        truth = {"family": "step", "axis": 0, "catalog": {"id": "a_axis_cyclic", "cycles_per_rev": 10.0}}
+        listed = [{"effect": e, "cycles": [9.0], "confounded_with": partners, "untold_shape": None} for e, partners in claims]
+        return {"verdict": "missing", "truth": truth, "claims": listed, "found": [e for e, _ in claims]}
+
+    assert not catalog_name_other_mechanism(head(("a_axis_radial_motion", ["a_axis_cyclic"])))
+    assert not catalog_name(head(("a_axis_cyclic", [])))
+    assert catalog_name(head(("a_axis_radial_motion", [])))
+    assert catalog_name_other_mechanism(head(("a_axis_cyclic", []), ("b_axis_radial_motion", ["b_axis_tilt_motion"])))
+
+
 def test_a_healthy_head_naming_its_own_background_truthfully_is_no_alarm() -> None:
     """The population's false alarms (benchmarks/population.py): a verdict that names only terms the
     head has, at their settings, is a finding; a wrong setting, a term it lacks or a failing model

@@ -14,7 +14,8 @@ UNKNOWN_INTRO = """\
 ([the families and their distributions](methods/random_heads.md#unknown-shapes)), sized by what it
 does to the check rings (1 to 3 noise floors), diagnosed as a user would. **none**: the verdict
 says the campaign is within noise, the shape unseen; **catalog name**: `missing` with a catalog
-effect named for the unknown part; **other mechanism**: of those, the heads where a claim is not
+effect named for the unknown part (beside a hidden catalog effect: a claim that names it, itself or
+as an untold partner, is that effect's); **other mechanism**: of those, the heads where a claim is not
 the shape's own mechanism either (its axis's angular positioning at a period within 1 cycle/rev of
 one the shape has on the turn, itself or an untold partner, or its seat's lobing for a probe that
 changes: what the catalog can say of a non-integer, drifting or coupled period); **honest**: `unexplained`, `partial` or `suggested`; **silent
