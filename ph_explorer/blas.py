@@ -11,6 +11,7 @@ releases the GIL in the heavy parts): the nested cross-validation's folds, the s
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import TypeVar
 
@@ -19,8 +20,21 @@ from threadpoolctl import threadpool_limits
 F = TypeVar("F", bound=Callable)
 
 PARTS_AT_ONCE = 2  # a diagnosis's independent parts fitted at a time (the machine's 2 cores)
+_LEAD = threading.local()  # set in a thread that stands in for the main one (stand_in_for_main)
 
 
 def one_blas_thread(function: F) -> F:
     """Run the function with BLAS limited to one thread (restored after it returns or raises)."""
     return threadpool_limits.wrap(limits=1, user_api="blas")(function)
+
+
+def parts_at_once() -> int:
+    """PARTS_AT_ONCE from the main thread or one standing in for it; one from a thread already
+    beside others (a nested fold's, a Dask task's), which would only contend for the same cores."""
+    return PARTS_AT_ONCE if threading.current_thread() is threading.main_thread() or getattr(_LEAD, "lead", False) else 1
+
+
+def stand_in_for_main() -> None:
+    """Mark the calling thread as doing the main thread's part (a thread pool's initializer:
+    diagnosis.loop's shapes looked for ahead, while the main thread searches on)."""
+    _LEAD.lead = True

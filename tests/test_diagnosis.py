@@ -797,7 +797,9 @@ def test_the_verdict_is_said_before_what_is_left_is_described_and_the_history_me
         campaign, catalog=catalog_without("direction"), nested=False, on_verdict=lambda headline: said.append(("verdict", headline))
     )
     assert [what for what, _ in said] == ["verdict", "signature"]
-    assert said[0][1] == result.headline and result.verdict in ("unexplained", "partial", "uncatalogued")
+    # Said before the rankings are told apart when nothing is claimed (no partner to name): the same line.
+    assert verdict_headline(said[0][1], DEFAULT_CATALOG) == verdict_headline(result.headline, DEFAULT_CATALOG)
+    assert said[0][1].shapes == result.shapes and result.verdict in ("unexplained", "partial", "uncatalogued")
     # The command line says it first, then the rest: together the one report, word for word.
     text = report_text(result, DEFAULT_CATALOG)
     assert text == verdict_headline(result.headline, DEFAULT_CATALOG) + "\n" + report_text(result, DEFAULT_CATALOG, headline=False)

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import threading
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import ClassVar
 
@@ -16,7 +18,7 @@ from command_line import run_cli
 from fake_browser import open_session, wait_for
 
 from ph_explorer.app.server import build_server
-from ph_explorer.diagnosis import diagnose
+from ph_explorer.diagnosis import diagnose, loop
 from ph_explorer.diagnosis.replication import family_test
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -114,6 +116,21 @@ def test_a_step_in_an_axis_angle_is_found_on_that_axis_and_added(step) -> None:
     assert "these rings resolve periods down to" in words
     data = json.loads(json.dumps(step.to_json()))
     assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_the_shapes_looked_for_ahead_of_the_pair_search_are_those_looked_for_after_it(monkeypatch) -> None:
+    """From the main thread, the shapes are looked for in a thread of their own as soon as one effect
+    at a time stalls, while the pair search goes on (diagnosis.loop.ShapesAhead), and the candidates
+    are scanned two at a time; from a thread beside others, one thing after the other. Same record."""
+    looked: list[str] = []
+    original = loop.find_shapes
+    monkeypatch.setattr(loop, "find_shapes", lambda *a, **k: looked.append(threading.current_thread().name) or original(*a, **k))
+    campaign = random_campaign(SEED, "paper", [StepB()])
+    ahead = diagnose(campaign, nested=False)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="beside") as pool:
+        after = pool.submit(diagnose, campaign, nested=False).result()
+    assert looked == ["ph-explorer-shapes_0", "beside_0"] and ahead.claimed_shapes
+    assert json.dumps(ahead.to_json()) == json.dumps(after.to_json())
 
 
 def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_left_open(step) -> None:

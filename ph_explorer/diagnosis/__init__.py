@@ -10,8 +10,9 @@ from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import Choice, choose_effects
 from ph_explorer.diagnosis.loop import add_effects, decide, diagnose, repetition_sigma
 from ph_explorer.diagnosis.nested import NESTED_FOLDS, nested_after
+from ph_explorer.diagnosis.ranking import rank_candidates
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, NestedAfter, Ring, Step, Verdict
-from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, NULL_DRAWS, NULL_MARGIN, CandidateSearch
 from ph_explorer.diagnosis.suspect import SuspectRing, suspect_rings
 from ph_explorer.diagnosis.within_noise import NoiseTest, within_noise
 

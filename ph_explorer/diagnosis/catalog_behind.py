@@ -18,7 +18,8 @@ from dataclasses import dataclass, replace
 
 from ph_explorer.diagnosis.candidates import Candidate, Partner
 from ph_explorer.diagnosis.choice import Choice, claim_test
-from ph_explorer.diagnosis.search import CandidateSearch, rank_candidates
+from ph_explorer.diagnosis.ranking import rank_candidates
+from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.separation import shared_variance
 from ph_explorer.diagnosis.shapes import Shape, look_at
 from ph_explorer.diagnosis.telling_apart import fitted_beside, partner_test

@@ -17,6 +17,7 @@ from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.fitted_bases import FittedBases
 from ph_explorer.diagnosis.form import form_breaks
+from ph_explorer.diagnosis.ranking import rank_candidates
 from ph_explorer.diagnosis.replication import (
     Replication,
     determined_size,
@@ -26,13 +27,7 @@ from ph_explorer.diagnosis.replication import (
     ring_weights,
 )
 from ph_explorer.diagnosis.rival_shapes import outpredicting_shape
-from ph_explorer.diagnosis.search import (
-    MATERIAL_REDUCTION,
-    RINGS_BROUGHT_WITHIN,
-    SHARE_BROUGHT_WITHIN,
-    CandidateSearch,
-    rank_candidates,
-)
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, RINGS_BROUGHT_WITHIN, SHARE_BROUGHT_WITHIN, CandidateSearch
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma
 from ph_explorer.effects import Effect
@@ -365,13 +360,15 @@ def choose_effects(
     detail: bool = True,
     bases: FittedBases | None = None,
     base: Sequence[Effect] = (),
+    on_stall: Callable[[CandidateSearch, list[Effect], NoiseTest], None] | None = None,
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
     the model, e.g. a resumed study's); detail: the candidates' uncertainties and evidence (a
     search that only chooses needs neither); bases: fitted columns shared with other searches on
     subsets of the same touches (CandidateSearch); base: effects in the model before the search,
-    never claimed, those the rings can use (usable_base; `based` tests the model with them)."""
+    never claimed, those the rings can use (usable_base; `based` tests the model with them);
+    on_stall: told the chain and its failing test when one at a time stalls, before the pair search."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
@@ -386,6 +383,8 @@ def choose_effects(
     while rankings[-1] and len(found) < max_steps:
         rankings[-1], taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
         if taken is None:
+            if on_stall is not None and current is not None and current.fails:
+                on_stall(search, list(chain), current)
             together = (
                 claimed_together(rankings[-1], current, search, campaign, chain, by_id, seed) if len(found) + 2 <= max_steps else None
             )

@@ -16,7 +16,8 @@ import numpy as np
 
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import NULL_MARGIN
-from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Scan, family_levels
+from ph_explorer.diagnosis.ranking import family_levels
+from ph_explorer.diagnosis.search import MATERIAL_REDUCTION, CandidateSearch, Scan
 from ph_explorer.diagnosis.within_noise import ScaledWithinNoise, noise_null, ring_sigma
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
 from ph_explorer.errors import InputError

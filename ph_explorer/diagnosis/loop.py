@@ -11,14 +11,16 @@ Method: docs/methods/diagnosis_loop.md.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor, wait as all_done
 from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ph_explorer import metrics
-from ph_explorer.blas import one_blas_thread
+from ph_explorer.blas import one_blas_thread, stand_in_for_main
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.catalog_behind import held_by_catalog
@@ -27,7 +29,7 @@ from ph_explorer.diagnosis.nested import held_out_claims
 from ph_explorer.diagnosis.partners import confounding
 from ph_explorer.diagnosis.results import ChainLink, Diagnosis, Headline, Ring, Step, Verdict, flagged_in
 from ph_explorer.diagnosis.search import CandidateSearch
-from ph_explorer.diagnosis.shapes import find_shapes
+from ph_explorer.diagnosis.shapes import Shape, find_shapes
 from ph_explorer.diagnosis.signature import signature
 from ph_explorer.diagnosis.suspect import suspect_rings, without_suspects
 from ph_explorer.diagnosis.telling_apart import tell_apart
@@ -102,6 +104,38 @@ def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, sugge
 
 
 UNEXPLAINED = ("partial", "unexplained", "suggested")  # verdicts whose remainder a shape may describe
+
+
+class ShapesAhead:
+    """The shapes looked for in a thread of their own from the moment one effect at a time stalls on
+    a model that fails (choose_effects' on_stall), while the pair search and the nested folds run
+    on: find_shapes's result, used when the verdict's chain and test are the ones it started from
+    (nothing it reads changes), else looked for again. Only from the main thread: elsewhere (a
+    Dask task's) the other core is taken (blas.parts_at_once)."""
+
+    _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ph-explorer-shapes", initializer=stand_in_for_main)
+
+    def __init__(self, seed: int) -> None:
+        self.seed = seed
+        self.started: tuple[CandidateSearch, list[Effect], NoiseTest, Future[list[Shape]]] | None = None
+
+    def start(self, search: CandidateSearch, chain: list[Effect], current: NoiseTest) -> None:
+        if self.started is None and threading.current_thread() is threading.main_thread():
+            self.started = (search, chain, current, self._pool.submit(find_shapes, search, chain, current, self.seed))
+
+    def shapes(self, search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest | None) -> list[Shape]:
+        """find_shapes(search, chain, current): the one looked for ahead when it is the same."""
+        if self.started is not None:
+            was_search, was_chain, was_current, look = self.started
+            same_chain = len(was_chain) == len(chain) and all(a is b for a, b in zip(was_chain, chain))
+            if was_search is search and was_current is current and same_chain:
+                return look.result()
+        return find_shapes(search, chain, current, self.seed)
+
+    def wait(self) -> None:
+        """A look not used finished (it reads the search's designs, about to be let go)."""
+        if self.started is not None:
+            all_done([self.started[3]])
 
 
 def verdict_of(choice: Choice, based: int) -> Verdict:
@@ -191,7 +225,8 @@ def diagnose(
     baseline_mae = held_out_mae(baseline, campaign, held_out)
 
     # 1 + 2. where it fails, and which effects are missing (the verdict's chain, whatever the user adds)
-    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base)
+    ahead = ShapesAhead(seed)
+    choice = choose_effects(campaign, train, effects, max_steps, seed, progress, start=start, base=base, on_stall=ahead.start)
     search, before = choice.search, choice.before
     offered, base = base, choice.base  # the base model's effects these rings can use (choice.usable_base)
     fixed = len(base) + len(start)  # the chain's effects in the model before the search
@@ -208,13 +243,19 @@ def diagnose(
     # (diagnosis.catalog_behind), and the shapes are looked for again beside them.
     if verdict in UNEXPLAINED and progress is not None:
         progress("looking for a shape of what the catalog leaves")
-    shapes = find_shapes(search, choice.chain, choice.after if choice.chain else before, seed) if verdict in UNEXPLAINED else []
+    shapes = ahead.shapes(search, choice.chain, choice.after if choice.chain else before) if verdict in UNEXPLAINED else []
     if any(shape.claimed for shape in shapes):
         held, shapes = held_by_catalog(choice, shapes, effects, seed)
         if held is not choice:
             choice, verdict = held, verdict_of(held, len(base))
             shapes = find_shapes(search, choice.chain, choice.after, seed) if verdict in UNEXPLAINED else []
     chain = choice.chain
+    unexplained = verdict in UNEXPLAINED
+    shape_effects = [shape.effect() for shape in shapes if shape.claimed]
+    verdict = "uncatalogued" if shape_effects else verdict
+    # No claim, no partners to name with it: the verdict is said before the rankings are told apart.
+    if on_verdict is not None and not choice.found:
+        on_verdict(Headline(verdict, (), tuple(choice.candidates), tuple(shapes)))
     # What the search learnt of its first ranking, each stage returning new candidates.
     candidates = choice.candidates
     if chain:
@@ -232,16 +273,13 @@ def diagnose(
         rankings.append(ranking)
     candidates = rankings[0]
     found = tuple(learnt.get(id(c), c) for c in choice.found)
-    unexplained = verdict in UNEXPLAINED
-    shape_effects = [shape.effect() for shape in shapes if shape.claimed]
-    if shape_effects:
-        verdict = "uncatalogued"
-    if on_verdict is not None:
+    if on_verdict is not None and choice.found:
         on_verdict(Headline(verdict, found, tuple(candidates), tuple(shapes)))
     left = signature(search, fixed=search.design(chain) if chain else None) if unexplained else []
 
     # The base model's parameters +- U in the verdict's model (the search's chain, its claims in it).
     base_fit = [ChainLink(e.id, e.settings(), *fit) for e, fit in zip(base, search.fitted_u(chain, len(base)) if base else [])]
+    ahead.wait()
     search.forget_designs()  # everything asked of them is answered; the history's fits need the memory
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured

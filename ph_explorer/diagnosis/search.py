@@ -11,7 +11,8 @@ it lowers the out-of-sample rms error against the reference that exposes it mate
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from functools import reduce
 from itertools import islice
@@ -121,6 +122,7 @@ class CandidateSearch:
         self.rival_shapes: dict[tuple, Any] = {}
         self._before: tuple[Design | None, tuple[NDArray, NDArray]] | None = None  # judge's last check_residual
         self._design_bytes = self._within_design_bytes = 0
+        self._lock = threading.RLock()  # the designs' count and in_rows, asked for from threads (rank_candidates' scans)
         self.seed = seed
         self._in_rows: CandidateSearch | None = None
         self.group_views: dict[str, CandidateSearch] = {}  # the search each shape group is judged in (shapes.view_of)
@@ -146,8 +148,9 @@ class CandidateSearch:
     def in_rows(self) -> CandidateSearch:
         """The same search with each inner A row's training rings predicted without their whole row
         (crossval.inner_rows), on the same fitted columns; made once (docs/methods/shapes.md)."""
-        if self._in_rows is None:
-            self._in_rows = CandidateSearch(self.campaign, self.train, self.seed, detail=False, bases=self.bases, leave_out="row")
+        with self._lock:  # the shapes looked for ahead ask for it beside the search (diagnosis.loop.ShapesAhead)
+            if self._in_rows is None:
+                self._in_rows = CandidateSearch(self.campaign, self.train, self.seed, detail=False, bases=self.bases, leave_out="row")
         return self._in_rows
 
     def within_noise_after(self, effects: Sequence[Effect], seed: int = 0) -> NoiseTest | None:
@@ -188,14 +191,15 @@ class CandidateSearch:
         # repetitions, n_rep times larger, within WITHIN_BUDGET_BYTES of the search's own (a nested
         # fold's shared bases keep its columns instead).
         size = _size(design)
-        if self.bases.keep:
-            keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
-        else:
-            keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
-            self._within_design_bytes += size if keep and design.within is not None else 0
-        if keep:
-            self._design_bytes += size
-            self._designs[key] = design
+        with self._lock:
+            if self.bases.keep:
+                keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
+            else:
+                keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
+                self._within_design_bytes += size if keep and design.within is not None else 0
+            if keep and key not in self._designs:
+                self._design_bytes += size
+                self._designs[key] = design
         return design
 
     def forget_designs(self, effect: Effect | None = None, settings: Sequence[dict[str, Any]] = ()) -> None:
@@ -203,11 +207,11 @@ class CandidateSearch:
         searches), or the effect's at the given settings."""
         keys = list(self._designs) if effect is None else [settings_key(effect.with_settings(**each)) for each in settings]
         for key in keys:
-            design = self._designs.pop(key, None)
-            if design is not None:  # kept with the bytes _design counted: its size, and its within part's
-                size = _size(design)
+            with self._lock:
+                design = self._designs.pop(key, None)
+                size = 0 if design is None else _size(design)  # kept with the bytes _design counted: its size, and its within part's
                 self._design_bytes -= size
-                self._within_design_bytes -= size if design.within is not None else 0
+                self._within_design_bytes -= size if design is not None and design.within is not None else 0
 
     def scan(self, effect: Effect, fixed: Design | None = None) -> Scan | Candidate:
         """What every scan value of the effect explains of the data and of each pure-noise draw,
@@ -288,9 +292,10 @@ class CandidateSearch:
         threshold = NULL_MARGIN * null_level
         beyond = [item for item in scanned if item[0] > threshold]
         # What the fixed columns leave at the check rings: the same for every candidate of a ranking.
-        if self._before is None or self._before[0] is not fixed:
-            self._before = (fixed, self.check_residual(fixed))
-        before = self._before[1]
+        cached = self._before  # read once: rank_candidates judges in threads
+        if cached is None or cached[0] is not fixed:
+            cached = self._before = (fixed, self.check_residual(fixed))
+        before = cached[1]
         chosen = None
         # An implausible fit is never the explanation: the settings tried are those beyond noise whose fit is
         # plausible (a low period of an axis swept in part fits anything at a size no head has); else the best.
@@ -375,45 +380,3 @@ class CandidateSearch:
         out_of_sample = mean[:, None, :] + (0.0 if within is None else within)
         whole = fitted_basis(effect, self.touches)[0] @ coef
         return binned_evidence(effect.evidence(self.touches), self.residual + whole - out_of_sample, whole)
-
-
-def family_levels(scans: Sequence[Scan | Candidate]) -> dict[int, float]:
-    """Each tested scan's null level (by id()): the most pure noise explains over the whole family,
-    on the scan's own scale (rank_candidates)."""
-    # An effect that explains (next to) nothing of pure noise has no free direction left beyond
-    # `fixed` and the smoother: it cannot be told from noise at all, and takes no part in the scale.
-    tested = [s for s in scans if isinstance(s, Scan) and s.null_best.mean() > 1e-9 * max(s.total, 1e-300)]
-    scales = [float(s.null_best.mean()) for s in tested]
-    family = max((float((s.null_best / scale).max()) for s, scale in zip(tested, scales)), default=0.0)
-    return {id(s): family * scale for s, scale in zip(tested, scales)}
-
-
-def rank_candidates(
-    search: CandidateSearch,
-    effects: Sequence[Effect],
-    fixed: Design | None = None,
-    progress: Callable[[str], None] | None = None,
-    beyond_only: bool = False,
-) -> list[Candidate]:
-    """Every given effect scored, best first: significant ones, then by how far what each explains
-    is beyond its threshold of "beyond noise" (NULL_MARGIN times what pure noise explains with its
-    own columns and scan), so that of two effects that explain the same, the one with fewer
-    columns and scan values comes first. beyond_only: only the candidates some setting of which
-    is beyond that threshold, judged without detail (the same ones first: what a pair looks for).
-
-    Look-elsewhere over the whole family: each effect's noise maxima are put on a common scale
-    (divided by their mean over the draws); the family's null in each draw is the largest of
-    them over every candidate and every scanned value, and a candidate is beyond noise only when
-    it explains more than NULL_MARGIN times the largest family null, on its own scale.
-    """
-    scans: list[Scan | Candidate] = []
-    for effect in effects:
-        if progress is not None:
-            progress(f"scanning {effect.id}")
-        scans.append(search.scan(effect, fixed))
-    levels = family_levels(scans)
-    if beyond_only:  # judge() finds none of the others beyond noise: their best explains no more than the threshold
-        scans = [s for s in scans if isinstance(s, Scan) and s.scanned[0][0] > NULL_MARGIN * levels.get(id(s), float("inf"))]
-    out = [s if isinstance(s, Candidate) else search.judge(s, levels.get(id(s), float("inf")), not beyond_only) for s in scans]
-    out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
-    return out

@@ -14,7 +14,6 @@ Method: docs/methods/shapes.md.
 from __future__ import annotations
 
 import math
-import threading
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -23,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.blas import PARTS_AT_ONCE
+from ph_explorer.blas import parts_at_once
 from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, Replication, family_test, replication, ring_residual_squares
 from ph_explorer.diagnosis.search import (
@@ -245,11 +244,9 @@ def fit_group(
 def fit_groups(
     search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], groups: Sequence[str], noise: NDArray[np.float64]
 ) -> dict[str, GroupFit]:
-    """Each group fitted beside `fixed` (fit_group), PARTS_AT_ONCE at a time (they are independent)
-    when called from the main thread; one at a time from a thread already beside others (a nested
-    fold's, a Dask task's), which would only contend for the same cores."""
-    workers = PARTS_AT_ONCE if threading.current_thread() is threading.main_thread() else 1
-    with ThreadPoolExecutor(max_workers=workers) as pool:
+    """Each group fitted beside `fixed` (fit_group), as many at a time as blas.parts_at_once allows
+    (they are independent)."""
+    with ThreadPoolExecutor(max_workers=parts_at_once()) as pool:
         return dict(zip(groups, pool.map(lambda group: fit_group(search, fixed, before, group, noise), groups)))
 
 
