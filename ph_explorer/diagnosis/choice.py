@@ -368,7 +368,8 @@ def choose_effects(
     search that only chooses needs neither); bases: fitted columns shared with other searches on
     subsets of the same touches (CandidateSearch); base: effects in the model before the search,
     never claimed, those the rings can use (usable_base; `based` tests the model with them);
-    on_stall: told the chain and its failing test when one at a time stalls, before the pair search."""
+    on_stall: given the search, the chain and its failing test when one at a time stalls, before
+    the pair search (diagnosis.loop.ShapesAhead looks for the shapes from there)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)

@@ -122,7 +122,8 @@ class CandidateSearch:
         self.rival_shapes: dict[tuple, Any] = {}
         self._before: tuple[Design | None, tuple[NDArray, NDArray]] | None = None  # judge's last check_residual
         self._design_bytes = self._within_design_bytes = 0
-        self._lock = threading.RLock()  # the designs' count and in_rows, asked for from threads (rank_candidates' scans)
+        # The designs kept and in_rows are asked for from threads (rank_candidates', loop.ShapesAhead's).
+        self._lock, self._rows_lock = threading.Lock(), threading.Lock()
         self.seed = seed
         self._in_rows: CandidateSearch | None = None
         self.group_views: dict[str, CandidateSearch] = {}  # the search each shape group is judged in (shapes.view_of)
@@ -148,7 +149,7 @@ class CandidateSearch:
     def in_rows(self) -> CandidateSearch:
         """The same search with each inner A row's training rings predicted without their whole row
         (crossval.inner_rows), on the same fitted columns; made once (docs/methods/shapes.md)."""
-        with self._lock:  # the shapes looked for ahead ask for it beside the search (diagnosis.loop.ShapesAhead)
+        with self._rows_lock:
             if self._in_rows is None:
                 self._in_rows = CandidateSearch(self.campaign, self.train, self.seed, detail=False, bases=self.bases, leave_out="row")
         return self._in_rows
@@ -192,12 +193,14 @@ class CandidateSearch:
         # fold's shared bases keep its columns instead).
         size = _size(design)
         with self._lock:
+            if key in self._designs:  # made meanwhile in another thread
+                return self._designs[key]
             if self.bases.keep:
                 keep = design.within is None and self._design_bytes + size <= FOLD_DESIGN_BUDGET_BYTES
             else:
                 keep = design.within is None or self._within_design_bytes + size <= WITHIN_BUDGET_BYTES
                 self._within_design_bytes += size if keep and design.within is not None else 0
-            if keep and key not in self._designs:
+            if keep:
                 self._design_bytes += size
                 self._designs[key] = design
         return design
