@@ -456,8 +456,9 @@ def shape_speed(repeats: int) -> dict[str, Any]:
     """Seconds of one diagnosis of a 135-ring campaign whose head has a shape no catalog holds (a
     B-axis 48-tooth gear, 0.8 arcsec, on the paper's design: docs/walkthrough_shape.md): the
     command's Verdict line, which waits for the shapes (the verdict `uncatalogued` rests on them)
-    and not for the signature, and in process the search, the signature and the shapes each
-    (issue 56's speed line)."""
+    and not for the signature, and in process the search, the signature and the shapes each (the
+    shapes in a thread of their own from the moment the search stalls: the two overlap; issue 56's
+    speed line)."""
     from benchmarks.unknown_shapes import AxisBeyondScan  # the twin's 48/rev error: the walk-through's, as a twin effect
     from ph_explorer.diagnosis import loop
 

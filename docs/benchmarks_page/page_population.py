@@ -121,7 +121,8 @@ def population(results: Mapping[str, Any]) -> str:
                 f"{num(get(shape, 'command_verdict_s', 'max'), 's')}), the verdict waiting for the shapes it rests on, not for the "
                 f"signature of what is left and the error history, which follow it; in one process "
                 f"the search takes {num(get(shape, 'in_process_s', 'search'), 's')}, the signature of what is left "
-                f"{num(get(shape, 'in_process_s', 'signature'), 's')}, the shapes {num(get(shape, 'in_process_s', 'shapes'), 's')}, "
+                f"{num(get(shape, 'in_process_s', 'signature'), 's')}, the shapes {num(get(shape, 'in_process_s', 'shapes'), 's')} "
+                f"(in a thread of their own from the moment the search stalls, beside its pair search: the two overlap), "
                 f"the whole {num(get(shape, 'in_process_s', 'total'), 's')}. Target (issue 56): the verdict at most "
                 f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} (median): {holds(shape.get('holds'))}.\n"
             )
