@@ -12,12 +12,15 @@ releases the GIL in the heavy parts): the nested cross-validation's folds, the s
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from typing import TypeVar
 
 from threadpoolctl import threadpool_limits
 
 F = TypeVar("F", bound=Callable)
+T = TypeVar("T")
+R = TypeVar("R")
 
 PARTS_AT_ONCE = 2  # a diagnosis's independent parts fitted at a time (the machine's 2 cores)
 _LEAD = threading.local()  # set in a thread that stands in for the main one (stand_in_for_main)
@@ -38,3 +41,23 @@ def stand_in_for_main() -> None:
     """Mark the calling thread as doing the main thread's part (a thread pool's initializer:
     diagnosis.loop's shapes looked for ahead, while the main thread searches on)."""
     _LEAD.lead = True
+
+
+class Dropped(Exception):
+    """The work a part belongs to was dropped before the part began (in_parts' stop)."""
+
+
+def in_parts(function: Callable[[T], R], items: Iterable[T], stop: threading.Event | None = None) -> list[R]:
+    """The function of each item, as many at a time as parts_at_once allows (in the calling thread
+    when one); stop: once set, each part not yet begun raises Dropped instead."""
+
+    def part(item: T) -> R:
+        if stop is not None and stop.is_set():
+            raise Dropped
+        return function(item)
+
+    workers = parts_at_once()
+    if workers == 1:
+        return list(map(part, items))
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(part, items))

@@ -133,6 +133,27 @@ def test_the_shapes_looked_for_ahead_of_the_pair_search_are_those_looked_for_aft
     assert json.dumps(ahead.to_json()) == json.dumps(after.to_json())
 
 
+def test_a_look_ahead_dropped_fits_no_group_it_had_not_begun(monkeypatch) -> None:
+    """A look whose chain moved on (a pair taken) is dropped: the groups it had not begun are not
+    fitted (it ends with blas.Dropped), and what it had begun is at most one part per core."""
+    from ph_explorer.blas import PARTS_AT_ONCE, Dropped
+    from ph_explorer.diagnosis import shapes
+    from ph_explorer.diagnosis.search import CandidateSearch
+
+    fitted: list[str] = []
+    original = shapes.fit_group
+    monkeypatch.setattr(shapes, "fit_group", lambda *a: fitted.append(a[3]) or original(*a))
+    campaign = random_campaign(SEED, "paper", [StepB()])
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), SEED)
+    current = search.within_noise_after([], SEED)
+    assert current is not None and current.fails
+    ahead = loop.ShapesAhead(SEED)
+    ahead.start(search, [], current)()
+    ahead.wait()
+    assert isinstance(ahead.dropped[0].exception(), Dropped) and len(fitted) <= PARTS_AT_ONCE
+    assert len(shapes.find_shapes(search, [], current, SEED)) >= 1 and len(fitted) > PARTS_AT_ONCE
+
+
 def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_left_open(step) -> None:
     """The Next line of a shape claimed beside an open suggestion (the multi-effect heads' common
     case: a shape of the A axis, its catalog motion suggested) asks for the rings that decide, then

@@ -360,7 +360,7 @@ def choose_effects(
     detail: bool = True,
     bases: FittedBases | None = None,
     base: Sequence[Effect] = (),
-    on_stall: Callable[[CandidateSearch, list[Effect], NoiseTest], None] | None = None,
+    on_stall: Callable[[CandidateSearch, list[Effect], NoiseTest], Callable[[], None]] | None = None,
 ) -> Choice:
     """The search's chain on the training rings: the best candidate taken (next_found), the search
     again with it in the model, ... at most max_steps effects beyond `start` (effects already in
@@ -369,7 +369,8 @@ def choose_effects(
     subsets of the same touches (CandidateSearch); base: effects in the model before the search,
     never claimed, those the rings can use (usable_base; `based` tests the model with them);
     on_stall: given the search, the chain and its failing test when one at a time stalls, before
-    the pair search (diagnosis.loop.ShapesAhead looks for the shapes from there)."""
+    the pair search (diagnosis.loop.ShapesAhead looks for the shapes from there); what it returns
+    is called when a pair is taken and the chain moves on (the look is dropped)."""
     by_id = {e.id: e for e in effects}
     # Where it fails: leave-one-out residuals at training rings, the training fit at check rings.
     search = CandidateSearch(campaign, train, seed, detail, bases)
@@ -384,13 +385,14 @@ def choose_effects(
     while rankings[-1] and len(found) < max_steps:
         rankings[-1], taken = next_found(rankings[-1], current, search, campaign, chain, by_id, seed)
         if taken is None:
-            if on_stall is not None and current is not None and current.fails:
-                on_stall(search, list(chain), current)
+            stalled = on_stall(search, list(chain), current) if on_stall is not None and current is not None and current.fails else None
             together = (
                 claimed_together(rankings[-1], current, search, campaign, chain, by_id, seed) if len(found) + 2 <= max_steps else None
             )
             if together is None:
                 break
+            if stalled is not None:
+                stalled()
             rankings[-1], step, pair, current = together
             found += pair
             chain += [by_id[c.effect].with_settings(**c.settings) for c in pair]

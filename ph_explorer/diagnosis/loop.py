@@ -11,6 +11,8 @@ Method: docs/methods/diagnosis_loop.md.
 
 from __future__ import annotations
 
+import os
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, wait as all_done
@@ -106,36 +108,58 @@ def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, sugge
 UNEXPLAINED = ("partial", "unexplained", "suggested")  # verdicts whose remainder a shape may describe
 
 
+def _behind_the_search() -> None:
+    """The look's thread (and the threads it starts) given the cores only when the search leaves
+    them idle: a look that is dropped then costs the search next to nothing. Linux only: there a
+    thread has its own nice value (elsewhere the call would renice a whole process)."""
+    stand_in_for_main()
+    if sys.platform == "linux":
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+
+
 class ShapesAhead:
     """The shapes looked for in a thread of their own from the moment one effect at a time stalls on
     a model that fails (choose_effects' on_stall), while the pair search and the nested folds run
     on: find_shapes's result, used when the verdict's chain and test are the ones it started from
-    (nothing it reads changes), else looked for again. Only from the main thread: elsewhere (a
-    Dask task's) the other core is taken (blas.parts_at_once)."""
+    (nothing it reads changes), else looked for again. A look whose chain moves on (a pair taken)
+    is dropped: the groups it has not begun are not fitted. Only from the main thread: elsewhere
+    (a Dask task's) the other core is taken (blas.parts_at_once)."""
 
-    _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ph-explorer-shapes", initializer=stand_in_for_main)
+    _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ph-explorer-shapes", initializer=_behind_the_search)
 
     def __init__(self, seed: int) -> None:
         self.seed = seed
-        self.started: tuple[CandidateSearch, list[Effect], NoiseTest, Future[list[Shape]]] | None = None
+        self.started: tuple[CandidateSearch, list[Effect], NoiseTest, threading.Event, Future[list[Shape]]] | None = None
+        self.dropped: list[Future[list[Shape]]] = []
 
-    def start(self, search: CandidateSearch, chain: list[Effect], current: NoiseTest) -> None:
+    def start(self, search: CandidateSearch, chain: list[Effect], current: NoiseTest) -> Callable[[], None]:
+        """A look at the shapes beside this chain begun; returns what drops it."""
         if self.started is None and threading.current_thread() is threading.main_thread():
-            self.started = (search, chain, current, self._pool.submit(find_shapes, search, chain, current, self.seed))
+            stop = threading.Event()
+            self.started = (search, chain, current, stop, self._pool.submit(find_shapes, search, chain, current, self.seed, stop=stop))
+        return self.drop
+
+    def drop(self) -> None:
+        """The look no longer wanted: it stops before its next groups (it raises blas.Dropped)."""
+        if self.started is not None:
+            self.started[3].set()
+            self.dropped.append(self.started[4])
+            self.started = None
 
     def shapes(self, search: CandidateSearch, chain: Sequence[Effect], current: NoiseTest | None) -> list[Shape]:
         """find_shapes(search, chain, current): the one looked for ahead when it is the same."""
         if self.started is not None:
-            was_search, was_chain, was_current, look = self.started
+            was_search, was_chain, was_current, _, look = self.started
             same_chain = len(was_chain) == len(chain) and all(a is b for a, b in zip(was_chain, chain))
             if was_search is search and was_current is current and same_chain:
                 return look.result()
+        self.drop()
         return find_shapes(search, chain, current, self.seed)
 
     def wait(self) -> None:
-        """A look not used finished (it reads the search's designs, about to be let go)."""
-        if self.started is not None:
-            all_done([self.started[3]])
+        """Every look ended, used or not (they read the search's designs, about to be let go)."""
+        self.drop()
+        all_done(self.dropped)
 
 
 def verdict_of(choice: Choice, based: int) -> Verdict:
@@ -244,6 +268,7 @@ def diagnose(
     if verdict in UNEXPLAINED and progress is not None:
         progress("looking for a shape of what the catalog leaves")
     shapes = ahead.shapes(search, choice.chain, choice.after if choice.chain else before) if verdict in UNEXPLAINED else []
+    ahead.drop()  # a look not used is not waited for
     if any(shape.claimed for shape in shapes):
         held, shapes = held_by_catalog(choice, shapes, effects, seed)
         if held is not choice:

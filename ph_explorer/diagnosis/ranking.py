@@ -6,9 +6,8 @@ and the candidates are ordered by how far beyond it each is (docs/diagnosis.md, 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 
-from ph_explorer.blas import parts_at_once
+from ph_explorer.blas import in_parts
 from ph_explorer.diagnosis.candidates import NULL_MARGIN, Candidate
 from ph_explorer.diagnosis.search import CandidateSearch, Scan
 from ph_explorer.effects import Effect
@@ -53,15 +52,12 @@ def rank_candidates(
     def judged(scan: Scan | Candidate) -> Candidate:
         return scan if isinstance(scan, Candidate) else search.judge(scan, levels.get(id(scan), float("inf")), not beyond_only)
 
-    # Independent scans and judgements, as many at a time as the cores allow (blas.parts_at_once);
-    # one at a time in the calling thread when it is already beside others (a nested fold's).
-    workers = parts_at_once()
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        each = pool.map if workers > 1 else map
-        scans: list[Scan | Candidate] = list(each(scanned, effects))
-        levels = family_levels(scans)
-        if beyond_only:  # judge() finds none of the others beyond noise: their best explains no more than the threshold
-            scans = [s for s in scans if isinstance(s, Scan) and s.scanned[0][0] > NULL_MARGIN * levels.get(id(s), float("inf"))]
-        out = list(each(judged, scans))
+    # Independent scans and judgements, as many at a time as the cores allow (blas.in_parts); one at
+    # a time in the calling thread when it is already beside others (a nested fold's).
+    scans: list[Scan | Candidate] = in_parts(scanned, effects)
+    levels = family_levels(scans)
+    if beyond_only:  # judge() finds none of the others beyond noise: their best explains no more than the threshold
+        scans = [s for s in scans if isinstance(s, Scan) and s.scanned[0][0] > NULL_MARGIN * levels.get(id(s), float("inf"))]
+    out = in_parts(judged, scans)
     out.sort(key=lambda c: (c.significant, c.explained_fraction - NULL_MARGIN * c.noise_fraction), reverse=True)
     return out

@@ -14,15 +14,15 @@ Method: docs/methods/shapes.md.
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.blas import parts_at_once
+from ph_explorer.blas import in_parts
 from ph_explorer.diagnosis.candidates import DIGITS
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, Replication, family_test, replication, ring_residual_squares
 from ph_explorer.diagnosis.search import (
@@ -242,12 +242,16 @@ def fit_group(
 
 
 def fit_groups(
-    search: CandidateSearch, fixed: Design | None, before: NDArray[np.float64], groups: Sequence[str], noise: NDArray[np.float64]
+    search: CandidateSearch,
+    fixed: Design | None,
+    before: NDArray[np.float64],
+    groups: Sequence[str],
+    noise: NDArray[np.float64],
+    stop: threading.Event | None = None,
 ) -> dict[str, GroupFit]:
-    """Each group fitted beside `fixed` (fit_group), as many at a time as blas.parts_at_once allows
-    (they are independent)."""
-    with ThreadPoolExecutor(max_workers=parts_at_once()) as pool:
-        return dict(zip(groups, pool.map(lambda group: fit_group(search, fixed, before, group, noise), groups)))
+    """Each group fitted beside `fixed` (fit_group), as many at a time as blas.in_parts allows (they
+    are independent); stop: once set, the groups not yet begun raise blas.Dropped."""
+    return dict(zip(groups, in_parts(lambda group: fit_group(search, fixed, before, group, noise), groups, stop)))
 
 
 def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.float64]:
@@ -258,34 +262,6 @@ def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.flo
 
 def _rms(x: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
-
-
-def dominant_period(effect: ErrorFunction, weight_x: NDArray[np.float64]) -> float | None:
-    """The cycles per revolution of the sinusoid that explains most of the curve over the angles
-    the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None.
-    The curve is linear between its knots: it is read at the knots and half-way between them."""
-    knots = np.array(effect.knots)
-    grid = np.sort(np.concatenate([knots, 0.5 * (knots[1:] + knots[:-1])]))
-    sampled = np.unique(weight_x)
-    at = np.clip(np.searchsorted(sampled, grid), 1, sampled.size - 1)
-    nearest = np.minimum(np.abs(grid - sampled[at - 1]), np.abs(grid - sampled[at]))
-    x = grid[nearest <= np.diff(knots).max() / 2]  # where touches sample the curve
-    if x.size < 8:
-        return None
-    curve = effect.function(x)
-    main = curve[:, int(np.argmax((curve**2).sum(axis=0)))]
-    main = main - main.mean()
-    total = float((main**2).sum())
-    if total <= 0:
-        return None
-    cycles = np.arange(1.0, 180.0 + 1e-9, 0.1)
-    phase = np.radians(cycles[:, None] * x[None])
-    basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (m, x, 3)
-    gram = np.einsum("mxi,mxj->mij", basis, basis)
-    dot = np.einsum("mxi,x->mi", basis, main)
-    explained = np.einsum("mi,mi->m", dot, np.linalg.solve(gram + 1e-12 * np.eye(3), dot[..., None])[..., 0])
-    best = int(np.argmax(explained))
-    return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
 
 
 # The look with whole A rows left out is a second look at the same rings, taken when the first
@@ -299,24 +275,27 @@ def find_shapes(
     current: NoiseTest | None,
     seed: int = 0,
     groups: Sequence[str] | None = None,
+    stop: threading.Event | None = None,
 ) -> list[Shape]:
     """The shapes claimed beside the chain, at most MAX_SHAPES, each with the others before it in
     the model; then the best tried that was not claimed (the module docstring). `current`: the
     within-noise test of the chain (None: one repetition, nothing is claimed). When nothing is
     claimed, the groups the search's smoother cannot see at most rings (view_of) are looked at
-    again with whole A rows left out."""
+    again with whole A rows left out. stop: once set, the groups not yet fitted raise blas.Dropped
+    (a look ahead no longer wanted)."""
     # A group already in the model (a resumed study's shape) is not searched again.
     held = {effect.group.key for effect in chain if isinstance(effect, ErrorFunction)}
     groups = [g for g in (groups or SHAPE_GROUPS) if g not in held]
     if current is None or not current.fails or not groups:
         return []
-    looked = look_at(search, chain, current, groups, seed)
+    looked = look_at(search, chain, current, groups, seed, stop=stop)
     unseen = [] if any(shape.claimed for shape, _ in looked) else [g for g in groups if view_of(search, g) is not search]
     if unseen:
         rows = search.in_rows()
         current = rows.within_noise_after(list(chain), seed)
         if current is not None and current.fails:
-            looked += _across_looks(looked[-1], look_at(rows, chain, current, unseen, seed, LOOKS), unseen, ~search.train, seed)
+            second = look_at(rows, chain, current, unseen, seed, LOOKS, stop=stop)
+            looked += _across_looks(looked[-1], second, unseen, ~search.train, seed)
     return [shape for shape, _ in looked]
 
 
@@ -346,6 +325,7 @@ def look_at(
     seed: int,
     looks: int = 1,
     most: int = MAX_SHAPES,
+    stop: threading.Event | None = None,
 ) -> list[Looked]:
     """One look at the groups in one search: the best claimed while the model fails, at most
     `most`, then the best tried that was not (find_shapes), each with its rings' gains; `looks`:
@@ -360,7 +340,7 @@ def look_at(
     before = ring_residual_squares(search.residual, fixed, search.targets)
     check_before = search.check_residual(fixed)[0]
     while len([s for s, _ in out if s.claimed]) < most and groups:
-        fits = fit_groups(search, fixed, before, groups, noise)
+        fits = fit_groups(search, fixed, before, groups, noise, stop)
         statistics, family_p = family_test(np.stack([fits[g].gain for g in fits]), check, seed)
         family_p = min(1.0, looks * family_p)
         best = list(fits)[int(np.argmax(statistics))]
@@ -399,7 +379,7 @@ def look_at(
             bool(significant and material and plausible_curve(best, value)),
             untold,
             fit.aliasing,
-            dominant_period(fitted, sampled) if variable.angle else None,
+            fitted.dominant_period(sampled) if variable.angle else None,
             float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
             search.smoother.leave_out,
         )

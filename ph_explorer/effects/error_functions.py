@@ -254,6 +254,33 @@ class ErrorFunction(Effect):
             y_label=f"{symbol} ({unit})",
         )
 
+    def dominant_period(self, weight_x: NDArray[np.float64]) -> float | None:
+        """The cycles per revolution of the sinusoid that explains most of the curve over the angles
+        the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None.
+        The curve is linear between its knots: it is read at the knots and half-way between them."""
+        knots = np.array(self.knots)
+        grid = np.sort(np.concatenate([knots, 0.5 * (knots[1:] + knots[:-1])]))
+        sampled = np.unique(weight_x)
+        at = np.clip(np.searchsorted(sampled, grid), 1, sampled.size - 1)
+        nearest = np.minimum(np.abs(grid - sampled[at - 1]), np.abs(grid - sampled[at]))
+        x = grid[nearest <= np.diff(knots).max() / 2]  # where touches sample the curve
+        if x.size < 8:
+            return None
+        curve = self.function(x)
+        main = curve[:, int(np.argmax((curve**2).sum(axis=0)))]
+        main = main - main.mean()
+        total = float((main**2).sum())
+        if total <= 0:
+            return None
+        cycles = np.arange(1.0, 180.0 + 1e-9, 0.1)
+        phase = np.radians(cycles[:, None] * x[None])
+        basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (m, x, 3)
+        gram = np.einsum("mxi,mxj->mij", basis, basis)
+        dot = np.einsum("mxi,x->mi", basis, main)
+        explained = np.einsum("mi,mi->m", dot, np.linalg.solve(gram + 1e-12 * np.eye(3), dot[..., None])[..., 0])
+        best = int(np.argmax(explained))
+        return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
+
 
 ArrayLikeFloat = NDArray[np.float64] | float
 
