@@ -336,6 +336,25 @@ def test_rings_left_out_by_the_hat_matrix_equal_the_ring_by_ring_refit() -> None
     assert deletion.best_ridge() == pytest.approx(least_squares.choose_ridge(design, targets))
 
 
+@pytest.mark.parametrize("signal", [0.0, 5.0])
+def test_the_ridge_is_walked_down_from_the_strongest_until_the_rings_left_out_stop_improving(signal) -> None:
+    # Pure noise: the strongest penalty, found after two tries. A strong signal: weaker penalties
+    # predict the rings left out better, and the walk goes on down to the first one that does not.
+    rng = np.random.default_rng(4)
+    columns = np.broadcast_to(rng.normal(size=(30, 1, 16, 12)), (30, 4, 16, 12))
+    y = signal * columns[..., :1] @ rng.normal(size=(1, 1)) + rng.normal(size=(30, 4, 16, 1))
+    deletion = RingDeletion(Design(columns, None), Design(y, None))
+    chosen = deletion.best_ridge()
+    tried = len(deletion._at)  # the penalties solved for so far
+    grid = least_squares.ridge_grid(float(deletion.values.sum()) / deletion.vectors.shape[0])
+    error = [float(deletion.at(ridge)[2][:, 0].sum()) for ridge in grid]
+    k = grid.index(chosen)
+    assert all(error[k] < e for e in error[k + 1 :])  # better than every stronger penalty
+    assert k == 0 or error[k - 1] >= error[k]  # and the next weaker one does not improve on it
+    assert (k == len(grid) - 1) == (signal == 0.0)
+    assert tried == len(grid) - k + (k > 0)  # none weaker than the one that stopped the walk
+
+
 def test_a_group_the_rings_cannot_see_fits_nothing_and_gains_nothing() -> None:
     # A function of the A joint on a lattice with no ring off its A rows: the interpolator carries
     # it exactly, its residualised columns are zero, and no direction of them is kept. The fit is

@@ -143,20 +143,34 @@ SHAPE_GROUPS: dict[str, ShapeGroup] = {
 }
 
 
-def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: bool) -> NDArray[np.float64]:
-    """(..., K): the piecewise linear interpolation weights of x on the knots (each row sums to 1);
-    beyond the knots' range a function holds its end value (nothing is known of its trend there: a
-    probe term of time is taken as last seen); periodic: the knots span a full turn of an angle (deg)."""
+def hat_neighbours(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: bool) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
+    """((..., 2) knot indices, (..., 2) weights): the two knots around each x and its piecewise
+    linear interpolation weights on them (they sum to 1); beyond the knots' range a function holds
+    its end value (nothing is known of its trend there: a probe term of time is taken as last
+    seen); periodic: the knots span a full turn of an angle (deg), evenly."""
     knots = np.asarray(knots, dtype=float)
-    x = np.asarray(x, dtype=float)[..., None]
+    x = np.asarray(x, dtype=float)
+    count = knots.size
     if periodic:
-        step = 360.0 / knots.size
-        return np.maximum(0.0, 1.0 - np.abs(wrap_deg(x - knots)) / step)
-    gaps = np.diff(knots)
-    left = np.concatenate([gaps[:1], gaps])  # the gap to the knot before (the first's: its next)
-    right = np.concatenate([gaps, gaps[-1:]])
-    d = np.clip(x, knots[0], knots[-1]) - knots
-    return np.maximum(0.0, 1.0 - np.where(d < 0, -d / left, d / right))
+        step = 360.0 / count
+        first = np.floor((wrap_deg(x) - knots[0]) / step).astype(np.intp) % count
+        index = np.stack([first, (first + 1) % count], axis=-1)
+        return index, np.maximum(0.0, 1.0 - np.abs(wrap_deg(x[..., None] - knots[index])) / step)
+    x = np.clip(x, knots[0], knots[-1])
+    first = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, count - 2)
+    index = np.stack([first, first + 1], axis=-1)
+    gap = (knots[first + 1] - knots[first])[..., None]
+    d = x[..., None] - knots[index]
+    return index, np.maximum(0.0, 1.0 - np.abs(d) / gap)
+
+
+def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: bool) -> NDArray[np.float64]:
+    """(..., K): the hat functions of the knots at x, each row zero but at hat_neighbours' two knots."""
+    index, weight = hat_neighbours(x, knots, periodic)
+    hats = np.zeros(index.shape[:-1] + (len(knots),))
+    np.put_along_axis(hats, index[..., :1], weight[..., :1], axis=-1)
+    np.put_along_axis(hats, index[..., 1:], weight[..., 1:], axis=-1)  # after: K = 2 periodic puts both on one knot
+    return hats
 
 
 @cache
@@ -233,10 +247,13 @@ class ErrorFunction(Effect):
 
     def basis(self, touches: Touches) -> tuple[NDArray[np.float64], list[str]]:
         variable = self.group.variable_of(touches)
-        hats = hat_functions(variable.values(touches), np.array(self.knots), self.periodic)  # (..., K)
+        index, weight = hat_neighbours(variable.values(touches), np.array(self.knots), self.periodic)  # (..., 2)
         lever = self.group.lever(touches)  # (n_o, 1, n_pt, C)
-        # X L^-T per component: each component's hat columns in roughness coordinates.
-        columns = lever[..., :, None] * (hats @ roughness_inverse_t(len(self.knots), self.periodic))[..., None, :]
+        # X L^-T per component: each component's hat columns in roughness coordinates (the rows of
+        # L^-T of each touch's two knots: no product with the other K - 2 zeros).
+        inverse_t = roughness_inverse_t(len(self.knots), self.periodic)
+        rows = weight[..., :1] * inverse_t[index[..., 0]] + weight[..., 1:] * inverse_t[index[..., 1]]  # (..., K)
+        columns = lever[..., :, None] * rows[..., None, :]
         columns = columns.reshape(columns.shape[:-2] + (-1,))
         names = [p.name for p in self.parameters]
         if columns.shape[1] == 1:

@@ -390,14 +390,18 @@ class RingDeletion:
         return self.vectors @ b, without @ self.vectors.T, squares
 
     def best_ridge(self, typical: float | None = None) -> float:
-        """The penalty with the least left-out sum of squares of the first target (ridge_grid, as choose_ridge)."""
+        """The penalty of least left-out sum of squares of the first target met walking ridge_grid
+        down from its strongest: each weaker penalty tried only while the last one lowered it (the
+        smoothest local minimum; a shape's hundreds of columns make each try the costliest step of
+        its fit, and most groups stop at the strongest two: docs/methods/shapes.md)."""
         typical = float(self.values.sum()) / max(self.vectors.shape[0], 1) if typical is None else typical
         best, best_error = 0.0, np.inf
-        for ridge in ridge_grid(typical):
+        for ridge in reversed(ridge_grid(typical)):
             try:
                 error = float(self.at(ridge)[2][:, 0].sum())
             except np.linalg.LinAlgError:  # a ring that alone determines a direction: unpredictable without a penalty
-                continue
-            if error < best_error * (1.0 - 1e-9):
-                best, best_error = ridge, error
+                break
+            if error >= best_error * (1.0 - 1e-9):
+                break
+            best, best_error = ridge, error
         return best
