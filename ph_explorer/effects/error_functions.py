@@ -169,7 +169,7 @@ def hat_functions(x: NDArray[np.float64], knots: NDArray[np.float64], periodic: 
     index, weight = hat_neighbours(x, knots, periodic)
     hats = np.zeros(index.shape[:-1] + (len(knots),))
     np.put_along_axis(hats, index[..., :1], weight[..., :1], axis=-1)
-    np.put_along_axis(hats, index[..., 1:], weight[..., 1:], axis=-1)  # after: K = 2 periodic puts both on one knot
+    np.put_along_axis(hats, index[..., 1:], weight[..., 1:], axis=-1)  # K = 1: both are the one knot, alike
     return hats
 
 
