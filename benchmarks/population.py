@@ -42,7 +42,10 @@ the client the run gives, each head simulated on its worker from its seed.
    until its Verdict line, and from there until the nested figures it streams after it; in one
    process the verdict (diagnose(), the claims tested on rings left out of the choice) and the
    same without that test (nested=False); and the explorer's verdict after a click on Diagnose in chromium
-   (benchmarks/click.py); each over SPEED_REPEATS runs, their median and max.
+   (benchmarks/click.py); each over SPEED_REPEATS runs, their median and max. Beside them, the
+   seconds of a fixed workload of numpy's small products and Python (machine_reference_s), before
+   and after: the machine's speed that hour (the same code has measured a quarter slower in one
+   hour than in another), so that runs of different hours can be compared.
 """
 
 from __future__ import annotations
@@ -59,6 +62,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.click import run as explorer_click
@@ -407,9 +411,30 @@ def jobs(quick: bool) -> list[dict[str, Any]]:
     return out
 
 
+def machine_reference_s(runs: int = 5) -> float:
+    """Median seconds of a fixed workload like the diagnosis's (small eigendecompositions, products
+    and solves on one BLAS thread, and Python between them): the machine's speed, whatever the code."""
+    rng = np.random.default_rng(0)
+    blocks = rng.normal(size=(40, 64, 64))
+    gram = blocks @ blocks.transpose(0, 2, 1)
+
+    def workload() -> float:
+        started = time.perf_counter()
+        total = 0.0
+        for _ in range(30):
+            values, vectors = np.linalg.eigh(gram)
+            total += float(np.linalg.solve(gram + np.eye(64), vectors @ values[..., None]).sum())
+            total += sum(float(block[0, 0]) for block in blocks)
+        return time.perf_counter() - started
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return round(statistics.median(workload() for _ in range(runs)), 3)
+
+
 def verdict_speed(repeats: int = SPEED_REPEATS, quick: bool = False) -> dict[str, Any]:
     """Seconds of one diagnosis of head_3 (module docstring, part 5); quick: of a small random head
     instead, and no browser."""
+    reference_before = machine_reference_s()
     campaign = random_campaign(FIRST_SEED["healthy"], "coarse") if quick else simulate(load_scenario("head_3"))
     command: dict[str, list[float]] = {"verdict": [], "nested": [], "end": []}
     verdict, alone = [], []
@@ -446,6 +471,11 @@ def verdict_speed(repeats: int = SPEED_REPEATS, quick: bool = False) -> dict[str
         },
         "explorer_click": click,
         "shape_campaign": shape,
+        "machine_reference_s": {
+            "what": "median seconds of a fixed workload of small numpy products and Python (machine_reference_s), before the runs and after",
+            "before": reference_before,
+            "after": machine_reference_s(),
+        },
         "repeats": repeats,
         "targets": SPEED_TARGETS,
         "holds": bool(holds),

@@ -395,6 +395,7 @@ def check_verdict_speed(results: dict) -> None:
     command = speed["command"]
     assert command["end_s"]["median"] > command["verdict_s"]["median"] > 0 and command["nested_s"]["median"] >= 0
     assert speed["in_process"]["verdict_s"]["median"] > 0 and isinstance(speed["holds"], bool)
+    assert speed["machine_reference_s"]["before"] > 0 and speed["machine_reference_s"]["after"] > 0
 
 
 def check_deciding(results: dict) -> None:

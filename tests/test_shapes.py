@@ -23,7 +23,8 @@ from ph_explorer.diagnosis.replication import family_test
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
-from ph_explorer.effects.error_functions import error_function, hat_functions, load_shapes, roughness_factor
+from ph_explorer.effects.error_functions import error_function, load_shapes
+from ph_explorer.effects.knots import hat_functions, roughness_factor
 from ph_explorer.effects.probe import lateral_share
 from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.io.writer import write_campaign

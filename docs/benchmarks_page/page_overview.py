@@ -208,7 +208,13 @@ def target_rows(results: Mapping[str, Any]) -> Iterable[list[Any]]:
                 f"within {num(click.get('target_s'), 's')} of the click",
                 f"{num(get(command, 'verdict_s', 'median'), 's')} (max {num(get(command, 'verdict_s', 'max'), 's')}), nested "
                 f"{num(get(command, 'nested_s', 'median'), 's')}, click {joined([num(x, 's') for x in click.get('seconds') or []]) or '-'}: "
-                f"{holds(speed.get('holds'))}",
+                f"{holds(speed.get('holds'))}"
+                + (
+                    f" (the machine's reference workload {num(get(speed, 'machine_reference_s', 'before'), 's')} before, "
+                    f"{num(get(speed, 'machine_reference_s', 'after'), 's')} after)"
+                    if speed.get("machine_reference_s")
+                    else ""
+                ),
             ]
     hidden = results.get("hidden_effects", {})
     if hidden:
