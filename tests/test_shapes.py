@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import threading
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
@@ -136,6 +137,14 @@ def test_the_shapes_looked_for_ahead_of_the_pair_search_are_those_looked_for_aft
         after = pool.submit(diagnose, campaign, nested=False).result()
     assert looked == ["ph-explorer-shapes_0", "beside_0"] and ahead.claimed_shapes
     assert json.dumps(ahead.to_json()) == json.dumps(after.to_json())
+
+
+@pytest.mark.skipif(not hasattr(os, "getpriority"), reason="a thread's own priority: Linux")
+def test_the_look_ahead_runs_at_the_priority_of_the_search_that_waits_for_it() -> None:
+    """The verdict waits for the look: at a lower priority than the search, other programs on the
+    machine would starve it (nice 19: 20 times as long, measured; docs/methods/diagnosis_changes.md)."""
+    nice = loop.ShapesAhead._pool.submit(lambda: os.getpriority(os.PRIO_PROCESS, threading.get_native_id())).result()
+    assert nice == os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
 
 
 def test_a_look_ahead_dropped_fits_no_group_it_had_not_begun(monkeypatch) -> None:

@@ -11,8 +11,6 @@ Method: docs/methods/diagnosis_loop.md.
 
 from __future__ import annotations
 
-import os
-import sys
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, wait as all_done
@@ -108,15 +106,6 @@ def decide(before: NoiseTest | None, after: NoiseTest | None, found: bool, sugge
 UNEXPLAINED = ("partial", "unexplained", "suggested")  # verdicts whose remainder a shape may describe
 
 
-def _behind_the_search() -> None:
-    """The look's thread (and the threads it starts) given the cores only when the search leaves
-    them idle: a look that is dropped then costs the search next to nothing. Linux only: there a
-    thread has its own nice value (elsewhere the call would renice a whole process)."""
-    stand_in_for_main()
-    if sys.platform == "linux":
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
-
-
 class ShapesAhead:
     """The shapes looked for in a thread of their own from the moment one effect at a time stalls on
     a model that fails (choose_effects' on_stall), while the pair search and the nested folds run
@@ -125,7 +114,9 @@ class ShapesAhead:
     is dropped: the groups it has not begun are not fitted. Only from the main thread: elsewhere
     (a Dask task's) the other core is taken (blas.parts_at_once)."""
 
-    _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ph-explorer-shapes", initializer=_behind_the_search)
+    # At the search's own priority: at the lowest (nice 19) the verdict, which waits for the look,
+    # took 20 times as long on a machine busy with other programs (docs/methods/diagnosis_changes.md).
+    _pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ph-explorer-shapes", initializer=stand_in_for_main)
 
     def __init__(self, seed: int) -> None:
         self.seed = seed
