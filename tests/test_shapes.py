@@ -94,11 +94,7 @@ class FineGearB(_BAngular):
 
 @pytest.fixture(scope="module")
 def step() -> Diagnosis:
-    return diagnose(step_campaign(), nested=False)
-
-
-def step_campaign():
-    return random_campaign(SEED, "paper", [StepB()])
+    return diagnose(random_campaign(SEED, "paper", [StepB()]), nested=False)
 
 
 def test_a_step_in_an_axis_angle_is_found_on_that_axis_and_added(step) -> None:
@@ -184,28 +180,6 @@ def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_l
     line = next_step(open_, actions)
     assert line.startswith("measure the rings that would confirm the suggestion (decide).")
     assert f"Then, to pin {shape.id} down, measure rings whose" in line and line.endswith("where its band is widest.")
-
-
-def test_the_closest_shape_of_a_failure_left_unexplained_is_a_question_for_the_rings_that_decide(step) -> None:
-    """Not claimed, of a joint angle, beside `unexplained`: the rings that would decide confirm or
-    refute it where its term shows most (an adaptive campaign asks them once); claimed, or a
-    function of the time (no ring is placed in time), or beside `none`, it is no question."""
-    from ph_explorer.planning.deciding import questions_of, rings_that_decide
-
-    tried = dataclasses.replace(step.claimed_shapes[0], claimed=False)
-    open_ = dataclasses.replace(step, verdict="unexplained", shapes=(tried,))
-    assert open_.shape_to_pin is tried
-    assert [q.effect.id for q in questions_of(open_, DEFAULT_CATALOG)] == [tried.id]
-    decision = rings_that_decide(step_campaign(), open_, DEFAULT_CATALOG, 6)
-    assert decision.rings and {r["question"] for r in decision.rings} == {tried.id}
-    assert all(r["expected_gain"] > 0 and r["reason"].startswith(f"confirms or refutes {tried.id}") for r in decision.rings)
-    timed = dataclasses.replace(tried, variable="time_s")
-    for other in (
-        dataclasses.replace(open_, shapes=(dataclasses.replace(tried, claimed=True),)),
-        dataclasses.replace(open_, shapes=(timed,)),
-        dataclasses.replace(open_, verdict="none"),
-    ):
-        assert other.shape_to_pin is None and not questions_of(other, DEFAULT_CATALOG)
 
 
 def test_a_shape_of_implausible_size_is_not_claimed_and_the_report_says_why(step) -> None:

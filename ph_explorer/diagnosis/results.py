@@ -26,7 +26,7 @@ from ph_explorer.diagnosis.suspect import SuspectRing, judged_campaign
 from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
-from ph_explorer.effects.error_functions import SHAPE_VARIABLES, ErrorFunction, shape_class
+from ph_explorer.effects.error_functions import ErrorFunction, shape_class
 from ph_explorer.models.hybrid import HybridModel
 
 SCHEMA_VERSION = 1  # of the diagnose --json object; a reader refuses another
@@ -282,16 +282,6 @@ class Diagnosis:
         or a suggested one (planning.deciding)."""
         untold = any(c.untold for c in (*self.found, *self.open_suggestions))
         return bool(self.open_suggestions) or untold or any(c.rival_setting is not None for c in self.found)
-
-    @property
-    def shape_to_pin(self) -> Shape | None:
-        """The closest shape, not claimed, of a failure left unexplained (`partial`, `unexplained`):
-        rings where it would show most confirm or refute it (planning.deciding), where rings can be
-        placed in its variable (a joint angle, not the time) and its curve is of a plausible size."""
-        if self.verdict not in ("partial", "unexplained"):
-            return None
-        tried = next((s for s in self.shapes if not s.claimed), None)
-        return tried if tried is not None and SHAPE_VARIABLES[tried.variable].angle and tried.plausible else None
 
     @property
     def open_suggestions(self) -> tuple[Candidate, ...]:

@@ -1,6 +1,5 @@
 """Rings that decide: where to measure next when the diagnosis cannot tell a claim from a confounded
-partner (diagnosis.telling_apart), or cannot confirm a suggested candidate or the closest shape of a
-failure it leaves unexplained.
+partner (diagnosis.telling_apart), or cannot confirm a suggested candidate.
 
 A ring's evidence is what the test over rings would add up there, in touch noise variances: the
 candidate's term (confirm), or what each candidate cannot follow of the other's prediction when
@@ -53,8 +52,7 @@ class Decision:
 def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
     """Every question the diagnosis leaves: each claimed or suggested candidate against each
     confounded partner its rings do not tell it from, each claim against its rival setting (the
-    closest one its rings do not tell from its own), each suggested candidate to confirm, and the
-    closest shape of a failure left unexplained (Diagnosis.shape_to_pin)."""
+    closest one its rings do not tell from its own), and each suggested candidate to confirm."""
     ranked: dict[str, Candidate] = {}
     for ranking in result.rankings or [result.candidates]:
         for c in ranking:
@@ -75,8 +73,6 @@ def questions_of(result: Diagnosis, catalog: Catalog) -> list[Question]:
             out.append(Question(effect, fitted_effect(candidate, catalog, rival), float(rival.shared)))
         if candidate.suggested:
             out.append(Question(effect))
-    if result.shape_to_pin is not None:  # a shape to pin down: confirmed or refuted where it shows most
-        out.append(Question(result.shape_to_pin.effect()))
     return out
 
 
