@@ -100,23 +100,26 @@ def within_height(box: dict, page) -> bool:
     return box["y"] >= 0 and box["y"] + box["height"] <= height
 
 
+def within_width(box: dict, page) -> bool:
+    """The box lies between the viewport's left and right edges (1440x900, or the page's)."""
+    width = (page.viewport_size or {"width": WIDTH})["width"]
+    return box["x"] >= 0 and box["x"] + box["width"] <= width
+
+
 def in_view(locator, what: str, timeout: float = 10.0) -> dict:
     """The element is shown and wholly inside the viewport (1440x900, or the page's), once it stands
     still there: the app scrolls a step's results into view when the panel has redrawn them, which
     can come after the text has stood still where the redraw put it."""
     locator.wait_for(state="visible", timeout=30_000)
-    size = locator.page.viewport_size or {"width": WIDTH, "height": HEIGHT}
     deadline = time.monotonic() + timeout
     box = steady_box(locator, what)
-    while time.monotonic() < deadline and not (
-        within_height(box, locator.page) and box["x"] >= 0 and box["x"] + box["width"] <= size["width"]
-    ):
+    while time.monotonic() < deadline and not (within_height(box, locator.page) and within_width(box, locator.page)):
         time.sleep(0.2)
         box = steady_box(locator, what)
     print(f"{what}: x {box['x']:.0f}-{box['x'] + box['width']:.0f}, y {box['y']:.0f}-{box['y'] + box['height']:.0f}")
     if not os.environ.get("PH_EXPLORER_LOOP_MEASURE"):
         assert within_height(box, locator.page), (what, box)
-        assert box["x"] >= 0 and box["x"] + box["width"] <= size["width"], (what, box)
+        assert within_width(box, locator.page), (what, box)
     return box
 
 
