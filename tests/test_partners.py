@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from ph_explorer.diagnosis import diagnose
-from ph_explorer.diagnosis.partners import partner_settings
+from ph_explorer.diagnosis.partners import SHARE_TIE, partner_settings, standing_in_order
 from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.separation import shared_variance
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -22,6 +22,16 @@ HIDDEN = [
     AAxisTiltMotion(**CONING, cycles_per_rev=21),
     BAxisRadialMotion(x_amplitude_um=0.5426, x_phase_deg=196.53, y_amplitude_um=0.5426, y_phase_deg=192.52, cycles_per_rev=14),
 ]
+
+
+def test_settings_that_share_alike_keep_the_order_tried() -> None:
+    """Shares equal but for the arithmetic's last digits (1.0 each, as one machine or another makes
+    them) stand in in the order tried, so reports are the same everywhere; a share closer by more
+    than rounding comes first, and one below the tie is left out."""
+    tilt = [AAxisTiltMotion().with_settings(cycles_per_rev=k) for k in (20, 19, 21, 30, 22)]
+    tried = [(1.0 - 2e-16, tilt[0]), (1.0, tilt[1]), (1.0 - 1e-15, tilt[2]), (0.5, tilt[3]), (1.0 - SHARE_TIE / 2, tilt[4])]
+    assert [o for _, o in standing_in_order(tried)] == [tilt[0], tilt[1], tilt[2], tilt[4]]
+    assert [o for _, o in standing_in_order([(0.97, tilt[0]), (0.975, tilt[1])])] == [tilt[1], tilt[0]]
 
 
 @pytest.fixture(scope="module")

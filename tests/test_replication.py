@@ -9,7 +9,15 @@ import numpy as np
 
 from ph_explorer.diagnosis.candidates import Candidate
 from ph_explorer.diagnosis.choice import next_found
-from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, SIGN_FLIPS, determined_size, replication, ring_gains, sign_flip_p
+from ph_explorer.diagnosis.replication import (
+    REPLICATION_LEVEL,
+    SIGN_FLIPS,
+    determined_size,
+    random_signs,
+    replication,
+    ring_gains,
+    sign_flip_p,
+)
 from ph_explorer.diagnosis.results import flagged_in
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.models.least_squares import Design
@@ -42,6 +50,18 @@ def test_the_sign_flip_p_is_the_share_of_sign_patterns_and_mirrors_at_least_as_l
         observed = (gain[CHECK].mean() + gain[~CHECK].mean()) / 2
         expected = (1 + (null >= observed - 1e-9).sum()) / (null.size + 1)
         assert sign_flip_p(gain, CHECK, np.random.default_rng(seed)) == expected
+
+
+def test_random_signs_are_numpys_draws_and_leave_the_stream_where_numpy_does():
+    """The fast path (two signs per 64-bit word) against rng.integers, with even and odd counts and
+    after a draw that leaves half a word in the generator's buffer (which takes numpy's own way)."""
+    for seed, flips, rings, before in ((0, 4000, 131, 0), (1, 100, 7, 0), (2, 3, 5, 0), (3, 100, 64, 3), (4, 50, 60, 1)):
+        ours, numpys = np.random.default_rng(seed), np.random.default_rng(seed)
+        ours.integers(0, 2, size=before), numpys.integers(0, 2, size=before)
+        signs = random_signs(ours, flips, rings)
+        assert signs.dtype == np.float64 and signs.shape == (flips, rings)
+        assert np.array_equal(signs, numpys.integers(0, 2, size=(flips, rings), dtype=np.int64) * 2.0 - 1.0)
+        assert np.array_equal(ours.integers(0, 2, size=9), numpys.integers(0, 2, size=9)) and ours.random() == numpys.random()
 
 
 def test_one_ring_of_many_carries_no_claim():

@@ -36,6 +36,14 @@ def partner_settings(effect: Effect, other: Effect) -> list[Effect]:
     return list(tried.values())
 
 
+def standing_in_order(tried: Sequence[tuple[float, Effect]]) -> list[tuple[float, Effect]]:
+    """The (share, partner) tried that share within SHARE_TIE of the best, the closest first;
+    shares equal but for rounding (a span shared whole: 1.0 each) keep the order tried, the same on
+    every machine whatever its arithmetic's last digits."""
+    best = max(share for share, _ in tried)
+    return sorted((t for t in tried if t[0] >= best - SHARE_TIE), key=lambda t: -round(t[0], 9))
+
+
 def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id: dict[str, Effect]) -> list[Candidate]:
     """The candidates, each beyond noise or significant with the others it cannot be told from on
     this campaign (their columns share more than CONFOUNDED at some settings of the partner,
@@ -64,7 +72,7 @@ def confounding(search: CandidateSearch, candidates: Sequence[Candidate], by_id:
             tried = [(span_share(span(own), span(o)), o) for o in partner_settings(own, other)]
             best = max(share for share, _ in tried)
             if best > CONFOUNDED:
-                closest = sorted((t for t in tried if t[0] >= best - SHARE_TIE), key=lambda t: -t[0])
+                closest = standing_in_order(tried)
                 partners.append(Partner(other_id, round(best, 3), settings=tuple(o.settings() for _, o in closest)))
                 standing_in[other_id] = closest[0][1]
         partners.sort(key=lambda p: -p.shared)  # the closest first

@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import replace
 
+from ph_explorer.blas import in_parts
 from ph_explorer.diagnosis.candidates import Candidate, PairTest, RivalSetting
 from ph_explorer.diagnosis.partners import partner_settings
 from ph_explorer.diagnosis.replication import replication, ring_gains
@@ -45,7 +46,8 @@ def partner_test(
     """The partner at each setting that stands in for the effect (partners.partner_settings), put to
     the rings where they favour it most (rings_prefer, the largest p-value): told apart only from
     every one of them. Returns that test and the partner at that setting."""
-    tests = [(rings_prefer(search, effect, o, chain, seed), o) for o in partner_settings(effect, partner)]
+    standing_in = partner_settings(effect, partner)
+    tests = list(zip(in_parts(lambda o: rings_prefer(search, effect, o, chain, seed), standing_in), standing_in))
     return max(tests, key=lambda t: t[0].p_value)
 
 
@@ -92,7 +94,7 @@ def settings_told_apart(search: CandidateSearch, candidate: Candidate, chosen: E
     likelihood and the rings as units both exclude it. The closest of them (the largest p-value)
     with a plausible fit is its rival_setting, fitted, for the rings that would decide (planning.deciding)."""
     others = [s for s in chosen.scan_grid() if s != candidate.settings]
-    tests = [(s, rings_prefer(search, chosen, chosen.with_settings(**s), start, seed)) for s in others]
+    tests = list(zip(others, in_parts(lambda s: rings_prefer(search, chosen, chosen.with_settings(**s), start, seed), others)))
     kept = [(s, test) for s, test in tests if not test.told_apart]
     if not kept:
         return candidate

@@ -364,11 +364,14 @@ def _count_at_least(reference: NDArray[np.float64], values: NDArray[np.float64])
 
 def _combined(p_mean: NDArray[np.float64], p_within: NDArray[np.float64]) -> NDArray[np.float64]:
     """A ring's p-value from its two statistics (Bonferroni)."""
-    return np.minimum(1.0, 2.0 * np.minimum(p_mean, p_within))
+    out = np.minimum(p_mean, p_within)
+    out *= 2.0  # in place: a null's arrays are (rings, 20 000 draws)
+    return np.minimum(1.0, out, out=out)
 
 
 def _excess(ring_p: NDArray[np.float64]) -> NDArray[np.float64]:
     """How far each ring is beyond RING_LEVEL, log(RING_LEVEL / p), zero for a ring within it."""
-    ratio = RING_LEVEL / np.maximum(ring_p, 1e-300)
+    ratio = np.maximum(ring_p, 1e-300)
+    np.divide(RING_LEVEL, ratio, out=ratio)
     # The log only where it is positive: a few per cent of a null's 20 000 draws per ring (NaN stays NaN).
     return np.log(ratio, out=np.zeros(ratio.shape), where=~(ratio <= 1.0))
