@@ -123,6 +123,31 @@ def in_view(locator, what: str, timeout: float = 10.0) -> dict:
     return box
 
 
+def kept_in_view_until_the_reader_scrolls(page, session, what: str) -> None:
+    """A step's text, once brought into view, is kept there while the panel redraws above it (the
+    words may stand already where an earlier step wrote them), until the reader scrolls: the next
+    redraw then leaves the panel where the reader put it."""
+    panel, fall = session.physics, page.get_by_text("Check-ring MAE:", exact=False).first
+    said = panel.refit_status.content
+    pushed = lambda lines: said + "\n\n" + "\n\n".join(f"a redraw's line {k}" for k in range(lines))  # noqa: E731
+    try:
+        panel.keep_in_view("Check-ring MAE:")
+        in_view(fall, f"{what}: asked again")
+        panel.refit_status.content = pushed(30)  # the line pushed down, out of view
+        in_view(fall, f"{what}: kept in view while the panel redraws", timeout=3.0)
+        box = fall.bounding_box()
+        page.mouse.move(box["x"] + 5, box["y"] + box["height"] / 2)
+        page.mouse.wheel(0, -600)
+        time.sleep(0.5)
+        panel.refit_status.content = pushed(45)
+        time.sleep(1.0)
+        box = steady_box(fall, what)
+        print(f"{what}, the reader scrolled up and the panel redrew: y {box['y']:.0f}-{box['y'] + box['height']:.0f}")
+        assert not within_height(box, page), (what, "brought back into view after the reader scrolled", box)
+    finally:
+        panel.refit_status.content = said
+
+
 def no_scroll(page) -> None:
     """The page itself was not scrolled, nor the figures panel: every control the walk clicks was in
     view when clicked (in_view). The controls panel may have been scrolled by the app, which brings
@@ -421,7 +446,10 @@ def teach(page, session, shots: Path) -> None:
         assert wait_for(lambda: len(session.loop.steps) > steps, timeout=600)
         session.wait(timeout=300)
         settled(page)
-        in_view(page.get_by_text("Check-ring MAE:", exact=False).first, f"the error fall at {width}x{height}, Curves open")
+        fall = page.get_by_text("Check-ring MAE:", exact=False).first
+        in_view(fall, f"the error fall at {width}x{height}, Curves open")
+        if width == WIDTH:
+            kept_in_view_until_the_reader_scrolls(page, session, f"the error fall at {width}x{height}")
         page.get_by_role("button", name="Reveal the hidden effect").click()
         settled(page)
         in_view(page.get_by_text("Hidden:", exact=False).first, f"Reveal's result at {width}x{height}, Curves open")

@@ -91,16 +91,23 @@ BRING_INTO_VIEW_JS = r"""
     return hits.length ? hits[hits.length - 1] : null;
   };
   // The last step's text wins: an earlier request still looking for its text (a long verdict
-  // arriving late) must not scroll the panel away from what a later step wrote.
+  // arriving late) must not scroll the panel away from what a later step wrote. The text may stand
+  // already where an earlier step wrote the same words, and the redraw then replace or move it:
+  // it is kept in view for a few seconds, until the reader scrolls, clicks or types.
   const me = (window.phExplorerBringInto = (window.phExplorerBringInto || 0) + 1);
   const start = performance.now();
+  let reader = false;
+  const events = ["wheel", "touchstart", "pointerdown", "keydown"];
+  const readerMoved = () => { reader = true; };
+  events.forEach((type) => window.addEventListener(type, readerMoved, { capture: true, passive: true }));
   const attempt = () => {
-    if (window.phExplorerBringInto !== me) return;
-    const a = find(first), b = last ? find(last) : null;
-    if (!a || (last && !b)) {
-      if (performance.now() - start < 5000) requestAnimationFrame(attempt);
+    if (window.phExplorerBringInto !== me || reader || performance.now() - start > 5000) {
+      events.forEach((type) => window.removeEventListener(type, readerMoved, { capture: true }));
       return;
     }
+    setTimeout(attempt, 50);  // the whole panel is searched: a few times a second, not every frame
+    const a = find(first), b = last ? find(last) : null;
+    if (!a || (last && !b)) return;
     // The panel that scrolls, and the part of it inside the window (it may reach below it).
     let box = a.parentElement;
     while (box && !(box.scrollHeight > box.clientHeight && /(auto|scroll)/.test(getComputedStyle(box).overflowY))) box = box.parentElement;
@@ -110,7 +117,7 @@ BRING_INTO_VIEW_JS = r"""
     const from = a.getBoundingClientRect().top, to = (b || a).getBoundingClientRect().bottom;
     let delta = to > bottom ? to - bottom : 0;  // the last line up into view ...
     if (from - delta < top) delta = from - top;  // ... but never the first out at the top
-    box.scrollTop += delta;
+    if (Math.abs(delta) >= 1) box.scrollTop += delta;
   };
   attempt();
 })(%s, %s);
