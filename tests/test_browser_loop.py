@@ -123,11 +123,11 @@ def in_view(locator, what: str, timeout: float = 10.0) -> dict:
     return box
 
 
-def kept_in_view_until_the_reader_scrolls(page, session, what: str) -> None:
+def kept_in_view_until_the_reader_scrolls(page, session, fall, what: str) -> None:
     """A step's text, once brought into view, is kept there while the panel redraws above it (the
     words may stand already where an earlier step wrote them), until the reader scrolls: the next
-    redraw then leaves the panel where the reader put it."""
-    panel, fall = session.physics, page.get_by_text("Check-ring MAE:", exact=False).first
+    redraw then leaves the panel where the reader put it. fall: the locator of the error fall's line."""
+    panel = session.physics
     said = panel.refit_status.content
     pushed = lambda lines: said + "\n\n" + "\n\n".join(f"a redraw's line {k}" for k in range(lines))  # noqa: E731
     try:
@@ -449,7 +449,7 @@ def teach(page, session, shots: Path) -> None:
         fall = page.get_by_text("Check-ring MAE:", exact=False).first
         in_view(fall, f"the error fall at {width}x{height}, Curves open")
         if width == WIDTH:
-            kept_in_view_until_the_reader_scrolls(page, session, f"the error fall at {width}x{height}")
+            kept_in_view_until_the_reader_scrolls(page, session, fall, f"the error fall at {width}x{height}")
         page.get_by_role("button", name="Reveal the hidden effect").click()
         settled(page)
         in_view(page.get_by_text("Hidden:", exact=False).first, f"Reveal's result at {width}x{height}, Curves open")

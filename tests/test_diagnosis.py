@@ -683,9 +683,10 @@ def differences(before, now, path: str = "$", tolerance: float = 0.0) -> list[st
                     allowed = (0.25 if k == "params" else 0.1) * abs(band) if isinstance(band, (int, float)) else 0.0
                     out += differences(value, now[k].get(name), f"{path}.{k}.{name}", allowed)
             elif k == "settings" and isinstance(v, list) and isinstance(now[k], list):
-                # A partner's settings that stand in for the candidate, as a set: settings whose shares
-                # tie to the last digits (1.0 each) come in the order the arithmetic gives them
-                # (near_vertical's 9, 11 and 10/rev came in another order with numpy 2.4.6 and scipy 1.17.1).
+                # A partner's settings that stand in for the candidate, as a set: the stored figures
+                # list settings whose shares tie to the last digits (1.0 each) in the order the old
+                # machine's arithmetic gave them; since diagnosis.partners.standing_in_order they come
+                # in the order tried (near_vertical's 9, 11 and 10/rev).
                 out += differences(sorted(v, key=json.dumps), sorted(now[k], key=json.dumps), f"{path}.{k}")
             else:
                 out += differences(v, now[k], f"{path}.{k}")
