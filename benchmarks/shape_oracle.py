@@ -10,7 +10,8 @@ can replicate that shape. A function of the A joint shows only at rings off the 
 (whole inner A rows left out) is the oracle's too: where the shape's column is unseen at more than
 least_squares.UNSEEN_SHARE of training rings, it passes if either view passes (a bound: no Bonferroni).
 The heads with several catalog effects have theirs (effects_oracle): each effect at its own
-settings, beside the others, by ring.
+settings, beside the others, by ring. right_group_ratio is what a shape of the truth's own group
+brings once added: it pays for no choice among groups, and keeps the search's knots and penalty.
 """
 
 from __future__ import annotations
@@ -20,11 +21,15 @@ from typing import Any
 import numpy as np
 
 from ph_explorer.campaign import Campaign
+from ph_explorer.diagnosis.loop import add_effects
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, replication, ring_residual_squares
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.diagnosis.search import CandidateSearch
+from ph_explorer.diagnosis.shapes import knots
 from ph_explorer.diagnosis.within_noise import ring_sigma
 from ph_explorer.effects import Effect
+from ph_explorer.effects.error_functions import error_function
+from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models.hybrid import fitted_columns
 from ph_explorer.models.least_squares import Design
 
@@ -40,6 +45,17 @@ def oracle_record(campaign: Campaign, result: Diagnosis, shape: Effect) -> dict[
         by_row = _beside_chain(search.in_rows(), result, fitted)
         record = record | {"by_row": by_row, "passes": record["passes"] or by_row["passes"]}
     return record
+
+
+def right_group_ratio(campaign: Campaign, result: Diagnosis, group: str) -> float:
+    """The check rings' MAE over their floor (against the mean) once the truth's own group of error
+    functions, at the knots the shape search gives it, is added beside the diagnosis's chain as the
+    diagnosis adds a shape (diagnosis.loop.add_effects): what a shape of the right group brings,
+    whatever the search claims. Where it stays far above the head's own error without the shape,
+    the rings do not determine the shape's values where the check rings need them."""
+    grid, periodic, _ = knots(group, campaign_touches(campaign), ~campaign.holdout_mask())
+    _, step = add_effects(campaign, [*result.chain, error_function(group, grid, periodic)()])
+    return round(step.mae_um["mean"] / step.noise_floor_um["mean"], 3)
 
 
 def effects_oracle(campaign: Campaign, effects: list[Effect]) -> list[dict[str, Any]]:

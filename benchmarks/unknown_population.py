@@ -25,6 +25,10 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   (after_shape_within) and over that of the same head without the shape, diagnosed alike
   (after_shape_within_plain): the background's interpolation error stays whatever the shape, so
   plain_within, the share of those plain heads within 1.25 floors, bounds the first;
+  right_group_within_plain: the same, the truth's own group added instead of the shape claimed
+  (shape_oracle.right_group_ratio: no choice among groups, the search's knots and penalty), and
+  right_group_ratio_median over every head a group holds: where these fall short too, the rings
+  do not determine the shape where the check rings need it, whichever group is claimed;
 - oracle_passes: the head's own shape, its function known exactly, passes the shapes' replication
   test beside the chain (benchmarks/shape_oracle.py): where it does not, no shape search over these
   rings can (by ring, or with whole A rows left out where the search gives a second look);
@@ -60,7 +64,7 @@ import numpy as np
 
 from benchmarks.calibration import code_version, commit, rate
 from benchmarks.multi_effects import KINDS, claim_record, found_each, multi_effect_head, shaped_each
-from benchmarks.shape_oracle import effects_oracle, oracle_record
+from benchmarks.shape_oracle import effects_oracle, oracle_record, right_group_ratio
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.diagnosis.suspect import SUSPECT_ALONE, SUSPECT_EXCESS, SUSPECT_LEVEL, SUSPECT_MAX, SUSPECT_QUIET, ring_standing
@@ -144,9 +148,11 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
             record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
-    if shape_truth({"family": job["family"], "truth": head.truth}) is not None:  # what the rings can show of the shape at all
+    group = shape_truth({"family": job["family"], "truth": head.truth})
+    if group is not None:  # what the rings can show of the shape at all, and what its own group brings
         shape = next(effect for effect in head.scenario.effects if effect.id == head.truth["id"])
         record["oracle"] = oracle_record(head.campaign, result, shape)
+        record["right_group_ratio"] = right_group_ratio(head.campaign, result, group)
     if job["family"] == "bad_ring":  # a check ring is named but kept (diagnosis.suspect): where is it?
         at = (head.campaign.orientations == [head.truth["a_deg"], head.truth["b_deg"]]).all(axis=1)
         record["bad_on_check_ring"] = bool(head.campaign.holdout_mask()[at].any())
@@ -437,6 +443,17 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "after_shape_ratio_median": round(float(np.median([r["step_ratios"][-1] for r in claimed])), 3) if claimed else None,
             "plain_ratio_median": round(float(np.median([r["plain_ratio"] for r in compared])), 3) if compared else None,
             "before_ratio_median_where_claimed": round(float(np.median([r["step_ratios"][0] for r in claimed])), 3) if claimed else None,
+            # the truth's own group added beside the chain (shape_oracle.right_group_ratio): over the
+            # same heads, within the head's own without its shape; and its median over every shaped head
+            "right_group_within_plain": rate(
+                sum(
+                    r["right_group_ratio"] <= TARGETS["after_shape_within"] * r["plain_ratio"] for r in compared if "right_group_ratio" in r
+                ),
+                sum("right_group_ratio" in r for r in compared),
+            ),
+            "right_group_ratio_median": round(float(np.median([r["right_group_ratio"] for r in seen if "right_group_ratio" in r])), 3)
+            if any("right_group_ratio" in r for r in seen)
+            else None,
             # the oracle (shape_oracle): the head's own shape known exactly passes the shapes' replication test
             "oracle_passes": rate(len(passing), len(seen)),
             "shape_right_where_oracle_passes": rate(sum(shape_right(r) for r in passing), len(passing)),

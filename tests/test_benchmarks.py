@@ -492,6 +492,7 @@ def check_population_unknown(results: dict) -> None:
     assert unknown["all"]["group_right"]["of"] == 1 and unknown["all"]["group_right"]["count"] >= unknown["all"]["shape_right"]["count"]
     # the step head's own shape through the oracle's test (shape_oracle); the bad ring holds none
     assert unknown["all"]["oracle_passes"]["of"] == 1 and list(unknown["by_axis"]) in (["A"], ["B"])
+    assert unknown["all"]["right_group_ratio_median"] > 0  # the step head's own group added beside the chain
     multi = unknown["multi_effect"]
     assert (
         multi["heads"] == 1

@@ -36,7 +36,10 @@ median check rings / floor before and after; **same head without it**: those hea
 their shape, diagnosed alike: the share within {after} of their floor (what the share before can
 reach at best: the background's interpolation error stays) and their median; **after, within the
 head's own**: the share whose check rings once the shape is added are within {after} of that
-head's own without it; **oracle passes**: the head's own shape, its function known exactly and its
+head's own without it; **right group**: the same share once the truth's own group of error
+functions (at the search's knots and penalty) is added beside the chain instead of the shape
+claimed, and its median check rings / floor over every head a group holds
+(benchmarks/shape_oracle.py): what a shape brings with no choice among groups to make; **oracle passes**: the head's own shape, its function known exactly and its
 size free, fitted beside the chain, passes the shapes' replication test over rings
 (benchmarks/shape_oracle.py): where it does not, no shape search over these rings can replicate
 that shape (a function of the A joint shows only at rings off the lattice's A rows,
@@ -59,6 +62,7 @@ def unknown(results: Mapping[str, Any]) -> str:
             f"{num(s.get('before_ratio_median_where_claimed'))} -> {num(s.get('after_shape_ratio_median'))}",
             f"{share_of(s.get('plain_within'))}, {num(s.get('plain_ratio_median'))}",
             share_of(s.get("after_shape_within_plain")),
+            f"{share_of(s.get('right_group_within_plain'))}, {num(s.get('right_group_ratio_median'))}",
             share_of(s.get("oracle_passes")),
             share_of(s.get("shape_right_where_oracle_passes")),
         ]
@@ -90,6 +94,7 @@ def unknown(results: Mapping[str, Any]) -> str:
         "check rings / floor where claimed",
         "same head without it: within, median",
         "after, within the head's own",
+        "right group: within the head's own, median",
         "oracle passes",
         "right where it passes",
     ]
