@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import pickle
-import resource
 import statistics
 import tempfile
 import time
@@ -23,6 +22,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from benchmarks.peak import resident_mib
 from benchmarks.population import CALIBRATION_HEADS, COUNTS, FIRST_SEED, U_CALIBRATION_HEADS
 from ph_explorer.diagnosis.fleet import fleet_row
 from ph_explorer.io import write_campaign
@@ -34,17 +34,13 @@ TARGET_RATIO = 0.6
 CORES = (8, 32, 128)
 
 
-def peak_mib() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
-
-
 def on_cluster(paths: list[Path], workers: int) -> tuple[float, list[dict[str, Any]], float]:
     """(wall seconds, rows, the workers' largest peak MiB) of the fleet on a LocalCluster of `workers`
     (run_fleet's tasks on run_fleet's cluster)."""
     started = time.perf_counter()
     with dask_client(workers=workers) as client:
         rows = run_tasks(client, fleet_row, [str(p) for p in paths], options={}).results
-        peak = max(client.run(peak_mib).values())
+        peak = max(client.run(resident_mib, "VmHWM").values())
     return time.perf_counter() - started, rows, peak
 
 

@@ -7,7 +7,8 @@ process' image, so measured directly its peak could never show less than the ben
 (which holds torch, a served app, ...). This launcher imports nothing but the standard library, so
 the command's figure is its own (floor: this interpreter, about 10 MiB). Ctrl-C (SIGINT) is passed
 on to the command; the launcher exits with the command's status. The caller starts it in a session
-of its own, so that a kill of the group reaches the command too.
+of its own, so that a kill of the group reaches the command too. resident_mib reads a process'
+own figures where it cannot be launched so (a Dask worker, the served app).
 """
 
 from __future__ import annotations
@@ -16,6 +17,18 @@ import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
+
+
+def resident_mib(field: str = "VmRSS") -> float:
+    """This process' resident memory (MiB) from /proc/self/status: VmRSS now, VmHWM its peak (NaN
+    where there is none). VmHWM is this image's own: rusage's ru_maxrss is not, in a process
+    started from a larger one (multiprocessing's spawn, as Dask's workers are: fork, then exec)."""
+    status = Path("/proc/self/status")
+    for line in status.read_text().splitlines() if status.exists() else []:
+        if line.startswith(field + ":"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
 
 
 def main(argv: list[str]) -> int:

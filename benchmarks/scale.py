@@ -26,19 +26,12 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.peak import resident_mib
 from ph_explorer.app.server import ExplorerApp
 from ph_explorer.app.session import FOLLOW_INTERVAL_S
 from ph_explorer.models.lattice import TOLERANCE_UM
 
 REPOSITORY = Path(__file__).resolve().parent.parent
-
-
-def rss_mb(field: str = "VmRSS") -> float:
-    """This process' resident memory (MB) from /proc/self/status (VmRSS now, VmHWM peak)."""
-    for line in Path("/proc/self/status").read_text().splitlines():
-        if line.startswith(field + ":"):
-            return int(line.split()[1]) / 1024.0
-    return float("nan")
 
 
 def percentile_ms(values: list[float], q: float) -> float | None:
@@ -68,7 +61,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     app.stats.latency_times.clear()
     before_sessions = set(app.sessions)
     gc.collect()
-    rss_before = rss_mb()
+    rss_before = resident_mib()
     start, cpu_start = time.perf_counter(), time.process_time()
     missed: int | None = None
     connected = 0
@@ -127,7 +120,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     per_session = [session.render_count for session in sessions] if connected else []
     time.sleep(0.5)
     gc.collect()
-    rss_after = rss_mb()
+    rss_after = resident_mib()
     completed = sum(1 for b in browsers if b["final"] is not None)
     sent = int(sum(b["sent"] for b in browsers))
     return {
@@ -169,7 +162,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
             "before": round(rss_before, 1),
             "after": round(rss_after, 1),
             "growth": round(rss_after - rss_before, 1),
-            "peak": round(rss_mb("VmHWM"), 1),
+            "peak": round(resident_mib("VmHWM"), 1),
         },
     }
 

@@ -448,6 +448,7 @@ def check_fleet(results: dict) -> None:
     fleet = results["fleet"]
     assert fleet["campaigns"] == 2 and fleet["rows_equal"] and fleet["seconds"]["one_worker"] > 0 and fleet["ratio"] > 0
     assert fleet["bytes_per_task"]["sent"] > 0 and set(fleet["population_calibration"]["expected_wall_s"]) == {"8", "32", "128"}
+    assert 0 < fleet["worker_peak_mib"] < float("inf")  # the worker's own peak, read from /proc (NaN fails)
 
 
 def check_peers(results: dict) -> None:
