@@ -111,7 +111,11 @@ def population(results: Mapping[str, Any]) -> str:
             f"after it (median); in one process the verdict takes {num(get(speed, 'in_process', 'verdict_s', 'median'), 's')}, the "
             f"{num(get(speed, 'in_process', 'without_nested_s'), 's')} without testing its claims on rings left out of the choice. {clicked}Targets: verdict median "
             f"{num(get(speed, 'targets', 'verdict_median_s'), 's')} and max {num(get(speed, 'targets', 'verdict_max_s'), 's')}, "
-            f"nested {num(get(speed, 'targets', 'nested_s'), 's')}: {holds(speed.get('holds'))}.\n"
+            f"nested {num(get(speed, 'targets', 'nested_s'), 's')}: {holds(speed.get('holds'))}. A fixed workload of the same "
+            f"kind (`machine_reference_s`) took {num(get(speed, 'machine_reference_s', 'before'), 's')} before these runs and "
+            f"{num(get(speed, 'machine_reference_s', 'after'), 's')} after: on this machine the same code's verdict moves by about a "
+            f"second between hours, and every run is listed in "
+            f"[the diagnosis's changes](methods/diagnosis_changes.md#faster-to-the-verdict-judged-alike).\n"
         )
         shape = speed.get("shape_campaign") or {}
         if shape.get("command_verdict_s"):
