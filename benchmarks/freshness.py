@@ -23,17 +23,19 @@ from typing import Any
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("ph_explorer", "benchmarks")
 RUNNER = "benchmarks.run"
-# Each section's roots: its module, or "run:FUNCTION" for a section run.py measures in FUNCTION.
-SECTION_ROOTS = {
+# Each section's roots: its module, or "run:FUNCTION" for a section run.py measures in FUNCTION;
+# beside it, the command line for a section that times `python -m ph_explorer` in a process of its own.
+COMMAND = "ph_explorer.__main__"
+SECTION_ROOTS: dict[str, str | tuple[str, ...]] = {
     "data_efficiency": "run:run_data_efficiency",
-    "speed": "run:run_speed",
-    "scale": "run:run_speed",
+    "speed": ("run:run_speed", COMMAND),
+    "scale": ("run:run_speed", COMMAND),
     "diagnosis_calibration": "benchmarks.calibration",
     "hidden_effects": "benchmarks.hidden_effects",
     "population": "benchmarks.population",
     "population_unknown": "benchmarks.unknown_population",
     "adaptive_campaign": "benchmarks.adaptive_campaign",
-    "verdict_speed": "benchmarks.population",
+    "verdict_speed": ("benchmarks.population", COMMAND),
     "deciding": "benchmarks.deciding",
     "uncertainty_coverage": "benchmarks.uncertainty_coverage",
     "large_campaign": "benchmarks.large_campaign",
@@ -131,12 +133,13 @@ def section_modules(section: str, known: dict[str, str], packages: set[str]) -> 
     is_package = {m: m in packages for m in known}
     runner = ast.parse(known[RUNNER])
     roots = _named([n for n in runner.body if isinstance(n, (ast.Import, ast.ImportFrom))], RUNNER, False)
-    root = SECTION_ROOTS[section]
-    if root.startswith("run:"):
-        function = next(n for n in runner.body if isinstance(n, ast.FunctionDef) and n.name == root[4:])
-        roots |= _named(list(ast.walk(function)), RUNNER, False)
-    else:
-        roots.add(root)
+    given = SECTION_ROOTS[section]
+    for root in (given,) if isinstance(given, str) else given:
+        if root.startswith("run:"):
+            function = next(n for n in runner.body if isinstance(n, ast.FunctionDef) and n.name == root[4:])
+            roots |= _named(list(ast.walk(function)), RUNNER, False)
+        else:
+            roots.add(root)
     return closure(roots, known, is_package)
 
 

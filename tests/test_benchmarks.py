@@ -118,6 +118,8 @@ def test_a_section_is_stale_only_when_a_module_it_can_import_changed(tmp_path: P
         "ph_explorer/__init__.py": "",
         "ph_explorer/diagnosis.py": "import numpy\n",
         "ph_explorer/wording.py": "",  # imported by no benchmark: the text a verdict is worded in
+        "ph_explorer/__main__.py": "from ph_explorer import cli\n",  # the command a speed section launches
+        "ph_explorer/cli.py": "",
         "benchmarks/__init__.py": "",
         "benchmarks/run.py": "import json\n\ndef run_speed():\n    from ph_explorer import wording\n",
         "benchmarks/population.py": "def run():\n    from ph_explorer.diagnosis import x  # a lazy import counts\n",
@@ -130,7 +132,14 @@ def test_a_section_is_stale_only_when_a_module_it_can_import_changed(tmp_path: P
     subprocess.run([*git, "add", "."], check=True)
     subprocess.run([*git, "commit", "-qm", "measured"], check=True)
     commit = subprocess.run([*git, "rev-parse", "--short", "HEAD"], check=True, capture_output=True, text=True).stdout.strip()
-    results = {"population": {}, "speed": {}, "fleet": {}, "updated": {s: {"commit": commit, "date": "d"} for s in ("population", "speed")}}
+    timed = ("population", "speed", "verdict_speed")
+    results = {
+        "population": {},
+        "speed": {},
+        "verdict_speed": {},
+        "fleet": {},
+        "updated": {s: {"commit": commit, "date": "d"} for s in timed},
+    }
     results["updated"]["fleet"] = {"commit": commit + "+changes", "date": "d"}
 
     def state(section: str) -> freshness.SectionState:
@@ -140,6 +149,9 @@ def test_a_section_is_stale_only_when_a_module_it_can_import_changed(tmp_path: P
     assert not state("fleet").known  # measured on uncommitted changes: nothing can be said
     (tmp_path / "ph_explorer/wording.py").write_text("WORDS = 1\n")
     assert not state("population").changed and state("speed").changed == ("ph_explorer.wording",)
+    # the command's own code, which verdict_speed times in a process of its own, though population imports none of it
+    (tmp_path / "ph_explorer/cli.py").write_text("PARSER = 1\n")
+    assert not state("population").changed and state("verdict_speed").changed == ("ph_explorer.cli",)
     # a docstring, a comment or a layout changes no figure; code does
     (tmp_path / "ph_explorer/diagnosis.py").write_text('"""What the rings say."""\n\nimport numpy  # the arrays\n')
     assert not state("population").changed

@@ -49,3 +49,17 @@ def test_designs_gathered_from_one_library_explain_what_each_design_explains(wit
     each = least_squares.explained_beyond(fixed, [Design(library[..., index], None) for index in indices], targets)
     assert gathered.shape == (3, 4)
     assert np.allclose(gathered, each, rtol=1e-10, atol=1e-12 * np.abs(each).max())
+
+
+@pytest.mark.parametrize("within", [False, True])
+def test_a_designs_gram_is_made_once_and_cannot_be_changed_by_a_caller(within):
+    """Design.gram is X'X over single touches (the within part's products added), made once: a fit,
+    its ridge and its jackknife share it, so no caller may change it in place."""
+    rng = np.random.default_rng(5)
+    columns = rng.normal(size=(6, 3, 8, 2)) if within else np.broadcast_to(rng.normal(size=(6, 1, 8, 2)), (6, 3, 8, 2))
+    design = Design(columns, None)
+    touches = np.asarray(columns).reshape(-1, 2)
+    assert np.allclose(design.gram(), touches.T @ touches) and design.gram() is design.gram()
+    with pytest.raises(ValueError):
+        design.gram()[0, 0] = 0.0
+    assert design.stacked(design).gram().shape == (4, 4) and design.first_column().gram().shape == (1, 1)

@@ -251,7 +251,15 @@ def fit_groups(
 ) -> dict[str, GroupFit]:
     """Each group fitted beside `fixed` (fit_group), as many at a time as blas.in_parts allows (they
     are independent); stop: once set, the groups not yet begun raise blas.Dropped."""
-    return dict(zip(groups, in_parts(lambda group: fit_group(search, fixed, before, group, noise), groups, stop)))
+    repetitions = search.campaign.n_repetitions
+
+    def cost(group: str) -> float:
+        # A time group's columns change between repetitions: fitted ring by ring on every
+        # repetition's touches (measured on head_3: 0.4 s, against 0.04-0.19 s for an axis's group).
+        spec = SHAPE_GROUPS[group]
+        return len(spec.components) * (repetitions if spec.variable == "time" else 1)
+
+    return dict(zip(groups, in_parts(lambda group: fit_group(search, fixed, before, group, noise), groups, stop, cost)))
 
 
 def _left_out_residual(search: CandidateSearch, fit: GroupFit) -> NDArray[np.float64]:

@@ -60,6 +60,7 @@ class Design:
         self.within = within if changes else None  # (n_o, n_rep, n_pt, c) or None
         self._flat: tuple[NDArray[np.float64], NDArray[np.float64] | None] | None = None
         self._ring_gram: NDArray[np.float64] | None = None
+        self._gram: NDArray[np.float64] | None = None
 
     @property
     def n_columns(self) -> int:
@@ -97,9 +98,13 @@ class Design:
         return np.sqrt(self.n_rep) * mean, within
 
     def gram(self) -> NDArray[np.float64]:
-        mean, within = self.flat()
-        g = self.n_rep * (mean.T @ mean)  # the small product scaled: no scaled copy of the columns
-        return g if within is None else g + within.T @ within
+        """(c, c): X^T X over single touches, made once (read-only: a fit, its ridge and its jackknife each ask)."""
+        if getattr(self, "_gram", None) is None:
+            mean, within = self.flat()
+            g = self.n_rep * (mean.T @ mean)  # the small product scaled: no scaled copy of the columns
+            self._gram = g if within is None else g + within.T @ within
+            self._gram.flags.writeable = False
+        return self._gram
 
     def dot(self, targets: Design) -> NDArray[np.float64]:
         mean, within = self.flat()
@@ -141,7 +146,7 @@ class Design:
         given rings appended as further points of each ring (zeros elsewhere), so that a fit
         minimises both views' sums of squares and a ring's two parts are left out together."""
         out = object.__new__(Design)
-        out._flat = out._ring_gram = None
+        out._flat = out._ring_gram = out._gram = None
         out.n_rep, out.scale, out.within = self.n_rep, max(self.scale, other.scale), self.within
         out.mean = np.concatenate([self.mean, other.mean * np.asarray(rings, dtype=bool)[:, None, None]], axis=1)
         return out
@@ -149,7 +154,7 @@ class Design:
     def first_column(self) -> Design:
         """A view of column 0 only (the data, where the other columns are noise draws)."""
         out = object.__new__(Design)
-        out._flat = out._ring_gram = None
+        out._flat = out._ring_gram = out._gram = None
         out.n_rep, out.scale = self.n_rep, self.scale
         out.mean = self.mean[..., :1]
         out.within = None if self.within is None else self.within[..., :1]
@@ -158,7 +163,7 @@ class Design:
     def stacked(self, other: Design) -> Design:
         """The columns of self then other."""
         out = object.__new__(Design)
-        out._flat = out._ring_gram = None
+        out._flat = out._ring_gram = out._gram = None
         out.n_rep, out.scale = self.n_rep, max(self.scale, other.scale)
         out.mean = np.concatenate([self.mean, other.mean], axis=-1)
         if self.within is None and other.within is None:
