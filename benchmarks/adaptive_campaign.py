@@ -24,7 +24,13 @@ intervals:
   head's background holds that effect too; on the other heads both quiet (`none`, or claims of the
   head's own background only, as the population judges a healthy head's alarm) or both not. The
   words differ where the sparse campaign's model, physical where the full one's trilinear
-  interpolates, names background effects the full campaign leaves to its data part.
+  interpolates, names background effects the full campaign leaves to its data part;
+- the right answer (right_answer: what the twin hid, judged as same_answer compares), of each
+  campaign, and the stop as right as the full campaign (as_right: the same answer, or the right one
+  where the full campaign's is not): the same answer counts a stop that finds what the full
+  campaign missed as a failure, as right only what the stop loses.
+
+The same figures over the whole population ("population"), where the issue's targets are set.
 """
 
 from __future__ import annotations
@@ -184,6 +190,11 @@ def quiet(side: dict[str, Any], background: set[str]) -> bool:
     return side["verdict"] == "none" or (side["verdict"] in ("missing", "suggested") and bool(named) and named <= background)
 
 
+def held(record: dict[str, Any], side: dict[str, Any], effect: str) -> bool:
+    """A hidden catalog effect held by a claim of one campaign (multi_effects.holds_truth)."""
+    return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
+
+
 def same_answer(record: dict[str, Any]) -> bool:
     """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
     held by a claim of both or of neither (holds_truth); an unknown shape answered alike
@@ -191,15 +202,31 @@ def same_answer(record: dict[str, Any]) -> bool:
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
-
-        def held(side: dict[str, Any], effect: str) -> bool:
-            return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
-
-        return all(held(record["full"], effect) == held(record["adaptive"], effect) for effect in catalog)
+        return all(held(record, record["full"], effect) == held(record, record["adaptive"], effect) for effect in catalog)
     if record["kind"] == "unknown_shape" and shape_truth(record) is not None:
         return unknown_answer(record, record["full"]) == unknown_answer(record, record["adaptive"])
     background = set(record["in_head"]) - set(hidden)
     return quiet(record["full"], background) == quiet(record["adaptive"], background)
+
+
+def right_answer(record: dict[str, Any], side: dict[str, Any]) -> bool:
+    """One campaign's answer is what the twin hid, judged as same_answer compares: every hidden catalog
+    effect held by a claim; an unknown shape's axis and group named (unknown_answer); else quiet (a
+    healthy head, and a ring measured badly or touch outliers, where no effect is right)."""
+    hidden = record.get("hidden", [])
+    catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
+    if record["kind"] == "catalog_effect" and catalog:
+        return all(held(record, side, effect) for effect in catalog)
+    if record["kind"] == "unknown_shape" and shape_truth(record) is not None:
+        return unknown_answer(record, side) == "named"
+    return quiet(side, set(record["in_head"]) - set(hidden))
+
+
+def as_right(record: dict[str, Any]) -> bool:
+    """The stop loses nothing the full campaign knew: the same answer, or the right one where the full
+    campaign's is not (right_answer). Agreement alone counts an adaptive campaign that finds what the
+    full one missed as a failure (docs/planning.md#what-it-buys)."""
+    return same_answer(record) or right_answer(record, record["adaptive"])
 
 
 def unknown_answer(record: dict[str, Any], side: dict[str, Any]) -> str:
@@ -228,9 +255,10 @@ def quantile(values: list[float], q: float) -> float:
 
 
 def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per kind, and over the population (every head: the issue's targets are the population's)."""
     out: dict[str, Any] = {}
-    for kind in KINDS:
-        group = [r for r in records if r["kind"] == kind and "adaptive" in r]
+    for kind in (*KINDS, "population"):
+        group = [r for r in records if kind in (r["kind"], "population") and "adaptive" in r]
         if not group:
             continue
         rings = [r["adaptive"]["rings"] for r in group]
@@ -251,6 +279,10 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             "claims_agreement": rate(sum(r["adaptive"]["found"] == r["full"]["found"] for r in group), len(group)),
             # the same answer about what the head hides, the words aside (same_answer)
             "same_answer": rate(sum(same_answer(r) for r in group), len(group)),
+            # what the twin hid, answered rightly by the full campaign, by the stop; the stop as right as the full campaign
+            "full_right": rate(sum(right_answer(r, r["full"]) for r in group), len(group)),
+            "adaptive_right": rate(sum(right_answer(r, r["adaptive"]) for r in group), len(group)),
+            "as_right": rate(sum(as_right(r) for r in group), len(group)),
             # a claim of an effect the head holds (its background's or the one hidden in it) is no false claim
             "claims_in_head": rate(sum(set(r["adaptive"]["found"]) <= set(r["in_head"]) for r in group), len(group)),
         }

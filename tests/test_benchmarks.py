@@ -255,6 +255,40 @@ def test_the_adaptive_and_the_full_campaign_answer_alike_about_an_unknown_shape_
     assert not alike(side("missing", [other]), side("partial"))
 
 
+def test_a_stop_that_finds_what_the_full_campaign_missed_is_as_right_and_one_that_loses_it_is_not() -> None:
+    """benchmarks/adaptive_campaign.as_right: the same answer, or the right one where the full
+    campaign's is not; a stop that misses what the full campaign found, or names another mechanism
+    where both miss, loses something."""
+    from benchmarks.adaptive_campaign import as_right, right_answer, same_answer
+
+    own = {"effect": "b_axis_cyclic", "cycles": [27.0], "confounded_with": [], "untold_shape": None}
+    other = {"effect": "a_axis_tilt_motion", "cycles": [9.0], "confounded_with": [], "untold_shape": None}
+
+    def side(verdict: str, claims: list = ()) -> dict:
+        return {"verdict": verdict, "found": [c["effect"] for c in claims], "claims": list(claims), "shapes": [], "suggested": []}
+
+    truth = {"family": "non_integer_period", "axis": 1, "cycles_per_rev": 27.4}
+    head = {
+        "kind": "unknown_shape",
+        "family": "non_integer_period",
+        "truth": truth,
+        "hidden": ["non_integer_period"],
+        "in_head": ["lobing"],
+    }
+    found, missed = (
+        head | {"full": side("unexplained"), "adaptive": side("missing", [own])},
+        head | {"full": side("missing", [own]), "adaptive": side("unexplained")},
+    )
+    assert right_answer(found, found["adaptive"]) and not right_answer(found, found["full"])
+    assert not same_answer(found) and as_right(found)
+    assert not same_answer(missed) and not as_right(missed)
+    assert not as_right(head | {"full": side("unexplained"), "adaptive": side("missing", [other])})  # both wrong, the stop differently
+    healthy = {"kind": "healthy", "hidden": [], "in_head": ["lobing"]}
+    # a false alarm the full campaign did not raise loses; quiet where the full campaign failed does not
+    assert not as_right(healthy | {"full": side("none"), "adaptive": side("missing", [other])})
+    assert as_right(healthy | {"full": side("partial"), "adaptive": side("none")})
+
+
 # The quick run, section by section: each group is one `--quick --only` run in a folder of its own,
 # a test of its own, so that pytest-xdist spreads the groups over the workers (conftest.py) instead
 # of one test holding a worker for the whole run. Together the groups cover every section, and

@@ -29,6 +29,10 @@ mechanism; `none`; a catalog effect of another mechanism; left open), as the
 claims of the head's own background only) or both not. A sparse
 campaign's model is physical where the full one's trilinear interpolates, so it names background
 effects the full campaign leaves to its data part: the words differ where the answer does not.
+**Right**: the answer is what the twin hid (every hidden catalog effect held by a claim; an unknown
+shape's axis and group named; else quiet), for the full campaign and at the stop; **as right**: the
+same answer, or the right one where the full campaign's is not. The same answer counts a stop that
+finds what the full campaign missed as a failure; as right counts only what the stop loses.
 """
 
 
@@ -43,7 +47,7 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
         return f"{num(x.get('count'))}/{num(x.get('of'))} ({num(low)}-{num(high)})"
 
     rows = []
-    for kind in ("healthy", "catalog_effect", "unknown_shape"):
+    for kind in ("healthy", "catalog_effect", "unknown_shape", "population"):
         k = a.get(kind)
         if not k:
             continue
@@ -61,6 +65,8 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
                 f"{num(k.get('adaptive_over_floor_median'))} / {num(k.get('trilinear_over_floor_median'))}",
                 share(k.get("verdict_agreement")),
                 share(k.get("same_answer")),
+                f"{num((k.get('full_right') or {}).get('count'))} / {num((k.get('adaptive_right') or {}).get('count'))}",
+                share(k.get("as_right")),
                 share(k.get("claims_in_head")),
             ]
         )
@@ -77,13 +83,15 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
         "over the floor: adaptive / full",
         "same verdict",
         "same answer",
+        "right: full / stop",
+        "as right",
         "claims in the head",
     ]
     body = ADAPTIVE_INTRO.format(rings=evaluation.get("rings"), repetitions=evaluation.get("repetitions"))
     targets_line = (
         f"Targets (issue 58): median rings <= {num(targets.get('median_rings_max'))}; MAE within "
         f"{num(targets.get('mae_ratio'))}x on >= {num(targets.get('mae_within_ratio_min'))}; the same verdict on >= "
-        f"{num(targets.get('verdict_agreement_min'))}. Measured at {a.get('commit')}, {num(a.get('run_seconds'))} s."
+        f"{num(targets.get('verdict_agreement_min'))} (the same answer; as right beside it). Measured at {a.get('commit')}, {num(a.get('run_seconds'))} s."
     )
     return (
         body + "\n" + table(header, rows) + "\n" + targets_line + "\n\n" + image(plots, "adaptive.png", "the adaptive loop on three heads")
