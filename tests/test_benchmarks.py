@@ -566,9 +566,13 @@ def check_adaptive_campaign(results: dict) -> None:
             # stop came at median 18 rings of 131
             assert figures["full_rings"]["median"] > figures["rings"]["median"]
         assert figures["minutes"]["median"] > 0 and figures["full_minutes"]["median"] > 0
-        for key in ("stopped", "mae_within_ratio", "verdict_agreement", "claims_agreement", "claims_in_head"):
+        for key in ("stopped", "mae_within_ratio", "verdict_agreement", "claims_agreement", "claims_in_head", "as_right"):
             assert figures[key]["of"] == 1 and len(figures[key]["ci95"]) == 2, key
         assert figures["mae_ratio_median"] > 0 and figures["adaptive_over_floor_median"] > 0
+        # the stop is as right as the full campaign wherever it gives the same answer
+        assert figures["as_right"]["count"] >= figures["same_answer"]["count"]
+    # the targets are the population's: every head of the three kinds
+    assert adaptive["population"]["heads"] == 3 and adaptive["population"]["as_right"]["of"] == 3
 
 
 CHECKS = {

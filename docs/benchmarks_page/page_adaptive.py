@@ -77,7 +77,7 @@ def adaptive(results: Mapping[str, Any], plots: Plots) -> str:
         "full rings",
         "minutes, median",
         "full minutes",
-        "stopped by knowing",
+        "stopped within 12 plans",
         f"MAE <= {num(targets.get('mae_ratio'))}x the full trilinear",
         "MAE ratio, median",
         "over the floor: adaptive / full",
