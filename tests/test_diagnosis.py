@@ -25,7 +25,7 @@ from ph_explorer.diagnosis.search import CandidateSearch
 from ph_explorer.diagnosis.telling_apart import rings_prefer
 from ph_explorer.diagnosis.within_noise import within_noise
 from ph_explorer.effects import BUILTIN_EFFECTS, DEFAULT_CATALOG, Catalog, effect_label
-from ph_explorer.figures.diagnosis_text import named_at, report_sections, report_text, shared_text, verdict_headline
+from ph_explorer.figures.diagnosis_text import left_next, named_at, report_sections, report_text, shared_text, verdict_headline
 from ph_explorer.io import read_campaign
 from ph_explorer.kinematics import campaign_touches
 from ph_explorer.models import least_squares
@@ -510,12 +510,16 @@ def test_a_hidden_effect_the_catalog_lacks_gets_a_shape_or_is_unexplained(name):
         # The closest shape tried first: where rings would pin it down, before an effect of one's own.
         tried = [shape for shape in result.shapes if not shape.claimed]
         assert tried and f"the closest shape, {tried[0].id}, is not claimed: to pin it down, measure rings" in next_line
+        # The explorer's caption of what is left says the same, never only "write an effect".
+        assert left_next(result, "explorer").startswith(f"The closest shape, {tried[0].id}, is not claimed: to pin it down")
         return
     assert result.verdict == "uncatalogued"
     shape = result.claimed_shapes[0]
     assert shape.group == group or group in shape.untold
     assert result.steps[-1].mae_um["mean"] < 0.7 * result.steps[0].mae_um["mean"]
     assert sections["verdict"].title.startswith("Verdict: uncatalogued")
+    caption = left_next(result, "explorer")
+    assert caption.startswith(f"The shape {shape.id}") and caption.endswith("then Refit the hybrid.")
 
 
 @pytest.mark.slow

@@ -19,7 +19,7 @@ from ph_explorer.diagnosis.separation import CONFOUNDED
 from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
-from ph_explorer.figures.diagnosis_text import report_sections, shared_text, signature_text
+from ph_explorer.figures.diagnosis_text import left_next, report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.figures.shape_text import shape_svg
 from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, DecisionWords
@@ -303,13 +303,13 @@ class PhysicsPanel:
         self.shape_chart.visible = bool(result.shapes)
         # What is left (the signature) first, then each candidate's evidence, by the label shown in the dropdown.
         self.evidence_items = {}
+        next_for_left = left_next(result, "explorer")
         for entry in result.signature:
             if entry["significant"] and entry["evidence"].get("x"):
                 label = "left: " + signature_text(entry)
                 caption = (
                     f"**What is left**, {signature_text(entry)}: the residual the catalog does not explain, binned "
-                    f"against {entry['evidence']['x_label']}, and this term fitted to it. Write an effect with this signature "
-                    "(docs/twin.md, 'Your own effect') and diagnose again with it."
+                    f"against {entry['evidence']['x_label']}, and this term fitted to it. {next_for_left}"
                 )
                 self.evidence_items[label] = (f"left: {entry['variable']} {entry['kind']}", caption, entry["evidence"])
         self.evidence_items |= {

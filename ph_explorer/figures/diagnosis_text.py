@@ -193,10 +193,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
         text = f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
         return f"{text} {pins[:1].upper()}{pins[1:]}.".strip() if pins else text
-    # The shape that came closest and was not claimed: the rings that would pin it down come before
-    # an effect file of the user's own (what neither the catalog nor a shape holds).
-    tried = next((shape for shape in result.shapes if not shape.claimed), None)
-    closest = f"the closest shape, {tried.id}, is not claimed: to pin it down, {pin_text(tried)}; " if tried is not None else ""
+    closest = closest_shape_text(result)
     look = "look at what is left in the head's variables; "
     return {
         "none": "nothing is missing that this campaign shows; a model of it is within noise.",
@@ -206,6 +203,25 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         "unexplained": f"no catalog effect explains the failure: {closest or look}else write the effect that has that signature ({actions['own']}).",
         "uncatalogued": f"the shape found is added in the error history below; {pins}.",
     }[result.verdict]
+
+
+def closest_shape_text(result: Diagnosis) -> str:
+    """The shape that came closest and was not claimed, with the rings that would pin it down (they
+    come before an effect file of the user's own: what neither the catalog nor a shape holds)."""
+    tried = next((shape for shape in result.shapes if not shape.claimed), None)
+    return f"the closest shape, {tried.id}, is not claimed: to pin it down, {pin_text(tried)}; " if tried is not None else ""
+
+
+def left_next(result: Diagnosis, front: Front = "command line") -> str:
+    """What to do with what is left (the signature), one sentence: the shape claimed for it added, else
+    the closest shape pinned down, else an effect of the user's own; never only the last while a
+    shape was tried."""
+    actions = ACTIONS[front]
+    if result.claimed_shapes:
+        return f"The shape {' and '.join(shape.id for shape in result.claimed_shapes)} describes it: {actions['add']}."
+    own = f"write the effect that has this signature ({actions['own']}) and diagnose again with it."
+    closest = closest_shape_text(result)
+    return f"{closest[:1].upper()}{closest[1:]}else {own}" if closest else own[:1].upper() + own[1:]
 
 
 def undecided_text(decision: Decision) -> str:
