@@ -133,7 +133,10 @@ def kept_in_view_until_the_reader_scrolls(page, session, fall, what: str) -> Non
     try:
         panel.keep_in_view("Check-ring MAE:")
         in_view(fall, f"{what}: asked again")
-        panel.refit_status.content = pushed(30)  # the line pushed down, out of view
+        # A step's redraws follow its request at once (the window is counted from then, not from
+        # the check above, which a loaded machine makes slow): asked, then pushed down, out of view.
+        panel.keep_in_view("Check-ring MAE:")
+        panel.refit_status.content = pushed(30)
         in_view(fall, f"{what}: kept in view while the panel redraws", timeout=3.0)
         box = fall.bounding_box()
         page.mouse.move(box["x"] + 5, box["y"] + box["height"] / 2)

@@ -82,7 +82,8 @@ BRING_INTO_VIEW_JS = r"""
 ((first, last) => {
   // The control panel's text that a step just wrote: scrolled into view (the panel, not the page),
   // its last line first, then its first, so that a block that fits is wholly in view. The text
-  // arrives with the panel's next redraw: looked for during a few seconds.
+  // arrives with the panel's next redraw: looked for during up to 15 s (a busy machine), then kept
+  // in view for 5 s from when it was first found, however late that was.
   // The deepest shown element holding the text (a markdown line's <p> or <li>, not its panel).
   const find = (text) => {
     const hits = [...document.querySelectorAll("p, li, td, span, div, strong, em")].filter(
@@ -96,18 +97,21 @@ BRING_INTO_VIEW_JS = r"""
   // it is kept in view for a few seconds, until the reader scrolls, clicks or types.
   const me = (window.phExplorerBringInto = (window.phExplorerBringInto || 0) + 1);
   const start = performance.now();
+  let found = null;  // when the text was first found
   let reader = false;
   const events = ["wheel", "touchstart", "pointerdown", "keydown"];
   const readerMoved = () => { reader = true; };
   events.forEach((type) => window.addEventListener(type, readerMoved, { capture: true, passive: true }));
   const attempt = () => {
-    if (window.phExplorerBringInto !== me || reader || performance.now() - start > 5000) {
+    const now = performance.now();
+    if (window.phExplorerBringInto !== me || reader || now - start > 15000 || (found !== null && now - found > 5000)) {
       events.forEach((type) => window.removeEventListener(type, readerMoved, { capture: true }));
       return;
     }
     setTimeout(attempt, 50);  // the whole panel is searched: a few times a second, not every frame
     const a = find(first), b = last ? find(last) : null;
     if (!a || (last && !b)) return;
+    found = found === null ? now : found;
     // The panel that scrolls, and the part of it inside the window (it may reach below it).
     let box = a.parentElement;
     while (box && !(box.scrollHeight > box.clientHeight && /(auto|scroll)/.test(getComputedStyle(box).overflowY))) box = box.parentElement;
