@@ -195,31 +195,29 @@ def held(record: dict[str, Any], side: dict[str, Any], effect: str) -> bool:
     return any(holds_truth(claim, effect, record["hidden_settings"][effect]) for claim in side["claims"])
 
 
-def same_answer(record: dict[str, Any]) -> bool:
-    """The stop and the full campaign answer alike about what the head hides: a hidden catalog effect
-    held by a claim of both or of neither (holds_truth); an unknown shape answered alike
-    (unknown_answer); else both quiet, or both not (quiet)."""
+def answer(record: dict[str, Any], side: dict[str, Any]) -> tuple[bool, ...] | str | bool:
+    """What one campaign answers about what the head hides, in the terms the truth is judged in: each
+    hidden catalog effect held by a claim or not (holds_truth); an unknown shape's answer
+    (unknown_answer); else whether it is quiet (a healthy head, a ring measured badly, touch outliers)."""
     hidden = record.get("hidden", [])
     catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
     if record["kind"] == "catalog_effect" and catalog:
-        return all(held(record, record["full"], effect) == held(record, record["adaptive"], effect) for effect in catalog)
+        return tuple(held(record, side, effect) for effect in catalog)
     if record["kind"] == "unknown_shape" and shape_truth(record) is not None:
-        return unknown_answer(record, record["full"]) == unknown_answer(record, record["adaptive"])
-    background = set(record["in_head"]) - set(hidden)
-    return quiet(record["full"], background) == quiet(record["adaptive"], background)
+        return unknown_answer(record, side)
+    return quiet(side, set(record["in_head"]) - set(hidden))
+
+
+def same_answer(record: dict[str, Any]) -> bool:
+    """The stop and the full campaign answer alike about what the head hides (answer)."""
+    return answer(record, record["full"]) == answer(record, record["adaptive"])
 
 
 def right_answer(record: dict[str, Any], side: dict[str, Any]) -> bool:
-    """One campaign's answer is what the twin hid, judged as same_answer compares: every hidden catalog
-    effect held by a claim; an unknown shape's axis and group named (unknown_answer); else quiet (a
-    healthy head, and a ring measured badly or touch outliers, where no effect is right)."""
-    hidden = record.get("hidden", [])
-    catalog = [effect for effect in hidden if effect in DEFAULT_CATALOG]
-    if record["kind"] == "catalog_effect" and catalog:
-        return all(held(record, side, effect) for effect in catalog)
-    if record["kind"] == "unknown_shape" and shape_truth(record) is not None:
-        return unknown_answer(record, side) == "named"
-    return quiet(side, set(record["in_head"]) - set(hidden))
+    """One campaign's answer is what the twin hid (answer): every hidden catalog effect held by a
+    claim; an unknown shape's axis and group named; else quiet."""
+    said = answer(record, side)
+    return said == "named" if isinstance(said, str) else all(said) if isinstance(said, tuple) else said
 
 
 def as_right(record: dict[str, Any]) -> bool:

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.stats import binomtest
 
 import ph_explorer
-from ph_explorer.diagnosis import VERDICTS, diagnose
+from ph_explorer.diagnosis import VERDICTS, Step, diagnose
 from ph_explorer.diagnosis.within_noise import FALSE_ALARM, MEAN_TOLERANCE, RING_LEVEL
 from ph_explorer.paths import scenarios_dir
 from ph_explorer.task_runner import run_tasks
@@ -199,6 +199,11 @@ def clopper_pearson(k: int, n: int) -> list[float]:
 
 def share(k: int, n: int) -> float:
     return round(k / n, 4) if n else None  # type: ignore[return-value]
+
+
+def over_floor(step: Step) -> float:
+    """A step's check-ring MAE over its noise floor, against the repetition mean, as records keep it."""
+    return round(step.mae_um["mean"] / step.noise_floor_um["mean"], 3)
 
 
 def rate(k: int, n: int) -> dict[str, Any]:

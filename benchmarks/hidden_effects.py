@@ -19,6 +19,7 @@ import tomllib
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from benchmarks.calibration import over_floor
 from benchmarks.population import error_over_u
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import DEFAULT_CATALOG
@@ -98,7 +99,7 @@ def one(effect_id: str, truth: dict[str, float], design: str = "paper") -> dict[
         "top_confounded_with": [o.effect for o in top.confounded_with],
         "check_rings_mae_mean_um": {"before": round(result.steps[0].mae_um["mean"], 4), "after": round(result.steps[-1].mae_um["mean"], 4)},
         "noise_floor_mean_um": round(result.steps[-1].noise_floor_um["mean"], 4),
-        "after_over_floor": round(result.steps[-1].mae_um["mean"] / result.steps[-1].noise_floor_um["mean"], 3),
+        "after_over_floor": over_floor(result.steps[-1]),
         "nested_mae_mean_um": None
         if result.nested is None
         else {"before": round(result.nested.before_um["mean"], 4), "after": round(result.nested.after_um["mean"], 4)},

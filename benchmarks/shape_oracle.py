@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.calibration import over_floor
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.loop import add_effects
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL, replication, ring_residual_squares
@@ -55,7 +56,7 @@ def right_group_ratio(campaign: Campaign, result: Diagnosis, group: str) -> floa
     the rings do not determine the shape's values where the check rings need them."""
     grid, periodic, _ = knots(group, campaign_touches(campaign), ~campaign.holdout_mask())
     _, step = add_effects(campaign, [*result.chain, error_function(group, grid, periodic)()])
-    return round(step.mae_um["mean"] / step.noise_floor_um["mean"], 3)
+    return over_floor(step)
 
 
 def effects_oracle(campaign: Campaign, effects: list[Effect]) -> list[dict[str, Any]]:

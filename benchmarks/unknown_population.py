@@ -62,7 +62,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from benchmarks.calibration import code_version, commit, rate
+from benchmarks.calibration import code_version, commit, over_floor, rate
 from benchmarks.multi_effects import KINDS, claim_record, found_each, multi_effect_head, shaped_each
 from benchmarks.shape_oracle import effects_oracle, oracle_record, right_group_ratio
 from benchmarks.unknown_shapes import FAMILIES, unknown_shape_head
@@ -145,7 +145,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
         seed = head.truth["head_seed"]
         try:
             plain = diagnose(random_campaign(seed, design_of(seed))).steps[-1]
-            record["plain_ratio"] = round(plain.mae_um["mean"] / plain.noise_floor_um["mean"], 3)
+            record["plain_ratio"] = over_floor(plain)
         except Exception as error:  # recorded beside the head's own record, which stands
             record["plain_error"] = f"{type(error).__name__}: {error}"
     group = shape_truth({"family": job["family"], "truth": head.truth})
@@ -186,7 +186,7 @@ def diagnose_unknown(job: dict[str, Any]) -> dict[str, Any]:
             }
             for s in result.shapes
         ],
-        "step_ratios": [round(step.mae_um["mean"] / step.noise_floor_um["mean"], 3) for step in result.steps],
+        "step_ratios": [over_floor(step) for step in result.steps],
     }
 
 
@@ -451,9 +451,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
                 ),
                 sum("right_group_ratio" in r for r in compared),
             ),
-            "right_group_ratio_median": round(float(np.median([r["right_group_ratio"] for r in seen if "right_group_ratio" in r])), 3)
-            if any("right_group_ratio" in r for r in seen)
-            else None,
+            "right_group_ratio_median": round(float(np.median([r["right_group_ratio"] for r in seen])), 3) if seen else None,
             # the oracle (shape_oracle): the head's own shape known exactly passes the shapes' replication test
             "oracle_passes": rate(len(passing), len(seen)),
             "shape_right_where_oracle_passes": rate(sum(shape_right(r) for r in passing), len(passing)),
