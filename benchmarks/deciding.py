@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.calibration import rate
 from benchmarks.population import head_of
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis import diagnose
@@ -177,10 +178,6 @@ def head_scenario(record: dict[str, Any]) -> tuple[Scenario, bool]:
     scenario, truth = head_of({"group": record["group"], "seed": record["seed"]})
     seed = record["seed"] if truth is None else truth["head_seed"]
     return scenario, DESIGNS[design_of(seed)]["times"]
-
-
-def rate(k: int, n: int) -> dict[str, Any]:
-    return {"count": k, "of": n, "rate": round(k / n, 3) if n else None}
 
 
 def run(quick: bool = False, log: Callable[[str], None] = print) -> dict[str, Any]:

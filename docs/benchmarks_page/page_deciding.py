@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from .page_format import joined, num, table
+from .page_format import joined, num, share_of, table
 
 DECIDING_INTRO = """\
 ## Rings that decide
@@ -33,10 +33,6 @@ def promised(case: Mapping[str, Any]) -> str:
 def deciding(results: Mapping[str, Any]) -> str:
     d = results.get("deciding", {})
 
-    def rate(x: Any) -> str:
-        x = x or {}
-        return f"{num(x.get('count'))} of {num(x.get('of'))}"
-
     rows = []
     for name in ("a_axis_angular", "b_axis_tilt"):
         case = d.get(name) or {}
@@ -45,8 +41,8 @@ def deciding(results: Mapping[str, Any]) -> str:
         rows.append(
             [
                 f"{name}: {truth.get('id')} {truth.get('cycles_per_rev')}/rev",
-                rate(case.get("named_and_told_apart_before")),
-                rate(case.get("named_and_told_apart_after")),
+                share_of(case.get("named_and_told_apart_before")),
+                share_of(case.get("named_and_told_apart_after")),
                 joined([str(n) for n in case.get("rings_proposed") or []]),
                 promised(case),
                 joined(shared),
@@ -56,8 +52,8 @@ def deciding(results: Mapping[str, Any]) -> str:
     rows.append(
         [
             "false suggestions: not claimed after",
-            f"false claims before: {rate(false.get('false_claims_before'))}",
-            f"{rate(false.get('refuted_or_left_suggested'))} (any false claim after: {rate(false.get('false_claims_after'))})",
+            f"false claims before: {share_of(false.get('false_claims_before'))}",
+            f"{share_of(false.get('refuted_or_left_suggested'))} (any false claim after: {share_of(false.get('false_claims_after'))})",
             joined([str(n) for n in false.get("rings_proposed") or []]),
             "",
             "",
