@@ -49,6 +49,14 @@ def add_a_shape(page, session, shots: Path) -> None:
     inked, colours = colour_census(chart.screenshot())
     assert inked >= 1500 and colours >= 3, (inked, colours)  # drawn: its curve and its band, not an empty frame
     step_shot(page, shots, "shapes_1_found")
+    # What is left, binned in the head's variables: its caption sends the user to the shape found,
+    # not to writing a Python effect.
+    caption = page.get_by_text("is claimed as a shape, shape_b_angular", exact=False).first
+    chart.hover()
+    page.mouse.wheel(0, 300)  # the reader scrolls the panel on (the app then stops keeping the verdict in view)
+    caption.scroll_into_view_if_needed()
+    in_view(caption, "what is left's caption")
+    assert "then Refit the hybrid" in session.physics.evidence_text.content
 
     # 2. Tick the shape, refit: the check rings' error falls, and the hybrid joins Tables 1-3.
     tables_before = session.tables.markdown.content

@@ -519,7 +519,9 @@ def test_a_hidden_effect_the_catalog_lacks_gets_a_shape_or_is_unexplained(name):
     assert result.steps[-1].mae_um["mean"] < 0.7 * result.steps[0].mae_um["mean"]
     assert sections["verdict"].title.startswith("Verdict: uncatalogued")
     caption = left_next(result, "explorer")
-    assert caption.startswith(f"The shape {shape.id}") and caption.endswith("then Refit the hybrid.")
+    assert caption.startswith(f"What the rings replicate of it is claimed as a shape, {shape.id} (") and caption.endswith(
+        "then Refit the hybrid."
+    )
 
 
 @pytest.mark.slow

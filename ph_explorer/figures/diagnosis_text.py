@@ -218,7 +218,8 @@ def left_next(result: Diagnosis, front: Front = "command line") -> str:
     shape was tried."""
     actions = ACTIONS[front]
     if result.claimed_shapes:
-        return f"The shape {' and '.join(shape.id for shape in result.claimed_shapes)} describes it: {actions['add']}."
+        shapes = " and ".join(f"{shape.id} ({shape_name(shape)})" for shape in result.claimed_shapes)
+        return f"What the rings replicate of it is claimed as a shape, {shapes}: {actions['add']}."
     own = f"write the effect that has this signature ({actions['own']}) and diagnose again with it."
     closest = closest_shape_text(result)
     return f"{closest[:1].upper()}{closest[1:]}else {own}" if closest else own[:1].upper() + own[1:]
