@@ -200,7 +200,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         "missing": actions["add"] + ".",
         "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
         "partial": f"add the effects found, then look at what is left: {closest}an effect outside the catalog ({actions['own']}) may explain it.",
-        "unexplained": f"no catalog effect explains the failure: {closest or look}else write the effect that has that signature ({actions['own']}).",
+        "unexplained": f"no catalog effect explains the failure: {closest or look}else {own_effect_text(actions)}.",
         "uncatalogued": f"the shape found is added in the error history below; {pins}.",
     }[result.verdict]
 
@@ -212,6 +212,11 @@ def closest_shape_text(result: Diagnosis) -> str:
     return f"the closest shape, {tried.id}, is not claimed: to pin it down, {pin_text(tried)}; " if tried is not None else ""
 
 
+def own_effect_text(actions: dict[str, str]) -> str:
+    """The last resort for what neither the catalog nor a shape holds: an effect of the user's own."""
+    return f"write the effect that has that signature ({actions['own']})"
+
+
 def left_next(result: Diagnosis, front: Front = "command line") -> str:
     """What to do with what is left (the signature), one sentence: the shape claimed for it added, else
     the closest shape pinned down, else an effect of the user's own; never only the last while a
@@ -220,7 +225,7 @@ def left_next(result: Diagnosis, front: Front = "command line") -> str:
     if result.claimed_shapes:
         shapes = " and ".join(f"{shape.id} ({shape_name(shape)})" for shape in result.claimed_shapes)
         return f"What the rings replicate of it is claimed as a shape, {shapes}: {actions['add']}."
-    own = f"write the effect that has this signature ({actions['own']}) and diagnose again with it."
+    own = f"{own_effect_text(actions)} and diagnose again with it."
     closest = closest_shape_text(result)
     return f"{closest[:1].upper()}{closest[1:]}else {own}" if closest else own[:1].upper() + own[1:]
 
