@@ -11,11 +11,13 @@ import numpy as np
 import pytest
 
 from ph_explorer.effects import DEFAULT_CATALOG
+from ph_explorer.geometry import stylus_direction
 from ph_explorer.io import read_campaign
 from ph_explorer.io.rings import read_rings, rings_csv_text
+from ph_explorer.io.writer import write_campaign
 from ph_explorer.models.crossval import OutOfSampleSmoother
 from ph_explorer.planning.deciding import DECIDE_A_STEP_DEG, DECIDING_POWER, DECIDING_RINGS, rings_for, rings_needed
-from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
+from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings, on_measured_side
 from ph_explorer.planning.ring_evidence import Evidence, Question, decision_power, one_sided, scatter_ratio, spectral_products
 from ph_explorer.twin import load_scenario, simulate, twin_scenario
 from ph_explorer.twin.random_heads import random_campaign
@@ -198,6 +200,25 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
     assert [r["order"] for r in report["rings"]] == list(range(1, len(report["rings"]) + 1))
     written = read_rings(tmp_path / "rings.csv")
     assert np.allclose(written, [[r["A_deg"], r["B_deg"]] for r in report["rings"]])
+    # The same rings in space, the same touches, labelled at (-A0, B0 + 180) (point k is then the
+    # point at k + N/2): the same answer, its rings proposed on that side (before: a failure).
+    measured = read_campaign(campaign)
+    flip = lambda o: np.column_stack([-o[:, 0], (o[:, 1] + 360.0) % 360.0 - 180.0])  # noqa: E731
+    half = measured.n_points // 2
+    mirrored = dataclasses.replace(
+        measured,
+        orientations=flip(measured.orientations),
+        check_orientations=flip(measured.check_orientations),
+        deviations=np.roll(measured.deviations, -half, axis=2),
+        times_s=np.roll(measured.times_s, -half, axis=2),
+    )
+    write_campaign(mirrored, tmp_path / "mirrored.csv")
+    result = run_cli("design", "--data", tmp_path / "mirrored.csv", "--decide", "--budget", "10", "--json")
+    assert result.returncode == 0, result.stderr
+    again = json.loads(result.stdout)
+    assert again["verdict"] == report["verdict"] and again["expected"] == report["expected"]
+    assert [(r["expected_gain"], r["question"]) for r in again["rings"]] == [(r["expected_gain"], r["question"]) for r in report["rings"]]
+    np.testing.assert_allclose([[r["A_deg"], r["B_deg"]] for r in again["rings"]], flip(written), atol=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -248,3 +269,20 @@ def test_the_report_lists_the_rings_that_would_decide_without_naming_a_teaching_
     assert "a_axis" not in teaching and "b_axis" not in teaching and "effect A" in teaching
     revealed = "".join(decision_section(decision, EffectNames(campaign, DEFAULT_CATALOG, reveal=True)))
     assert "tells a_axis_cyclic from a_axis_radial_motion" in revealed
+
+
+def test_a_campaign_measured_at_negative_a_is_offered_the_same_rings_in_space_on_its_own_side():
+    """The ring at (A0, B0) is the ring at (-A0, B0 + 180): a campaign measured at negative A0 gets
+    the candidates a positive one gets, mirrored to its side; a positive one's are as before (A0 = 0
+    to its largest A0)."""
+    candidates = candidate_orientations(a_step_deg=DECIDE_A_STEP_DEG)
+    paper = load_scenario("paper").orientations
+    positive = on_measured_side(candidates, paper)
+    assert np.array_equal(positive, candidates[candidates[:, 0] <= paper[:, 0].max()])
+    mirrored = np.column_stack([-paper[:, 0], (paper[:, 1] + 360.0) % 360.0 - 180.0])
+    negative = on_measured_side(candidates, mirrored)
+    assert len(negative) == len(positive) and (negative[:, 0] <= 0.0).all()
+    # The same stylus directions, ring for ring in the same order: the same rings in space.
+    np.testing.assert_allclose(
+        stylus_direction(negative[:, 0], negative[:, 1]), stylus_direction(positive[:, 0], positive[:, 1]), atol=1e-12
+    )

@@ -54,6 +54,32 @@ def test_any_file_through_the_cli_ends_in_one_line(tmp_path: Path, data: bytes) 
     _inspect(tmp_path, data)
 
 
+def _off_any_lattice() -> bytes:
+    """A valid campaign whose rings lie on no lattice: two share an A0, two a B0, none at their node."""
+    rings = [(30.0, 10.0), (30.0, 50.0), (60.0, 90.0), (45.0, 90.0), (75.0, -120.0), (15.0, 160.0)]
+    rng = np.random.default_rng(3)
+    rows = [f"{a:g},{b:g},{rep},{k},{rng.normal(0.0, 0.2):.5f}" for a, b in rings for rep in range(2) for k in range(8)]
+    return ("A_deg,B_deg,rep,point,dev_um\n" + "\n".join(rows) + "\n").encode()
+
+
+OFF_ANY_LATTICE = _off_any_lattice()
+
+
+@pytest.mark.parametrize("command", [["diagnose", "--save", "study.json"], ["report", "--out", "report.html"], ["design", "--decide"]])
+def test_rings_on_no_lattice_are_one_line_naming_the_file_and_nothing_is_written(tmp_path: Path, command: list[str]) -> None:
+    """The trilinear model, every command's baseline, predicts a ring from the lattice rings around
+    it: rings on none are said in one line (before: a traceback from deep inside the diagnosis)."""
+    path = tmp_path / "scattered.csv"
+    path.write_bytes(OFF_ANY_LATTICE)
+    assert RUNNER.invoke(cli_app, ["inspect", str(path)]).exit_code == 0  # a valid file
+    args = [command[0], "--data", str(path), *[str(tmp_path / a) if "." in a else a for a in command[1:]]]
+    result = RUNNER.invoke(cli_app, args)
+    assert result.exit_code == 2, f"exit {result.exit_code}: {result.exception!r}"
+    message = result.stderr.rstrip("\n")
+    assert "\n" not in message and str(path) in message and "lattice" in message, message
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scattered.csv"]
+
+
 # -- the server: a bad upload in one browser, every browser keeps being served ---------------------
 viser = pytest.importorskip("viser")
 from fake_browser import open_session, wait_for  # noqa: E402
@@ -77,6 +103,7 @@ BAD_FILES = {
     "binary.csv": bytes(range(256)) * 4,
     "empty.csv": b"",
     "truncated.csv": VALID[: len(VALID) // 2],
+    "scattered.csv": OFF_ANY_LATTICE,
 }
 
 

@@ -33,6 +33,7 @@ from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, 
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
 from ph_explorer.models.lattice import BuildStopped, PredictionLattice, build_cpu_s
+from ph_explorer.models.lattice_need import read_lattice_campaign, require_lattice
 from ph_explorer.models.off_the_shelf import PEER_MODELS
 from ph_explorer.models.trilinear import TrilinearModel
 from ph_explorer.paper.tables import tables_at
@@ -386,6 +387,7 @@ def read_uploaded_campaign(name: str, content: bytes, geometry: Mapping[str, flo
             file = None if error.file is None else str(error.file).replace(str(path), safe)
             raise InputError(error.message, file=file, row=error.row, column=error.column) from None
     campaign.source = safe
+    require_lattice(campaign)  # the models are fitted next: a design without a lattice is said here, in one line
     return campaign
 
 
@@ -411,10 +413,8 @@ def default_dataset(
     if model_dir is not None and not model_dir.is_dir():
         raise InputError("no such model folder", file=str(model_dir))
     if data is not None:
-        campaign = read_campaign(Path(data), geometry)
-        return dataset_for(campaign, f"campaign {Path(data).name}", model_dir)
+        return dataset_for(read_lattice_campaign(data, geometry), f"campaign {Path(data).name}", model_dir)
     if scenario is not None:
-        campaign = simulated_scenario(scenario)
-        return dataset_for(campaign, f"scenario {scenario} (simulated by the twin)", model_dir)
+        return dataset_for(simulated_scenario(scenario), f"scenario {scenario} (simulated by the twin)", model_dir)
     paper_csv = paths.assets_dir() / "data" / "paper.csv"
     return dataset_for(read_campaign(paper_csv, geometry), "the shipped paper campaign", model_dir or paths.default_model_dir())

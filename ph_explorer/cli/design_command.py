@@ -107,12 +107,12 @@ def decide_command(
     if data is None:
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
     from ph_explorer.diagnosis import diagnose
-    from ph_explorer.io import read_campaign
     from ph_explorer.io.rings import rings_csv_text
     from ph_explorer.io.writer import atomic_write
+    from ph_explorer.models.lattice_need import read_lattice_campaign
     from ph_explorer.planning.deciding import decision_words, rings_that_decide
 
-    campaign = read_campaign(Path(data), geometry or {})
+    campaign = read_lattice_campaign(data, geometry)
     start = []
     if study is not None:
         from ph_explorer.diagnosis.study import Study
@@ -171,10 +171,10 @@ def plan_command(
             raise InputError("plans from a measured campaign: give --data FILE.csv (--start plans a head with no data)", option="--next")
         if sigma is not None:
             raise InputError("is for --start: with data the campaign's own repetitions say the noise", option="--sigma-um")
-        from ph_explorer.io import read_campaign
+        from ph_explorer.models.lattice_need import read_lattice_campaign
 
         asked, previous = previous_plan(after) if after is not None else ((), None)
-        campaign = read_campaign(Path(data), geometry or {})
+        campaign = read_lattice_campaign(data, geometry)
         result = adaptive.plan_diagnosis(campaign, catalog)
         plan = adaptive.next_rings(campaign, result, budget, catalog, asked=asked, tolerance_um=tolerance, previous=previous)
     report = plan.to_json()

@@ -10,8 +10,9 @@ from rich.console import Console
 from rich.progress import Progress
 
 from ph_explorer.errors import InputError
-from ph_explorer.io import checked_output_file, file_sha256, read_campaign
+from ph_explorer.io import checked_output_file, file_sha256
 from ph_explorer.io.writer import atomic_write
+from ph_explorer.models.lattice_need import read_lattice_campaign
 
 PROGRESS_CONSOLE = Console(stderr=True)  # the bars on stderr: stdout holds the report alone, streamed
 
@@ -52,7 +53,7 @@ def diagnose_command(
     ids = parse_add(add, catalog)
     start = previous.effects(catalog) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
-    campaign = read_campaign(Path(data), geometry or {})
+    campaign = read_lattice_campaign(data, geometry)
     rings_added = previous.rings_added_on(sha256, str(data), campaign.scenario.get("merges", [])) if previous else []
     with Progress(transient=True, disable=json_output, console=PROGRESS_CONSOLE) as bar:
         task = bar.add_task("scanning candidate effects", total=None)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.errors import InputError
-from ph_explorer.io import read_campaign
+from ph_explorer.models.lattice_need import read_lattice_campaign
 from ph_explorer.paper.tables import evaluation_report, mean_mae
 
 
@@ -21,7 +21,7 @@ def evaluate_command(
     # The models' classes import torch: only when the command runs (inspect must work without it).
     from ph_explorer.models.folder import holdout_from_card, load_card, load_models, other_training_data
 
-    campaign = read_campaign(Path(data), geometry or {})
+    campaign = read_lattice_campaign(data, geometry)
     card = load_card(Path(model))
     other = other_training_data(card, Path(data))
     if other is not None and strict:

@@ -15,8 +15,9 @@ from rich.progress import Progress
 from ph_explorer.cli.uncertainty_command import checked_orientations
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
-from ph_explorer.io import campaign_sha256, checked_output_file, file_sha256, read_campaign
+from ph_explorer.io import campaign_sha256, checked_output_file, file_sha256
 from ph_explorer.io.writer import atomic_write
+from ph_explorer.models.lattice_need import read_lattice_campaign
 
 
 def report_command(
@@ -47,7 +48,7 @@ def report_command(
     out = checked_output_file(out, "--out", "the report", "report.html")
     chosen = checked_orientations(orientations) if orientations is not None else None
     if data is not None:
-        campaign = read_campaign(Path(data), geometry or {})
+        campaign = read_lattice_campaign(data, geometry)
         name, sha256 = Path(data).name, file_sha256(Path(data))
     else:
         loaded = twin.load_scenario(str(scenario))

@@ -17,9 +17,10 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.campaign_file import catalog_of, diagnose_campaign, parse_add
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.errors import InputError
-from ph_explorer.io import file_sha256, read_campaign
+from ph_explorer.io import file_sha256
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import load_models
+from ph_explorer.models.lattice_need import read_lattice_campaign
 from ph_explorer.task_runner import dask_client, run_tasks
 
 
@@ -53,7 +54,7 @@ def diagnosed_file(
         row["sha256"] = file_sha256(Path(path))
         catalog = catalog_of(options.get("effects"))
         ids = parse_add(options.get("add"), catalog)
-        campaign = read_campaign(Path(path), options.get("geometry") or {})
+        campaign = read_lattice_campaign(path, options.get("geometry"))
         loaded = load_models(Path(options["model"])) if options.get("model") else None
         result = diagnose_campaign(campaign, catalog, ids, loaded, options.get("data_part") or "trilinear")
     except (InputError, OSError) as error:

@@ -23,7 +23,7 @@ from ph_explorer.diagnosis.candidates import Candidate, Partner, RivalSetting
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import Catalog, Effect
 from ph_explorer.models.crossval import OutOfSampleSmoother
-from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings
+from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings, on_measured_side
 from ph_explorer.planning.ring_evidence import Evidence, Question, decision_power, residual_spectrum, scatter_ratio
 
 
@@ -178,10 +178,11 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         return Decision([], {}, 0.0, note=note, budget=budget)
     spectrum = residual_spectrum(campaign, result, catalog)
     campaign = result.judged(campaign)  # the rings the diagnosis judged
-    pool = distinct_rings(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
-    # Within the measured A0 range: beyond it the data model extrapolates, and what a ring would
-    # show of a term is the extrapolation's as much as the term's.
-    pool = pool[pool[:, 0] <= campaign.orientations[:, 0].max() + 1e-9]
+    candidates = on_measured_side(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
+    pool = distinct_rings(candidates, campaign.orientations)
+    if not len(pool):
+        note = "no ring is left to measure within the campaign's A0 range: every candidate there is measured"
+        return Decision([], {}, None, [q.label for q in asked], note=note, budget=budget)
     # The smoother over the measured rings and the pool's, these held out as check rings are.
     train = np.concatenate([~campaign.holdout_mask(), np.zeros(len(pool), dtype=bool)])
     weights = OutOfSampleSmoother(np.concatenate([campaign.orientations, pool]), train).weights

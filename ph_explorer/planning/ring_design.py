@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from ph_explorer.campaign import Campaign, lattice_axes, orientation_keys, orientation_match
 from ph_explorer.effects import DEFAULT_CATALOG, Effect, effect_label
 from ph_explorer.errors import InputError
-from ph_explorer.geometry import A_LIMIT_DEG, DEFAULT_GEOMETRY, Geometry, stylus_direction
+from ph_explorer.geometry import A_LIMIT_DEG, DEFAULT_GEOMETRY, Geometry, stylus_direction, wrap_deg
 from ph_explorer.kinematics import touch_kinematics
 from ph_explorer.models.hybrid import fitted_basis
 
@@ -86,6 +86,18 @@ def candidate_orientations(
     grid = np.array([(a, b) for a in a_values for b in (b_values if a > 0 else [0.0])])
     reachable = touch_kinematics(grid, geometry).reachable[:, 0, :].all(axis=1)
     return grid[reachable]
+
+
+def on_measured_side(pool: NDArray[np.float64], measured: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The candidates as the campaign measures its rings: the ring at (A0, B0) is the ring at
+    (-A0, B0 + 180) (the same stylus direction), and a campaign measured at negative A0 (the PH20
+    turns A both ways) is offered them on its own side. Kept from A0 = 0 to the farthest measured
+    A0 on each side: beyond, its data model extrapolates, and what a ring would show of a term is
+    the extrapolation's as much as the term's."""
+    mirrored = np.column_stack([-pool[:, 0], wrap_deg(pool[:, 1] + 180.0)])[pool[:, 0] > 0]
+    both = np.concatenate([pool, mirrored])
+    low, high = min(0.0, float(measured[:, 0].min())), max(0.0, float(measured[:, 0].max()))
+    return both[(both[:, 0] >= low - 1e-9) & (both[:, 0] <= high + 1e-9)]
 
 
 def cell_centres(campaign: Campaign, count: int) -> NDArray[np.float64]:
