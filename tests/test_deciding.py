@@ -20,7 +20,7 @@ from ph_explorer.planning.deciding import DECIDE_A_STEP_DEG, DECIDING_POWER, DEC
 from ph_explorer.planning.ring_design import candidate_orientations, distinct_rings, on_measured_side
 from ph_explorer.planning.ring_evidence import Evidence, Question, decision_power, one_sided, scatter_ratio, spectral_products
 from ph_explorer.twin import load_scenario, simulate, twin_scenario
-from ph_explorer.twin.random_heads import random_campaign
+from ph_explorer.twin.random_heads import random_campaign, random_head
 from tests.command_line import run_cli
 
 ANGULAR = DEFAULT_CATALOG["a_axis_cyclic"](amplitude_arcsec=1.5, phase_deg=70.0, cycles_per_rev=26)
@@ -286,3 +286,24 @@ def test_a_campaign_measured_at_negative_a_is_offered_the_same_rings_in_space_on
     np.testing.assert_allclose(
         stylus_direction(negative[:, 0], negative[:, 1]), stylus_direction(positive[:, 0], positive[:, 1]), atol=1e-12
     )
+
+
+def test_one_repetition_is_said_in_the_verdict_and_no_ring_is_weighed_against_noise_it_does_not_show(tmp_path):
+    """One repetition per ring has no repetition spread: the verdict line says nothing is tested
+    against noise (not 'within noise'), and the rings that decide say why they weigh nothing
+    (before: an IndexError on the evidence's NaN)."""
+    radial = DEFAULT_CATALOG["a_axis_radial_motion"](
+        y_amplitude_um=-1.17, y_phase_deg=170.6, z_amplitude_um=1.17, z_phase_deg=130.1, cycles_per_rev=36
+    )
+    head = dataclasses.replace(random_head(204012, "paper", [radial]), repetitions=1)
+    campaign = tmp_path / "once.csv"
+    write_campaign(simulate(head), campaign)
+    result = run_cli("diagnose", "--data", campaign)
+    assert result.returncode == 0, result.stderr
+    verdict, following = result.stdout.splitlines()[:2]
+    assert "nothing here is tested against noise" in verdict and "within" not in verdict
+    assert "measure each ring again" in following
+    result = run_cli("design", "--data", campaign, "--decide", "--json")
+    assert result.returncode == 0, result.stderr
+    decision = json.loads(result.stdout)
+    assert decision["rings"] == [] and decision["questions"] and "one repetition" in decision["note"]

@@ -62,7 +62,8 @@ def diagnose_command(
         def say_verdict(headline: Headline) -> None:
             # The verdict as soon as it stands (the report's first line); the rest follows it.
             bar.stop()
-            print(verdict_headline(headline, catalog), flush=True)
+            # said before the record exists: its rings are tested against noise with more than one repetition (Diagnosis.tested)
+            print(verdict_headline(headline, catalog, tested=campaign.n_repetitions > 1), flush=True)
             bar.update(task, description="describing what is left, measuring the error history")
             bar.start()
 

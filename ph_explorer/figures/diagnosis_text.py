@@ -87,7 +87,9 @@ def report_sections(
     claims += tuple(unfolded_lines(result))
     sections = [
         Section(
-            "verdict", verdict_headline(result.headline, catalog, front == "explorer"), tuple(verdict_lines(result, actions, decision))
+            "verdict",
+            verdict_headline(result.headline, catalog, front == "explorer", result.tested),
+            tuple(verdict_lines(result, actions, decision)),
         ),
         Section("why", "Why", tuple(why_lines(result))),
         Section("claims", "Found", claims),
@@ -121,15 +123,20 @@ def report_text(
 # -- the verdict -------------------------------------------------------------------------------------
 
 
-def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = False) -> str:
+# A verdict's promise when nothing could be tested against noise (Diagnosis.tested: one repetition).
+UNTESTED = "one repetition per ring, so no repetition spread: nothing here is tested against noise"
+
+
+def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = False, tested: bool = True) -> str:
     """'Verdict: missing - b_axis_cyclic 22 cycles/rev: catalog effects found, ...'; a claim the rings
     cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
-    pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox)."""
+    pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox).
+    tested: False when the rings could not be tested against noise; then no verdict's promise holds."""
     named = "; ".join(
         [claim_name(c, headline, catalog) for c in headline.found if c.untold or c.untold_shape or not pairs_only]
         + [shape_name(shape) for shape in headline.claimed_shapes]
     )
-    return f"Verdict: {headline.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[headline.verdict]}."
+    return f"Verdict: {headline.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[headline.verdict] if tested else UNTESTED}."
 
 
 def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> str:
@@ -182,6 +189,8 @@ def why_lines(result: Diagnosis) -> list[str]:
 def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
     """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions;
     with the decision found, what rings can decide and what they cannot (no button says no ring does)."""
+    if not result.tested:
+        return "measure each ring again (two repetitions or more; the paper's campaign has 10) and diagnose again: one shows no noise to judge by."
     # A claimed shape's band narrows where its variable's band is widest, whatever else is open.
     pins = "; ".join(f"to pin {shape.id} down, {pin_text(shape)}" for shape in result.claimed_shapes)
     if result.leaves_open:

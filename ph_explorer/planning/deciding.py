@@ -176,6 +176,9 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
     if not asked:
         note = "nothing to decide: every claimed candidate is told from its partners, none is only suggested"
         return Decision([], {}, 0.0, note=note, budget=budget)
+    if not result.tested:  # evidence is counted in touch-noise variances, and one repetition shows no noise
+        note = "one repetition per ring: no repetition spread to weigh a ring's evidence against; measure each ring again first"
+        return Decision([], {}, None, [q.label for q in asked], note=note, budget=budget)
     spectrum = residual_spectrum(campaign, result, catalog)
     campaign = result.judged(campaign)  # the rings the diagnosis judged
     candidates = on_measured_side(candidate_orientations(campaign.geometry, a_step_deg=DECIDE_A_STEP_DEG), campaign.orientations)
