@@ -117,6 +117,9 @@ def test_a_teaching_report_names_no_hidden_effect_unless_revealed(diagnosed) -> 
     assert campaign.scenario["hidden"] == twin.load_scenario("head_3").hidden_ids
     assert named(hidden, "head_3") == [], named(hidden, "head_3")
     assert "effect A" in hidden and "22 cycles/rev" in hidden  # what was found stays, by letter
+    # Words that are not an effect named stay words: touch noise (id "noise"), a parameter (gravity's lobing).
+    assert "within noise" in hidden and not re.search(r"(within|noise alone|noise floor).{0,3}effect [A-Z]", hidden)
+    assert not re.search(r"effect [A-Z] [-\d.]+ (\+-|um)", hidden)
     # No orientation named: the ring that fails worst, then the first check ring.
     worst, first_check = result.failing_rings()[0], campaign.orientations[campaign.holdout_mask()][0]
     headings = re.findall(r"<h3>(A[-\d.]+ B[-\d.]+)</h3>", hidden)

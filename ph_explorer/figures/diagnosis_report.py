@@ -44,10 +44,16 @@ class EffectNames:
     def __init__(self, campaign: Campaign, catalog: Catalog, reveal: bool) -> None:
         self.teaching = bool((campaign.scenario or {}).get("hidden")) and not reveal
         self.aliases: dict[str, str] = {}
-        words = {effect_id: effect_id for effect_id in catalog} | {cls.name: effect_id for effect_id, cls in catalog.items()}
+        # The effects a diagnosis can name (touch noise is none: its id is the word "noise", as in "within noise").
+        named = {effect_id: cls for effect_id, cls in catalog.items() if cls.candidate}
+        words = {effect_id: effect_id for effect_id in named} | {cls.name: effect_id for effect_id, cls in named.items()}
         self._ids = words
-        # Whole words only (an id's letters inside a longer id are another effect), longest first.
-        self._pattern = re.compile("|".join(rf"(?<![A-Za-z_]){re.escape(w)}(?![A-Za-z_])" for w in sorted(words, key=len, reverse=True)))
+        # Whole words only (an id's letters inside a longer id are another effect), longest first; not a
+        # parameter's name, which its value and U or unit follow (gravity's "lobing 0.1 +- 0.05 um").
+        parameter = r"(?!\s+[-+]?[\d.]+(?:e[-+]?\d+)?\s+(?:\+-|um\b))"
+        self._pattern = re.compile(
+            "|".join(rf"(?<![A-Za-z_]){re.escape(w)}(?![A-Za-z_]){parameter}" for w in sorted(words, key=len, reverse=True))
+        )
 
     def label(self, effect_id: str) -> str:
         if not self.teaching:
