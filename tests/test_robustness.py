@@ -65,19 +65,24 @@ def _off_any_lattice() -> bytes:
 OFF_ANY_LATTICE = _off_any_lattice()
 
 
+@pytest.mark.parametrize("sidecar", [False, True], ids=["off-grid rings held out", "a sidecar's check ring"])
 @pytest.mark.parametrize("command", [["diagnose", "--save", "study.json"], ["report", "--out", "report.html"], ["design", "--decide"]])
-def test_rings_on_no_lattice_are_one_line_naming_the_file_and_nothing_is_written(tmp_path: Path, command: list[str]) -> None:
+def test_rings_on_no_lattice_are_one_line_naming_the_file_and_nothing_is_written(tmp_path: Path, command: list[str], sidecar: bool) -> None:
     """The trilinear model, every command's baseline, predicts a ring from the lattice rings around
-    it: rings on none are said in one line (before: a traceback from deep inside the diagnosis)."""
+    it: rings on none are said in one line (before, with a sidecar's check ring: a ValueError
+    traceback from the suspect-ring smoother)."""
     path = tmp_path / "scattered.csv"
     path.write_bytes(OFF_ANY_LATTICE)
+    if sidecar:
+        (tmp_path / "scattered.toml").write_text("[scenario]\ncheck_orientations = [[15.0, 160.0]]\n")
+    files = sorted(p.name for p in tmp_path.iterdir())
     assert RUNNER.invoke(cli_app, ["inspect", str(path)]).exit_code == 0  # a valid file
     args = [command[0], "--data", str(path), *[str(tmp_path / a) if "." in a else a for a in command[1:]]]
     result = RUNNER.invoke(cli_app, args)
     assert result.exit_code == 2, f"exit {result.exit_code}: {result.exception!r}"
     message = result.stderr.rstrip("\n")
     assert "\n" not in message and str(path) in message and "lattice" in message, message
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["scattered.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == files
 
 
 # -- the server: a bad upload in one browser, every browser keeps being served ---------------------
