@@ -303,6 +303,9 @@ def test_one_repetition_is_said_in_the_verdict_and_no_ring_is_weighed_against_no
     verdict, following = result.stdout.splitlines()[:2]
     assert "nothing here is tested against noise" in verdict and "within" not in verdict
     assert "measure each ring again" in following
+    # The report (and the explorer, by the same words: figures.diagnosis_text.report_sections) says so too.
+    assert run_cli("report", "--data", campaign, "--out", tmp_path / "once.html").returncode == 0
+    assert "nothing here is tested against noise" in (tmp_path / "once.html").read_text()
     result = run_cli("design", "--data", campaign, "--decide", "--json")
     assert result.returncode == 0, result.stderr
     decision = json.loads(result.stdout)
