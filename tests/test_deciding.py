@@ -30,6 +30,11 @@ RADIAL = DEFAULT_CATALOG["a_axis_radial_motion"](
 )
 
 
+def mirrored(orientations: np.ndarray) -> np.ndarray:
+    """The same rings in space labelled at (-A0, B0 + 180), B0 in [-180, 180)."""
+    return np.column_stack([-orientations[:, 0], (orientations[:, 1] + 360.0) % 360.0 - 180.0])
+
+
 @pytest.fixture(scope="module")
 def paper():
     """The paper's campaign with its A axis's 26/rev angular error, and the pool of new rings."""
@@ -203,22 +208,21 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
     # The same rings in space, the same touches, labelled at (-A0, B0 + 180) (point k is then the
     # point at k + N/2): the same answer, its rings proposed on that side (before: a failure).
     measured = read_campaign(campaign)
-    flip = lambda o: np.column_stack([-o[:, 0], (o[:, 1] + 360.0) % 360.0 - 180.0])  # noqa: E731
     half = measured.n_points // 2
-    mirrored = dataclasses.replace(
+    mirror = dataclasses.replace(
         measured,
-        orientations=flip(measured.orientations),
-        check_orientations=flip(measured.check_orientations),
+        orientations=mirrored(measured.orientations),
+        check_orientations=mirrored(measured.check_orientations),
         deviations=np.roll(measured.deviations, -half, axis=2),
         times_s=np.roll(measured.times_s, -half, axis=2),
     )
-    write_campaign(mirrored, tmp_path / "mirrored.csv")
+    write_campaign(mirror, tmp_path / "mirrored.csv")
     result = run_cli("design", "--data", tmp_path / "mirrored.csv", "--decide", "--budget", "10", "--json")
     assert result.returncode == 0, result.stderr
     again = json.loads(result.stdout)
     assert again["verdict"] == report["verdict"] and again["expected"] == report["expected"]
     assert [(r["expected_gain"], r["question"]) for r in again["rings"]] == [(r["expected_gain"], r["question"]) for r in report["rings"]]
-    np.testing.assert_allclose([[r["A_deg"], r["B_deg"]] for r in again["rings"]], flip(written), atol=1e-9)
+    np.testing.assert_allclose([[r["A_deg"], r["B_deg"]] for r in again["rings"]], mirrored(written), atol=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -279,8 +283,7 @@ def test_a_campaign_measured_at_negative_a_is_offered_the_same_rings_in_space_on
     paper = load_scenario("paper").orientations
     positive = on_measured_side(candidates, paper)
     assert np.array_equal(positive, candidates[candidates[:, 0] <= paper[:, 0].max()])
-    mirrored = np.column_stack([-paper[:, 0], (paper[:, 1] + 360.0) % 360.0 - 180.0])
-    negative = on_measured_side(candidates, mirrored)
+    negative = on_measured_side(candidates, mirrored(paper))
     assert len(negative) == len(positive) and (negative[:, 0] <= 0.0).all()
     # The same stylus directions, ring for ring in the same order: the same rings in space.
     np.testing.assert_allclose(
