@@ -5,7 +5,8 @@ Smooth lobing-like systematic curves that vary with the orientation the way the 
 amplitude grows with the lateral share of gravity (sin A0), a 2-lobe term and a 6-lobe term,
 plus Gaussian touch noise; every repetition goes through its own least-squares circle fit.
 Beside it, `scenario_with`: the paper scenario's rings with only the effects a test names (the
-twin), which the data-part tests share.
+twin), which the data-part tests share; and `mirrored_campaign`: the same rings in space labelled
+on the other side of A0, which the planning tests share.
 """
 
 from __future__ import annotations
@@ -68,3 +69,22 @@ def scenario_with(*effects) -> Scenario:
     paper = load_scenario("paper")
     kept = [DEFAULT_CATALOG["noise"](sigma_um=0.175), DEFAULT_CATALOG["ring_form"](form_um=0.2, shape_seed=7), *effects]
     return dataclasses.replace(paper, effects=kept, hidden=[False] * len(kept))
+
+
+def mirrored(orientations: ArrayLike) -> NDArray[np.float64]:
+    """The same rings in space labelled at (-A0, B0 + 180), B0 in [-180, 180)."""
+    o = np.asarray(orientations, dtype=float).reshape(-1, 2)
+    return np.column_stack([-o[:, 0], (o[:, 1] + 360.0) % 360.0 - 180.0])
+
+
+def mirrored_campaign(campaign: Campaign) -> Campaign:
+    """The same touches labelled at (-A0, B0 + 180): point k of a ring is its point k + N/2 there
+    (the ring frame turns half a turn with the labels)."""
+    half = campaign.n_points // 2
+    return dataclasses.replace(
+        campaign,
+        orientations=mirrored(campaign.orientations),
+        check_orientations=mirrored(campaign.check_orientations),
+        deviations=np.roll(campaign.deviations, -half, axis=2),
+        times_s=np.roll(campaign.times_s, -half, axis=2),
+    )

@@ -14,8 +14,9 @@ from ph_explorer.campaign import lattice_axes, orientation_match
 from ph_explorer.errors import InputError
 from ph_explorer.io.rings import read_planned_rings
 from ph_explorer.planning import adaptive, closed_loop
-from ph_explorer.planning.ring_design import candidate_orientations
+from ph_explorer.planning.ring_design import candidate_orientations, measured_side, propose_rings
 from ph_explorer.twin.random_heads import random_head
+from tests.synthetic import mirrored, mirrored_campaign
 
 
 def cli(*args: str) -> tuple[int, str, str]:
@@ -79,6 +80,35 @@ def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> No
         campaign = merged_campaign(campaign, simulate(measured))[0]
         last = measured
     assert (~campaign.holdout_mask()).sum() > 18  # past one ring a B value: every B value took a second
+
+
+def test_a_campaign_measured_at_negative_a_is_planned_on_its_own_side() -> None:
+    """The ring at (A0, B0) is the ring at (-A0, B0 + 180), but not the same turn of the joints: a
+    campaign measured at negative A0 is offered its lattice rings, its check rings and its designed
+    rings there (before: at positive A0, off its lattice). Its lattice and check rings are the
+    positive campaign's, mirrored; the designed rings, weighed on the effects at the joints' own
+    angles, are on its side."""
+    campaign = closed_loop.measured_plan(random_head(4, "paper"), adaptive.first_rings())[1]
+    mirror = mirrored_campaign(campaign)
+    rings, distance = adaptive.data_rings(campaign, adaptive.NEXT_DATA_RINGS, np.zeros((0, 2)))
+    again, again_distance = adaptive.data_rings(mirror, adaptive.NEXT_DATA_RINGS, np.zeros((0, 2)))
+    # As far from the rings measured, in the same A rows; which of two B values equally far comes
+    # first follows the labels' order.
+    assert len(rings) and (rings[:, 0] > 0).all() and not orientation_match(again, mirror.orientations).any()
+    np.testing.assert_allclose(np.sort(again[:, 0]), np.sort(-rings[:, 0]))
+    np.testing.assert_allclose(np.sort(again_distance), np.sort(distance), atol=1e-9)
+    grown = np.concatenate([mirror.orientations[~mirror.holdout_mask()], again])
+    a_axis, b_axis = lattice_axes(grown[grown[:, 0] != 0])
+    assert np.isin(grown[grown[:, 0] != 0, 0], a_axis).all() and (a_axis < 0).all()
+    checks = adaptive.check_rings(campaign.orientations, 4, campaign.geometry)
+    np.testing.assert_allclose(adaptive.check_rings(mirror.orientations, 4, mirror.geometry), mirrored(checks), atol=1e-9)
+    designed = propose_rings(4, measured=mirror).orientations
+    assert (designed[:, 0] < 0).all() and not orientation_match(designed, mirror.orientations).any()
+    # A campaign on both sides is offered both; one at A0 >= 0 exactly the pool it had.
+    both = candidate_orientations()
+    assert np.array_equal(measured_side(both, campaign.orientations), both)
+    sides = measured_side(both, np.concatenate([campaign.orientations, mirror.orientations]))
+    assert np.array_equal(sides[: len(both)], both) and (sides[len(both) :, 0] < 0).all()
 
 
 def test_a_healthy_head_stops_within_a_few_plans_with_its_reason() -> None:

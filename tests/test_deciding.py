@@ -22,17 +22,13 @@ from ph_explorer.planning.ring_evidence import Evidence, Question, decision_powe
 from ph_explorer.twin import load_scenario, simulate, twin_scenario
 from ph_explorer.twin.random_heads import random_campaign, random_head
 from tests.command_line import run_cli
+from tests.synthetic import mirrored, mirrored_campaign
 
 ANGULAR = DEFAULT_CATALOG["a_axis_cyclic"](amplitude_arcsec=1.5, phase_deg=70.0, cycles_per_rev=26)
 # The radial motion that mimics it: the ball's displacement at the stylus length (80 mm x 1.5 arcsec).
 RADIAL = DEFAULT_CATALOG["a_axis_radial_motion"](
     y_amplitude_um=0.58, y_phase_deg=70.0, z_amplitude_um=0.3, z_phase_deg=160.0, cycles_per_rev=26
 )
-
-
-def mirrored(orientations: np.ndarray) -> np.ndarray:
-    """The same rings in space labelled at (-A0, B0 + 180), B0 in [-180, 180)."""
-    return np.column_stack([-orientations[:, 0], (orientations[:, 1] + 360.0) % 360.0 - 180.0])
 
 
 @pytest.fixture(scope="module")
@@ -207,16 +203,7 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
     assert np.allclose(written, [[r["A_deg"], r["B_deg"]] for r in report["rings"]])
     # The same rings in space, the same touches, labelled at (-A0, B0 + 180) (point k is then the
     # point at k + N/2): the same answer, its rings proposed on that side (before: a failure).
-    measured = read_campaign(campaign)
-    half = measured.n_points // 2
-    mirror = dataclasses.replace(
-        measured,
-        orientations=mirrored(measured.orientations),
-        check_orientations=mirrored(measured.check_orientations),
-        deviations=np.roll(measured.deviations, -half, axis=2),
-        times_s=np.roll(measured.times_s, -half, axis=2),
-    )
-    write_campaign(mirror, tmp_path / "mirrored.csv")
+    write_campaign(mirrored_campaign(read_campaign(campaign)), tmp_path / "mirrored.csv")
     result = run_cli("design", "--data", tmp_path / "mirrored.csv", "--decide", "--budget", "10", "--json")
     assert result.returncode == 0, result.stderr
     again = json.loads(result.stdout)

@@ -37,6 +37,7 @@ from ph_explorer.planning.ring_design import (
     cell_centres,
     distinct_rings,
     farthest_first,
+    measured_side,
     propose_rings,
 )
 from ph_explorer.planning.ring_evidence import check_residual
@@ -105,7 +106,7 @@ def check_rings(known: NDArray[np.float64], count: int, geometry: Geometry) -> N
     known and chosen before it as the pool allows: the model is tested where it has not been."""
     pool = candidate_orientations(geometry, CHECK_A_STEP_DEG, CHECK_B_STEP_DEG)
     on_lattice = np.isclose(np.mod(pool[:, 0], A_STEP_DEG), 0.0) & np.isclose(np.mod(pool[:, 1], B_STEP_DEG), 0.0)
-    pool = pool[~on_lattice & (pool[:, 0] > 0)]
+    pool = measured_side(pool[~on_lattice & (pool[:, 0] > 0)], known)  # on the side of A0 the rings are measured at
     return pool[farthest_first(pool, known, count)]
 
 
@@ -159,10 +160,10 @@ def data_rings(campaign: Campaign, count: int, taken: NDArray[np.float64]) -> tu
     no ring or pair keeps it (every B value held once: a second ring at one would drop the others),
     every B value takes one more ring at once (a count of 0 takes none)."""
     train = campaign.orientations[~campaign.holdout_mask()]
-    train = train[train[:, 0] > 0]  # an A0 = 0 ring is its whole row whatever the lattice holds (models.trilinear.a0_row_rings)
+    train = train[train[:, 0] != 0]  # an A0 = 0 ring is its whole row whatever the lattice holds (models.trilinear.a0_row_rings)
     known = np.concatenate([campaign.orientations, taken])
-    nodes = distinct_rings(candidate_orientations(campaign.geometry), known)
-    nodes = nodes[nodes[:, 0] > 0]  # A0 = 0 rings come in the first plan (first_rings), as a pair
+    nodes = distinct_rings(measured_side(candidate_orientations(campaign.geometry), campaign.orientations), known)
+    nodes = nodes[nodes[:, 0] != 0]  # A0 = 0 rings come in the first plan (first_rings), as a pair
     keys = [np.stack([orientation_keys(o[:, 0]), orientation_keys(np.mod(o[:, 1] + 180.0, 360.0))], axis=1) for o in (train, nodes)]
     counts, onehot = [], []
     for angle in (0, 1):  # each node as one-hot over the values of its angle, and the training rings' counts

@@ -88,14 +88,23 @@ def candidate_orientations(
     return grid[reachable]
 
 
-def on_measured_side(pool: NDArray[np.float64], measured: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The candidates as the campaign measures its rings: the ring at (A0, B0) is the ring at
-    (-A0, B0 + 180) (the same stylus direction), and a campaign measured at negative A0 (the PH20
-    turns A both ways) is offered them on its own side. Kept from A0 = 0 to the farthest measured
-    A0 on each side: beyond, its data model extrapolates, and what a ring would show of a term is
-    the extrapolation's as much as the term's."""
+def measured_side(pool: NDArray[np.float64], measured: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The candidates on the side of A0 the campaign measures (the PH20 turns A both ways): the ring
+    at (A0, B0) is the ring at (-A0, B0 + 180), the same stylus direction. A campaign measured at
+    negative A0 only is offered them there, one at both signs on both (the positive first), and
+    one at A0 >= 0 (or none yet) the pool as it is, in the same order."""
+    below, above = bool((measured[:, 0] < 0).any()), bool((measured[:, 0] > 0).any())
+    if not below:
+        return pool
     mirrored = np.column_stack([-pool[:, 0], wrap_deg(pool[:, 1] + 180.0)])[pool[:, 0] > 0]
-    both = np.concatenate([pool, mirrored])
+    return np.concatenate([pool if above else pool[pool[:, 0] <= 0], mirrored])
+
+
+def on_measured_side(pool: NDArray[np.float64], measured: NDArray[np.float64]) -> NDArray[np.float64]:
+    """measured_side, kept from A0 = 0 to the farthest measured A0 on each side: beyond, the
+    campaign's data model extrapolates, and what a ring would show of a term is the extrapolation's
+    as much as the term's."""
+    both = measured_side(pool, measured)
     low, high = min(0.0, float(measured[:, 0].min())), max(0.0, float(measured[:, 0].max()))
     return both[(both[:, 0] >= low - 1e-9) & (both[:, 0] <= high + 1e-9)]
 
@@ -237,16 +246,18 @@ def propose_rings(
 ) -> RingDesign:
     """The next `budget` rings to measure, in measuring order (docs/methods/ring_design.md).
 
-    candidates: orientations to choose from (default: candidate_orientations, and with a campaign
-    the nodes of its lattice too, minus the rings it holds). measured: a campaign whose rings are
+    candidates: orientations to choose from (default: candidate_orientations, on the side of A0 a
+    measured campaign turns to (measured_side), minus the rings it holds). measured: a campaign whose rings are
     the prior information and the data already covered. lattice: keep the design usable by a lattice
     interpolator (default: without a campaign).
     """
     if budget < 1:
         raise InputError("the budget must be at least one ring", option="--budget")
     geometry = measured.geometry if measured is not None else geometry
-    pool = candidate_orientations(geometry) if candidates is None else np.asarray(candidates, dtype=float).reshape(-1, 2)
     known = np.zeros((0, 2)) if measured is None else measured.orientations
+    pool = (
+        measured_side(candidate_orientations(geometry), known) if candidates is None else np.asarray(candidates, dtype=float).reshape(-1, 2)
+    )
     if known.size:
         pool = pool[~orientation_match(pool, known).any(axis=1)]
     pool = distinct_rings(pool, known)
