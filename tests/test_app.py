@@ -19,11 +19,11 @@ from viser.transforms import SO3
 from ph_explorer.app.dataset import Dataset, dataset_for
 from ph_explorer.app.panels import NO_CHOICE
 from ph_explorer.app.render_queue import RenderState
-from ph_explorer.app.scene import a_joint, b_joint, head_orientation
+from ph_explorer.app.scene import joint_wxyz
 from ph_explorer.app.server import ExplorerApp, build_server
 from ph_explorer.app.session import Session
 from ph_explorer.effects import DEFAULT_CATALOG
-from ph_explorer.geometry import A_LIMIT_DEG, head_rotation, stylus_direction
+from ph_explorer.geometry import A_LIMIT_DEG, head_rotation, rot_z, stylus_direction
 from ph_explorer.io import write_campaign
 from ph_explorer.paper.tables import RONT_HEADER
 
@@ -69,8 +69,10 @@ def click(fake: FakeBrowser, session: Session, label: str, timeout: float = 120.
 
 def test_rotations_match_the_geometry_conventions() -> None:
     for a, b in [(0, 0), (15, -20), (43, 90), (75, 40), (110, -170), (-30, 60)]:
-        np.testing.assert_allclose(rotation_of(head_orientation(a, b).wxyz), head_rotation(a, b), atol=1e-12)
-        np.testing.assert_allclose(rotation_of(b_joint(b).wxyz) @ rotation_of(a_joint(a).wxyz), head_rotation(a, b), atol=1e-12)
+        b_turn, a_turn, head = (rotation_of(np.array(q)) for q in joint_wxyz(a, b))
+        np.testing.assert_allclose(head, head_rotation(a, b), atol=1e-12)
+        np.testing.assert_allclose(b_turn @ a_turn, head_rotation(a, b), atol=1e-12)
+        np.testing.assert_allclose(b_turn, rot_z(b), atol=1e-12)
 
 
 def test_binds_localhost_and_serves_the_page(app: ExplorerApp) -> None:

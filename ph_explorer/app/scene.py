@@ -16,37 +16,30 @@ import numpy as np
 import trimesh
 import viser
 from numpy.typing import NDArray
-from viser.transforms import SO3
 
 # The curves' colours are the core's (ph_explorer.figures.polar): a report draws them as the explorer does.
 from ph_explorer.figures.polar import BAND_COLORS, CURVE_COLORS, curve_color, hex_color  # noqa: F401 (re-exported)
 from ph_explorer.geometry import A_LIMIT_DEG, Geometry, stylus_direction
 
-# -- rotations (viser wants wxyz quaternions; viser.transforms composes them) -------------------------
-
-
-def b_joint(b_deg: float) -> SO3:
-    """The B joint's rotation: about z."""
-    return SO3.from_z_radians(np.radians(b_deg))
-
-
-def a_joint(a_deg: float) -> SO3:
-    """The A joint's rotation: about x, in the frame the B joint turned."""
-    return SO3.from_x_radians(np.radians(a_deg))
-
-
-def head_orientation(a_deg: float, b_deg: float) -> SO3:
-    """Rz(B) Rx(A) = geometry.head_rotation(A, B) = geometry.ring_frame(A, B)."""
-    return b_joint(b_deg) @ a_joint(a_deg)
+# -- rotations (viser wants wxyz quaternions) ---------------------------------------------------------
 
 
 def joint_wxyz(a_deg: float, b_deg: float) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
-    """(B joint, A joint, head) wxyz quaternions as b_joint, a_joint and head_orientation give them, in
-    scalar arithmetic: qz(B) qx(A) = (cB cA, cB sA, sB sA, sB cA) with c, s of half the angles
-    (a slider move needs three; SO3's arrays cost ~50 us each)."""
+    """(B joint, A joint, head) wxyz quaternions of Rz(B), Rx(A) and Rz(B) Rx(A) (geometry.head_rotation),
+    in scalar arithmetic: qz(B) qx(A) = (cB cA, cB sA, sB sA, sB cA) with c, s of half the angles
+    (a slider move needs three; viser.transforms' SO3 costs ~50 us each)."""
     half_a, half_b = math.radians(a_deg) / 2.0, math.radians(b_deg) / 2.0
     ca, sa, cb, sb = math.cos(half_a), math.sin(half_a), math.cos(half_b), math.sin(half_b)
     return (cb, 0.0, 0.0, sb), (ca, sa, 0.0, 0.0), (cb * ca, cb * sa, sb * sa, sb * ca)
+
+
+def joint_matrices(a_deg: float, b_deg: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(Rz(B), Rz(B) Rx(A)) as geometry.rot_z and geometry.head_rotation give them, in scalar
+    arithmetic (a following camera needs both; their stacked arrays cost ~50 us each)."""
+    a, b = math.radians(a_deg), math.radians(b_deg)
+    ca, sa, cb, sb = math.cos(a), math.sin(a), math.cos(b), math.sin(b)
+    b_turn = np.array([(cb, -sb, 0.0), (sb, cb, 0.0), (0.0, 0.0, 1.0)])
+    return b_turn, np.array([(cb, -sb * ca, sb * sa), (sb, cb * ca, -cb * sa), (0.0, sa, ca)])
 
 
 def stylus_point(a_deg: float, b_deg: float, distance_mm: float) -> tuple[float, float, float]:
@@ -78,6 +71,9 @@ FRAME_MARGIN = 1.06
 # 0 it ran through 32), and at OFF_AXIS_DEG no part of the head hides the curves at any A.
 OFF_AXIS_DEG = 62.0
 AZIMUTH_DEG = 45.0
+OFF_AXIS, AZIMUTH = math.radians(OFF_AXIS_DEG), math.radians(AZIMUTH_DEG)
+# The chart's outline as a camera frames it: every 10 deg of theta, (cos, sin) in the ring plane.
+CHART_OUTLINE = np.column_stack([np.cos(np.radians(np.arange(0.0, 360.0, 10.0))), np.sin(np.radians(np.arange(0.0, 360.0, 10.0)))])
 
 
 def fit_distance(extent_mm: float, aspect: float, margin: float = 1.2) -> float:
@@ -93,21 +89,23 @@ def frame_points(
     point inside the canvas (aspect = w / h), as near as it can: the nearest distance at which the
     points' extreme rays fit the field of view both ways (in perspective: a point nearer the camera
     counts larger), looking at the middle of what they span, in the plane through `reference`."""
-    d = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
-    right = np.cross(-d, (0.0, 0.0, 1.0))
-    right /= np.linalg.norm(right)
-    up = np.cross(right, -d)
-    rel = np.asarray(points, dtype=float) - reference
-    depth = rel @ d  # towards the camera
+    dx, dy, dz = (float(v) for v in direction)
+    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+    dx, dy, dz = dx / norm, dy / norm, dz / norm
+    across = math.hypot(dx, dy)
+    # right = -d x z, up = right x -d, in scalar arithmetic (the camera follows every slider move)
+    right = (-dy / across, dx / across, 0.0)
+    up = (-dz * dx / across, -dz * dy / across, across)
+    basis = np.array([(dx, dy, dz), right, up]).T  # columns: d, right, up
+    depth, *offsets = ((np.asarray(points, dtype=float) - reference) @ basis).T  # depth: towards the camera
     distance, look_at = 0.0, np.asarray(reference, dtype=float).copy()
-    tan_v = np.tan(np.radians(0.5 * CAMERA_FOV_DEG)) / margin
-    for axis, tan in ((right, tan_v * aspect), (up, tan_v)):
-        offset = rel @ axis
+    tan_v = math.tan(math.radians(0.5 * CAMERA_FOV_DEG)) / margin
+    for axis, offset, tan in ((basis[:, 1], offsets[0], tan_v * aspect), (basis[:, 2], offsets[1], tan_v)):
         # |offset - c| <= tan (D - depth) for every point: c in [high - tan D, low + tan D].
-        high, low = float(np.max(offset + tan * depth)), float(np.min(offset - tan * depth))
+        high, low = float((offset + tan * depth).max()), float((offset - tan * depth).min())
         distance = max(distance, (high - low) / (2.0 * tan))
         look_at += 0.5 * (high + low) * axis
-    return look_at + distance * d, look_at
+    return look_at + distance * basis[:, 0], look_at
 
 
 def ring_camera(
@@ -120,14 +118,11 @@ def ring_camera(
     (radius extent_mm) inside the canvas of this aspect (frame_points): the head is never cut off,
     and the ring, below or beside it, is as large as the head leaves room for.
     """
-    s = stylus_direction(a_deg, b_deg)
-    frame = head_orientation(a_deg, b_deg).as_matrix()
-    e = np.radians(OFF_AXIS_DEG)
-    azimuth = np.radians(AZIMUTH_DEG)
-    direction = -np.cos(e) * s + np.sin(e) * (np.cos(azimuth) * frame[:, 0] + np.sin(azimuth) * frame[:, 1])
+    frame = joint_matrices(a_deg, b_deg)[1]
+    s = -frame[:, 2]  # the stylus direction (geometry.stylus_direction)
+    direction = -math.cos(OFF_AXIS) * s + math.sin(OFF_AXIS) * (math.cos(AZIMUTH) * frame[:, 0] + math.sin(AZIMUTH) * frame[:, 1])
     centre = geometry.axial_distance_mm * s
-    theta = np.radians(np.arange(0.0, 360.0, 10.0))
-    chart = centre + extent_mm * (np.cos(theta)[:, None] * frame[:, 0] + np.sin(theta)[:, None] * frame[:, 1])
+    chart = centre + extent_mm * (CHART_OUTLINE @ frame[:, :2].T)
     head = head_points(a_deg, b_deg, geometry.pivot_to_ball_mm, geometry.ball_diameter_mm)
     return frame_points(np.concatenate([head, chart]), centre, direction, aspect)
 
@@ -142,7 +137,7 @@ def axis_camera(
     ring's centre from far enough for the whole chart to fit the canvas of this aspect (the head,
     between it and the ring, is hidden in this view).
     """
-    e2 = head_orientation(a_deg, b_deg).as_matrix()[:, 1]
+    e2 = joint_matrices(a_deg, b_deg)[1][:, 1]
     s = stylus_direction(a_deg, b_deg)
     centre = axial_distance_mm * s
     return centre - fit_distance(extent_mm, aspect) * s, centre, e2
@@ -250,8 +245,7 @@ def head_outline(pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) 
 def head_points(a_deg: float, b_deg: float, pivot_to_ball_mm: float = 80.0, ball_diameter_mm: float = 2.0) -> NDArray[np.float64]:
     """The head's outline (head_outline) with its joints at (A, B), in the scene's frame (mm)."""
     fixed, b_parts, a_parts = head_outline(float(pivot_to_ball_mm), float(ball_diameter_mm))
-    b_turn = b_joint(b_deg).as_matrix()
-    a_turn = b_turn @ a_joint(a_deg).as_matrix()
+    b_turn, a_turn = joint_matrices(a_deg, b_deg)
     return np.concatenate([fixed, b_parts @ b_turn.T, a_parts @ a_turn.T])
 
 
