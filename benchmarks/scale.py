@@ -6,8 +6,10 @@ Two server-side figures per render: `server_update_ms`, the time of the render i
 `latency_ms`, from the oldest slider event the render drew (when viser applied it) to the end of
 that render, so queueing behind other browsers' renders is counted. Slider moves that arrive
 before their session's turn are coalesced: `renders` is at most `slider_updates_sent`. A render draws
-what the eye follows (head, curves, polar plot, map marker) and, at most every FOLLOW_INTERVAL_S, what
-follows (tables, charts, a following camera), which a catch-up render also draws at the last orientation.
+what the eye follows (head, curves, polar plot, map marker); what follows (tables, charts, a following
+camera) is drawn by a catch-up render of its own, at most every FOLLOW_INTERVAL_S, at the last
+orientation drawn, after the renders the eye follows (up to LATER_MAX_WAIT_S behind them): its
+render times and how long it lagged (`following_catch_up_ms`, `following_lag_ms`) are its own.
 The browsers start once the app's dataset is prepared (`lattice`: each model's curves on a dense
 lattice, so that a slider move predicts nothing); `server_cpu_ms_per_update` is the server
 process' CPU per slider update, every thread included.
@@ -27,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.peak import resident_mib
+from ph_explorer.app.render_queue import LATER_MAX_WAIT_S
 from ph_explorer.app.server import ExplorerApp
 from ph_explorer.app.session import FOLLOW_INTERVAL_S
 from ph_explorer.models.lattice import TOLERANCE_UM
@@ -70,6 +73,7 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
     renders_before, errors_before = stats.render_count + stats.error_count, stats.error_count
     following = app.shared.following_stats  # the renders that catch up what follows the sliders (Session.following)
     following.render_times.clear()
+    following.latency_times.clear()
     following_before = following.render_count
     process = subprocess.Popen(
         [sys.executable, "-m", "benchmarks.browsers", str(app.port), str(n_browsers), str(rate_hz), str(seconds)],
@@ -138,13 +142,20 @@ def drive(app: ExplorerApp, n_browsers: int, rate_hz: float, seconds: float) -> 
         if per_session
         else None,
         "renders_in_percentiles": len(times),  # app.stats.render_times keeps the last 10 000
-        # Tables 1-3, the charts and a following camera: drawn by a render at most every FOLLOW_INTERVAL_S,
-        # and at the last orientation by a catch-up render of their own (counted here, not in `renders`).
+        # Tables 1-3, the charts and a following camera: drawn by a catch-up render of their own at most
+        # every FOLLOW_INTERVAL_S (counted here, not in `renders`), after the renders the eye follows.
         "follow_interval_s": FOLLOW_INTERVAL_S,
+        "later_max_wait_s": LATER_MAX_WAIT_S,
         "following_catch_up_renders": following.render_count - following_before,
         "following_catch_up_ms": {
             "p50": percentile_ms(list(following.render_times), 50),
             "p95": percentile_ms(list(following.render_times), 95),
+        },
+        # From a render asking for what follows to the end of the catch-up render that drew it: how
+        # far behind the sliders the tables, charts and a following camera were.
+        "following_lag_ms": {
+            "p50": percentile_ms(list(following.latency_times), 50),
+            "p95": percentile_ms(list(following.latency_times), 95),
         },
         "frames_received": int(sum(b["received"] for b in browsers)),
         "server_update_ms": {"p50": percentile_ms(times, 50), "p95": percentile_ms(times, 95), "max": percentile_ms(times, 100)},

@@ -416,8 +416,9 @@ def test_what_follows_is_drawn_at_most_once_per_interval_and_ends_at_the_last_va
 
 
 def test_a_catch_up_turn_that_draws_nothing_is_not_timed_as_a_catch_up_render(queue: RenderQueue) -> None:
-    """A catch-up render that finds what follows drawn within the interval draws nothing, and is not
-    timed (the benchmarks count and time the catch-up renders); one that draws is."""
+    """A render by the queue's thread leaves what follows to a catch-up render; a catch-up turn that
+    finds it drawn within the interval draws nothing, and is not timed (the benchmarks count and
+    time the catch-up renders); one that draws is."""
     from ph_explorer.app.render_queue import Following
 
     drawn: list[str] = []
@@ -425,9 +426,34 @@ def test_a_catch_up_turn_that_draws_nothing_is_not_timed_as_a_catch_up_render(qu
     following = Following(lambda: drawn.append("catch-up"), queue, interval_s=1.0, on_timed=lambda render_s, _: timed.append(render_s))
     state = RenderState(lambda: following.due() and drawn.append("render"))
     queue.request(state)
-    assert state.wait_rendered(TIMEOUT) and drawn == ["render"]  # the first render draws what follows
+    assert state.wait_rendered(TIMEOUT) and following.catch_up.wait_rendered(TIMEOUT)
+    assert drawn == ["catch-up"] and len(timed) == 1  # the first render's catch-up draws what follows
     queue.request(following.catch_up)  # a turn within the interval: nothing to draw
-    assert following.catch_up.wait_rendered(TIMEOUT) and drawn == ["render"] and timed == []
+    assert following.catch_up.wait_rendered(TIMEOUT) and drawn == ["catch-up"] and len(timed) == 1
     assert following.wait_caught_up(TIMEOUT)  # the interval over: the catch-up it asked for draws
-    assert drawn == ["render", "catch-up"] and len(timed) == 1
+    assert drawn == ["catch-up", "catch-up"] and len(timed) == 2
     following.close()
+
+
+def test_a_render_that_may_wait_waits_for_the_others_up_to_its_longest_wait(log: list) -> None:
+    """What follows the sliders waits while renders the eye follows are queued (a class's sliders
+    first), but no longer than later_max_wait_s: then it goes before them."""
+    queue = RenderQueue(name="test-render", later_max_wait_s=0.3)
+    try:
+        eye, follows = Session("eye", log), Session("follows", log, later=True)
+        blocker, release = hold_queue(queue, log)
+        queue.request(follows.state)
+        queue.request(eye.state)
+        release.set()
+        assert eye.state.wait_rendered(TIMEOUT) and follows.state.wait_rendered(TIMEOUT)
+        assert names(log) == ["blocker", "eye", "follows"]  # queued after it, drawn before it
+        log.clear()
+        blocker, release = hold_queue(queue, log)
+        queue.request(follows.state)
+        time.sleep(0.35)  # it has waited its longest
+        queue.request(eye.state)
+        release.set()
+        assert eye.state.wait_rendered(TIMEOUT) and follows.state.wait_rendered(TIMEOUT)
+        assert names(log) == ["blocker", "follows", "eye"]
+    finally:
+        assert queue.stop(timeout=TIMEOUT)

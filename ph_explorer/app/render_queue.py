@@ -2,9 +2,11 @@
 
 A browser's slider event returns at once; ONE render thread per app (`RenderQueue`) draws the
 sessions' dirty states (`RenderState`) in the order they became dirty, each with its latest values,
-and a state that moved again while drawn goes to the back. `RenderStats` gathers the render figures
-for benchmarks; `Following` draws what follows the sliders at most every so often, and at their last
-values; `WhenResting` runs a slow figure's job once a slider rests, never one per move.
+and a state that moved again while drawn goes to the back; a state that may wait (what follows the
+sliders) is drawn when no other waits, or once it has waited LATER_MAX_WAIT_S. `RenderStats` gathers
+the render figures for benchmarks; `Following` draws what follows the sliders at most every so
+often, after the renders the eye follows, and at their last values; `WhenResting` runs a slow
+figure's job once a slider rests, never one per move.
 Values set by scripts and tests are drawn in the caller's thread (`RenderState.render_now`).
 
 Method: docs/methods/render_queue.md.
@@ -24,6 +26,11 @@ from ph_explorer.app.background import Throttle
 Clock = Callable[[], float]
 TimedHook = Callable[[float, float], None]
 
+# The longest a render that may wait (what follows the sliders: tables, charts, a following camera)
+# waits while other sessions' renders of what the eye follows are queued (seconds): under a class's
+# load it then lags by about this much rather than delaying every slider move.
+LATER_MAX_WAIT_S = 1.0
+
 
 class RenderState:
     """One session's render bookkeeping; all its flags are guarded by one condition.
@@ -33,6 +40,7 @@ class RenderState:
     `timer` measures renders; both can be injected to make latencies deterministic in tests.
     After every successful render `on_timed(render_s, latency_s)` is called (so an app can also
     aggregate the times of all its sessions), in the rendering thread, without any lock held.
+    `later`: the render may wait for the others in the queue (RenderQueue).
     """
 
     def __init__(
@@ -41,8 +49,10 @@ class RenderState:
         on_timed: TimedHook | None = None,
         clock: Clock = time.time,
         timer: Clock = time.perf_counter,
+        later: bool = False,
     ) -> None:
         self.render = render
+        self.later = later
         self.on_timed = on_timed
         self.clock = clock
         self.timer = timer
@@ -209,11 +219,15 @@ class RenderStats:
 
 
 class RenderQueue:
-    """The app's single render thread and its FIFO of dirty states, each queued at most once."""
+    """The app's single render thread and its FIFOs of dirty states, each queued at most once: the
+    states that may wait (RenderState.later) are drawn when no other is queued, or once the first of
+    them has waited `later_max_wait_s`."""
 
-    def __init__(self, name: str = "ph-explorer-render") -> None:
+    def __init__(self, name: str = "ph-explorer-render", later_max_wait_s: float = LATER_MAX_WAIT_S) -> None:
         self._queue: deque[RenderState] = deque()
-        self._queued: set[RenderState] = set()  # the states in _queue (identity)
+        self._later: deque[tuple[RenderState, float]] = deque()  # (state, time.monotonic() it was queued)
+        self._queued: set[RenderState] = set()  # the states in either (identity)
+        self.later_max_wait_s = later_max_wait_s
         self._cond = threading.Condition()
         self._stopping = False
         self._thread = threading.Thread(target=self._loop, name=name, daemon=True)
@@ -234,17 +248,26 @@ class RenderQueue:
             if self._stopping or state in self._queued:
                 return
             self._queued.add(state)
-            self._queue.append(state)
+            if state.later:
+                self._later.append((state, time.monotonic()))
+            else:
+                self._queue.append(state)
             self._cond.notify()
+
+    def _next(self) -> RenderState:
+        """Under _cond, something queued: the next state to draw."""
+        if self._later and (not self._queue or time.monotonic() - self._later[0][1] >= self.later_max_wait_s):
+            return self._later.popleft()[0]
+        return self._queue.popleft()
 
     def _loop(self) -> None:
         while True:
             with self._cond:
-                while not self._queue and not self._stopping:
+                while not self._queue and not self._later and not self._stopping:
                     self._cond.wait()
                 if self._stopping:
                     return
-                state = self._queue.popleft()
+                state = self._next()
                 self._queued.discard(state)
             try:
                 again = state.render_queued()
@@ -259,6 +282,7 @@ class RenderQueue:
         with self._cond:
             self._stopping = True
             self._queue.clear()
+            self._later.clear()
             self._queued.clear()
             self._cond.notify_all()
         if threading.current_thread() is not self._thread:
@@ -274,8 +298,10 @@ class RenderQueue:
 
 class Following:
     """What follows a session's renders (a following camera, tables, charts): a render by the queue's
-    thread draws it at most every `interval_s`, and a catch-up render once the interval has passed
-    draws it at the values drawn last; a render in another thread (go_to, a script) draws it at once.
+    thread leaves it to a catch-up render, which may wait for the renders the eye follows
+    (RenderState.later) and draws it at the values drawn last, at most every `interval_s` (and once
+    more when the interval has passed, so the last values get it); a render in another thread
+    (go_to, a script) draws it at once.
 
     In a render, `due()` says whether that render draws it; `draw()` draws it at the values drawn
     last; `on_timed` times the catch-up renders that drew, as RenderState's does.
@@ -286,14 +312,17 @@ class Following:
         self.queue = queue
         self.on_timed = on_timed
         self._drew = False  # whether the last catch-up render drew (one render thread: no lock)
-        self.catch_up = RenderState(self._catch_up, on_timed=self._timed)
+        self.catch_up = RenderState(self._catch_up, on_timed=self._timed, later=True)
         self._throttle = Throttle(interval_s, lambda: queue.request(self.catch_up))
 
     def due(self) -> bool:
-        return threading.current_thread() is not self.queue.thread or self._throttle.ready()
+        if threading.current_thread() is not self.queue.thread:
+            return True
+        self.queue.request(self.catch_up)  # after the renders the eye follows (coalesced while queued)
+        return False
 
     def _catch_up(self) -> None:
-        self._drew = self.due()  # not due: a render that came first took the turn (and asked for another)
+        self._drew = self._throttle.ready()  # not ready: drawn within the interval (the throttle asks again)
         if self._drew:
             self.draw()
 
