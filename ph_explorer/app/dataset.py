@@ -13,6 +13,7 @@ import threading
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -21,12 +22,13 @@ from numpy.typing import NDArray
 
 from ph_explorer import paths, twin
 from ph_explorer.app.background import LatestFirst
-from ph_explorer.campaign import Campaign, orientation_keys
+from ph_explorer.app.orientation_view import OrientationView, view_key
+from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
 from ph_explorer.figures.orientation_map import MapFigure, ranked_rings
 from ph_explorer.figures.polar import deviation_bounds
 from ph_explorer.geometry import A_LIMIT_DEG
-from ph_explorer.harmonics import harmonic_spectrum, ron_t
+from ph_explorer.harmonics import ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
@@ -47,30 +49,6 @@ LOO_FIGURE = "trilinear MAE, leave-one-out"
 LOO_RATIO_FIGURE = "trilinear MAE / noise floor, leave-one-out"
 RONT_FIGURE = "measured RONt"
 VIEW_CACHE = 512  # orientations whose views a dataset keeps (a slider sweep revisits them)
-
-
-def _view_key(a_deg: float, b_deg: float) -> tuple[float, float]:
-    """Views of the same orientation (campaign.ORIENTATION_TOLERANCE_DEG, B modulo 360) share a key."""
-    a, b = orientation_keys([float(a_deg), float(b_deg) % 360.0])
-    return float(a), float(b)
-
-
-@dataclass
-class OrientationView:
-    """Everything drawn for one orientation: curves (um), tables, spectra."""
-
-    a_deg: float
-    b_deg: float
-    measured_index: int | None  # index in the campaign, None when it was not measured
-    held_out: bool  # measured but not used to train the models (a check ring)
-    curves: dict[str, NDArray[np.float64]]  # "measured" and model names -> (n_pt,) um
-    repetitions: NDArray[np.float64] | None  # (n_rep, n_pt) um when measured
-    tables: dict[str, Any]  # range_um, max_abs_um, mae_um like evaluation.orientation_tables rows
-    spectra: dict[str, NDArray[np.float64]]  # name -> amplitude per UPR (um), UPR 0..N//2
-
-    @property
-    def measured(self) -> bool:
-        return self.measured_index is not None
 
 
 @dataclass
@@ -149,7 +127,7 @@ class Dataset:
 
     # -- one orientation ---------------------------------------------------------------------------
     def view(self, a_deg: float, b_deg: float) -> OrientationView:
-        key = _view_key(a_deg, b_deg)
+        key = view_key(a_deg, b_deg)
         with self._lock:
             hit = self._views.get(key)
             if hit is not None:
@@ -180,11 +158,8 @@ class Dataset:
                 curves[name] = lattice.curve(a, b)  # within the lattice's tolerance of the model
             else:  # a measured ring (its tables compare the model's own prediction) or no lattice here
                 curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
-        amplitudes = harmonic_spectrum(np.stack(list(curves.values())))[0]
-        spectra = dict(zip(curves, amplitudes))
-        tables = self._tables(idx, curves)
         held_out = idx is not None and not bool(self.train_mask[idx])
-        return OrientationView(a, b, idx, held_out, curves, reps, tables, spectra)
+        return OrientationView(a, b, idx, held_out, curves, reps, partial(self._tables, idx, curves))
 
     def prepare(self) -> None:
         """Build the missing models' lattices and every measured ring's view (a few seconds, once):
@@ -202,7 +177,8 @@ class Dataset:
             for a, b in self.campaign.orientations:  # a ring at a time: each may predict a model
                 if stopping():
                     return
-                views[_view_key(a, b)] = self._compute_view(float(a), float(b))
+                views[view_key(a, b)] = view = self._compute_view(float(a), float(b))
+                view.tables  # noqa: B018 (computed here, as its curves: a measured ring's tables predict its models)
             with self._lock:
                 self._measured_views = views
         except BuildStopped:
@@ -257,7 +233,7 @@ class Dataset:
         """RONt of one measurement of N touches at (A, B) by the model's Monte Carlo (task.task_uncertainty,
         every component of its band, a fixed seed so an orientation always shows the same figure):
         value, U (k = 2) and the 95 % interval, um; cached (a second or so per model)."""
-        key = (model, *_view_key(a_deg, b_deg))
+        key = (model, *view_key(a_deg, b_deg))
         with self._lock:
             if key in self._tasks:
                 return self._tasks[key]
@@ -272,7 +248,7 @@ class Dataset:
     def cached_task(self, model: str, a_deg: float, b_deg: float) -> dict[str, float] | None:
         """The task's RONt if `task` computed it already, else None (the render thread never waits)."""
         with self._lock:
-            return self._tasks.get((model, *_view_key(a_deg, b_deg)))
+            return self._tasks.get((model, *view_key(a_deg, b_deg)))
 
     def measured_task(self, index: int) -> dict[str, float]:
         """The measured RONt of one measurement at a measured ring: the mean over its repetitions and

@@ -12,7 +12,8 @@ import numpy as np
 import viser
 from numpy.typing import NDArray
 
-from ph_explorer.app.dataset import Dataset, OrientationView
+from ph_explorer.app.dataset import Dataset
+from ph_explorer.app.orientation_view import OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
 from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's panels import it from here)
 from ph_explorer.figures.charts import bar_chart_svg, line_chart_svg

@@ -21,9 +21,10 @@ import viser
 from ph_explorer.app.accessibility import name_inputs
 from ph_explorer.app.background import FOREGROUND
 from ph_explorer.app.camera import ViewCamera
-from ph_explorer.app.dataset import Dataset, OrientationView, dataset_for, read_uploaded_campaign, simulated_scenario
+from ph_explorer.app.dataset import Dataset, dataset_for, read_uploaded_campaign, simulated_scenario
 from ph_explorer.app.field import ErrorField
 from ph_explorer.app.map_panel import MapPanel
+from ph_explorer.app.orientation_view import OrientationView
 from ph_explorer.app.panels import PAPER_PRESETS, ChartsPanel, ControlsPanel, DataPanel, FiguresPanel, TablesPanel, wrap_b
 from ph_explorer.app.physics import PhysicsLoop, teaching_scenario
 from ph_explorer.app.physics_panel import PhysicsPanel
