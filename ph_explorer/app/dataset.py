@@ -15,7 +15,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -159,7 +158,10 @@ class Dataset:
             else:  # a measured ring (its tables compare the model's own prediction) or no lattice here
                 curves[name] = np.asarray(self.models[name].predict([[a, b]], n_points=c.n_points))[0]
         held_out = idx is not None and not bool(self.train_mask[idx])
-        return OrientationView(a, b, idx, held_out, curves, reps, partial(self._tables, idx, curves))
+        # Tables 1-3 of the paper here, when first shown: of the campaign and models, not of the
+        # dataset, which caches the view (no cycle keeps a replaced dataset's lattices alive).
+        models = {n: self.models[n] for n in self.model_names}
+        return OrientationView(a, b, idx, held_out, curves, reps, partial(tables_at, c, models, idx, curves))
 
     def prepare(self) -> None:
         """Build the missing models' lattices and every measured ring's view (a few seconds, once):
@@ -201,10 +203,6 @@ class Dataset:
                 return
             self._prepare_asked = True
         _PREPARER.add(self)
-
-    def _tables(self, idx: int | None, curves: Mapping[str, NDArray[np.float64]]) -> dict[str, Any]:
-        """Tables 1-3 of the paper at this orientation (ph_explorer.paper.tables)."""
-        return tables_at(self.campaign, {n: self.models[n] for n in self.model_names}, idx, curves)
 
     def model_error(self, model: str) -> OutOfSampleError | None:
         """The model's own error: from its folder, or (trilinear) by the cross-validation of the
