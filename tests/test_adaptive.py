@@ -85,9 +85,9 @@ def test_lattice_rings_keep_every_training_ring_on_the_trilinear_lattice() -> No
 def test_a_campaign_measured_at_negative_a_is_planned_on_its_own_side() -> None:
     """The ring at (A0, B0) is the ring at (-A0, B0 + 180), but not the same turn of the joints: a
     campaign measured at negative A0 is offered its lattice rings, its check rings and its designed
-    rings there (before: at positive A0, off its lattice). Its lattice and check rings are the
-    positive campaign's, mirrored; the designed rings, weighed on the effects at the joints' own
-    angles, are on its side."""
+    rings there (before: at positive A0, off its lattice). Its check rings are the positive
+    campaign's, mirrored; its lattice rings are in the same A rows mirrored, as far from the rings
+    measured; the designed rings, weighed on the effects at the joints' own angles, are on its side."""
     campaign = closed_loop.measured_plan(random_head(4, "paper"), adaptive.first_rings())[1]
     mirror = mirrored_campaign(campaign)
     rings, distance = adaptive.data_rings(campaign, adaptive.NEXT_DATA_RINGS, np.zeros((0, 2)))
