@@ -109,6 +109,29 @@ def test_a_check_ring_near_the_pole_is_never_judged_alone():
     assert named.check_ring and (named.a_deg, named.b_deg) == (0.0, 40.0)
 
 
+def test_a_none_names_the_check_rings_that_exceed_unvouched(healthy):
+    """A `none` never says "nothing is missing" past a check ring that exceeds its noise and is not
+    named as measured badly. The other geometry's check ring A9 B45, near the pole (never judged
+    alone), is 3.4x its floor on this healthy head: the background there is what the lattice does
+    not resolve. The verdict stays `none` (no claim rests on one check ring of five); its Next names
+    the ring, its ratio and the next rings to measure. The paper's design of the same head keeps
+    "nothing is missing"."""
+
+    def next_line(result: Diagnosis) -> str:
+        return next(s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict").lines[-1]
+
+    plain = diagnose(healthy, nested=False)
+    assert plain.verdict == "none" and not any(r.held_out for r in plain.failing_rings())
+    assert next_line(plain) == "Next: nothing is missing that this campaign shows; a model of it is within noise."
+    result = diagnose(random_campaign(SEED, "other_geometry"), nested=False)
+    assert result.verdict == "none" and not result.suspect_rings
+    (ring,) = [r for r in result.failing_rings() if r.held_out]
+    assert (ring.a_deg, ring.b_deg) == (9.0, 45.0) and ring.ratio > 3.0
+    line = next_line(result)
+    assert f"the check ring A9 B45 ({ring.ratio:.1f}x its floor) exceeds its noise" in line
+    assert "1 of 5 makes no claim" in line and "design --data FILE.csv --next" in line and "nothing is missing" not in line
+
+
 def test_a_ring_whose_repetitions_disagree_is_named(healthy, ring):
     """A stylus knocked between repetitions of one ring: half its repetitions carry a 2-lobe form
     the others do not (its mean stays near its neighbours'); it is named by its scatter."""

@@ -22,7 +22,7 @@ from ph_explorer.effects import Catalog, effect_label, settings_label, settings_
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
-from ph_explorer.figures.ring_text import outliers_text, suspect_text, worst_ring_lines
+from ph_explorer.figures.ring_text import outliers_text, suspect_text, unvouched_check_text, worst_ring_lines
 from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
 from ph_explorer.planning.deciding import Decision, undecided_sentence
 
@@ -40,11 +40,13 @@ ACTIONS: dict[Front, dict[str, str]] = {
         "decide": "ph-explorer design --data FILE.csv --decide",
         "add": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall",
         "own": "--effects FILE.py",
+        "next": "ph-explorer design --data FILE.csv --next",
     },
     "explorer": {
         "decide": "Rings that would decide, below",
         "add": "tick the effects found, then Refit the hybrid",
         "own": "an effect file of your own, loaded with serve --effects",
+        "next": "ph-explorer design --data FILE.csv --next",
     },
 }
 
@@ -202,6 +204,9 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
         text = f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
         return f"{text} {pins[:1].upper()}{pins[1:]}.".strip() if pins else text
+    unvouched = unvouched_check_text(result, actions["next"]) if result.verdict == "none" else ""
+    if unvouched:
+        return unvouched
     closest = closest_shape_text(result)
     look = "look at what is left in the head's variables; "
     return {

@@ -50,6 +50,32 @@ def ring_reason(ring: Ring) -> str:
     return "by the scatter between its repetitions (harmonics 2-8)" if ring.by_scatter else "by its repetition mean"
 
 
+def unvouched_check_rings(result: Diagnosis) -> list[Ring]:
+    """The check rings that exceed their noise and are not named as measured badly (diagnosis.suspect), worst first."""
+    suspects = {(s.a_deg, s.b_deg) for s in result.suspect_rings}
+    return [r for r in result.failing_rings() if r.held_out and (r.a_deg, r.b_deg) not in suspects]
+
+
+def unvouched_check_text(result: Diagnosis, next_rings: str) -> str:
+    """What a `none` leaves to measure: the unvouched check rings (unvouched_check_rings) with their
+    ratios and the rings to measure next; empty when there are none. The check rings are judged as
+    a group, so no claim rests on them, but nothing vouches for them either (docs/diagnosis.md)."""
+    rings = unvouched_check_rings(result)
+    if not rings:
+        return ""
+    labels = [f"{orientation_label(r.a_deg, r.b_deg)} ({r.ratio:.1f}x its floor)" for r in rings]
+    named = labels[0] if len(labels) == 1 else ", ".join(labels[:-1]) + " and " + labels[-1]
+    one = len(rings) == 1
+    it = "it" if one else "them"
+    return (
+        f"the campaign as a whole is within noise, but the check ring{'' if one else 's'} {named} "
+        f"exceed{'s its' if one else ' their'} noise (each ring's test is at the 1 % level: a check ring in a hundred exceeds by "
+        f"chance). The check rings are judged together, so {len(rings)} of {sum(r.held_out for r in result.rings)} "
+        f"make{'s' if one else ''} no claim, and nothing vouches for {it} either: measure {it} again and the next rings "
+        f"({next_rings}), then diagnose again. If it repeats, the model misses there: an error of the head the lattice rings do not resolve."
+    )
+
+
 def worst_ring_lines(result: Diagnosis, limit: int | None) -> list[str]:
     """How many rings exceed their noise, then the worst (all when limit is None), each with the test that flagged it."""
     if not result.tested:
