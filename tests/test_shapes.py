@@ -182,6 +182,29 @@ def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_l
     assert f"Then, to pin {shape.id} down, measure rings whose" in line and line.endswith("where its band is widest.")
 
 
+def test_a_shape_in_time_is_pinned_by_rings_measured_again_and_whole_axes_are_named_as_one(step) -> None:
+    """A function of the touch time cannot be pinned by rings at a time that has passed: its Next asks
+    for rings measured again over a new campaign, the time in hours. An angle's asks for rings whose
+    joint passes the angle, in deg. Groups the rings cannot tell that make up a whole axis are named
+    as one ("any error motion of the A axis", "any other ..." beside a group of the same axis)."""
+    from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
+
+    shape = step.claimed_shapes[0]
+    assert pin_text(shape).startswith(f"measure rings whose {shape.variable.split('_')[0].upper()} joint angle passes")
+    assert f"{shape.widest_at:.4g} deg, where its band is widest" in pin_text(shape)
+    untold = ("a_angular", "a_radial", "a_axial", "a_tilt", "b_radial")
+    in_time = dataclasses.replace(shape, group="probe_time", variable="time_s", widest_at=39312.0, untold=untold)
+    text = pin_text(in_time)
+    assert text.startswith("measure some rings again at intervals over a new campaign") and text.endswith("widest at 10.9 h into this one")
+    assert shape_name(in_time).endswith("or any error motion of the A axis or radial motion of the B axis (these rings cannot tell)")
+    assert " h; check rings' error" in shape_lines(in_time)[1]
+    of_b = dataclasses.replace(shape, group="b_angular", untold=("b_radial", "b_axial", "b_tilt"))
+    assert shape_name(of_b).endswith(", or any other error motion of the B axis (these rings cannot tell)")
+    assert shape_name(dataclasses.replace(shape, group="b_angular", untold=("b_radial",))).endswith(
+        ", or radial motion of the B axis (these rings cannot tell)"
+    )
+
+
 def test_a_shape_of_implausible_size_is_not_claimed_and_the_report_says_why(step) -> None:
     """The step's shape is within what a B-axis angular error motion reaches (6 arcsec); the same
     curve 100 times larger is no explanation however well it predicts, and its line says so."""

@@ -17,7 +17,35 @@ def shape_name(shape: Shape) -> str:
     name = f"{shape.words} as a function of the {shape_variable_words(shape)}"
     if not shape.untold:
         return name
-    return f"{name}, or {' or '.join(SHAPE_GROUPS[g].words for g in shape.untold)} (these rings cannot tell)"
+    return f"{name}, or {' or '.join(untold_words(shape))} (these rings cannot tell)"
+
+
+def untold_words(shape: Shape) -> list[str]:
+    """The groups these rings cannot tell from the shape's, in words, in their order; every group of
+    one axis as one ('any error motion of the B axis', 'any other ...' beside a group of its own)
+    rather than three or four names in a row."""
+    told = {*shape.untold, shape.group}
+    words: list[str] = []
+    for group in shape.untold:
+        axis = SHAPE_GROUPS[group].axis
+        every = {k for k, spec in SHAPE_GROUPS.items() if spec.axis == axis}
+        if axis is not None and len(every) > 2 and every <= told:
+            text = f"any {'other ' if shape.group in every else ''}error motion of the {axis} axis"
+        else:
+            text = SHAPE_GROUPS[group].words
+        if text not in words:
+            words.append(text)
+    return words
+
+
+def variable_value(variable: str, value: float) -> str:
+    """A value of a shape's variable in its unit: an angle in deg, a touch time in hours."""
+    if variable == "time_s":
+        return f"{value / 3600.0:.3g} h"
+    if variable == "campaign_fraction":
+        return f"{100.0 * value:.0f} % of the touch order"
+    unit = SHAPE_VARIABLES[variable].unit
+    return f"{value:.4g}{(' ' + unit) if unit else ''}"
 
 
 def shape_variable_words(shape: Shape) -> str:
@@ -25,9 +53,16 @@ def shape_variable_words(shape: Shape) -> str:
 
 
 def pin_text(shape: Shape) -> str:
-    """Where more rings would narrow its band: the variable's value where the band is widest."""
-    unit = SHAPE_VARIABLES[shape.variable].unit
-    return f"measure rings whose {shape_variable_words(shape)} passes {shape.widest_at:.4g}{(' ' + unit) if unit else ''}, where its band is widest"
+    """Where more rings would narrow its band: the angle where the band is widest; for a function of
+    time (a probe that changes), rings measured again over a new campaign, since no ring can be
+    measured at a time that has passed."""
+    at = variable_value(shape.variable, shape.widest_at)
+    if SHAPE_VARIABLES[shape.variable].angle:
+        return f"measure rings whose {shape_variable_words(shape)} passes {at}, where its band is widest"
+    return (
+        f"measure some rings again at intervals over a new campaign (a probe that changes shows as the same ring read "
+        f"differently); its band is widest at {at} into this one"
+    )
 
 
 def shape_lines(shape: Shape) -> list[str]:
@@ -56,9 +91,9 @@ def shape_lines(shape: Shape) -> list[str]:
         why = f" (not material: the check rings' error falls less than {f'{100 * MATERIAL_REDUCTION:.0f} %'} and it brings too few rings within noise)"
     lines = [
         f"{shape_name(shape)}: {status}{why}.",
-        f"  Largest {symbol} {values[peak]:+.3g} +- {spread[peak]:.2g} {unit} (k = 2) at {shape.x[peak[1]]:.4g}; "
+        f"  Largest {symbol} {values[peak]:+.3g} +- {spread[peak]:.2g} {unit} (k = 2) at {variable_value(shape.variable, shape.x[peak[1]])}; "
         f"check rings' error {'-' if shape.check_reduction >= 0 else '+'}{100 * abs(shape.check_reduction):.0f} %, "
-        f"{shape.rings_brought_within} rings brought within noise; gain over rings p = {shape.family_p:.3g} as the best of the groups "
+        f"{shape.rings_brought_within} ring{'' if shape.rings_brought_within == 1 else 's'} brought within noise; gain over rings p = {shape.family_p:.3g} as the best of the groups "
         f"(without its top ring {test.p_without_top:.3g}).",
     ]
     if shape.leave_out == "row":
