@@ -85,6 +85,8 @@ class Dataset:
         # A campaign of single repetitions has no repetition spread: no floor to show.
         finite = np.isfinite(self.sigma_um)
         self.noise_floor_um: dict[str, float] = noise_floor(self.sigma_um, self.campaign.n_repetitions) if finite else {}
+        # The models in their tables' order, once (a dataset's models are replaced with the dataset, never changed).
+        self._ordered_models = {n: self.models[n] for n in self.model_names}
 
     @property
     def a_range(self) -> tuple[float, float]:
@@ -151,7 +153,7 @@ class Dataset:
         if idx is not None:
             curves["measured"] = self.mean_curves[idx]
             reps = c.deviations[idx]
-        for name in self.model_names:
+        for name in self._ordered_models:
             lattice = self.lattices.get(name)
             if idx is None and lattice is not None and lattice.covers(a):
                 curves[name] = lattice.curve(a, b)  # within the lattice's tolerance of the model
@@ -160,8 +162,7 @@ class Dataset:
         held_out = idx is not None and not bool(self.train_mask[idx])
         # Tables 1-3 of the paper here, when first shown: of the campaign and models, not of the
         # dataset, which caches the view (no cycle keeps a replaced dataset's lattices alive).
-        models = {n: self.models[n] for n in self.model_names}
-        return OrientationView(a, b, idx, held_out, curves, reps, partial(tables_at, c, models, idx, curves))
+        return OrientationView(a, b, idx, held_out, curves, reps, partial(tables_at, c, self._ordered_models, idx, curves))
 
     def prepare(self) -> None:
         """Build the missing models' lattices and every measured ring's view (a few seconds, once):

@@ -73,7 +73,8 @@ OFF_AXIS_DEG = 62.0
 AZIMUTH_DEG = 45.0
 OFF_AXIS, AZIMUTH = math.radians(OFF_AXIS_DEG), math.radians(AZIMUTH_DEG)
 # The chart's outline as a camera frames it: every 10 deg of theta, (cos, sin) in the ring plane.
-CHART_OUTLINE = np.column_stack([np.cos(np.radians(np.arange(0.0, 360.0, 10.0))), np.sin(np.radians(np.arange(0.0, 360.0, 10.0)))])
+_OUTLINE_THETA = np.radians(np.arange(0.0, 360.0, 10.0))
+CHART_OUTLINE = np.column_stack([np.cos(_OUTLINE_THETA), np.sin(_OUTLINE_THETA)])
 
 
 def fit_distance(extent_mm: float, aspect: float, margin: float = 1.2) -> float:
