@@ -113,6 +113,11 @@ def test_a_claim_its_rings_cannot_tell_from_a_shape_of_another_variable_is_named
     untold = claim.untold_shape
     assert untold is not None and untold.group == "probe_time" and not untold.test.told_apart and untold.test.p_value >= 0.05
     assert f"or a shape: {untold.words}" in verdict_headline(result.headline, DEFAULT_CATALOG)
+    # Two claims the rings cannot tell from the same shape: named in words once, then "the same shape".
+    other = dataclasses.replace(claim, effect="b_axis_cyclic", settings={"cycles_per_rev": 4.0})
+    line = verdict_headline(dataclasses.replace(result.headline, found=(claim, other)), DEFAULT_CATALOG)
+    assert line.count(f"or a shape: {untold.words}") == 1
+    assert "b_axis_cyclic 4 cycles/rev or " in line and "or the same shape (these rings cannot tell)" in line
     words = " ".join(line for s in report_sections(result, DEFAULT_CATALOG, detail="full") for line in s.lines)
     assert "lattice rings measured again after the check rings would tell a change in time" in words
     data = json.loads(json.dumps(result.to_json()))

@@ -134,20 +134,25 @@ def verdict_headline(headline: Headline, catalog: Catalog, pairs_only: bool = Fa
     cannot tell from a partner is named with it, as a pair (issue 55: the credit is the pair's).
     pairs_only: only the claims named as pairs (the explorer names each claim beside its checkbox).
     tested: False when the rings could not be tested against noise; then no verdict's promise holds."""
+    worded: set[str] = set()  # the shape groups already named in words: a later mention says "the same shape"
     named = "; ".join(
-        [claim_name(c, headline, catalog) for c in headline.found if c.untold or c.untold_shape or not pairs_only]
+        [claim_name(c, headline, catalog, worded) for c in headline.found if c.untold or c.untold_shape or not pairs_only]
         + [shape_name(shape) for shape in headline.claimed_shapes]
     )
     return f"Verdict: {headline.verdict} - " + (f"{named}: " if named else "") + f"{VERDICTS[headline.verdict] if tested else UNTESTED}."
 
 
-def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog) -> str:
-    """A claim by its effect and setting, or with the partners these rings cannot tell it from."""
+def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog, worded: set[str] | None = None) -> str:
+    """A claim by its effect and setting, or with the partners these rings cannot tell it from; a
+    shape partner is named in words once per line (`worded`: the groups named so far), then "the same shape"."""
     ranked = {c.effect: c.settings for c in headline.candidates}  # a record without a partner's settings: its ranking's
     name = named_at(candidate.effect, [candidate.settings], catalog)
     partners = [named_at(p.effect, p.settings or [ranked.get(p.effect, {})], catalog) for p in candidate.untold]
-    if candidate.untold_shape is not None:
-        partners.append(f"a shape: {candidate.untold_shape.words}")
+    shape = candidate.untold_shape
+    if shape is not None:
+        partners.append("the same shape" if worded is not None and shape.group in worded else f"a shape: {shape.words}")
+        if worded is not None:
+            worded.add(shape.group)
     return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name
 
 
