@@ -158,3 +158,14 @@ def test_a_scan_through_the_effects_library_is_the_scan_setting_by_setting(paper
         # Equal but for rounding: products summed in another order, through near-collinear drift columns.
         assert np.allclose([e for e, _ in a.scanned], [e for e, _ in b.scanned], rtol=1e-6)
         assert np.allclose(a.null_best, b.null_best, rtol=1e-6)
+
+
+def test_a_signature_entry_in_time_says_hours() -> None:
+    """A localised entry of the touch time reads in hours (a campaign lasts hours to days), an angle's in deg."""
+    from ph_explorer.figures.diagnosis_text import signature_text
+
+    entry = {"variable": "time_s", "kind": "localised", "centre_s": 120645.0, "explained_fraction": 0.006, "noise_fraction": 0.0004}
+    assert signature_text(entry) == "time_s localised, at 33.5 h, 0.6 % (0.04 %)"
+    angle = entry | {"variable": "b_joint_deg", "centre_deg": -10.0}
+    del angle["centre_s"]
+    assert signature_text(angle) == "b_joint_deg localised, at -10 deg, 0.6 % (0.04 %)"

@@ -375,16 +375,16 @@ def percent(share: float) -> str:
 
 
 def signature_text(entry: dict) -> str:
-    """'b_joint_deg periodic, 22 cycles/rev, 8.4 % (0.07 %)': one entry of a signature in words."""
+    """'b_joint_deg periodic, 22 cycles/rev, 8.4 % (0.07 %)': one entry of a signature in words (a time in hours)."""
     setting = {
-        "cycles_per_rev": "{:g} cycles/rev",
-        "cycles_per_span": "{:g} cycles over its span",
-        "centre_deg": "at {:g} deg",
-        "centre_s": "at {:g} s",
-        "centre_touch": "at touch {:g}",
-        "joint": "{} joint",
+        "cycles_per_rev": "{:g} cycles/rev".format,
+        "cycles_per_span": "{:g} cycles over its span".format,
+        "centre_deg": "at {:g} deg".format,
+        "centre_s": lambda s: f"at {s / 3600.0:.3g} h",
+        "centre_touch": "at touch {:g}".format,
+        "joint": "{} joint".format,
     }
-    where = ", ".join(text.format(entry[key]) for key, text in setting.items() if key in entry)
+    where = ", ".join(text(entry[key]) for key, text in setting.items() if key in entry)
     return (
         f"{entry['variable']} {entry['kind']}, {where}, {100 * entry['explained_fraction']:.1f} % ({100 * entry['noise_fraction']:.2f} %)"
     )
