@@ -526,3 +526,17 @@ def test_serve_with_a_shapes_file_offers_the_shape_to_tick_and_refit(exported) -
             fake.close()
     finally:
         explorer.stop()
+
+
+def test_a_fleet_row_names_the_shapes_claimed(step) -> None:
+    """A fleet's row (diagnosis.fleet.summary) lists the shapes claimed, and its table's found column
+    names each with its variable: an `uncatalogued` line is never empty."""
+    from ph_explorer.diagnosis.fleet import found_text, summary
+
+    row = json.loads(json.dumps(summary(step)))
+    (shape,) = step.claimed_shapes
+    assert step.verdict == "uncatalogued" and row["shapes"] == [
+        {"id": shape.id, "variable": shape.variable, "period_cycles_per_rev": shape.period_cycles}
+    ]
+    assert f"{shape.id} of {shape.variable}" in found_text(row)
+    assert found_text(row | {"shapes": []}) == found_text({k: v for k, v in row.items() if k != "shapes"})

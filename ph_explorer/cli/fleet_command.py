@@ -76,10 +76,10 @@ def fleet_command(
 
 
 def fleet_table(rows: list[dict[str, Any]]) -> Table:
-    """One line a campaign: its verdict, found effects with U (k = 2), suggested ones, failing rings, time."""
-    from ph_explorer.diagnosis.fleet import found_text, suggested_text
+    """One line a campaign: its verdict, found effects with U (k = 2) and shapes, suggested ones, failing rings, time."""
+    from ph_explorer.diagnosis.fleet import FLEET_COLUMNS, found_text, suggested_text
 
-    table = Table("campaign", "sha256", "verdict", "found (+- U, k = 2)", "suggested", "failing rings (baseline)", "s")
+    table = Table(*FLEET_COLUMNS)
     for row in rows:
         if "error" in row:
             table.add_row(row["campaign"], row.get("sha256", "")[:12], "error", row["error"], "", "", f"{row['seconds']:.1f}")

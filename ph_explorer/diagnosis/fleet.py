@@ -23,12 +23,17 @@ from ph_explorer.models.folder import load_models
 from ph_explorer.models.lattice_need import read_lattice_campaign
 from ph_explorer.task_runner import dask_client, run_tasks
 
+# A fleet's table, in the command's text and on its page: one line a campaign.
+FLEET_COLUMNS = ("campaign", "sha256", "verdict", "found (+- U, k = 2); shapes", "suggested", "failing rings (baseline)", "s")
+
 
 def summary(result: Diagnosis) -> dict[str, Any]:
-    """A diagnosis in a fleet table's words: verdict, found effects with U (k = 2), suggested ones, failing rings."""
+    """A diagnosis in a fleet table's words: verdict, found effects with U (k = 2), the shapes claimed
+    for what no catalog holds, suggested ones, failing rings."""
     return {
         "verdict": result.verdict,
         "found": [{"effect": c.effect, "settings": c.settings, "params": c.params, "params_u": c.params_u} for c in result.found],
+        "shapes": [{"id": s.id, "variable": s.variable, "period_cycles_per_rev": s.period_cycles} for s in result.claimed_shapes],
         "suggested": [{"effect": c.effect, "settings": c.settings} for c in result.suggested],
         "failing_rings": [orientation_label(r.a_deg, r.b_deg) for r in result.failing_rings()],
     }
@@ -87,13 +92,19 @@ def run_fleet(
 
 
 def found_text(row: dict[str, Any]) -> str:
-    """A row's found effects as one text: each with its period and its parameters +- U (k = 2)."""
-    return "; ".join(
+    """A row's found effects as one text: each with its period and its parameters +- U (k = 2); then
+    each shape claimed, with its variable and the period its curve holds mostly."""
+    found = [
         effect_text(f)
         + ": "
         + ", ".join(f"{k} {v:.3g} +- {f['params_u'][k]:.2g}" for k, v in f["params"].items() if k not in f["settings"])
         for f in row["found"]
-    )
+    ]
+    shapes = [
+        f"{s['id']} of {s['variable']}" + (f", mostly {s['period_cycles_per_rev']:g}/rev" if s["period_cycles_per_rev"] is not None else "")
+        for s in row.get("shapes", [])  # a row written before shapes were listed has none
+    ]
+    return "; ".join(found + shapes)
 
 
 def suggested_text(row: dict[str, Any]) -> str:

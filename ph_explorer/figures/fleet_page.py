@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.diagnosis.campaign_file import catalog_of
-from ph_explorer.diagnosis.fleet import diagnosed_file, found_text, suggested_text
+from ph_explorer.diagnosis.fleet import FLEET_COLUMNS, diagnosed_file, found_text, suggested_text
 from ph_explorer.diagnosis.results import VERDICTS
 from ph_explorer.figures.html_report import STYLE, diagnosed_report_html
 
@@ -63,9 +63,8 @@ def report_names(paths: Sequence[Path], page: Path) -> list[str]:
 
 def fleet_page_html(rows: Sequence[dict[str, Any]], summary: str, created: str = "") -> str:
     """The fleet's table as one HTML page: how many campaigns got each verdict, then a line a campaign
-    (its report linked when it has one, row["report"]): its verdict, found effects with U (k = 2),
-    suggested ones, failing rings, time."""
-    head = ("campaign", "sha256", "verdict", "found (+- U, k = 2)", "suggested", "failing rings (baseline)", "s")
+    (its report linked when it has one, row["report"]): its verdict, found effects with U (k = 2) and
+    shapes, suggested ones, failing rings, time."""
     counts = Counter("error" if "error" in row else row["verdict"] for row in rows)
     verdicts = ", ".join(f"{verdict} {counts[verdict]}" for verdict in [*VERDICTS, "error"] if counts[verdict])
     lines = []
@@ -88,7 +87,8 @@ def fleet_page_html(rows: Sequence[dict[str, Any]], summary: str, created: str =
             f'<p class="note">Made by ph-explorer{", " + _e(created) if created else ""}. {_e(summary)}. '
             "Each campaign's name links to its own report, written beside this page.</p>",
             f"<p>Verdicts: {_e(verdicts)}.</p>",
-            "<table><thead><tr>" + "".join(f'<th class="t">{_e(h)}</th>' if i < 5 else f"<th>{_e(h)}</th>" for i, h in enumerate(head)),
+            "<table><thead><tr>"
+            + "".join(f'<th class="t">{_e(h)}</th>' if i < 5 else f"<th>{_e(h)}</th>" for i, h in enumerate(FLEET_COLUMNS)),
             "</tr></thead><tbody>",
             *lines,
             "</tbody></table>",
