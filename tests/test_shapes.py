@@ -187,7 +187,7 @@ def test_a_shape_in_time_is_pinned_by_rings_measured_again_and_whole_axes_are_na
     for rings measured again over a new campaign, the time in hours. An angle's asks for rings whose
     joint passes the angle, in deg. Groups the rings cannot tell that make up a whole axis are named
     as one ("any error motion of the A axis", "any other ..." beside a group of the same axis)."""
-    from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
+    from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name, shape_svg
 
     shape = step.claimed_shapes[0]
     assert pin_text(shape).startswith(f"measure rings whose {shape.variable.split('_')[0].upper()} joint angle passes")
@@ -198,6 +198,7 @@ def test_a_shape_in_time_is_pinned_by_rings_measured_again_and_whole_axes_are_na
     assert text.startswith("measure some rings again at intervals over a new campaign") and text.endswith("widest at 10.9 h into this one")
     assert shape_name(in_time).endswith("or any error motion of the A axis or radial motion of the B axis (these rings cannot tell)")
     assert " h; check rings' error" in shape_lines(in_time)[1]
+    assert "touch time (h)" in shape_svg(in_time) and "touch time (s)" not in shape_svg(in_time)
     of_b = dataclasses.replace(shape, group="b_angular", untold=("b_radial", "b_axial", "b_tilt"))
     assert shape_name(of_b).endswith(", or any other error motion of the B axis (these rings cannot tell)")
     assert shape_name(dataclasses.replace(shape, group="b_angular", untold=("b_radial",))).endswith(

@@ -117,12 +117,13 @@ def shape_svg(shape: Shape) -> str:
     """The shape's curve against its variable with its band (k = 2), one colour per component, in
     the spirit of ISO 230-7's error-motion plots (the same chart in the explorer and the report)."""
     x = np.array(shape.x)
+    label = SHAPE_VARIABLES[shape.variable].label
+    if shape.variable == "time_s":  # a campaign lasts hours: its time axis in hours (variable_value's unit)
+        x, label = x / 3600.0, "touch time (h)"
     series = []
     for (symbol, _), value, spread, (dark, light) in zip(shape.components, shape.value, shape.U, SHAPE_COLORS):
         value, spread = np.array(value), np.array(spread)
         series += [(symbol, value, dark), (f"{symbol} + U", value + spread, light), (f"{symbol} - U", value - spread, light)]
     units = sorted({unit for _, unit in shape.components})
     status = "claimed" if shape.claimed else "not claimed"
-    return line_chart_svg(
-        x, series, f"Shape ({status}): {shape.words}", SHAPE_VARIABLES[shape.variable].label, f"error ({', '.join(units)})"
-    )
+    return line_chart_svg(x, series, f"Shape ({status}): {shape.words}", label, f"error ({', '.join(units)})")
