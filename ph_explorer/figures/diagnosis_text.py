@@ -40,15 +40,14 @@ ACTIONS: dict[Front, dict[str, str]] = {
         "decide": "ph-explorer design --data FILE.csv --decide",
         "add": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall",
         "own": "--effects FILE.py",
-        "next": "ph-explorer design --data FILE.csv --next",
     },
     "explorer": {
         "decide": "Rings that would decide, below",
         "add": "tick the effects found, then Refit the hybrid",
         "own": "an effect file of your own, loaded with serve --effects",
-        "next": "ph-explorer design --data FILE.csv --next",
     },
 }
+NEXT_RINGS = "ph-explorer design --data FILE.csv --next"  # the adaptive campaign's next rings, from either front
 
 
 @dataclass(frozen=True)
@@ -148,11 +147,10 @@ def claim_name(candidate: Candidate, headline: Headline, catalog: Catalog, worde
     ranked = {c.effect: c.settings for c in headline.candidates}  # a record without a partner's settings: its ranking's
     name = named_at(candidate.effect, [candidate.settings], catalog)
     partners = [named_at(p.effect, p.settings or [ranked.get(p.effect, {})], catalog) for p in candidate.untold]
-    shape = candidate.untold_shape
-    if shape is not None:
-        partners.append("the same shape" if worded is not None and shape.group in worded else f"a shape: {shape.words}")
-        if worded is not None:
-            worded.add(shape.group)
+    worded = set() if worded is None else worded
+    if (shape := candidate.untold_shape) is not None:
+        partners.append("the same shape" if shape.group in worded else f"a shape: {shape.words}")
+        worded.add(shape.group)
     return f"{name} or {' or '.join(partners)} (these rings cannot tell)" if partners else name
 
 
@@ -209,8 +207,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
         text = f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
         return f"{text} {pins[:1].upper()}{pins[1:]}.".strip() if pins else text
-    unvouched = unvouched_check_text(result, actions["next"]) if result.verdict == "none" else ""
-    if unvouched:
+    if result.verdict == "none" and (unvouched := unvouched_check_text(result, NEXT_RINGS)):
         return unvouched
     closest = closest_shape_text(result)
     look = "look at what is left in the head's variables; "
