@@ -23,7 +23,7 @@ from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, unvouched_check_text, worst_ring_lines
-from ph_explorer.figures.shape_text import pin_text, shape_lines, shape_name
+from ph_explorer.figures.shape_text import hours_text, pin_text, shape_lines, shape_name
 from ph_explorer.planning.deciding import Decision, undecided_sentence
 
 Detail = Literal["short", "full"]
@@ -377,7 +377,7 @@ def signature_text(entry: dict) -> str:
         "cycles_per_rev": "{:g} cycles/rev".format,
         "cycles_per_span": "{:g} cycles over its span".format,
         "centre_deg": "at {:g} deg".format,
-        "centre_s": lambda s: f"at {s / 3600.0:.3g} h",
+        "centre_s": lambda s: f"at {hours_text(s)}",
         "centre_touch": "at touch {:g}".format,
         "joint": "{} joint".format,
     }

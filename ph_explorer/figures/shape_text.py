@@ -8,6 +8,7 @@ import numpy as np
 from ph_explorer.diagnosis.replication import REPLICATION_LEVEL
 from ph_explorer.diagnosis.search import MATERIAL_REDUCTION
 from ph_explorer.diagnosis.shapes import Shape
+from ph_explorer.effects.environment import SECONDS_PER_HOUR
 from ph_explorer.effects.error_functions import SHAPE_GROUPS, SHAPE_VARIABLES
 from ph_explorer.figures.charts import line_chart_svg
 
@@ -38,10 +39,15 @@ def untold_words(shape: Shape) -> list[str]:
     return words
 
 
+def hours_text(seconds: float) -> str:
+    """A touch time in hours, as every text of a shape or a signature words it ('33.5 h')."""
+    return f"{seconds / SECONDS_PER_HOUR:.3g} h"
+
+
 def variable_value(variable: str, value: float) -> str:
     """A value of a shape's variable in its unit: an angle in deg, a touch time in hours."""
     if variable == "time_s":
-        return f"{value / 3600.0:.3g} h"
+        return hours_text(value)
     if variable == "campaign_fraction":
         return f"{100.0 * value:.0f} % of the touch order"
     unit = SHAPE_VARIABLES[variable].unit
@@ -119,7 +125,7 @@ def shape_svg(shape: Shape) -> str:
     x = np.array(shape.x)
     label = SHAPE_VARIABLES[shape.variable].label
     if shape.variable == "time_s":  # a campaign lasts hours: its time axis in hours (variable_value's unit)
-        x, label = x / 3600.0, "touch time (h)"
+        x, label = x / SECONDS_PER_HOUR, "touch time (h)"
     series = []
     for (symbol, _), value, spread, (dark, light) in zip(shape.components, shape.value, shape.U, SHAPE_COLORS):
         value, spread = np.array(value), np.array(spread)
