@@ -191,6 +191,7 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
     assert result.returncode == 0, result.stderr
     expected = json.loads(result.stdout)["expected"]["a_axis_cyclic vs a_axis_radial_motion"]
     assert not expected["decided_by_rings"] and expected["power"] < DECIDING_POWER and expected["scatter"] > 1.5
+    assert expected["pair"]  # its words say "decide", not "confirm" (figures.decision_text)
     result = run_cli("design", "--data", campaign, "--decide", "--budget", "10", "--out", tmp_path / "rings.csv", "--json")
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
@@ -300,3 +301,18 @@ def test_one_repetition_is_said_in_the_verdict_and_no_ring_is_weighed_against_no
     assert result.returncode == 0, result.stderr
     decision = json.loads(result.stdout)
     assert decision["rings"] == [] and decision["questions"] and "one repetition" in decision["note"]
+
+
+@pytest.mark.parametrize("pair", [True, False])
+def test_what_no_ring_decides_is_worded_as_a_pair_or_as_a_suggestion(pair):
+    """A pair that no ring and no other measurement separates keeps its name as a pair; a single
+    suggestion too small to confirm stays a suggestion (it was told it "stays a pair")."""
+    from ph_explorer.figures.decision_text import decision_words
+    from ph_explorer.planning.deciding import Decision
+
+    words = "a_axis_cyclic 26 cycles/rev" + (" or a_axis_radial_motion 26 cycles/rev" if pair else "")
+    question = {"words": words, "pair": pair, "decided_by_rings": False, "power": 0.12, "expected_gain": 3.0, "scatter": 1.0}
+    sentence = " ".join(decision_words(Decision([], {"q": {**question, "rings_needed": None}}, None, budget=6), 6).undecided)
+    assert words in sentence and "not even 18 rings would" in sentence
+    assert ("the name stays a pair" in sentence) == pair and ("stays a suggestion" in sentence) == (not pair)
+    assert sentence.startswith("No 6 rings of this stylus " + ("decide " if pair else "confirm or refute "))

@@ -25,11 +25,12 @@ from ph_explorer.campaign import Campaign, orientation_label
 from ph_explorer.diagnosis.study import Study
 from ph_explorer.effects import Catalog, Effect, effect_label
 from ph_explorer.errors import InputError
+from ph_explorer.figures.decision_text import decision_words
 from ph_explorer.figures.diagnosis_report import diagnosis_figures
 from ph_explorer.io.merge import merged_campaign
 from ph_explorer.models.folder import MODEL_TYPES, baseline_of
 from ph_explorer.planning import adaptive, closed_loop, plans
-from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, decision_words, rings_that_decide
+from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, rings_that_decide
 from ph_explorer.twin import Scenario, simulate, twin_scenario
 
 

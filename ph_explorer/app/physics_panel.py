@@ -19,10 +19,11 @@ from ph_explorer.diagnosis.separation import CONFOUNDED
 from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
+from ph_explorer.figures.decision_text import DecisionWords
 from ph_explorer.figures.diagnosis_text import left_next, report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.figures.shape_text import shape_svg
-from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision, DecisionWords
+from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision
 
 
 def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
@@ -328,10 +329,8 @@ class PhysicsPanel:
         self.measure.visible = self.download_rings.visible = False
 
     def show_decision(self, words: DecisionWords, measurable: bool) -> None:
-        """The rings that would decide (planning.deciding.decision_words); Measure them when the twin can."""
-        listed = "\n\n".join(words.by_question)  # "a vs b (147 ...): 1. A10 B-20 (31), 2. ...": a line a question
-        rest = [*words.undecided, *([words.time] if words.time else [])]
-        self.decision.content = "\n\n".join([f"**{words.head}**", *([listed] if listed else []), *rest])
+        """The rings that would decide (figures.decision_text.decision_words); Measure them when the twin can."""
+        self.decision.content = "\n\n".join(words.paragraphs())
         self.measure.visible = bool(words.rings) and measurable
         self.download_rings.visible = bool(words.rings)
 

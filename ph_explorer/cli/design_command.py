@@ -107,10 +107,11 @@ def decide_command(
     if data is None:
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
     from ph_explorer.diagnosis import diagnose
+    from ph_explorer.figures.decision_text import decision_words
     from ph_explorer.io.rings import rings_csv_text
     from ph_explorer.io.writer import atomic_write
     from ph_explorer.models.lattice_need import read_lattice_campaign
-    from ph_explorer.planning.deciding import decision_words, rings_that_decide
+    from ph_explorer.planning.deciding import rings_that_decide
 
     campaign = read_lattice_campaign(data, geometry)
     start = []

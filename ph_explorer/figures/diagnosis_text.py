@@ -20,11 +20,12 @@ from ph_explorer.diagnosis.nested import MIN_TRAIN_PER_FOLD, NESTED_FOLDS
 from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
 from ph_explorer.effects import Catalog, effect_label, settings_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
+from ph_explorer.figures.decision_text import undecided_text
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, unvouched_check_text, worst_ring_lines
 from ph_explorer.figures.shape_text import hours_text, pin_text, shape_lines, shape_name
-from ph_explorer.planning.deciding import Decision, undecided_sentence
+from ph_explorer.planning.deciding import Decision
 
 Detail = Literal["short", "full"]
 Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
@@ -244,11 +245,6 @@ def left_next(result: Diagnosis, front: Front = "command line") -> str:
     own = f"{own_effect_text(actions)} and diagnose again with it."
     closest = closest_shape_text(result)
     return f"{closest[:1].upper()}{closest[1:]}else {own}" if closest else own[:1].upper() + own[1:]
-
-
-def undecided_text(decision: Decision) -> str:
-    """What rings cannot decide, each question with what else would (or that its name stays a pair)."""
-    return " ".join(undecided_sentence(label, q, decision.budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
 
 
 def left_line(result: Diagnosis) -> str:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ph_explorer.campaign import Campaign, orientation_label
+from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.candidates import Candidate, Partner, RivalSetting
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import Catalog, Effect
@@ -203,6 +203,7 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         taken += [(q, i) for i in rings]
         expected[question.label] = {
             "words": question.words,
+            "pair": question.other is not None,
             "decided_by_rings": bool(rings),
             "power": round(power, 2),
             "expected_gain": round(total, 1),
@@ -236,60 +237,3 @@ def rings_that_decide(campaign: Campaign, result: Diagnosis, catalog: Catalog, b
         "" if per_ring is not None else "no touch times in the campaign: the CMM time cannot be estimated",
         budget,
     )
-
-
-@dataclass(frozen=True)
-class DecisionWords:
-    """The decision in words, by part: a head line, one line a ring in measuring order, a line per
-    question no ring decides, and the CMM time (None without rings); the rings also a line per
-    question, each ring with its evidence (by_question: the explorer's short list)."""
-
-    head: str
-    rings: tuple[str, ...]
-    undecided: tuple[str, ...]
-    time: str | None
-    by_question: tuple[str, ...] = ()
-
-    def lines(self) -> list[str]:
-        return [self.head, *self.rings, *self.undecided, *([self.time] if self.time is not None else [])]
-
-
-def undecided_sentence(label: str, question: dict[str, Any], budget: int) -> str:
-    """A question no `budget` rings decide, in one sentence (the command line's, the explorer's and
-    the verdict's next step): the power its best rings reach, how far its gains scatter when more
-    than the touch noise makes them, and how many rings or what measurement would decide it, or
-    that the name stays a pair."""
-    scatter = question.get("scatter", 1.0)
-    why = f"; what the model leaves at its check rings scatters their gains {scatter:.1f}x the touch noise's" if scatter > 1.05 else ""
-    needed, separated_by = question.get("rings_needed"), question.get("separated_by")
-    would = [*([f"{needed} rings would (a budget of {needed})"] if needed else []), *([f"{separated_by} would"] if separated_by else [])]
-    beyond = BEYOND_BUDGET * max(budget, DECIDING_RINGS)
-    return (
-        f"No {budget} rings of this stylus decide {question.get('words', label.replace(' vs ', ' or '))} (their test over rings "
-        f"would pass {100 * question['power']:.0f} % of the time, {100 * DECIDING_POWER:.0f} % decides{why}): "
-        + (" and ".join(would) or f"not even {beyond} rings would, and no measurement tried here separates them, so the name stays a pair")
-        + "."
-    )
-
-
-def decision_words(decision: Decision, budget: int) -> DecisionWords:
-    """The decision in words (DecisionWords); the command line prints its lines, the explorer lays out its parts."""
-    head = (
-        f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
-    )
-    rings = tuple(f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings)
-    undecided = tuple(undecided_sentence(label, q, budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
-    by_question = tuple(
-        f"{label} ({expected['expected_gain']:.0f} noise variances of evidence): "
-        + ", ".join(
-            f"{r['order']}. {orientation_label(r['A_deg'], r['B_deg'])} ({r['expected_gain']:.0f})"
-            for r in decision.rings
-            if r["question"] == label
-        )
-        for label, expected in decision.expected.items()
-        if expected["decided_by_rings"]
-    )
-    time = None
-    if decision.rings:
-        time = f"about {decision.minutes:.0f} minutes of CMM time" if decision.minutes is not None else decision.note
-    return DecisionWords(head, rings, undecided, time, by_question)
