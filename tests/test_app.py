@@ -601,6 +601,36 @@ def test_a_good_upload_replaces_the_session_data_only(browser, app: ExplorerApp,
     assert s.view.measured
 
 
+def test_an_uploaded_sidecar_gives_the_browser_the_check_rings_and_geometry_the_command_line_reads(opened, tmp_path) -> None:
+    """A browser sends one file at a time: the CSV alone is read with the default check rings and
+    geometry, and says so; its sidecar TOML, uploaded next, gives the session what `read_campaign`
+    (the command line) reads from NAME.csv beside NAME.toml. A sidecar with no CSV uploaded, or a
+    bad one, is one line and the data stays."""
+    from ph_explorer.io import read_campaign
+
+    fake, s = opened
+    fake.upload("Upload its sidecar TOML", "lab.toml", b"[geometry]\n")
+    assert wait_for(lambda: "upload the campaign CSV first" in s.data_panel.message.content)
+    campaign = lobing_campaign(seed=5, n_repetitions=3, check_orientations=((15.0, -20.0), (45.0, 40.0), (75.0, 100.0)))
+    campaign.geometry = dataclasses.replace(campaign.geometry, pivot_to_ball_mm=campaign.geometry.pivot_to_ball_mm + 20.0)
+    path = write_campaign(campaign, tmp_path / "lab.csv")
+    expected = read_campaign(path)
+    fake.upload("Upload a campaign CSV", "lab.csv", path.read_bytes())
+    assert wait_for(lambda: "without a sidecar" in s.data_panel.message.content, timeout=120)
+    s.wait(timeout=120)
+    assert s.dataset.campaign.geometry != expected.geometry
+    assert not np.array_equal(s.dataset.campaign.holdout_mask(), expected.holdout_mask())
+    fake.upload("Upload its sidecar TOML", "lab.toml", b"[geometry]\nstylus = 3\n")
+    assert wait_for(lambda: "Not loaded" in s.data_panel.message.content, timeout=120)
+    assert "lab.toml" in s.data_panel.message.content and "/tmp" not in s.data_panel.message.content
+    fake.upload("Upload its sidecar TOML", "lab.toml", path.with_suffix(".toml").read_bytes())
+    assert wait_for(lambda: "with its sidecar **lab.toml**" in s.data_panel.message.content, timeout=120)
+    s.wait(timeout=120)
+    assert s.dataset.campaign.geometry == expected.geometry
+    np.testing.assert_array_equal(s.dataset.campaign.holdout_mask(), expected.holdout_mask())
+    assert "3 check rings" in s.data_panel.message.content and "uploaded lab.csv" in s.data_panel.source.content
+
+
 def test_a_campaign_with_negative_a_is_shown(opened, app: ExplorerApp, tmp_path) -> None:
     """The A slider's range comes from the data: a campaign with negative A reaches them (issue 12)."""
     fake, s = opened

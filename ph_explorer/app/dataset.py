@@ -29,6 +29,7 @@ from ph_explorer.figures.polar import deviation_bounds
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import ron_t
 from ph_explorer.io import read_campaign
+from ph_explorer.io.sidecar import sidecar_path
 from ph_explorer.metrics import noise_floor, ring_mae
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.deviation_model import DeviationModel
@@ -350,16 +351,24 @@ def dataset_for(campaign: Campaign, label: str, model_dir: Path | None, notes: l
     return Dataset(campaign, models, label, notes, train, errors)
 
 
-def read_uploaded_campaign(name: str, content: bytes, geometry: Mapping[str, float] | None = None) -> Campaign:
-    """Read an uploaded CSV with the core's reader; its InputError names the uploaded file, not a temp path."""
+def read_uploaded_campaign(
+    name: str, content: bytes, geometry: Mapping[str, float] | None = None, sidecar: tuple[str, bytes] | None = None
+) -> Campaign:
+    """Read an uploaded CSV with the core's reader, and its uploaded sidecar TOML (name, content) when
+    given, read as the command line reads NAME.toml beside NAME.csv; an InputError names the
+    uploaded files, not temporary paths."""
     safe = Path(name or "upload.csv").name or "upload.csv"
     with tempfile.TemporaryDirectory(prefix="ph-explorer-upload-") as tmp:
-        path = Path(tmp) / safe
+        path = Path(tmp) / "upload.csv"  # its own name: an upload named *.toml would be its own sidecar
         path.write_bytes(content)
+        shown = {str(path): safe}
+        if sidecar is not None:
+            sidecar_path(path).write_bytes(sidecar[1])
+            shown[str(sidecar_path(path))] = Path(sidecar[0] or "sidecar.toml").name or "sidecar.toml"
         try:
             campaign = read_campaign(path, dict(geometry or {}))
         except InputError as error:
-            file = None if error.file is None else str(error.file).replace(str(path), safe)
+            file = None if error.file is None else shown.get(str(error.file), Path(str(error.file)).name)
             raise InputError(error.message, file=file, row=error.row, column=error.column) from None
     campaign.source = safe
     require_lattice(campaign)  # the models are fitted next: a design without a lattice is said here, in one line

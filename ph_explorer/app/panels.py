@@ -7,6 +7,7 @@ The Physics tab is in physics_panel.py.
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 import viser
@@ -15,7 +16,7 @@ from numpy.typing import NDArray
 from ph_explorer.app.dataset import Dataset
 from ph_explorer.app.orientation_view import OrientationView
 from ph_explorer.app.scene import BAND_COLORS, curve_color, hex_color
-from ph_explorer.campaign import orientation_label  # noqa: F401 (the app's panels import it from here)
+from ph_explorer.campaign import Campaign, orientation_label  # noqa: F401 (the app's panels import it from here)
 from ph_explorer.figures.charts import bar_chart_svg, line_chart_svg
 from ph_explorer.figures.orientation_map import MapFigure
 from ph_explorer.figures.polar import CURVE_ORDER, LEGEND_LABELS, MAGNIFICATION_RANGE, PolarScale, curves_svg
@@ -272,6 +273,10 @@ class DataPanel:
         self.names = {(f"{name} · {purpose}" if purpose else name): name for name, purpose in scenarios.items()}
         self.scenario = gui.add_dropdown("Scenario", (NO_CHOICE, *self.names), hint="a campaign simulated by the twin")
         self.upload = gui.add_upload_button("Upload a campaign CSV", mime_type=".csv,text/csv,text/plain")
+        # The command line reads NAME.toml beside NAME.csv; a browser sends one file at a time.
+        self.sidecar = gui.add_upload_button(
+            "Upload its sidecar TOML", mime_type=".toml,application/toml,text/plain", hint="the uploaded CSV's check rings and geometry"
+        )
         self.message = gui.add_markdown("")
 
     def set_source(self, dataset: Dataset) -> None:
@@ -281,6 +286,17 @@ class DataPanel:
             f"**{dataset.label}** — {c.n_orientations} orientations x {c.n_repetitions} repetitions x "
             f"{c.n_points} points; repetition sigma {c.noise_sigma_um():.3f} um.{notes}"
         )
+
+    def show_loaded(self, campaign: Campaign, sidecar: str | None) -> None:
+        """What an upload was read with: its sidecar's check rings and geometry, or the defaults."""
+        checks, length = int(campaign.holdout_mask().sum()), campaign.geometry.pivot_to_ball_mm
+        if sidecar is None:
+            self.message.content = (
+                f"Loaded **{campaign.source}** without a sidecar: {checks} check rings by the default rule, pivot to "
+                f"ball {length:g} mm. If it has a sidecar TOML (its check rings, its geometry), upload it too."
+            )
+        else:
+            self.message.content = f"Loaded **{campaign.source}** with its sidecar **{Path(sidecar).name}**: {checks} check rings, pivot to ball {length:g} mm."
 
     def show_error(self, line: str) -> None:
         self.message.content = f"**Not loaded** — {line}\n\nThe session keeps its current data."

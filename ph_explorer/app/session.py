@@ -79,6 +79,7 @@ class Session:
         self._moving = False  # sliders being set together (go_to): render once at the end
         self._field_token = 0  # the latest field request; older computations do not draw
         self._closed = False  # the browser left (close)
+        self.uploaded: tuple[str, bytes] | None = None  # the CSV uploaded last, while it is the data: its sidecar joins it
         self.camera = ViewCamera(client, lambda: (self.head, self.ring))
         self.following = Following(self._draw_following, shared.renders, FOLLOW_INTERVAL_S, shared.following_stats.rendered)
         # The task's RONt, once the sliders rest, on its own thread (a diagnosis does not hold it back).
@@ -129,6 +130,7 @@ class Session:
         self.map_panel.figure.on_update(lambda _: self.refresh_field())
         self.map_panel.show.on_update(lambda _: self.field.set_visible(bool(self.map_panel.show.value)))
         data.upload.on_upload(lambda _: self.submit(self.load_upload, data.upload.value.name, data.upload.value.content))
+        data.sidecar.on_upload(lambda _: self.submit(self.load_sidecar, data.sidecar.value.name, data.sidecar.value.content))
         p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
         p.save_study.on_click(lambda _: self.submit(self.loop.save_study))
@@ -332,21 +334,25 @@ class Session:
         tested = result is None or result.within_noise["baseline"] is not None
         self.map_panel.set_failing(None if result is None else result.failing_rings(), tested)
 
-    def load_upload(self, name: str, content: bytes) -> None:
-        """A CSV from the browser: read by the core's reader; a bad file keeps the session's data."""
+    def load_upload(self, name: str, content: bytes, sidecar: tuple[str, bytes] | None = None) -> None:
+        """A CSV from the browser (and its sidecar TOML) read as the command line reads them; a bad file keeps the data."""
         self.controls.working(f"Reading {name}…", 0.05)
         try:
-            campaign = read_uploaded_campaign(name, content, self.shared.geometry_overrides)
-        except InputError as error:
-            self.data_panel.show_error(error.line())
-            return
-        except ValueError as error:  # a campaign the core refuses (e.g. inconsistent shapes)
-            self.data_panel.show_error(f"{name}: {' '.join(str(error).split())}")
+            campaign = read_uploaded_campaign(name, content, self.shared.geometry_overrides, sidecar)
+        except (InputError, ValueError) as error:  # its line, or a campaign the core refuses (e.g. inconsistent shapes)
+            self.data_panel.show_error(error.line() if isinstance(error, InputError) else f"{name}: {' '.join(str(error).split())}")
             return
         finally:
             self.controls.idle()
-        self.data_panel.show_info(f"Loaded **{campaign.source}**.")
+        self.data_panel.show_loaded(campaign, None if sidecar is None else sidecar[0])
         self._new_data(campaign, f"uploaded {campaign.source}")
+        self.uploaded = (name, content)
+
+    def load_sidecar(self, name: str, content: bytes) -> None:
+        """The uploaded CSV read again beside this sidecar TOML (its check rings, its geometry)."""
+        if self.uploaded is not None:
+            return self.load_upload(*self.uploaded, sidecar=(name, content))
+        self.data_panel.show_error(f"{name}: upload the campaign CSV first; its sidecar is read beside it")
 
     def load_scenario(self, name: str) -> None:
         """A shipped scenario, simulated by the twin."""
@@ -366,6 +372,7 @@ class Session:
     def _new_data(self, campaign: Campaign, label: str, what: str | None = None) -> None:
         """Fit the models to new data and show it, the progress above the fold (a few seconds)."""
         what = what or campaign.source or label
+        self.uploaded = None  # a sidecar uploaded next joins an uploaded CSV only (load_upload sets it again)
         try:
             self.controls.working(f"{what}: fitting the models (leave one orientation out)…", 0.3)
             dataset = dataset_for(campaign, label, None)
