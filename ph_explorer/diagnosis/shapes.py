@@ -387,7 +387,7 @@ def look_at(
             bool(significant and material and plausible_curve(best, value)),
             untold,
             fit.aliasing,
-            fitted.dominant_period(sampled) if variable.angle else None,
+            fitted.dominant_period(sampled, fit.design.touch_blocks()[0]) if variable.angle else None,
             float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
             search.smoother.leave_out,
         )

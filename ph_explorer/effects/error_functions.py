@@ -220,10 +220,33 @@ class ErrorFunction(Effect):
             y_label=f"{symbol} ({unit})",
         )
 
-    def dominant_period(self, weight_x: NDArray[np.float64]) -> float | None:
-        """The cycles per revolution of the sinusoid that explains most of the curve over the angles
-        the rings sample (weight_x), to 0.1 cycle, when it explains at least half of it; else None.
-        The curve is linear between its knots: it is read at the knots and half-way between them."""
+    def dominant_period(self, weight_x: NDArray[np.float64], seen: NDArray[np.float64]) -> float | None:
+        """The cycles per revolution of one sinusoid that explains at least half of the curve over the
+        angles the rings sample (weight_x) and at least half of what the rings see of it, to 0.1
+        cycle (of such, the one whose lesser share is largest); else None. `seen`: the effect's columns
+        (rows, c) as the out-of-sample residual sees them. The two readings fail apart: a slow wave
+        the interpolator predicts anyway is barely seen, yet may dominate the values (the roughness
+        penalty spares it); within a ring's short sweep of a joint, what is seen of a step or a dent
+        is a slope that some sinusoid follows."""
+        readings = [self._curve_reading(weight_x), self._seen_reading(seen)]
+        if readings[0] is None:
+            return None
+        top = min(180.0, 180.0 / float(np.diff(self.knots).min()))  # to the knots' Nyquist
+
+        def shares(cycles: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.minimum(*(_sinusoid_shares(cycles, *reading) for reading in readings))
+
+        # Every half cycle, then to 0.1 cycle about the three best (a peak is a cycle wide over a turn).
+        coarse = np.arange(1.0, top + 1e-9, 0.5)
+        near = coarse[np.argsort(shares(coarse))[-3:]]
+        fine = np.unique(np.clip(np.round((near[:, None] + np.arange(-0.4, 0.45, 0.1)).ravel(), 1), 1.0, top))
+        each = shares(fine)
+        best = int(np.argmax(each))
+        return float(fine[best]) if each[best] >= 0.5 else None
+
+    def _curve_reading(self, weight_x: NDArray[np.float64]) -> tuple[NDArray[np.float64], None, NDArray[np.float64]] | None:
+        """The main curve over the sampled angles (deg), read at the knots and half-way between
+        them (the curve is linear between its knots), in the plain metric; None: too few."""
         knots = np.array(self.knots)
         grid = np.sort(np.concatenate([knots, 0.5 * (knots[1:] + knots[:-1])]))
         sampled = np.unique(weight_x)
@@ -233,19 +256,38 @@ class ErrorFunction(Effect):
         if x.size < 8:
             return None
         curve = self.function(x)
-        main = curve[:, int(np.argmax((curve**2).sum(axis=0)))]
-        main = main - main.mean()
-        total = float((main**2).sum())
-        if total <= 0:
-            return None
-        cycles = np.arange(1.0, 180.0 + 1e-9, 0.1)
-        phase = np.radians(cycles[:, None] * x[None])
-        basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (m, x, 3)
-        gram = np.einsum("mxi,mxj->mij", basis, basis)
-        dot = np.einsum("mxi,x->mi", basis, main)
-        explained = np.einsum("mi,mi->m", dot, np.linalg.solve(gram + 1e-12 * np.eye(3), dot[..., None])[..., 0])
-        best = int(np.argmax(explained))
-        return float(round(cycles[best], 1)) if explained[best] >= 0.5 * total else None
+        return x, None, curve[:, int(np.argmax((curve**2).sum(axis=0)))]
+
+    def _seen_reading(self, seen: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """The component seen most, at the knots (deg), in the metric of what the rings see of it
+        (seen: its columns in roughness coordinates, as basis() gives them)."""
+        count = len(self.knots)
+        columns = seen.reshape(seen.shape[0], len(self.group.components), count)
+        seen_most = (np.einsum("rck,ck->rc", columns, self.coefficients().reshape(-1, count)) ** 2).sum(axis=0)
+        main = int(np.argmax(seen_most))
+        block = np.ascontiguousarray(columns[:, main])
+        factor = roughness_factor(count, self.periodic)  # on the values: X L^-T L^T, so its Gram is L (X'X) L^T
+        return np.array(self.knots), factor @ (block.T @ block) @ factor.T, self.values()[main]
+
+
+def _sinusoid_shares(
+    cycles: NDArray[np.float64], x_deg: NDArray[np.float64], gram: NDArray[np.float64] | None, values: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """(m,): the share of `values` at x_deg (n,) beyond their level that sin and cos of each number
+    of cycles per turn explain, by least squares with a constant in the metric `gram` (n, n; None:
+    the plain one)."""
+    phase = np.radians(x_deg[:, None] * cycles[None, :])
+    basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (n, m, 3)
+    metric = np.eye(len(values)) if gram is None else gram
+    weighted = basis if gram is None else (gram @ basis.reshape(basis.shape[0], -1)).reshape(basis.shape)
+    floor = 1e-12 * max(float(np.trace(metric)), 1e-300)  # what nothing sees (a constant the circle fit takes)
+    normal = np.einsum("kmi,kmj->mij", basis, weighted) + floor * np.eye(3)
+    dot = np.einsum("kmi,k->mi", weighted, values)
+    explained = np.einsum("mi,mi->m", dot, np.linalg.solve(normal, dot[..., None])[..., 0])
+    ones = np.ones(len(values))
+    level = float((ones @ metric @ values) ** 2 / (float(ones @ metric @ ones) + floor))
+    total = float(values @ metric @ values) - level
+    return (explained - level) / total if total > 0 else np.zeros_like(explained)
 
 
 ArrayLikeFloat = NDArray[np.float64] | float
