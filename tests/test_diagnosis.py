@@ -789,8 +789,14 @@ def test_the_verdict_says_what_rings_can_decide_before_offering_them(diagnoses):
         step = verdict.lines[-1]
         assert step.startswith("Next: ") and bool(decision.rings) == decided
         needed = next(iter(decision.expected.values())).get("rings_needed")
+        # A claim's partner line points to that step, not to a command that would answer "no ring decides".
+        (claims,) = [s for s in report_sections(result, DEFAULT_CATALOG, decision=decision) if s.key == "claims"]
+        assert "see the next step" in " ".join(claims.lines) and "--decide" not in " ".join(claims.lines)
         if decided:
             assert f"measure the {len(decision.rings)} rings that would decide" in step and "--decide" in step
+            # The command line names the campaign's own file, as a shell reads it.
+            named = report_text(result, DEFAULT_CATALOG, decision=decision, data_file="head 6.csv")
+            assert "ph-explorer design --data 'head 6.csv' --decide" in named and "FILE.csv" not in named
         elif name == "head_6":  # more rings would: said, with the budget that gets them
             assert DECIDE_BUDGET < needed <= 10 and f"{needed} rings would (a budget of {needed})" in step and "stays a pair" not in step
         else:

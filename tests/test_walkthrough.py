@@ -13,6 +13,7 @@ from command_line import run_cli
 from ph_explorer.diagnosis import diagnose
 from ph_explorer.effects import BUILTIN_EFFECTS, Catalog
 from ph_explorer.figures.diagnosis_text import report_text
+from ph_explorer.io import write_campaign
 from ph_explorer.twin import load_scenario, simulate
 
 WALKTHROUGH = Path(__file__).resolve().parent.parent / "docs" / "walkthrough_unknown_effect.md"
@@ -46,6 +47,15 @@ def test_the_loop_closes_on_an_effect_in_no_catalog(tmp_path):
     assert amplitude == pytest.approx(1.0, rel=0.1)
     final = second.steps[-1]
     assert final.mae_um["mean"] <= 1.3 * final.noise_floor_um["mean"]
+    assert report_text(second, mine).startswith("Verdict: missing - b_wobble or a shape: angular positioning of the B axis")
+    # The command line adds the effect to the whole catalog, which holds it: one effect, two names.
+    csv = write_campaign(campaign, tmp_path / "b22.csv")
+    printed = run_cli("diagnose", "--data", csv, "--effects", effects_file)
+    assert printed.returncode == 0, printed.stderr
+    verdict = next(line for line in printed.stdout.splitlines() if line.startswith("Verdict"))
+    assert verdict.startswith("Verdict: missing - b_wobble or b_axis_cyclic 22 cycles/rev") and "(these rings cannot tell)" in verdict
+    assert "b_axis_cyclic 22 cycles/rev, which explains 100 % of what this campaign shows of b_wobble" in printed.stdout
+    assert "no measurement tried here separates them, so the name stays a pair" in printed.stdout
 
 
 SHAPE_WALKTHROUGH = WALKTHROUGH.parent / "walkthrough_shape.md"

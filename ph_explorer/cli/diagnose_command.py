@@ -85,7 +85,7 @@ def diagnose_command(
     if not json_output:
         # What rings can decide of what the verdict leaves open, said with the verdict (design --decide lists them).
         decision = rings_that_decide(campaign, result, catalog, DECIDE_BUDGET) if result.leaves_open else None
-        print(report_text(result, catalog, detail, decision, headline=False), end="", flush=True)
+        print(report_text(result, catalog, detail, decision, headline=False, data_file=str(data)), end="", flush=True)
     target = save if save is not None else resume
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)

@@ -21,6 +21,7 @@ from ph_explorer.diagnosis.results import VERDICTS, Diagnosis, Headline
 from ph_explorer.effects import Catalog, effect_label, settings_label, settings_text
 from ph_explorer.effects.error_functions import SHAPE_GROUPS
 from ph_explorer.figures.decision_text import undecided_text
+from ph_explorer.figures.front_actions import Front, front_actions
 from ph_explorer.figures.history_text import history_lines
 from ph_explorer.figures.noise_text import base_text, campaign_test_line, test_lines
 from ph_explorer.figures.ring_text import outliers_text, suspect_text, unvouched_check_text, worst_ring_lines
@@ -28,27 +29,12 @@ from ph_explorer.figures.shape_text import hours_text, pin_text, shape_lines, sh
 from ph_explorer.planning.deciding import Decision
 
 Detail = Literal["short", "full"]
-Front = Literal["command line", "explorer"]  # whose actions "what to do next" names (the report: the command line's)
 SectionKey = Literal[
     "verdict", "why", "claims", "shapes", "suggested", "worst_rings", "history", "tests", "candidates", "partners", "teaching"
 ]
 WORST_SHOWN = 5  # the worst rings named in the short report
 SUGGESTED_SHOWN = 3  # the suggestions listed in the short report
 RERANKED_SHOWN = 5  # rows of each table re-ranked after a step (full detail)
-# The actions each front end offers, by what they do.
-ACTIONS: dict[Front, dict[str, str]] = {
-    "command line": {
-        "decide": "ph-explorer design --data FILE.csv --decide",
-        "add": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall",
-        "own": "--effects FILE.py",
-    },
-    "explorer": {
-        "decide": "Rings that would decide, below",
-        "add": "tick the effects found, then Refit the hybrid",
-        "own": "an effect file of your own, loaded with serve --effects",
-    },
-}
-NEXT_RINGS = "ph-explorer design --data FILE.csv --next"  # the adaptive campaign's next rings, from either front
 
 
 @dataclass(frozen=True)
@@ -79,13 +65,17 @@ def report_sections(
     name: Callable[[str], str] = str,
     front: Front = "command line",
     decision: Decision | None = None,
+    data_file: str | None = None,
 ) -> list[Section]:
     """The report in reading order (module docstring); `name` writes text naming effects (a
     teaching report's letters, figures.diagnosis_report.EffectNames.text); `front`: whose actions
     the next step names (the explorer shows a claim's fit in its own table, not in a line);
-    `decision`: the rings that would decide what the verdict leaves open, when found (next_step)."""
-    actions = ACTIONS[front]
-    claims = tuple(line for c in result.found for line in claim_lines(c, catalog, actions, with_fit=front != "explorer"))
+    `decision`: the rings that would decide what the verdict leaves open, when found (next_step);
+    `data_file`: the campaign's file, which the commands then name."""
+    actions = front_actions(front, data_file)
+    # With the decision found, a claim's line points to the next step, which says what rings can decide.
+    told = actions if decision is None else {**actions, "decide": "see the next step"}
+    claims = tuple(line for c in result.found for line in claim_lines(c, catalog, told, with_fit=front != "explorer"))
     claims += tuple(unfolded_lines(result))
     sections = [
         Section(
@@ -115,10 +105,16 @@ def report_sections(
 
 
 def report_text(
-    result: Diagnosis, catalog: Catalog, detail: Detail = "short", decision: Decision | None = None, headline: bool = True
+    result: Diagnosis,
+    catalog: Catalog,
+    detail: Detail = "short",
+    decision: Decision | None = None,
+    headline: bool = True,
+    data_file: str | None = None,
 ) -> str:
     """The report as plain text: each section's title, its lines indented; without the headline if said already."""
-    blocks = ["\n".join([s.title, *(f"  {line}" for line in s.lines)]) for s in report_sections(result, catalog, detail, decision=decision)]
+    sections = report_sections(result, catalog, detail, decision=decision, data_file=data_file)
+    blocks = ["\n".join([s.title, *(f"  {line}" for line in s.lines)]) for s in sections]
     return "\n\n".join([blocks[0] if headline else blocks[0].partition("\n")[2], *blocks[1:]]) + "\n"
 
 
@@ -208,7 +204,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         measure = f"measure the {len(decision.rings)} rings that would decide {rest} ({actions['decide']})." if decision.rings else ""
         text = f"{undecided} {measure[:1].upper()}{measure[1:]}".strip() if undecided else measure
         return f"{text} {pins[:1].upper()}{pins[1:]}.".strip() if pins else text
-    if result.verdict == "none" and (unvouched := unvouched_check_text(result, NEXT_RINGS)):
+    if result.verdict == "none" and (unvouched := unvouched_check_text(result, actions["next"])):
         return unvouched
     closest = closest_shape_text(result)
     look = "look at what is left in the head's variables; "
@@ -238,7 +234,7 @@ def left_next(result: Diagnosis, front: Front = "command line") -> str:
     """What to do with what is left (the signature), one sentence: the shape claimed for it added, else
     the closest shape pinned down, else an effect of the user's own; never only the last while a
     shape was tried."""
-    actions = ACTIONS[front]
+    actions = front_actions(front)
     if result.claimed_shapes:
         shapes = " and ".join(f"{shape.id} ({shape_name(shape)})" for shape in result.claimed_shapes)
         return f"What the rings replicate of it is claimed as a shape, {shapes}: {actions['add']}."
@@ -359,6 +355,8 @@ def told_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> 
 
 def test_text(test: PairTest) -> str:
     """'better on 10 of 12 rings, p = 0.002 (0.004 without the top ring)': diagnosis.telling_apart in words."""
+    if test.rings == 0:
+        return "their predictions differ on no ring"
     return f"better on {test.rings_better} of {test.rings} rings, p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
 
 
