@@ -33,7 +33,10 @@ Per family and over all, each with its 95 % Clopper-Pearson interval:
   test beside the chain (benchmarks/shape_oracle.py): where it does not, no shape search over these
   rings can (by ring, or with whole A rows left out where the search gives a second look);
   shape_right_where_oracle_passes; and by_axis (a function of the A joint shows by ring only at
-  rings off the lattice's A rows).
+  rings off the lattice's A rows);
+- period_right and period_wrong: over the heads of one period (beyond the scan, non-integer) whose
+  shape is claimed on the truth's group, the period the shape states within 1 cycle/rev of the
+  truth's, or another (the rest state none).
 
 MULTI_COUNT heads with two or three catalog effects at once (benchmarks/multi_effects.py): the
 share on which every effect is claimed (multi_effects.found_each: as catalog-effect heads are
@@ -400,6 +403,19 @@ def group_right(record: dict[str, Any]) -> bool:
     return shape_truth(record) is not None and any(own_mechanism(record, c) for c in record.get("claims", []))
 
 
+def period_stated(record: dict[str, Any]) -> str | None:
+    """What the first shape claimed on the truth's group states of a single-period truth (a period
+    beyond the scan, a non-integer one): "right" (within 1 cycle/rev), "wrong", "none"; None where
+    the truth has no one period or no such shape is claimed."""
+    truth, period = shape_truth(record), record["truth"].get("cycles_per_rev")
+    if period is None or "drift_cycles" in record["truth"] or record["family"] not in ("beyond_scan", "non_integer_period"):
+        return None
+    shape = next((s for s in record.get("shapes", []) if s["claimed"] and truth is not None and s["group"] == truth), None)
+    if shape is None:
+        return None
+    return "none" if shape["period"] is None else "right" if abs(shape["period"] - period) <= 1.0 else "wrong"
+
+
 def shape_wrong(record: dict[str, Any]) -> bool:
     """A shape claimed that does not hold the truth (any claim on a head with no shape to find)."""
     truth = shape_truth(record)
@@ -415,6 +431,7 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
         claimed = [r for r in group if any(s["claimed"] for s in r.get("shapes", []))]
         compared = [r for r in claimed if "plain_ratio" in r]  # the same head without its shape was diagnosed
         seen = [r for r in shaped if "oracle" in r]
+        periodic = [r for r in shaped if period_stated(r) is not None]
         passing = [r for r in seen if r["oracle"]["passes"]]
         return {
             "none": rate(sum(r["verdict"] == "none" for r in group), len(group)),
@@ -455,6 +472,10 @@ def figures(records: list[dict[str, Any]]) -> dict[str, Any]:
             # the oracle (shape_oracle): the head's own shape known exactly passes the shapes' replication test
             "oracle_passes": rate(len(passing), len(seen)),
             "shape_right_where_oracle_passes": rate(sum(shape_right(r) for r in passing), len(passing)),
+            # a shape claimed on the right group of a head whose error has one period (issue 56's
+            # test line): the period it states within 1 cycle/rev of the truth's, or a wrong one
+            "period_right": rate(sum(period_stated(r) == "right" for r in periodic), len(periodic)),
+            "period_wrong": rate(sum(period_stated(r) == "wrong" for r in periodic), len(periodic)),
         }
 
     judged = [r for r in records if r["verdict"] != "error" and not r["extra"]]
