@@ -199,6 +199,11 @@ def test_a_shape_in_time_is_pinned_by_rings_measured_again_and_whole_axes_are_na
     assert shape_name(in_time).endswith("or any error motion of the A axis or radial motion of the B axis (these rings cannot tell)")
     assert " h; check rings' error" in shape_lines(in_time)[1]
     assert "touch time (h)" in shape_svg(in_time) and "touch time (s)" not in shape_svg(in_time)
+    # Its band a shaded area under its curve, one per component (two lines of one colour woven
+    # through a curve of many periods read as noise), named once in the legend.
+    chart = shape_svg(shape)
+    assert chart.count("<polygon") == len(shape.components) and chart.count("+- U (k = 2)") == len(shape.components)
+    assert " + U<" not in chart and " - U<" not in chart
     of_b = dataclasses.replace(shape, group="b_angular", untold=("b_radial", "b_axial", "b_tilt"))
     assert shape_name(of_b).endswith(", or any other error motion of the B axis (these rings cannot tell)")
     assert shape_name(dataclasses.replace(shape, group="b_angular", untold=("b_radial",))).endswith(

@@ -231,6 +231,7 @@ def _escaped(text: str) -> str:
 
 
 Series = tuple[str, NDArray[np.float64], str]  # a chart's curve or bars: (label, values, colour)
+Band = tuple[str, NDArray[np.float64], NDArray[np.float64], str]  # a shaded band: (label, low, high, colour)
 
 
 def _frame(title: str, aria: str, width: float, height: float, left: float, top: float, plot_w: float, plot_h: float) -> list[str]:
@@ -242,10 +243,11 @@ def _frame(title: str, aria: str, width: float, height: float, left: float, top:
     ]
 
 
-def _legend(series: Sequence[Series], left: float, y: float, bars: bool) -> list[str]:
-    """One row per three entries under the x title, each in its series' own style (a line or a swatch)."""
+def _legend(series: Sequence[Series], left: float, y: float, bars: bool, start: int = 0) -> list[str]:
+    """One row per three entries under the x title, each in its series' own style (a line or a
+    swatch); `start`: the place of the first entry (entries of another style before it)."""
     parts = []
-    for k, (label, _, color) in enumerate(series):
+    for k, (label, _, color) in enumerate(series, start=start):
         x, row = left + (k % 3) * 120.0, y + 14.0 * (k // 3)
         mark = (
             f'<rect x="{x}" y="{row - 8}" width="14" height="9" fill="{color}" fill-opacity="0.7" stroke="{color}"/>'
@@ -256,12 +258,16 @@ def _legend(series: Sequence[Series], left: float, y: float, bars: bool) -> list
     return parts
 
 
-def line_chart_svg(x: NDArray[np.float64], series: Sequence[Series], title: str, x_label: str, y_label: str) -> str:
+def line_chart_svg(
+    x: NDArray[np.float64], series: Sequence[Series], title: str, x_label: str, y_label: str, bands: Sequence[Band] = ()
+) -> str:
     """Curves against x (e.g. the deviation against point number), round ticks on both axes (the
-    shared helpers), the y title above the plot, the legend under it in the curves' styles."""
+    shared helpers), the y title above the plot, the legend under it in the curves' styles; each
+    band (label, low, high, colour) a shaded area under the curves."""
     width, left, right, top, plot_h = 400.0, 40.0, 10.0, 34.0, 150.0
     plot_w, bottom = width - left - right, top + plot_h
-    values = np.concatenate([np.asarray(v, dtype=float).ravel() for _, v, _ in series] or [np.zeros(1)])
+    edges = [(label, np.concatenate([low, high]), color) for label, low, high, color in bands]
+    values = np.concatenate([np.asarray(v, dtype=float).ravel() for _, v, _ in [*series, *edges]] or [np.zeros(1)])
     values = values[np.isfinite(values)]
     low, high = (float(values.min()), float(values.max())) if values.size else (-1.0, 1.0)
     pad = 0.06 * (high - low if high > low else 1.0)
@@ -276,17 +282,22 @@ def line_chart_svg(x: NDArray[np.float64], series: Sequence[Series], title: str,
         return bottom - (np.asarray(v, dtype=float) - low) / (high - low) * plot_h
 
     legend_y = bottom + 42.0
-    height = legend_y + 14.0 * ((len(series) - 1) // 3) + 8.0
+    height = legend_y + 14.0 * ((len(series) + len(bands) - 1) // 3) + 8.0
     parts = _frame(title, f"chart {title}", width, height, left, top, plot_w, plot_h)
     parts += x_axis_svg(nice_ticks(x_low, x_high), sx, top, bottom, font_size=10, label_gap=13)
     parts += y_axis_svg(nice_ticks(low, high, 5), sy, left, left + plot_w, font_size=10, zero_stroke="#999")
     parts.append(f'<text x="{left}" y="{top - 5}" font-size="10.5">{_escaped(y_label)}</text>')
     parts.append(f'<text x="{left + plot_w / 2:.1f}" y="{bottom + 27}" font-size="10.5" text-anchor="middle">{_escaped(x_label)}</text>')
     xs = sx(x).tolist()  # Python floats: formatted several times faster than numpy's scalars
+    for _, band_low, band_high, color in bands:  # the upper edge forward, the lower back: one closed area
+        outline = [*zip(xs, sy(band_high).tolist()), *reversed(list(zip(xs, sy(band_low).tolist())))]
+        points = " ".join(f"{a:.1f},{b:.1f}" for a, b in outline if math.isfinite(b))
+        parts.append(f'<polygon points="{points}" fill="{color}" fill-opacity="0.55" stroke="none"/>')
     for _, v, color in series:
         points = " ".join(f"{a:.1f},{b:.1f}" for a, b in zip(xs, sy(v).tolist()) if math.isfinite(b))
         parts.append(f'<polyline points="{points}" fill="none" stroke="{color}" stroke-width="1.8" stroke-linejoin="round"/>')
     parts += _legend(series, left, legend_y, bars=False)
+    parts += _legend([(label, band_low, color) for label, band_low, _, color in bands], left, legend_y, bars=True, start=len(series))
     parts.append("</svg>")
     return "".join(parts)
 

@@ -126,10 +126,11 @@ def shape_svg(shape: Shape) -> str:
     label = SHAPE_VARIABLES[shape.variable].label
     if shape.variable == "time_s":  # a campaign lasts hours: its time axis in hours (variable_value's unit)
         x, label = x / SECONDS_PER_HOUR, "touch time (h)"
-    series = []
+    series, bands = [], []
     for (symbol, _), value, spread, (dark, light) in zip(shape.components, shape.value, shape.U, SHAPE_COLORS):
         value, spread = np.array(value), np.array(spread)
-        series += [(symbol, value, dark), (f"{symbol} + U", value + spread, light), (f"{symbol} - U", value - spread, light)]
+        series.append((symbol, value, dark))
+        bands.append((f"{symbol} +- U (k = 2)", value - spread, value + spread, light))
     units = sorted({unit for _, unit in shape.components})
     status = "claimed" if shape.claimed else "not claimed"
-    return line_chart_svg(x, series, f"Shape ({status}): {shape.words}", label, f"error ({', '.join(units)})")
+    return line_chart_svg(x, series, f"Shape ({status}): {shape.words}", label, f"error ({', '.join(units)})", bands)
