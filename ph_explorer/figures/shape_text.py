@@ -100,7 +100,7 @@ def shape_lines(shape: Shape) -> list[str]:
         f"  Largest {symbol} {values[peak]:+.3g} +- {spread[peak]:.2g} {unit} (k = 2) at {variable_value(shape.variable, shape.x[peak[1]])}; "
         f"check rings' error {'-' if shape.check_reduction >= 0 else '+'}{100 * abs(shape.check_reduction):.0f} %, "
         f"{shape.rings_brought_within} ring{'' if shape.rings_brought_within == 1 else 's'} brought within noise; gain over rings p = {shape.family_p:.3g} as the best of the groups "
-        f"(without its top ring {test.p_without_top:.3g}).",
+        f"(its own test's p = {test.p_value:.3g}, {test.p_without_top:.3g} without its top ring, before the groups' correction).",
     ]
     if shape.leave_out == "row":
         lines.append(
