@@ -95,9 +95,11 @@ def steady_box(locator, what: str, timeout: float = 10.0) -> dict:
 
 
 def within_height(box: dict, page) -> bool:
-    """The box lies between the viewport's top and bottom (1440x900, or the page's)."""
+    """The box lies between the viewport's top and bottom (1440x900, or the page's), to within a
+    pixel: a panel scrolls by whole pixels and its lines sit at fractions of one, so an element it
+    scrolls into view at the bottom can overhang by less than a pixel (666.3 + 234 px of 900)."""
     height = (page.viewport_size or {"height": HEIGHT})["height"]
-    return box["y"] >= 0 and box["y"] + box["height"] <= height
+    return box["y"] > -1.0 and box["y"] + box["height"] < height + 1.0
 
 
 def within_width(box: dict, page) -> bool:
