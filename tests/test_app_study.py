@@ -157,7 +157,7 @@ def test_a_new_study_is_written_on_the_first_save(small_csv, tmp_path):
         assert wait_for(lambda: bool(s.jobs))
         s.wait(timeout=300)
         assert s.loop.diagnosis.started_from == 0 and s.loop.diagnosis.nested is not None  # the honest "after", as the CLI
-        assert "measured honestly" in s.physics.history_table.content
+        assert "The same, out of sample: the claims fitted" in s.physics.history_table.content
         fake.click("Save study")
         assert wait_for(lambda: "Saved: run 1" in s.physics.study_status.content)
         saved = checked(path)

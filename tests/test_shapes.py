@@ -235,6 +235,23 @@ def test_a_period_beyond_the_catalog_scan_is_named_within_one_cycle() -> None:
     assert result.steps[-1].mae_um["mean"] < 0.8 * result.steps[0].mae_um["mean"]
 
 
+@pytest.mark.parametrize("design", ["paper", "coarse"])
+def test_the_aliasing_limit_is_the_sampling_within_sweeps_and_the_gaps_between_them_are_stated_apart(design) -> None:
+    """A ring sweeps the A joint +-6.5 deg over 64 points: within a sweep the knots (1 deg) bound
+    the periods resolved, wherever the A rows lie. Rows further apart than a sweep leave gaps no
+    ring samples (the coarse design's, about 9 deg), stated apart; a ring at A0 = 0 sweeps the B
+    joint's whole turn, so B has none."""
+    from ph_explorer.diagnosis.search import CandidateSearch
+    from ph_explorer.diagnosis.shapes import knots
+
+    campaign = random_campaign(SEED, design, [])
+    search = CandidateSearch(campaign, ~campaign.holdout_mask(), SEED)
+    *_, aliasing, unsampled = knots("a_radial", search.touches, search.train)
+    assert aliasing == 2.0 and unsampled is not None and (unsampled > 5.0) == (design == "coarse")
+    assert knots("b_radial", search.touches, search.train)[2:] == (4.0, None)
+    assert knots("probe_time", search.touches, search.train)[2:] == (None, None)
+
+
 class FineGearA(Effect):
     """Test-only: a 47-tooth gear on the A axis, 1 arcsec: beyond the catalog's scan of 1-40 cycles/rev."""
 

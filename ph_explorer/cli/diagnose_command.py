@@ -37,6 +37,7 @@ def diagnose_command(
     from ph_explorer.diagnosis.campaign_file import catalog_of, check_data_part, diagnose_campaign, parse_add
     from ph_explorer.diagnosis.results import Headline
     from ph_explorer.diagnosis.study import Study, study_campaign
+    from ph_explorer.effects import DEFAULT_CATALOG
     from ph_explorer.effects.error_functions import shapes_file_text
     from ph_explorer.figures.diagnosis_text import report_text, verdict_headline
     from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
@@ -51,6 +52,10 @@ def diagnose_command(
     if export_shapes is not None:
         checked_output_file(export_shapes, "--export-shapes", "the shapes file", "shapes.toml")
     ids = parse_add(add, catalog)
+    if effects is not None and not json_output:
+        read = [effect_id for effect_id in catalog if effect_id not in DEFAULT_CATALOG]
+        added = "" if ids is None else f"; added to the model: {', '.join(ids)}"
+        PROGRESS_CONSOLE.print(f"Read {effects}: {', '.join(read) or 'no effect'}{added}.", highlight=False, soft_wrap=True)
     start = previous.effects(catalog) if previous else []
     sha256 = file_sha256(Path(data)) if Path(data).is_file() else ""
     campaign = read_lattice_campaign(data, geometry)

@@ -22,7 +22,7 @@ Status = Literal[
     "found",
     "suggested",
     "not needed",
-    "present, already captured by the data model",
+    "beyond noise, not material",
     "implausible",
     "not significant",
     "not tested",
@@ -170,8 +170,9 @@ class Candidate:
     @property
     def status(self) -> Status:
         """Suggested (significant but not replicated over rings), not needed (significant, but the
-        model is within noise without it), found (significant and replicated), present but already
-        captured by the data model (beyond noise and plausible, not material), implausible (beyond
+        model is within noise without it), found (significant and replicated), beyond noise but
+        not material (beyond the search's noise null with a plausible fit, but it lowers the error
+        less than search.MATERIAL_REDUCTION: no claim), implausible (beyond
         twice the noise null only with an implausible fit), not significant, or not tested."""
         if self.suggested:
             return "suggested"
@@ -180,7 +181,7 @@ class Candidate:
         if self.significant:
             return "found"
         if self.beyond_noise:
-            return "present, already captured by the data model"
+            return "beyond noise, not material"
         if self.implausible and self.explained_fraction > NULL_MARGIN * self.noise_fraction:
             return "implausible"
         return "not significant" if self.tested else "not tested"

@@ -112,7 +112,7 @@ def replicated(
         return replace(candidate, replication=test)
     o = search.campaign.orientations
     carried = ", ".join(f"A{o[i, 0]:g} B{o[i, 1]:g}" for i in test.carried_by)
-    note = f"not replicated over rings: {'; '.join(test.reasons())}" + (f"; carried by {carried}" if carried else "")
+    note = f"not replicated over rings: {'; '.join(test.reasons())}" + (f"; the rings that gain most: {carried}" if carried else "")
     return replace(candidate, replication=test, suggested=True, note=note)
 
 

@@ -94,7 +94,7 @@ class Replication:
             test = "sign-flip" if self.rings >= MIN_FLIP_RINGS else "Student's t"
             out.append(f"its gain over rings is not significant ({test} p = {self.p_value:.3g})")
         elif self.p_without_top >= REPLICATION_LEVEL:
-            out.append(f"it rests on one ring: without it p = {self.p_without_top:.3g}")
+            out.append(f"it does not survive leaving out its most influential ring (p = {self.p_without_top:.3g} without it)")
         if not self.determined:
             out.append("no amplitude exceeds its expanded uncertainty")
         if self.form_breaks is not None:

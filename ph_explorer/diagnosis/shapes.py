@@ -77,6 +77,7 @@ class Shape:
     # A second look's shape not claimed: the first look's best group of another variable, which
     # gains significantly more at the check rings, and their fall with it (find_shapes).
     rival: tuple[str, float] | None = None
+    unsampled_deg: float | None = None  # the widest gap between rings' sweeps that no ring samples, deg
 
     @property
     def id(self) -> str:
@@ -131,6 +132,7 @@ class Shape:
             "widest_at": self.widest_at,
             "leave_out": self.leave_out,
             "rival": None if self.rival is None else {"group": self.rival[0], "check_reduction": round(self.rival[1], 4)},
+            "unsampled_deg": None if self.unsampled_deg is None else round(self.unsampled_deg, 4),
         }
 
     @classmethod
@@ -153,34 +155,44 @@ class Shape:
             data.get("widest_at"),
             data.get("leave_out", "ring"),
             None if data.get("rival") is None else (str(data["rival"]["group"]), float(data["rival"]["check_reduction"])),
+            data.get("unsampled_deg"),
         )
 
 
-def knots(group: str, touches: Touches, train: NDArray[np.bool_]) -> tuple[tuple[float, ...], bool, float | None]:
-    """(knots, periodic, aliasing limit in deg or None) of a group's functions on these touches.
+def knots(group: str, touches: Touches, train: NDArray[np.bool_]) -> tuple[tuple[float, ...], bool, float | None, float | None]:
+    """(knots, periodic, aliasing limit in deg or None, widest unsampled gap in deg or None) of a
+    group's functions on these touches.
 
     A joint angle: knots every KNOT_STEP_DEG over the angles its rings sample with a lever (the
-    whole turn, periodic, when that is more than FULL_TURN_DEG); the aliasing limit is two knot
-    steps, or twice the widest gap the rings' sweeps leave. Time: TIME_KNOTS over the span of the
-    training rings (`train`), which the hybrid is fitted on; later rings (check rings are often
-    measured last) see the function's last value."""
+    whole turn, periodic, when that is more than FULL_TURN_DEG). The aliasing limit is twice the
+    larger of the knot step and the widest spacing of the touches where some ring sweeps; between
+    rings' sweeps (A rows apart) lie gaps no ring samples, where the curve is the penalty's
+    interpolation, not a period's alias. Time: TIME_KNOTS over the span of the training rings
+    (`train`), which the hybrid is fitted on; later rings (check rings are often measured last)
+    see the function's last value."""
     spec = SHAPE_GROUPS[group]
     variable = spec.variable_of(touches)
     x = np.broadcast_to(variable.values(touches), touches.shape)[:, 0]  # (n_o, n_pt): the joints repeat
     if not variable.angle:
         span = np.broadcast_to(variable.values(touches), touches.shape)[train]
-        return tuple(np.linspace(float(span.min()), float(span.max()), TIME_KNOTS)), False, None
+        return tuple(np.linspace(float(span.min()), float(span.max()), TIME_KNOTS)), False, None, None
     lever = np.abs(spec.lever(touches)).max(axis=-1)[:, 0]  # (n_o, n_pt)
-    sampled = np.sort(x[lever > SAMPLED_LEVER * lever.max()])
+    seen = lever > SAMPLED_LEVER * lever.max()
+    sampled = np.sort(x[seen])
     step = KNOT_STEP_DEG[variable.name]
-    if np.ptp(sampled) > FULL_TURN_DEG:
+    if np.ptp(sampled) > FULL_TURN_DEG:  # a ring sweeps the whole turn: every gap lies within a sweep
         count = int(round(360.0 / step))
         grid = tuple(-180.0 + np.arange(count) * 360.0 / count)
         gaps = np.diff(np.concatenate([sampled, sampled[:1] + 360.0]))
-        return grid, True, float(2.0 * max(step, gaps.max()))
+        return grid, True, float(2.0 * max(step, gaps.max())), None
     low, high = float(sampled[0]), float(sampled[-1])
     count = max(int(np.ceil((high - low) / step)) + 1, 2)
-    return tuple(np.linspace(low, high, count)), False, float(2.0 * max(step, np.diff(sampled).max(initial=0.0)))
+    gaps, middle = np.diff(sampled), 0.5 * (sampled[1:] + sampled[:-1])
+    # A gap lies within a sweep when some ring samples both sides of it.
+    first, last = np.where(seen, x, np.inf).min(axis=1), np.where(seen, x, -np.inf).max(axis=1)
+    swept = ((first[:, None] <= middle) & (middle <= last[:, None])).any(axis=0)
+    unsampled = float(gaps[~swept].max()) if (~swept).any() else None
+    return tuple(np.linspace(low, high, count)), False, float(2.0 * max(step, gaps[swept].max(initial=0.0))), unsampled
 
 
 @dataclass
@@ -194,6 +206,7 @@ class GroupFit:
     joint: Design
     gain: NDArray[np.float64]  # (n_o,) in noise variances
     aliasing: float | None
+    unsampled: float | None  # the widest gap between rings' sweeps, deg
     squares: NDArray[np.float64]  # (n_o,): each ring's left-out sum of squares with it (the next group's "before")
 
 
@@ -210,7 +223,7 @@ def view_of(search: CandidateSearch, group: str) -> CandidateSearch:
     if group not in search.group_views:
         unseen = False
         if search.smoother.leave_out == "ring":  # a row view has no further look to choose
-            grid, periodic, _ = knots(group, search.touches, search.train)
+            grid, periodic, *_ = knots(group, search.touches, search.train)
             unseen = Design(search.bases(error_function(group, grid, periodic)()), search.smoother).unseen_at_most(search.train)
         search.group_views[group] = search.in_rows() if unseen else search
     return search.group_views[group]
@@ -222,7 +235,7 @@ def fit_group(
     """One group's error functions fitted beside `fixed` (the chain's design, or None) on the
     out-of-sample residual, the ridge chosen by leaving rings out; each ring's gain over `before`
     (its left-out sum of squares without the group) in its noise variances `noise`."""
-    grid, periodic, aliasing = knots(group, search.touches, search.train)
+    grid, periodic, aliasing, unsampled = knots(group, search.touches, search.train)
     effect = error_function(group, grid, periodic)()
     design = Design(search.bases(effect), search.smoother)
     joint = design if fixed is None else fixed.stacked(design)
@@ -238,7 +251,7 @@ def fit_group(
         mean, within = joint.apply_each(without)
         squares = ((search.residual - mean[:, None, :] - (0.0 if within is None else within)) ** 2).sum(axis=(1, 2))
     gain = (before - squares) / np.maximum(noise, 1e-300)
-    return GroupFit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, squares)
+    return GroupFit(effect, design, coefficients[-design.n_columns :], without, joint, gain, aliasing, unsampled, squares)
 
 
 def fit_groups(
@@ -387,9 +400,10 @@ def look_at(
             bool(significant and material and plausible_curve(best, value)),
             untold,
             fit.aliasing,
-            fitted.dominant_period(sampled, fit.design.touch_blocks()[0]) if variable.angle else None,
+            fitted.dominant_period(sampled, fit.design.flat()[0]) if variable.angle else None,
             float(fit.effect.knots[int(np.argmax(spread.max(axis=0)))]),
             search.smoother.leave_out,
+            unsampled_deg=fit.unsampled,
         )
         out.append((shape, fit.gain))
         if not shape.claimed:

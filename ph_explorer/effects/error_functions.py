@@ -278,15 +278,16 @@ def _sinusoid_shares(
     the plain one)."""
     phase = np.radians(x_deg[:, None] * cycles[None, :])
     basis = np.stack([np.sin(phase), np.cos(phase), np.ones_like(phase)], axis=-1)  # (n, m, 3)
-    metric = np.eye(len(values)) if gram is None else gram
     weighted = basis if gram is None else (gram @ basis.reshape(basis.shape[0], -1)).reshape(basis.shape)
-    floor = 1e-12 * max(float(np.trace(metric)), 1e-300)  # what nothing sees (a constant the circle fit takes)
+    # What nothing sees (a constant the circle fit takes).
+    floor = 1e-12 * max(float(len(values) if gram is None else np.trace(gram)), 1e-300)
     normal = np.einsum("kmi,kmj->mij", basis, weighted) + floor * np.eye(3)
     dot = np.einsum("kmi,k->mi", weighted, values)
     explained = np.einsum("mi,mi->m", dot, np.linalg.solve(normal, dot[..., None])[..., 0])
     ones = np.ones(len(values))
-    level = float((ones @ metric @ values) ** 2 / (float(ones @ metric @ ones) + floor))
-    total = float(values @ metric @ values) - level
+    metric_ones = ones if gram is None else gram @ ones  # the metric is symmetric
+    level = float((metric_ones @ values) ** 2 / (float(metric_ones @ ones) + floor))
+    total = float(values @ (values if gram is None else gram @ values)) - level
     return (explained - level) / total if total > 0 else np.zeros_like(explained)
 
 

@@ -56,9 +56,14 @@ def undecided_sentence(label: str, question: dict[str, Any], budget: int) -> str
     )
 
 
+def undecided_sentences(decision: Decision, budget: int) -> tuple[str, ...]:
+    """A sentence per question no `budget` rings decide (undecided_sentence)."""
+    return tuple(undecided_sentence(label, q, budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
+
+
 def undecided_text(decision: Decision) -> str:
     """What rings cannot decide, each question with what else would (or that it stays as it is)."""
-    return " ".join(undecided_sentence(label, q, decision.budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
+    return " ".join(undecided_sentences(decision, decision.budget))
 
 
 def decision_words(decision: Decision, budget: int) -> DecisionWords:
@@ -67,7 +72,7 @@ def decision_words(decision: Decision, budget: int) -> DecisionWords:
         f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
     )
     rings = tuple(f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings)
-    undecided = tuple(undecided_sentence(label, q, budget) for label, q in decision.expected.items() if not q["decided_by_rings"])
+    undecided = undecided_sentences(decision, budget)
     by_question = tuple(
         f"{label} ({expected['expected_gain']:.0f} noise variances of evidence): "
         + ", ".join(

@@ -37,7 +37,7 @@ def nested_rings(nested: NestedAfter) -> str:
 def nested_summary(nested: NestedAfter) -> str:
     """The honest after in one sentence: what the nested cross-validation measures."""
     return (
-        f"The same, measured honestly: the claims fitted, at the periods chosen, without the rings measured ({nested.folds}-fold "
+        f"The same, out of sample: the claims fitted, each at the period its scan prefers there, without the rings they predict ({nested.folds}-fold "
         f"cross-validation over {nested_rings(nested)}, trilinear data part):"
     )
 

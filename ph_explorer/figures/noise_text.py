@@ -48,7 +48,7 @@ def campaign_test_line(result: Diagnosis) -> str:
     outcome = "fails" if test.fails else "is within noise"
     return (
         f"Within-noise test, {model}: the campaign {outcome} ({test.failing_rings} of {test.rings} rings exceed their noise; "
-        f"statistic {test.statistic:.1f}, critical {test.critical:.1f}, p = {test.p_value:.3g}, false-alarm rate {100 * FALSE_ALARM:.0f} %"
+        f"test statistic {test.statistic:.1f}, failing above {test.critical:.1f} for a {100 * FALSE_ALARM:.0f} % false-alarm rate, p = {test.p_value:.3g}"
         + (f"; {check_group_text(test)}" if test.check_exceedance is not None else "")
         + ")."
     )

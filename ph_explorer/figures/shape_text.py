@@ -83,7 +83,7 @@ def shape_lines(shape: Shape) -> list[str]:
     elif shape.family_p >= REPLICATION_LEVEL:
         why = f" (its gain over rings is not significant as the best of the groups tried: p = {shape.family_p:.3g})"
     elif test.p_without_top >= REPLICATION_LEVEL:
-        why = f" (it rests on one ring: without it p = {test.p_without_top:.3g})"
+        why = f" (it does not survive leaving out its most influential ring: p = {test.p_without_top:.3g} without it)"
     elif shape.rival is not None:
         group, fall = shape.rival
         why = (
@@ -109,8 +109,14 @@ def shape_lines(shape: Shape) -> list[str]:
         )
     if shape.aliasing_deg is not None:
         period = f"its curve is mostly {shape.period_cycles:g} cycles/rev; " if shape.period_cycles is not None else ""
+        gap = (
+            f" Between their sweeps, gaps up to {shape.unsampled_deg:.3g} deg are sampled by no ring: there the curve is interpolated."
+            if shape.unsampled_deg is not None
+            else ""
+        )
         lines.append(
-            f"  {period}these rings resolve periods down to {shape.aliasing_deg:.3g} deg ({360.0 / shape.aliasing_deg:.0f} cycles/rev): shorter ones alias."
+            f"  {period}these rings resolve periods down to {shape.aliasing_deg:.3g} deg ({360.0 / shape.aliasing_deg:.0f} cycles/rev) "
+            f"where they sweep: shorter ones alias.{gap}"
         )
     return lines
 
