@@ -688,8 +688,11 @@ def test_reveal_says_when_nothing_is_hidden(opened) -> None:
 
 
 def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(opened) -> None:
-    """Refit alone works too: add_effects gives the baseline step, then the hybrid's step."""
+    """Refit alone works too: add_effects gives the baseline step, then the hybrid's step. With
+    nothing ticked and nothing added before, a refit would repeat the baseline: it says so instead."""
     fake, s = opened
+    click(fake, s, "Refit the hybrid")
+    assert s.loop.steps == [] and "Nothing to refit" in s.physics.refit_status.content
     s.physics.effects["lobing"].value = True
     click(fake, s, "Refit the hybrid")
     assert [step.added for step in s.loop.steps] == [(), ("lobing",)]
@@ -702,6 +705,8 @@ def test_refit_without_a_diagnosis_records_the_baseline_then_the_step(opened) ->
     s.physics.effects["lobing"].value = False
     click(fake, s, "Refit the hybrid")
     assert len(s.loop.steps) == 3 and "hybrid" not in s.dataset.models and not s.ring.curves["hybrid"].visible
+    click(fake, s, "Refit the hybrid")
+    assert len(s.loop.steps) == 3 and "Nothing to refit" in s.physics.refit_status.content
 
 
 def test_sliders_stay_live_while_a_diagnosis_runs_and_its_verdict_is_shown(app: ExplorerApp, monkeypatch) -> None:

@@ -281,6 +281,10 @@ class PhysicsLoop:
         if not ds.campaign.holdout_mask().any():
             p.done("**Cannot refit** — no held-out ring to measure the error on.", refit=True)
             return
+        if not ids and (not self.steps or not self.steps[-1].added):
+            # The baseline again: a step that adds nothing would repeat the history's last.
+            p.done("**Nothing to refit** — tick an effect or a shape first (*Diagnose* ticks what it finds).", refit=True)
+            return
         if not self.steps:
             p.show_progress("fitting the trilinear baseline…", 0.02, refit=True)
             self.steps = [diagnosis.add_effects(ds.campaign, [])[1]]

@@ -129,7 +129,9 @@ RING_P_VALUES = ("ring_p_value", "ring_p_mean", "ring_p_within")  # each ring's,
 
 
 def ring_sigma(deviations: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Each ring's pooled repetition sigma per touch (um), (n_o,)."""
+    """Each ring's pooled repetition sigma per touch (um), (n_o,); NaN with one repetition (no spread)."""
+    if deviations.shape[1] < 2:
+        return np.full(deviations.shape[0], np.nan)
     return np.sqrt(deviations.var(axis=1, ddof=1).mean(axis=1))
 
 
