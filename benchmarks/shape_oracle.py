@@ -54,7 +54,7 @@ def right_group_ratio(campaign: Campaign, result: Diagnosis, group: str) -> floa
     diagnosis adds a shape (diagnosis.loop.add_effects): what a shape of the right group brings,
     whatever the search claims. Where it stays far above the head's own error without the shape,
     the rings do not determine the shape's values where the check rings need them."""
-    grid, periodic, _ = knots(group, campaign_touches(campaign), ~campaign.holdout_mask())
+    grid, periodic, *_ = knots(group, campaign_touches(campaign), ~campaign.holdout_mask())
     _, step = add_effects(campaign, [*result.chain, error_function(group, grid, periodic)()])
     return over_floor(step)
 
