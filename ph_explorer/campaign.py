@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
-from ph_explorer.metrics import pooled_sigma
+from ph_explorer.metrics import noise_floor, noise_law, pooled_sigma
 
 # Two orientations whose A and B agree to this (deg) are the same orientation: the reader groups
 # rows by it, orientation_match, the lattice and the off-grid test compare with it. Grouping needs
@@ -96,6 +96,14 @@ class Campaign:
     def noise_sigma_um(self) -> float:
         """Pooled repetition standard deviation per touch (um); NaN for a single repetition."""
         return pooled_sigma(self.deviations)
+
+    def noise_law(self) -> NDArray[np.float64] | None:
+        """The touch noise's law, read from the repetitions (metrics.noise_law; None for one repetition)."""
+        return noise_law(self.deviations)
+
+    def noise_floor_um(self) -> dict[str, float]:
+        """The floors of a perfect model's MAE against the repetition mean and single repetitions (metrics.noise_floor)."""
+        return noise_floor(self.noise_sigma_um(), self.n_repetitions, law=self.noise_law())
 
     # -- orientations --------------------------------------------------------------------------
     def index_of(self, a_deg: float, b_deg: float) -> int | None:

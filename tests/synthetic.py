@@ -47,14 +47,17 @@ def lobing_campaign(
     n_points: int = 64,
     extra_orientations: ArrayLike = ((43.0, 91.0),),
     check_orientations: ArrayLike | None = None,
+    dof: float = 0.0,
 ) -> Campaign:
-    """The paper's lattice (A 0..90 step 15, B -160..180 step 20) + extra (off-grid) orientations."""
+    """The paper's lattice (A 0..90 step 15, B -160..180 step 20) + extra (off-grid) orientations;
+    dof: a Student-t touch noise of these degrees of freedom, of the same sigma (0: Gaussian)."""
     a, b = np.meshgrid(PAPER_A_DEG, PAPER_B_DEG, indexing="ij")
     grid = np.column_stack([a.ravel(), b.ravel()])
     extra = np.asarray(extra_orientations, dtype=float).reshape(-1, 2)
     orientations = np.vstack([grid, extra])
     rng = np.random.default_rng(seed)
-    noise = rng.normal(0.0, sigma_um, (len(orientations), n_repetitions, n_points))
+    shape = (len(orientations), n_repetitions, n_points)
+    noise = rng.normal(0.0, sigma_um, shape) if not dof else rng.standard_t(dof, shape) * sigma_um * np.sqrt((dof - 2.0) / dof)
     deviations = remove_size_and_centre(systematic_curves(orientations, n_points)[:, None, :] + noise)
     return Campaign(
         orientations=orientations,

@@ -30,7 +30,7 @@ from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import ron_t
 from ph_explorer.io import read_campaign
 from ph_explorer.io.sidecar import sidecar_path
-from ph_explorer.metrics import noise_floor, ring_mae
+from ph_explorer.metrics import ring_mae
 from ph_explorer.models.crossval import OutOfSampleSmoother, cross_val_predict, held_out_ring_mae
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
@@ -85,7 +85,7 @@ class Dataset:
         self.sigma_um = self.campaign.noise_sigma_um()
         # A campaign of single repetitions has no repetition spread: no floor to show.
         finite = np.isfinite(self.sigma_um)
-        self.noise_floor_um: dict[str, float] = noise_floor(self.sigma_um, self.campaign.n_repetitions) if finite else {}
+        self.noise_floor_um: dict[str, float] = self.campaign.noise_floor_um() if finite else {}
         # The models in their tables' order, once (a dataset's models are replaced with the dataset, never changed).
         self._ordered_models = {n: self.models[n] for n in self.model_names}
 

@@ -309,7 +309,7 @@ class PhysicsPanel:
             if entry["significant"] and entry["evidence"].get("x"):
                 label = "left: " + signature_text(entry)
                 caption = (
-                    f"**What is left**, {signature_text(entry)}: the residual the catalog does not explain, binned "
+                    f"**What is left** as diagnosed, {signature_text(entry)}: the residual the catalog does not explain, binned "
                     f"against {entry['evidence']['x_label']}, and this term fitted to it. {next_for_left}"
                 )
                 self.evidence_items[label] = (f"left: {entry['variable']} {entry['kind']}", caption, entry["evidence"])

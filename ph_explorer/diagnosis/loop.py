@@ -64,10 +64,10 @@ def out_of_sample_figures(
     """
     sigma, n_rep = campaign.noise_sigma_um(), campaign.n_repetitions
     mae = metrics.ring_mae(campaign.deviations - search.residual, campaign.deviations)
-    floors = search.smoother.noise_floor(sigma, n_rep)
+    floors = search.smoother.noise_floor(sigma, n_rep, campaign.noise_law())
     if baseline is not None:
         own = held_out_ring_mae(baseline, campaign, held_out)
-        floor = metrics.noise_floor(sigma, n_rep)
+        floor = campaign.noise_floor_um()
         for reference in metrics.REFERENCES:
             mae[reference][held_out] = own[reference]
             floors[reference][held_out] = floor[reference]
@@ -174,7 +174,7 @@ def add_effects(
     """
     held_out = campaign.holdout_mask()
     hybrid = HybridModel(list(effects), data_part, progress=progress).fit(campaign, ~held_out)
-    floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions)
+    floor = metrics.noise_floor(repetition_sigma(campaign, hybrid), campaign.n_repetitions, law=campaign.noise_law())
     model = f"hybrid, {hybrid.data_part.name} data part" if effects else hybrid.data_part.name
     step = Step(tuple(e.id for e in effects), held_out_mae(hybrid, campaign, held_out), floor, tuple(hybrid.effect_parameters()), model)
     return hybrid, step
@@ -300,7 +300,7 @@ def diagnose(
 
     # 3 + 4. add effects one at a time (the chain, or the user's), each step refitted and measured
     # on the check rings
-    floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
+    floor = campaign.noise_floor_um()
     steps = [Step((), baseline_mae, floor, model=baseline_name)]
     scan = {c.effect: c for c in candidates}
     if add is None:

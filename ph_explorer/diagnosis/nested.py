@@ -110,7 +110,7 @@ def nested_after(
         rings=int(rings.size),
         before_um=metrics.mae(before_all, measured),
         after_um=metrics.mae(after_all, measured),
-        noise_floor_um=metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions),
+        noise_floor_um=campaign.noise_floor_um(),
         chosen=tuple(tuple(r[3]) for r in results),
         gain=replication(gain, predicted_check, seed=seed),
         check_rings=int(predicted_check.sum()),

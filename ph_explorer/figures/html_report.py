@@ -28,7 +28,6 @@ from ph_explorer.figures.diagnosis_report import EffectNames, decision_section, 
 from ph_explorer.figures.orientation_map import MapFigure, map_svg
 from ph_explorer.figures.polar import curves_svg, polar_scale
 from ph_explorer.harmonics import ron_t
-from ph_explorer.metrics import noise_floor
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
 from ph_explorer.paper.tables import tables_at, tables_markdown
@@ -132,7 +131,7 @@ def report_html(
 def _campaign_section(campaign: Campaign, source: str, models: Mapping[str, DeviationModel], check: NDArray[np.bool_]) -> list[str]:
     g = campaign.geometry
     sigma = campaign.noise_sigma_um()
-    floor = noise_floor(sigma, campaign.n_repetitions) if np.isfinite(sigma) else {}
+    floor = campaign.noise_floor_um() if np.isfinite(sigma) else {}
     a_axis, b_axis = lattice_axes(campaign.orientations)
     off_grid = int(campaign.off_grid_mask().sum())
     scenario = campaign.scenario or {}
@@ -199,7 +198,7 @@ def _orientation_sections(
     campaign: Campaign, models: Mapping[str, DeviationModel], check: NDArray[np.bool_], chosen: Sequence[tuple[float, float]]
 ) -> list[str]:
     sigma = campaign.noise_sigma_um()
-    floor = noise_floor(sigma, campaign.n_repetitions) if np.isfinite(sigma) else {}
+    floor = campaign.noise_floor_um() if np.isfinite(sigma) else {}
     markdown = MarkdownIt("commonmark", {"html": False}).enable("table")
     bore_radius = 0.5 * campaign.geometry.bore_diameter_mm
     parts = ['<section id="orientations"><h2>3. Polar plots and Tables 1-3</h2>']

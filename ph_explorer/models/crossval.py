@@ -214,9 +214,10 @@ class OutOfSampleSmoother:
         """Out-of-sample prediction of values shaped (n_o, ...)."""
         return weighted(self._operator, values)
 
-    def noise_floor(self, sigma_um: float, n_repetitions: int) -> dict[str, NDArray[np.float64]]:
-        """Each ring's floor of its out-of-sample MAE: its own noise and that of the rings predicting it."""
-        return metrics.noise_floor(sigma_um, n_repetitions, neighbour_weights_sq=(self.weights**2).sum(axis=1))
+    def noise_floor(self, sigma_um: float, n_repetitions: int, law: NDArray[np.float64] | None = None) -> dict[str, NDArray[np.float64]]:
+        """Each ring's floor of its out-of-sample MAE: its own noise and that of the rings predicting it
+        (law: the touch noise's, metrics.noise_law)."""
+        return metrics.noise_floor(sigma_um, n_repetitions, neighbour_weights_sq=(self.weights**2).sum(axis=1), law=law)
 
     def residual(self, values: NDArray[np.float64]) -> NDArray[np.float64]:
         """values (n_o, n_rep, n_pt, ...) minus the out-of-sample prediction of their repetition mean."""

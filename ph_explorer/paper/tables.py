@@ -136,7 +136,7 @@ def tables_markdown(
 
 def evaluation_report(campaign: Campaign, models: Mapping[str, DeviationModel], mask: ArrayLike | None = None) -> dict[str, Any]:
     """The evaluate --json object: the noise floors and the per-orientation tables."""
-    floor = metrics.noise_floor(campaign.noise_sigma_um(), campaign.n_repetitions)
+    floor = campaign.noise_floor_um()
     # A campaign of single repetitions has no measured noise: its floor is unknown (null).
     return {
         "noise_floor_um": {k: (_r(v) if math.isfinite(v) else None) for k, v in floor.items()},
