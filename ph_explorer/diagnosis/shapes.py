@@ -180,7 +180,7 @@ def knots(group: str, touches: Touches, train: NDArray[np.bool_]) -> tuple[tuple
     seen = lever > SAMPLED_LEVER * lever.max()
     sampled = np.sort(x[seen])
     step = KNOT_STEP_DEG[variable.name]
-    if np.ptp(sampled) > FULL_TURN_DEG:  # a ring sweeps the whole turn: every gap lies within a sweep
+    if np.ptp(sampled) > FULL_TURN_DEG:  # sampled around the turn: its widest spacing bounds the periods
         count = int(round(360.0 / step))
         grid = tuple(-180.0 + np.arange(count) * 360.0 / count)
         gaps = np.diff(np.concatenate([sampled, sampled[:1] + 360.0]))
