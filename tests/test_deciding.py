@@ -246,7 +246,12 @@ def test_the_report_lists_the_rings_that_would_decide_without_naming_a_teaching_
     campaign = simulate(load_scenario("head_6"))
     decision = {
         "rings": [
-            {"A_deg": 10.0, "B_deg": -20.0, "order": 1, "reason": "tells a_axis_cyclic from a_axis_radial_motion: 19 of the set's 57"}
+            {
+                "A_deg": 10.0,
+                "B_deg": -20.0,
+                "order": 1,
+                "reason": "tells a_axis_cyclic from a_axis_radial_motion: evidence 19 of the set's 57",
+            }
         ],
         "expected": {
             "a_axis_cyclic vs a_axis_radial_motion": {"decided_by_rings": True, "power": 0.97},

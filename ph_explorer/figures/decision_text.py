@@ -11,6 +11,9 @@ from typing import Any
 from ph_explorer.campaign import orientation_label
 from ph_explorer.planning.deciding import BEYOND_BUDGET, DECIDING_POWER, DECIDING_RINGS, Decision
 
+# What a ring's evidence is, said once where the rings are listed (each then reads "evidence 19").
+EVIDENCE_WORDS = "a ring's evidence: the fall in squared error it is expected to show in the test over rings, in touch-noise variances"
+
 
 @dataclass(frozen=True)
 class DecisionWords:
@@ -69,12 +72,14 @@ def undecided_text(decision: Decision) -> str:
 def decision_words(decision: Decision, budget: int) -> DecisionWords:
     """The decision in words (DecisionWords); the command line prints its lines, the explorer lays out its parts."""
     head = (
-        f"{len(decision.rings)} rings that decide, in this order:" if decision.rings else (decision.note or "no ring decides what is open")
+        f"{len(decision.rings)} rings that decide, in this order ({EVIDENCE_WORDS}):"
+        if decision.rings
+        else (decision.note or "no ring decides what is open")
     )
     rings = tuple(f"{r['order']:>3}. {orientation_label(r['A_deg'], r['B_deg']):<12} {r['reason']}" for r in decision.rings)
     undecided = undecided_sentences(decision, budget)
     by_question = tuple(
-        f"{label} ({expected['expected_gain']:.0f} noise variances of evidence): "
+        f"{label} (evidence {expected['expected_gain']:.0f}): "
         + ", ".join(
             f"{r['order']}. {orientation_label(r['A_deg'], r['B_deg'])} ({r['expected_gain']:.0f})"
             for r in decision.rings

@@ -53,8 +53,8 @@ class Question:
     def reason(self, gain: float, total: float) -> str:
         if self.other is not None:
             first, second = self.names
-            return f"tells {first} from {second}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
-        return f"confirms or refutes {self.effect.id}: {gain:.0f} of the set's {total:.0f} noise variances of evidence"
+            return f"tells {first} from {second}: evidence {gain:.0f} of the set's {total:.0f}"
+        return f"confirms or refutes {self.effect.id}: evidence {gain:.0f} of the set's {total:.0f}"
 
 
 def seen_columns(effect: Effect, campaign: Campaign, pool: NDArray[np.float64], weights: NDArray[np.float64]) -> NDArray[np.float64]:
