@@ -24,9 +24,10 @@ from ph_explorer.diagnosis.replication import family_test
 from ph_explorer.diagnosis.results import Diagnosis
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.effects.effect import Effect, Parameter, joint_angle_deg, rotation_deviation_um_per_arcsec
-from ph_explorer.effects.error_functions import error_function, load_shapes
-from ph_explorer.effects.knots import hat_functions, roughness_factor
+from ph_explorer.effects.error_functions import error_function
+from ph_explorer.effects.knots import curve_roughness_factor, hat_functions, roughness_factor
 from ph_explorer.effects.probe import lateral_share
+from ph_explorer.effects.shapes_file import load_shapes
 from ph_explorer.figures.diagnosis_text import report_text
 from ph_explorer.io.writer import write_campaign
 from ph_explorer.kinematics import touch_kinematics
@@ -118,6 +119,33 @@ def test_a_step_in_an_axis_angle_is_found_on_that_axis_and_added(step) -> None:
     assert "these rings resolve periods down to" in words
     data = json.loads(json.dumps(step.to_json()))
     assert Diagnosis.from_json(data).to_json() == data
+
+
+def test_a_curve_known_in_advance_keeps_its_steps_sharp_and_its_flat_stretches_flat() -> None:
+    """knots.curve_roughness_factor: a refit of a step's noisy values, each at its best penalty,
+    is nearer the step in the metric of a prior curve of that step than in the plain one (which
+    spreads a step over the knots around it); a flat curve has no metric of its own."""
+    truth = np.where(np.arange(60) >= 30, 1.0, 0.0)
+    noisy = truth + 0.2 * np.random.default_rng(3).standard_normal(truth.size)
+    prior = np.convolve(noisy, np.ones(5) / 5, mode="same")  # a found curve: the step seen, blurred
+    curve = curve_roughness_factor(prior[None, :], periodic=False)
+    errors = []
+    for factor in (roughness_factor(truth.size, False), curve):
+        penalty = factor @ factor.T  # |z|^2 = v' L L' v
+        fits = [np.linalg.solve(np.eye(truth.size) + lam * penalty, noisy) for lam in 10.0 ** np.arange(-4.0, 2.5, 0.5)]
+        errors.append(min(float(np.abs(v - truth).mean()) for v in fits))
+    assert errors[1] < 0.6 * errors[0]
+    assert curve_roughness_factor(np.zeros((2, 60)), periodic=True) is None
+
+
+def test_a_shape_added_is_refitted_in_the_metric_of_its_own_curve(step) -> None:
+    """The diagnosis adds the claimed shape as its table's class (Shape.effect): the step it found
+    falls further at the check rings than the same knots refitted in the plain metric."""
+    shape = step.claimed_shapes[0]
+    plain = error_function(shape.group, shape.x, shape.periodic)()
+    _, plain_step = loop.add_effects(random_campaign(SEED, "paper", [StepB()]), [*step.chain, plain])
+    assert step.steps[-1].added == (shape.id,)
+    assert step.steps[-1].mae_um["mean"] < plain_step.mae_um["mean"]
 
 
 def test_the_shapes_looked_for_ahead_of_the_pair_search_are_those_looked_for_after_it(monkeypatch) -> None:

@@ -81,6 +81,6 @@ def test_the_shape_walkthrough_says_what_the_commands_print(tmp_path, monkeypatc
     assert "b_joint_deg periodic, 30 cycles/rev" in first.stdout and "75 of 135 rings exceed their noise" in first.stdout
     for report in (first.stdout, again.stdout):
         assert "baseline (trilinear)                               mean 0.131" in report
-        assert "+ shape_b_angular (hybrid, trilinear data part)    mean 0.071 (floor 0.055)" in report
+        assert "+ shape_b_angular (hybrid, trilinear data part)    mean 0.070 (floor 0.055)" in report
     assert "Read shapes.toml: shape_b_angular; added to the model: shape_b_angular." in again.stderr
     assert "b_axis_cyclic (amplitude" in first.stdout and "it does not survive leaving out its most influential ring" in first.stdout

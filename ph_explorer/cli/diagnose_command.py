@@ -38,7 +38,7 @@ def diagnose_command(
     from ph_explorer.diagnosis.results import Headline
     from ph_explorer.diagnosis.study import Study, study_campaign
     from ph_explorer.effects import DEFAULT_CATALOG
-    from ph_explorer.effects.error_functions import shapes_file_text
+    from ph_explorer.effects.shapes_file import shapes_file_text
     from ph_explorer.figures.diagnosis_text import report_text, verdict_headline
     from ph_explorer.planning.deciding import DECIDE_BUDGET, rings_that_decide
 

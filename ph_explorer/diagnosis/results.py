@@ -26,7 +26,8 @@ from ph_explorer.diagnosis.suspect import SuspectRing, judged_campaign
 from ph_explorer.diagnosis.touch_outliers import TouchOutliers
 from ph_explorer.diagnosis.within_noise import NoiseTest
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog, Effect
-from ph_explorer.effects.error_functions import ErrorFunction, shape_class
+from ph_explorer.effects.error_functions import ErrorFunction
+from ph_explorer.effects.shapes_file import shape_class
 from ph_explorer.models.hybrid import HybridModel
 
 SCHEMA_VERSION = 1  # of the diagnose --json object; a reader refuses another

@@ -35,6 +35,7 @@ from ph_explorer.diagnosis.search import (
 from ph_explorer.diagnosis.within_noise import NoiseTest, ring_sigma, within_noise
 from ph_explorer.effects import Effect
 from ph_explorer.effects.error_functions import SHAPE_GROUPS, ErrorFunction, error_function, value_name
+from ph_explorer.effects.shapes_file import shape_class
 from ph_explorer.kinematics import Touches
 from ph_explorer.models import least_squares
 from ph_explorer.models.crossval import LeaveOut
@@ -49,8 +50,7 @@ KNOT_STEP_DEG = {"a_joint_deg": 1.0, "b_joint_deg": 2.0}
 FULL_TURN_DEG = 300.0  # a joint sampled over more than this: periodic knots over the whole turn
 TIME_KNOTS = 13  # time: the campaign's span in 12 steps
 MAX_SHAPES = 2
-# A lever below this share of its largest samples nothing (the B axis's angular lever at A0 = 0).
-SAMPLED_LEVER = 0.05
+SAMPLED_LEVER = 0.05  # a lever below this share of its largest samples nothing (B's angular at A0 = 0)
 
 
 @dataclass(frozen=True)
@@ -101,13 +101,15 @@ class Shape:
         return self.family_p < REPLICATION_LEVEL and self.replication.p_without_top < REPLICATION_LEVEL
 
     def effect(self) -> ErrorFunction:
-        """The shape as an effect at its fitted values: it can be added to a model like any other."""
-        cls = error_function(self.group, self.x, self.periodic)
-        return cls(**{value_name(s, j): v for (s, _), row in zip(self.components, self.value) for j, v in enumerate(row)})
+        """The shape as an effect at its found values, its class made as a shapes file's (shape_class):
+        added here or from an export, the same fit (in the metric of its curve's steps)."""
+        return shape_class(self.table(), lambda message, column=None: ValueError(f"its own table ({column}): {message}"))()
 
     def table(self) -> dict[str, Any]:
-        """The shape as a table of the shapes file (effects.error_functions.shapes_file_text)."""
-        return self.effect().table(self.claimed, np.array(self.U)) | {"variable": self.variable}
+        """The shape as a table of the shapes file (effects.shapes_file.shapes_file_text)."""
+        values = {value_name(s, j): v for (s, _), row in zip(self.components, self.value) for j, v in enumerate(row)}
+        at = error_function(self.group, self.x, self.periodic)(**values)
+        return at.table(self.claimed, np.array(self.U)) | {"variable": self.variable}
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -19,7 +19,7 @@ from typing import Any
 from ph_explorer.campaign import Campaign
 from ph_explorer.diagnosis.results import ChainLink, Diagnosis, NestedAfter, Step, chain_effect, chain_entry
 from ph_explorer.effects import Catalog, Effect, effect_label
-from ph_explorer.effects.error_functions import shape_class
+from ph_explorer.effects.shapes_file import shape_class
 from ph_explorer.errors import InputError
 from ph_explorer.io import read_json_object, write_json_object
 

@@ -17,7 +17,7 @@ from typing import Any
 from ph_explorer.effects.axes import AAxisCyclic, BAxisCyclic, Direction
 from ph_explorer.effects.effect import Effect
 from ph_explorer.effects.environment import Drift, RingForm
-from ph_explorer.effects.error_functions import ErrorFunction, load_shapes
+from ph_explorer.effects.error_functions import ErrorFunction
 from ph_explorer.effects.location import AAxisPosition, AAxisSquareness, BAxisOrientation, BAxisPosition
 from ph_explorer.effects.motions import (
     AAxisAxialMotion,
@@ -28,6 +28,7 @@ from ph_explorer.effects.motions import (
     BAxisTiltMotion,
 )
 from ph_explorer.effects.probe import Gravity, Lobing, Noise
+from ph_explorer.effects.shapes_file import load_shapes
 from ph_explorer.effects.stylus import BallForm, StylusBending
 from ph_explorer.errors import InputError
 
