@@ -7,6 +7,7 @@ outward. Touch times (s since the campaign start), when known, share that shape.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -50,6 +51,7 @@ class Campaign:
     scenario: dict[str, Any] = field(default_factory=dict)
     source: str | None = None
     places: NDArray[np.float64] | None = None
+    _noise: dict[str, Any] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.orientations = np.asarray(self.orientations, dtype=float).reshape(-1, 2)
@@ -99,11 +101,23 @@ class Campaign:
 
     def noise_law(self) -> NDArray[np.float64] | None:
         """The touch noise's law, read from the repetitions (metrics.noise_law; None for one repetition)."""
-        return noise_law(self.deviations)
+        return self._noise_read()["law"]
 
     def noise_floor_um(self) -> dict[str, float]:
         """The floors of a perfect model's MAE against the repetition mean and single repetitions (metrics.noise_floor)."""
-        return noise_floor(self.noise_sigma_um(), self.n_repetitions, law=self.noise_law())
+        return dict(self._noise_read()["floor"])
+
+    def _noise_read(self) -> dict[str, Any]:
+        # The law sorts every touch and the floor draws 20 000 means: a diagnosis asks for both at
+        # every step, so they are kept, keyed on the deviations' bytes (an edit in place recomputes).
+        key = hashlib.blake2b(np.ascontiguousarray(self.deviations).data, digest_size=16).digest()
+        if self._noise.get("key") != key:
+            law = noise_law(self.deviations)
+            if law is not None:
+                law.flags.writeable = False
+            floor = noise_floor(self.noise_sigma_um(), self.n_repetitions, law=law)
+            self._noise = {"key": key, "law": law, "floor": floor}
+        return self._noise
 
     # -- orientations --------------------------------------------------------------------------
     def index_of(self, a_deg: float, b_deg: float) -> int | None:

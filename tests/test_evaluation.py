@@ -46,6 +46,17 @@ def test_noise_floor_values():
     assert floor["mean"] == pytest.approx(floor["single"] / math.sqrt(10))
 
 
+def test_the_noise_floor_is_kept_until_the_deviations_change():
+    """A diagnosis asks for the law and the floor at every step: kept, but an edit in place is seen."""
+    campaign = lobing_campaign(seed=3, n_repetitions=4)
+    first = campaign.noise_floor_um()
+    single = first["single"]
+    first["mean"] = -1.0  # a caller's copy: the kept floor is not touched
+    assert campaign.noise_floor_um()["mean"] > 0 and campaign.noise_law() is campaign.noise_law()
+    campaign.deviations[:, 0] += 0.5 * np.random.default_rng(1).standard_normal(campaign.deviations[:, 0].shape)
+    assert campaign.noise_floor_um()["single"] > 1.5 * single
+
+
 @pytest.mark.parametrize("dof", [0.0, 3.0, 5.0])
 def test_a_perfect_model_sits_on_the_noise_floor(dof):
     """Gaussian touch noise, or Student-t's heavier tails (E|e| 0.64 sigma at 3 degrees of freedom,
