@@ -177,7 +177,7 @@ class ErrorFunction(Effect):
         return np.array([self.params[p.name] for p in self.parameters]).reshape(len(self.group.components), len(self.knots))
 
     def coefficients(self) -> NDArray[np.float64]:
-        """The values in roughness coordinates, z = L' v per component (roughness_factor)."""
+        """The values in roughness coordinates, z = L' v per component (L: the class's, _class_roughness)."""
         return (self.values() @ _class_roughness(type(self))[0]).ravel()
 
     def from_coefficients(self, coef: NDArray[np.float64]) -> dict[str, float]:
