@@ -293,7 +293,15 @@ def run(client: Client, quick: bool = False, log: Callable[[str], None] = print,
     code, checkout = code_version(), commit()
     todo = jobs(count or (QUICK_COUNT if quick else COUNT))
     log(f"  {len(todo)} heads, each measured adaptively and in full, on {len(client.scheduler_info()['workers'])} workers")
-    records = run_tasks(client, one_head, todo).results
+    ended = 0
+
+    def said(_: dict[str, Any]) -> None:  # a line every ten heads: the run takes about an hour
+        nonlocal ended
+        ended += 1
+        if ended % 10 == 0:
+            log(f"  {ended} of {len(todo)} heads ended ({time.perf_counter() - started:.0f} s)")
+
+    records = run_tasks(client, one_head, todo, on_result=said).results
     if not quick:  # each head's record beside results.json (the quick run keeps the last full run's)
         RECORDS.write_text(json.dumps({"code_sha256": code, "records": records}, separators=(",", ":")) + "\n")
     return {
