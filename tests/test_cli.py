@@ -98,6 +98,21 @@ def test_inspect_without_a_file_is_a_usage_error() -> None:
     assert result.returncode == 2 and "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("serve", "--port", "abc"), "'--port': 'abc' is not a valid int"),
+        (("diagnose", "--modle", "x"), "No such option: --modle"),
+        (("diagnose",), "Missing option '--data'"),
+        (("frobnicate",), "No such command 'frobnicate'"),
+    ],
+)
+def test_a_command_line_that_cannot_be_parsed_is_one_line(args: tuple[str, ...], words: str) -> None:
+    result = run(*args)
+    assert result.returncode == 2 and result.stdout == ""
+    assert len(result.stderr.splitlines()) == 1 and words in result.stderr, result.stderr
+
+
 # -- the command layer: imports, import errors, option errors --------------------------------------
 
 # Runs the console script's main() with torch unimportable, as on a machine without it.

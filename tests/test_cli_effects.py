@@ -49,6 +49,21 @@ def test_effects_text_is_one_aligned_line_per_effect_and_takes_user_effects() ->
     assert len({line.index(line.split()[1], len(line.split()[0])) for line in lines}) == 1  # aligned columns
 
 
+def test_the_confounded_partners_are_listed_below_the_table_not_in_a_column() -> None:
+    from ph_explorer.cli.effects_command import effects_text
+
+    row = {"id": "b_axis_tilt_motion", "symbol": "EAB", "axis": "B", "kind": "tilt_motion", "parameters": [], "scan": {}}
+    partner = {"effect": "a_axis_cyclic", "shared": 1.0, "settings": {"cycles_per_rev": 1.0}, "other_settings": {"cycles_per_rev": 1.0}}
+    design = dict.fromkeys(("file", "rings", "held_out_rings", "repetitions", "points", "columns", "rank_after_fit"), 1)
+    design |= {"noise_floor_um": 0.05, "rank_out_of_sample": 1, "confounding": "above 0.8"}
+    text = effects_text({"design": design, "effects": [row | {"confounded_with": [partner] * 12}, row | {"id": "drift"}]})
+    table = text.splitlines()[5:8]
+    assert "confounded" not in table[0] and max(len(line) for line in table) < 140
+    block = text[text.index("Confounded with") :].splitlines()[1:]
+    assert block[0].startswith("  b_axis_tilt_motion: a_axis_cyclic 1.00 (cycles per rev 1, both)")
+    assert len(block) > 1 and all(len(line) <= 118 for line in block) and "drift" not in text[text.index("Confounded with") :]
+
+
 @pytest.mark.slow
 def test_effects_with_data_judges_every_effect_on_the_paper_campaign() -> None:
     result = run("effects", "--data", str(assets_dir() / "data" / "paper.csv"), "--json")

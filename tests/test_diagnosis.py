@@ -252,6 +252,7 @@ def test_a_study_is_saved_resumed_and_refused_on_another_campaign(b22_csv, tmp_p
     study = tmp_path / "study.json"
     done = run_cli("diagnose", "--data", str(b22_csv), "--save", str(study), "--detail", "full")
     assert done.returncode == 0, done.stderr
+    assert f"Saved the study to {study} (run 1)" in " ".join(done.stderr.split())
     # The full report re-ranks the candidates with the effect found in the model.
     assert "Re-ranked with b_axis_cyclic 22 cycles/rev in the model" in done.stdout
     saved = json.loads(study.read_text())

@@ -188,6 +188,9 @@ def test_the_command_reports_a_study_of_a_scenario_without_diagnosing(diagnosed,
     rings = Diagnosis.from_json(study["diagnosis"]).failing_rings()
     assert rings and f"{len(rings)} of {campaign.n_orientations} rings exceed their noise" in page
     assert orientation_label(rings[0].a_deg, rings[0].b_deg) in page
+    # ... and its record maps each ring's test and draws the worst ring first, as a report diagnosed here does.
+    assert "out-of-sample MAE / its floor" in page
+    assert page.index(f"<h3>{orientation_label(rings[0].a_deg, rings[0].b_deg)}</h3>") == page.index("<h3>A")
 
 
 def bad_inputs(small_csv: Path, tmp_path: Path) -> list[tuple[list[str], str]]:

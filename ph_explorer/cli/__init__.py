@@ -33,6 +33,7 @@ from ph_explorer.cli import (
     train_command as train,
     uncertainty_command as uncertainty,
 )
+from ph_explorer.cli.usage_errors import run_console
 from ph_explorer.errors import InputError
 from ph_explorer.io import names_many
 
@@ -413,5 +414,5 @@ def _merge(
 
 
 def main() -> None:
-    """The console script `ph-explorer`."""
-    app(prog_name="ph-explorer")
+    """The console script `ph-explorer` (a command line that cannot be parsed: cli/usage_errors.py)."""
+    run_console(app)

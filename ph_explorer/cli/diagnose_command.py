@@ -95,10 +95,22 @@ def diagnose_command(
     if target is not None:
         described = study_campaign(Path(data).name, sha256, campaign)
         effects_file = None if effects is None else str(effects)
-        Study.of_run(result, result.model_effects, described, data_part, effects_file, previous, rings_added=rings_added).save(target)
+        study = Study.of_run(result, result.model_effects, described, data_part, effects_file, previous, rings_added=rings_added)
+        study.save(target)
+        PROGRESS_CONSOLE.print(
+            f"Saved the study to {target} (run {len(study.runs)}): --resume {target} continues it, report --study {target} draws it.",
+            highlight=False,
+            soft_wrap=True,
+        )
     if export_shapes is not None:
         if result.shapes:
             atomic_write([(Path(export_shapes), shapes_file_text([shape.table() for shape in result.shapes]))])
+            ids = " ".join(shape.id for shape in result.shapes)
+            PROGRESS_CONSOLE.print(
+                f"Wrote {len(result.shapes)} shape{'s' * (len(result.shapes) > 1)} to {export_shapes}: {ids}; --effects {export_shapes} --add ID adds one.",
+                highlight=False,
+                soft_wrap=True,
+            )
         else:
             print(
                 f"No shape to export: none was searched or found (the verdict is {result.verdict}); {export_shapes} not written.",

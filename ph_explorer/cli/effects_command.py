@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import re
+import textwrap
 from pathlib import Path
 from typing import Any
 
@@ -62,11 +63,14 @@ def _settings(settings: dict[str, float]) -> str:
 
 
 def _confounded(row: dict[str, Any]) -> str:
+    """'a_axis_cyclic 1.00 (cycles per rev 1; cycles per rev 2)': each partner, what it shares, at
+    this effect's settings and then the partner's (said once when they are the same)."""
     parts = []
     for other in row.get("confounded_with", []):
-        where = "; ".join(s for s in (_settings(other["settings"]), _settings(other["other_settings"])) if s)
+        own, theirs = _settings(other["settings"]), _settings(other["other_settings"])
+        where = f"{own}, both" if own and own == theirs else "; ".join(s for s in (own, theirs) if s)
         parts.append(f"{other['effect']} {other['shared']:.2f}" + (f" ({where})" if where else ""))
-    return ", ".join(parts) or "-"
+    return ", ".join(parts)
 
 
 def _parameters(row: dict[str, Any]) -> str:
@@ -96,13 +100,13 @@ def effects_text(report: dict[str, Any]) -> str:
     design = report["design"]
     headers = ["id", "symbol", "axis", "kind"]
     if design is not None:
-        headers += ["visible", "absorbed by fit", "learnable", "confounded with"]
+        headers += ["visible", "absorbed by fit", "learnable"]
     headers.append("parameters (plausible magnitude)")
     rows = []
     for row in report["effects"]:
         cells = [row["id"], row["symbol"] or "-", row["axis"] or "-", row["kind"]]
         if design is not None:
-            cells += [_visible(row), _span(row, "absorbed_by_circle_fit"), _span(row, "learnable_by_data_model"), _confounded(row)]
+            cells += [_visible(row), _span(row, "absorbed_by_circle_fit"), _span(row, "learnable_by_data_model")]
         rows.append(cells + [_parameters(row)])
     widths = [max(len(r[i]) for r in [headers, *rows]) for i in range(len(headers) - 1)]
     lines = []
@@ -119,4 +123,9 @@ def effects_text(report: dict[str, Any]) -> str:
         ]
     for cells in [headers, *rows]:
         lines.append("  ".join(c.ljust(w) for c, w in zip(cells, widths)) + "  " + cells[-1])
+    # Below the table, not in a column: a long list would widen every row beyond a terminal.
+    partners = [(row["id"], _confounded(row)) for row in report["effects"] if design is not None and row.get("confounded_with")]
+    if partners:
+        lines += ["", "Confounded with (the share through the smoother; at this effect's settings, then the partner's):"]
+        lines += [textwrap.fill(text, 118, initial_indent=f"  {name}: ", subsequent_indent="      ") for name, text in partners]
     return "\n".join(line.rstrip() for line in lines) + "\n"

@@ -63,7 +63,10 @@ def report_command(
     created = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     if previous is not None:
         models, train, _ = campaign_models(campaign, model)
-        text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, reveal=reveal, created=created)
+        # The study's last run was made on these very bytes (rings_added_on): its record maps each
+        # ring's test and names the ring that fails worst, as a report diagnosed here does.
+        diagnosis = previous.diagnosis
+        text = report_html(campaign, models, train, DEFAULT_CATALOG, chosen, previous, diagnosis, reveal=reveal, created=created)
     else:
         # As `ph-explorer diagnose` runs it: the loaded model is the baseline, the trilinear data part;
         # the folder is loaded once, for the diagnosis and the report's figures.
