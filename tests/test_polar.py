@@ -9,7 +9,15 @@ import numpy as np
 import pytest
 
 from ph_explorer import paths, twin
-from ph_explorer.figures.polar import INNER_CLEARANCE, PolarSeries, offered_magnifications, polar_scale, polar_svg, scale_label
+from ph_explorer.figures.polar import (
+    INNER_CLEARANCE,
+    PolarSeries,
+    campaign_bounds,
+    offered_magnifications,
+    polar_scale,
+    polar_svg,
+    scale_label,
+)
 from ph_explorer.io import read_campaign
 
 
@@ -40,6 +48,21 @@ def test_every_shipped_campaign_stays_off_the_centre_at_every_magnification(camp
             circles = np.array([r for _, r in scale.labelled_circles()])
             assert circles.min() > 0.0 and np.all(np.diff(circles) > 0.0)
             assert circles.max() >= radius.max() - 1e-9  # the scale reaches past the profile's peaks
+
+
+def test_a_stray_touch_rescales_its_own_ring_not_the_campaign() -> None:
+    """One touch of 5 um among 0.3 um of noise (debris): every other ring keeps the chart of the
+    campaign without it; its own ring, drawn with its touches, keeps them off the centre."""
+    rng = np.random.default_rng(4)
+    clean = rng.normal(0.0, 0.3, (126, 10, 64))
+    stray = clean.copy()
+    stray[7, 9, 20], stray[7, 9, 40] = 5.2, -3.1
+    for m in offered_magnifications():
+        quiet = [campaign_bounds(stray), stray[3], stray[3].mean(axis=0)]
+        assert polar_scale(m, quiet, 10.0) == polar_scale(m, [campaign_bounds(clean), clean[3], clean[3].mean(axis=0)], 10.0)
+        own = polar_scale(m, [campaign_bounds(stray), stray[7], stray[7].mean(axis=0)], 10.0)
+        assert own.radius_mm(stray[7]).min() >= INNER_CLEARANCE * own.base_mm and own.outer_mm >= own.radius_mm(5.2) - 1e-9
+    assert campaign_bounds(np.full((2, 3), np.nan)) == (0.0, 0.0)
 
 
 def test_the_labels_say_the_deviation_of_their_circle() -> None:

@@ -199,9 +199,9 @@ def test_a_claimed_shape_says_where_to_pin_it_down_even_when_something_else_is_l
     from ph_explorer.diagnosis.candidates import Candidate
     from ph_explorer.figures.diagnosis_text import next_step
 
-    actions = {"decide": "decide", "add": "add", "own": "own"}
+    actions = {"decide": "decide", "add": "add", "own": "own", "keep": "keep"}
     shape = step.claimed_shapes[0]
-    assert f"to pin {shape.id} down, measure rings whose" in next_step(step, actions)
+    assert f"to pin {shape.id} down, measure rings whose" in next_step(step, actions) and "(keep)" in next_step(step, actions)
     suggestion = Candidate("b_axis_cyclic", "B-axis cyclic", 0.1, 0.1, 0.01, True, {}, {}, {}, "", suggested=True)
     open_ = dataclasses.replace(step, suggested=(suggestion,))
     assert open_.leaves_open
@@ -470,6 +470,7 @@ def exported(step, tmp_path_factory) -> tuple[Path, Path]:
     shapes = folder / "shapes.toml"
     done = run_cli("diagnose", "--data", data, "--export-shapes", shapes, "--json")
     assert done.returncode == 0, done.stderr
+    assert f"to {shapes}: shape_b_angular" in done.stderr  # said where it went, on stderr beside the JSON
     return data, shapes
 
 

@@ -169,3 +169,4 @@ def test_a_signature_entry_in_time_says_hours() -> None:
     angle = entry | {"variable": "b_joint_deg", "centre_deg": -10.0}
     del angle["centre_s"]
     assert signature_text(angle) == "b_joint_deg localised, at -10 deg, 0.6 % (0.04 %)"
+    assert "at 74.3 deg," in signature_text(angle | {"centre_deg": 74.348})  # a tenth of a degree, not a float's digits

@@ -25,7 +25,7 @@ from ph_explorer.app.orientation_view import OrientationView, view_key
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
 from ph_explorer.figures.orientation_map import MapFigure, ranked_rings
-from ph_explorer.figures.polar import deviation_bounds
+from ph_explorer.figures.polar import campaign_bounds
 from ph_explorer.geometry import A_LIMIT_DEG
 from ph_explorer.harmonics import ron_t
 from ph_explorer.io import read_campaign
@@ -80,8 +80,8 @@ class Dataset:
         self._extra_figures: list[str] = []
         self._lock = threading.Lock()
         self.mean_curves = self.campaign.mean_curves()
-        # Every deviation of the campaign (each repetition): what a polar chart must keep off its centre.
-        self.deviation_bounds_um = np.array(deviation_bounds([self.campaign.deviations]))
+        # What every polar chart of the campaign keeps off its centre (a ring's own touches join it).
+        self.campaign_bounds_um = np.array(campaign_bounds(self.campaign.deviations))
         self.sigma_um = self.campaign.noise_sigma_um()
         # A campaign of single repetitions has no repetition spread: no floor to show.
         finite = np.isfinite(self.sigma_um)

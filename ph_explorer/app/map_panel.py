@@ -92,8 +92,9 @@ class MapPanel:
         if self._current is not None:
             self.draw(*self._current)
 
-    def set_failing(self, rings: Sequence[Ring] | None, tested: bool = True) -> None:
-        """The rings that fail, worst first, a button each; before a diagnosis, say so."""
+    def set_failing(self, rings: Sequence[Ring] | None, tested: bool = True, baseline: str = "") -> None:
+        """The rings that fail, worst first, a button each; before a diagnosis, say so. baseline: the
+        model the diagnosis predicts the check rings with (the map may show another)."""
         for button in self.failing_buttons:
             button.remove()
         self.failing_buttons, self.failing_targets = [], {}
@@ -117,7 +118,8 @@ class MapPanel:
         )
         self.failing_text.content = (
             f"**{exceeding_text(len(rings))}** by the within-noise test (ring level 1 %), worst first (out-of-sample MAE vs "
-            f"the mean / its floor); click to go there.{scatter}{more}"
+            f"the mean / its floor; a check ring as {baseline or 'the baseline'} predicts it, a training ring left out); "
+            f"click to go there.{scatter}{more}"
         )
         with self.failing_folder:
             for ring in rings[:MAX_FAILING_BUTTONS]:

@@ -20,7 +20,7 @@ from ph_explorer.diagnosis.shapes import Shape
 from ph_explorer.effects import Catalog
 from ph_explorer.figures.charts import evidence_svg, history_svg, line_chart_svg
 from ph_explorer.figures.decision_text import DecisionWords
-from ph_explorer.figures.diagnosis_text import left_next, report_sections, shared_text, signature_text
+from ph_explorer.figures.diagnosis_text import breakable, left_next, report_sections, shared_text, signature_text
 from ph_explorer.figures.history_text import chosen_text, gain_text, nested_summary, step_label
 from ph_explorer.figures.shape_text import shape_svg
 from ph_explorer.planning.deciding import DECIDE_BUDGET, Decision
@@ -46,7 +46,7 @@ def fit_html(result: Diagnosis, catalog: Catalog, limit: int = 4) -> str:
             ident = f"identifiable: shares under {100 * CONFOUNDED:.0f} % of its variance with every other candidate"
         rows.append(
             # Its status beside its name: a candidate shown when nothing is found is not a claim.
-            f'<tr style="border-bottom:1px solid #eee"><td style="{cell}font-weight:600;overflow-wrap:anywhere">{c.effect}'
+            f'<tr style="border-bottom:1px solid #eee"><td style="{cell}font-weight:600;overflow-wrap:anywhere">{breakable(c.effect)}'
             f'<div style="font-weight:400;color:#555">{c.status}</div></td>'
             f'<td style="{cell}">{catalog[c.effect].parameters_text(c.params, c.params_u)}<div style="color:#555">{ident}</div></td></tr>'
         )
@@ -108,7 +108,7 @@ def candidates_html(candidates: Sequence[Candidate], catalog: Catalog, limit: in
         mark = '<span title="significant" style="color:#2a9d3c">&#10004;</span>' if c.significant else ""
         rows.append(
             f'<tr style="border-bottom:1px solid #eee;text-align:right;vertical-align:top;{style}">'
-            f'<td style="text-align:left;{cell}overflow-wrap:anywhere">{rank}. {c.effect}{params}</td>'
+            f'<td style="text-align:left;{cell}overflow-wrap:anywhere">{rank}. {breakable(c.effect)}{params}</td>'
             f'<td style="{cell}">{100.0 * c.explained_fraction:.1f}&nbsp;%</td>'
             f'<td style="{cell}">{100.0 * c.error_reduction:.0f}&nbsp;%</td>'
             f'<td style="{cell}">{100.0 * c.noise_fraction:.2f}&nbsp;%</td><td style="{cell}">{mark}</td></tr>'
@@ -283,13 +283,14 @@ class PhysicsPanel:
         # tests, under "More" below the candidates): not worded again here.
         self.summary.content = "**Candidate effects**, best first:"
         self.candidates.content = candidates_html(result.candidates, self.catalog)
-        # The report's order (figures.diagnosis_text), in the explorer's words: the verdict and what
-        # to do next, the claims' untold partners (their fit is in the table below), the
-        # suggestions; why, where it fails, the tests, every partner and the teaching text under "More".
+        # The report's order (figures.diagnosis_text), in the explorer's words: the verdict and what to do
+        # next, the claims' untold partners (their fit is in the table below), shapes and suggestions led
+        # by their titles (never read as claims); why, where it fails, tests, partners, teaching under "More".
         short = {s.key: s for s in report_sections(result, self.catalog, front="explorer", decision=decision)}
         full = report_sections(result, self.catalog, "full", front="explorer")
         headline = short["verdict"].title
-        lines = [line for key in ("claims", "shapes", "suggested") if key in short for line in short[key].lines]
+        keys = [k for k in ("claims", "shapes", "suggested") if k in short]
+        lines = [("" if k == "claims" or i else f"**{short[k].title}:** ") + line for k in keys for i, line in enumerate(short[k].lines)]
         shown = [short[key] for key in ("why", "worst_rings") if key in short] + [
             s for s in full if s.key in ("tests", "partners", "teaching")
         ]

@@ -103,6 +103,13 @@ class ReportPanel:
         self.open.on_upload(lambda _: session.submit(self.open_study, self.open.value.name, self.open.value.content))
         self.download.on_click(lambda _: session.submit(self.download_study))
 
+    def reveal_hidden(self) -> None:
+        """Reveal (Physics): what a teaching scenario hid, shown; this panel's checkbox is then ticked,
+        so that what the report names is what the checkbox says (untick it to keep the report blind)."""
+        loop = self.session.loop
+        loop.reveal()
+        self.reveal.value = bool(self.reveal.value) or loop.revealed
+
     def report(self) -> tuple[str, str, bool]:
         """The report of what this browser shows, its file name, and whether it holds a diagnosis."""
         s = self.session
@@ -125,7 +132,7 @@ class ReportPanel:
             chosen[:3],
             study,
             loop.diagnosis,
-            reveal=bool(self.reveal.value) or loop.revealed,  # named once the browser has revealed them
+            reveal=bool(self.reveal.value),  # ticked by Reveal too (Session.reveal)
             created=created,
             source=name,
             decision=loop.decision.as_dict() if loop.decision is not None else None,

@@ -134,7 +134,7 @@ class Session:
         p.diagnose.on_click(lambda _: self.submit(self.loop.diagnose))
         p.refit.on_click(lambda _: self.submit(self.loop.refit))
         p.save_study.on_click(lambda _: self.submit(self.loop.save_study))
-        p.reveal.on_click(lambda _: self.loop.reveal())
+        p.reveal.on_click(lambda _: self.report_panel.reveal_hidden())
         p.decide.on_click(lambda _: self.submit(self.loop.decide))
         p.measure.on_click(lambda _: self.submit(self.loop.measure))
         p.adaptive_start.on_click(lambda _: self.submit(self.loop.start_adaptive))
@@ -222,9 +222,10 @@ class Session:
         else:
             title = f"{orientation_label(a, b)} — prediction (not measured)"
         c = self.controls
-        # The chart's base radius keeps every deviation of the campaign (each repetition) and of
-        # the curves drawn here off the centre (ph_explorer.figures.polar).
-        drawn = [ds.deviation_bounds_um, *view.curves.values(), *(band[1:] if band is not None else ())]
+        # The chart's base radius keeps the campaign's touches (but its rarest), this ring's own and
+        # the curves drawn here off the centre (ph_explorer.figures.polar), repetitions shown or not.
+        own = () if view.repetitions is None else (view.repetitions,)
+        drawn = [ds.campaign_bounds_um, *own, *view.curves.values(), *(band[1:] if band is not None else ())]
         scale = polar_scale(float(c.magnification.value), drawn, self.ring.bore_radius)
         show_repetitions = bool(c.repetitions.value)
         with self.client.atomic():
@@ -332,7 +333,7 @@ class Session:
         """The rings the last diagnosis finds beyond their noise, worst first (none before a diagnosis)."""
         result = self.loop.diagnosis
         tested = result is None or result.within_noise["baseline"] is not None
-        self.map_panel.set_failing(None if result is None else result.failing_rings(), tested)
+        self.map_panel.set_failing(None if result is None else result.failing_rings(), tested, result.baseline_model if result else "")
 
     def load_upload(self, name: str, content: bytes, sidecar: tuple[str, bytes] | None = None) -> None:
         """A CSV from the browser (and its sidecar TOML) read as the command line reads them; a bad file keeps the data."""

@@ -188,6 +188,11 @@ def why_lines(result: Diagnosis) -> list[str]:
     return lines
 
 
+def breakable(effect_id: str) -> str:
+    """An effect's id in HTML that a narrow column breaks after an underscore, not inside a word."""
+    return effect_id.replace("_", "_<wbr>")
+
+
 def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | None = None) -> str:
     """What to do next, by verdict and by what the diagnosis leaves open, with the front end's actions;
     with the decision found, what rings can decide and what they cannot (no button says no ring does)."""
@@ -214,7 +219,7 @@ def next_step(result: Diagnosis, actions: dict[str, str], decision: Decision | N
         "suggested": f"measure more rings where the suggestion predicts the largest difference ({actions['decide']}).",
         "partial": f"add the effects found, then look at what is left: {closest}an effect outside the catalog ({actions['own']}) may explain it.",
         "unexplained": f"no catalog effect explains the failure: {closest or look}else {own_effect_text(actions)}.",
-        "uncatalogued": f"the shape found is added in the error history below; {pins}.",
+        "uncatalogued": f"the shape found is added in the error history below ({actions['keep']}); {pins}.",
     }[result.verdict]
 
 
@@ -370,7 +375,7 @@ def signature_text(entry: dict) -> str:
     setting = {
         "cycles_per_rev": "{:g} cycles/rev".format,
         "cycles_per_span": "{:g} cycles over its span".format,
-        "centre_deg": "at {:g} deg".format,
+        "centre_deg": lambda deg: f"at {round(deg, 1):g} deg",  # to a tenth of a degree, not a float's digits
         "centre_s": lambda s: f"at {hours_text(s)}",
         "centre_touch": "at touch {:g}".format,
         "joint": "{} joint".format,

@@ -15,12 +15,14 @@ ACTIONS: dict[Front, dict[str, str]] = {
         "add": "add the effects found (diagnose --save STUDY adds them; --add ID adds your choice) and watch the check-ring error fall",
         "own": "--effects FILE.py",
         "next": NEXT_RINGS,
+        "keep": "--export-shapes SHAPES.toml keeps it, for --effects SHAPES.toml",
     },
     "explorer": {
         "decide": "Rings that would decide, below",
         "add": "tick the effects found, then Refit the hybrid",
         "own": "an effect file of your own, loaded with serve --effects",
         "next": NEXT_RINGS,
+        "keep": "Save study keeps it (serve --study)",
     },
 }
 

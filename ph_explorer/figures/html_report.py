@@ -26,7 +26,7 @@ from ph_explorer.diagnosis.study import Study, study_campaign
 from ph_explorer.effects import DEFAULT_CATALOG, Catalog
 from ph_explorer.figures.diagnosis_report import EffectNames, decision_section, diagnosis_figures, diagnosis_section, reveal_section
 from ph_explorer.figures.orientation_map import MapFigure, map_svg
-from ph_explorer.figures.polar import curves_svg, polar_scale
+from ph_explorer.figures.polar import campaign_bounds, curves_svg, polar_scale
 from ph_explorer.harmonics import ron_t
 from ph_explorer.models.deviation_model import DeviationModel
 from ph_explorer.models.folder import campaign_models
@@ -43,7 +43,7 @@ h1{font-size:1.5em;margin-bottom:0.2em} h2{font-size:1.2em;margin-top:1.6em;bord
 h3{font-size:1.05em} table{border-collapse:collapse;margin:6px 0 10px} td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}
 td:first-child,th:first-child,td.t{text-align:left} .meta td{text-align:left} .note{color:#555;font-size:0.9em}
 figure{margin:8px 0 16px} figcaption{font-size:0.9em;color:#444}
-.pair{display:flex;flex-wrap:wrap;gap:24px;align-items:flex-start} .pair>*{flex:1 1 420px;min-width:320px}
+.pair{display:flex;flex-wrap:wrap;gap:24px;align-items:flex-start} .pair>*{flex:1 1 420px;min-width:320px} .pair>figure{max-width:640px}
 .verdict{font-size:1.1em;font-weight:600}
 """
 
@@ -212,8 +212,9 @@ def _orientation_sections(
         for name, model in models.items():
             curves[name] = np.asarray(model.predict([[a, b]], n_points=campaign.n_points))[0]
         held_out = index is not None and bool(check[index])
-        # The chart's base keeps every deviation of the campaign and these curves off the centre, as in the explorer.
-        scale = polar_scale(MAGNIFICATION, [campaign.deviations, *curves.values()], bore_radius)
+        # The chart's base keeps the campaign's touches (but its rarest), this ring's and these curves off the centre, as in the explorer.
+        own = () if repetitions is None else (repetitions,)
+        scale = polar_scale(MAGNIFICATION, [campaign_bounds(campaign.deviations), *own, *curves.values()], bore_radius)
         kind = "not measured: predictions" if index is None else ("check ring" if held_out else "training ring")
         chart = curves_svg(scale, curves, {}, repetitions, None, f"{orientation_label(a, b)} ({kind})")
         tables = tables_at(campaign, models, index, curves)

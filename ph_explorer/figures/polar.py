@@ -113,6 +113,23 @@ def deviation_bounds(values: Iterable[ArrayLike]) -> tuple[float, float]:
     return float(finite.min()), float(finite.max())
 
 
+# The share of a campaign's touches beyond which one ring's chart alone makes room: a stray touch
+# (debris, a bad contact) rescales its own ring, not every ring of the campaign.
+CAMPAIGN_TOUCH_SHARE = 0.999
+
+
+def campaign_bounds(deviations: ArrayLike) -> tuple[float, float]:
+    """The deviations (um) every chart of a campaign keeps room for, so that it does not jump
+    between orientations: its touches' 0.1 and 99.9 percentiles (0, 0 when none is finite). A
+    chart adds its own ring's touches and curves (polar_scale)."""
+    values = np.asarray(deviations, dtype=float)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return 0.0, 0.0
+    low, high = np.quantile(finite, [1.0 - CAMPAIGN_TOUCH_SHARE, CAMPAIGN_TOUCH_SHARE])
+    return float(low), float(high)
+
+
 def polar_scale(magnification: float, values: Iterable[ArrayLike], min_base_mm: float) -> PolarScale:
     """The chart for these deviations (um) at this magnification.
 
