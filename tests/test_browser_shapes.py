@@ -37,6 +37,13 @@ def add_a_shape(page, session, shots: Path) -> None:
     chooser.value.set_files(str(data))
     assert wait_for(lambda: "fine_gear.csv" in session.data_panel.source.content, timeout=600)
     session.wait(timeout=300)
+    # Its sidecar (the file's 12 check rings, as the command line reads them), as docs/walkthrough_shape.md says.
+    with page.expect_file_chooser() as chooser:
+        page.get_by_role("button", name="Upload its sidecar TOML").click()
+    chooser.value.set_files(str(data.with_suffix(".toml")))
+    assert wait_for(lambda: "with its sidecar **fine_gear.toml**" in session.data_panel.message.content, timeout=600)
+    session.wait(timeout=300)
+    assert int(session.dataset.campaign.holdout_mask().sum()) == 12
 
     # 1. Diagnose: no catalog effect explains it, a shape does; its curve is drawn under the verdict.
     verdict = diagnosed(page, session)
