@@ -132,7 +132,7 @@ class ReportPanel:
             chosen[:3],
             study,
             loop.diagnosis,
-            reveal=bool(self.reveal.value),  # ticked by Reveal too (Session.reveal)
+            reveal=bool(self.reveal.value),  # ticked by Reveal too (reveal_hidden)
             created=created,
             source=name,
             decision=loop.decision.as_dict() if loop.decision is not None else None,
