@@ -17,7 +17,7 @@ def run_console(app: typer.Typer) -> None:
     try:
         code = app(prog_name="ph-explorer", standalone_mode=False)
     except click_errors.UsageError as error:
-        if type(error).__name__ == "NoArgsIsHelpError":  # the command alone: its help, as typer shows it
+        if isinstance(error, getattr(click_errors, "NoArgsIsHelpError", ())):  # the command alone: its help, as typer shows it
             error.show()
             raise SystemExit(2) from None
         where = error.ctx.command_path if error.ctx is not None else "ph-explorer"

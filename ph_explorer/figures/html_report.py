@@ -201,6 +201,7 @@ def _orientation_sections(
     floor = campaign.noise_floor_um() if np.isfinite(sigma) else {}
     markdown = MarkdownIt("commonmark", {"html": False}).enable("table")
     bore_radius = 0.5 * campaign.geometry.bore_diameter_mm
+    bounds = campaign_bounds(campaign.deviations)  # once: every chart of the campaign keeps room for them
     parts = ['<section id="orientations"><h2>3. Polar plots and Tables 1-3</h2>']
     for k, (a, b) in enumerate(chosen, 1):
         index = campaign.index_of(a, b)
@@ -214,7 +215,7 @@ def _orientation_sections(
         held_out = index is not None and bool(check[index])
         # The chart's base keeps the campaign's touches (but its rarest), this ring's and these curves off the centre, as in the explorer.
         own = () if repetitions is None else (repetitions,)
-        scale = polar_scale(MAGNIFICATION, [campaign_bounds(campaign.deviations), *own, *curves.values()], bore_radius)
+        scale = polar_scale(MAGNIFICATION, [bounds, *own, *curves.values()], bore_radius)
         kind = "not measured: predictions" if index is None else ("check ring" if held_out else "training ring")
         chart = curves_svg(scale, curves, {}, repetitions, None, f"{orientation_label(a, b)} ({kind})")
         tables = tables_at(campaign, models, index, curves)
