@@ -70,6 +70,9 @@ def add_a_shape(page, session, shots: Path) -> None:
     box = page.get_by_role("checkbox", name="shape_b_angular")
     box.scroll_into_view_if_needed()
     in_view(box, "the shape's checkbox")
+    # Its label, the shape's id, on one line: not broken mid-word by viser's narrow label column.
+    label = page.locator("label", has_text="shape_b_angular").first
+    assert label.bounding_box()["height"] < 1.5 * float(label.evaluate("e => parseFloat(getComputedStyle(e).lineHeight)"))
     box.check()
     page.get_by_role("button", name="Refit the hybrid").click()
     assert wait_for(lambda: len(session.loop.steps) >= 2 and "Refitted" in session.physics.refit_status.content, timeout=600)

@@ -192,3 +192,16 @@ def test_other_option_errors_name_the_option(tmp_path: Path) -> None:
     assert missing.returncode == 2 and missing.stderr.strip().startswith("option --scenario: ")
     holdout = run("train", "--data", str(path), "--out", str(tmp_path / "m"), "--holdout", "1:2")
     assert holdout.returncode == 2 and holdout.stderr.strip() == f"{path}, option --holdout: orientation(s) 1:2 not in the campaign"
+
+
+@pytest.mark.parametrize("command", ["simulate", "report"])
+def test_an_unknown_scenario_names_the_option_and_a_missing_folder_makes_none(tmp_path: Path, command: str) -> None:
+    out = tmp_path / ("x.csv" if command == "simulate" else "x.html")
+    unknown = run(command, "--scenario", "head_99", "--out", str(out))
+    assert unknown.returncode == 2 and unknown.stderr.strip().startswith("option --scenario: unknown scenario 'head_99' (shipped: ")
+    # An output in a folder that does not exist is refused before any work, as by every command.
+    missing = run(command, "--scenario", "head_3", "--out", str(tmp_path / "no_such" / out.name))
+    assert missing.returncode == 2 and missing.stderr.strip() == f"{tmp_path / 'no_such'}, option --out: no such folder for the " + (
+        "campaign" if command == "simulate" else "report"
+    )
+    assert not (tmp_path / "no_such").exists() and not out.exists()

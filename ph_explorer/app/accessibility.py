@@ -5,9 +5,10 @@ viser 1.1 names checkboxes, dropdowns and buttons by their `<label for=ID>` or t
 slider's thumb (role="slider") is left with aria-label="". The server sends each browser a script
 once (viser's RunJavascriptMessage, as it sends plotly.js: code goes from the server to the
 browser, never the other way) that copies each label onto its thumb and, as a title, onto the
-number box beside it; makes a folder's title bar a button named by its title (aria-expanded,
-Enter or Space opens it); names a notice's close button "Close notice" and the settings icon
-"Settings"; again whenever the panel redraws. Method: docs/explorer.md#accessibility.
+number box beside it; gives a checkbox's label the row's width (an effect's id whole); makes a
+folder's title bar a button named by its title (aria-expanded, Enter or Space opens it); names a
+notice's close button "Close notice" and the settings icon "Settings"; again whenever the panel
+redraws. Method: docs/explorer.md#accessibility.
 """
 
 from __future__ import annotations
@@ -29,6 +30,12 @@ NAME_SLIDERS_JS = r"""
       target.querySelectorAll('[role="slider"]').forEach((thumb) => {
         if (thumb.getAttribute("aria-label") !== text) thumb.setAttribute("aria-label", text);
       });
+      // A checkbox needs a box's width: its label (an effect's id) takes the rest of the row
+      // instead of viser's 7 em column, which breaks a long id mid-word.
+      const labelBox = label.parentElement && label.parentElement.parentElement;
+      if (target.type === "checkbox" && labelBox && labelBox.style.width !== "calc(100% - 2.5em)") {
+        labelBox.style.width = "calc(100% - 2.5em)";
+      }
       if (!target.querySelector('[role="slider"]')) return;
       const box = target.parentElement && target.parentElement.querySelector("input[inputmode]");
       if (box && box.title !== text) box.title = text;

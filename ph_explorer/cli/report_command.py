@@ -33,6 +33,7 @@ def report_command(
     """Write the report of --data or --scenario to --out; diagnose first when no --study is given."""
     # torch-bound (the diagnosis, the models): imported when the command runs, as diagnose does.
     from ph_explorer import twin
+    from ph_explorer.cli.simulate_command import scenario_of
     from ph_explorer.diagnosis.campaign_file import diagnose_campaign
     from ph_explorer.diagnosis.study import Study
     from ph_explorer.figures.html_report import diagnosed_report_html, report_html
@@ -51,7 +52,7 @@ def report_command(
         campaign = read_lattice_campaign(data, geometry)
         name, sha256 = Path(data).name, file_sha256(Path(data))
     else:
-        loaded = twin.load_scenario(str(scenario))
+        loaded = scenario_of(str(scenario))
         campaign = twin.simulate(loaded, loaded.seed)
         # The bytes simulate --out writes: a study of that file is a study of this campaign.
         name, sha256 = f"scenario {loaded.name}", campaign_sha256(campaign)

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from ph_explorer import twin
 from ph_explorer.campaign import Campaign
 from ph_explorer.errors import InputError
-from ph_explorer.io import write_campaign
+from ph_explorer.io import checked_output_file, write_campaign
 from ph_explorer.twin.random_heads import design_of, random_campaign, random_head
 
 if TYPE_CHECKING:
@@ -51,10 +51,11 @@ def simulate_command(
         raise InputError("give --scenario NAME|PATH (see --list) or --random-head SEED", option="--scenario")
     if out is None:
         raise InputError("give --out FILE.csv", option="--out")
+    out = checked_output_file(out, "--out", "the campaign", "campaign.csv")  # as every command's output: no folder made
     if adaptive:
         if rings is not None:
             raise InputError("measures the rings its plans choose: give --adaptive or --rings, not both", option="--rings")
-        head = random_head_of(random_head, design, hidden_effect, strength) if random_head is not None else twin.load_scenario(scenario)
+        head = random_head_of(random_head, design, hidden_effect, strength) if random_head is not None else scenario_of(scenario)
         return adaptive_command(head if seed is None else replace(head, seed=int(seed)), out, budget_minutes)
     if budget_minutes is not None:
         raise InputError("is the time an adaptive campaign may take: give --adaptive", option="--budget-minutes")
@@ -63,7 +64,7 @@ def simulate_command(
         hidden = len(campaign.scenario["hidden"])
         name, checks = campaign.scenario["name"], len(campaign.check_orientations)
     else:
-        loaded = twin.load_scenario(scenario)
+        loaded = scenario_of(scenario)
         if rings is not None:
             loaded, seed = rings_of(loaded, rings, seed)
         campaign = twin.simulate(loaded, seed)
@@ -133,6 +134,16 @@ def adaptive_command(head: twin.Scenario, out: Path, budget_minutes: float | Non
         f"{run.plans[-1].spent_minutes:.0f} minutes at the machine"
     )
     return 0
+
+
+def scenario_of(name_or_path: str) -> twin.Scenario:
+    """--scenario's head (twin.load_scenario), its error naming the option where no file does."""
+    try:
+        return twin.load_scenario(name_or_path)
+    except InputError as error:
+        if error.file is None and error.option is None:
+            raise InputError(error.message, option="--scenario") from None
+        raise
 
 
 def scenario_lines() -> list[str]:
