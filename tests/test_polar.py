@@ -96,6 +96,8 @@ def test_the_flat_chart_prints_its_scale_circles_magnification_points_and_legend
         value = float(label.split(" um")[0])
         assert radius == pytest.approx(scale.base_mm + 10.0 * value, abs=1e-3)
     assert scale_label(0.0) + " (LS circle)" in labels
+    # The labels over the profiles, which cross them at the LS circle: drawn after the curve.
+    assert svg.index('stroke="#1e1e1e"') < svg.index('fill="#555">')
     assert "x10000" in svg and "measured mean" in svg and "θ" in svg
     for k in (0, 16, 32, 48):
         assert re.search(rf'dominant-baseline="middle">{k}</text>', svg)

@@ -245,12 +245,14 @@ def _chart_frame(
     scale: PolarScale, outer: float, n_pt: int, point_labels: int, entries: tuple[tuple[str, str, float], ...]
 ) -> tuple[str, str]:
     """The parts of polar_svg that only the scale, the chart's size and the legend fix: the scale
-    circles (under the profiles) and the point numbers, theta's arrow and the legend (over them).
+    circles (under the profiles) and their labels, the point numbers, theta's arrow and the legend
+    (over them).
     Kept: the explorer redraws the chart on every slider move, mostly on the same scale."""
     theta = 360.0 * np.arange(n_pt) / n_pt
     numbers_r = 1.08 * outer
     extent, font, stroke = _layout(outer)
     parts: list[str] = []
+    labels: list[str] = []
     for text, radius in scale.labelled_circles():
         reference = text == scale_label(0.0)
         dash = "" if reference else f' stroke-dasharray="{3 * stroke:.3f} {3 * stroke:.3f}"'
@@ -258,14 +260,15 @@ def _chart_frame(
         parts.append(
             f'<circle cx="0" cy="0" r="{radius:.3f}" fill="none" stroke="{color}" stroke-width="{(2 if reference else 1) * stroke:.3f}"{dash}/>'
         )
-        # Labels along the 45-deg radius, with a white halo to stay readable over the curves.
+        # Labels along the 45-deg radius, drawn over the curves with a white halo: readable where a
+        # profile crosses them (most do at the LS circle).
         x, y = _xy(np.array(radius), np.array(45.0))
-        parts.append(
+        labels.append(
             f'<text x="{x:.3f}" y="{y:.3f}" font-size="{0.8 * font:.3f}" paint-order="stroke" stroke="#fff" '
             f'stroke-width="{0.25 * font:.3f}" fill="#555">{text}{" (LS circle)" if reference else ""}</text>'
         )
     circles = "".join(parts)
-    parts = []
+    parts = labels
     for k in range(0, n_pt, max(1, n_pt // point_labels)):
         x, y = _xy(np.array(numbers_r), np.array(theta[k]))
         parts.append(f'<text x="{x:.3f}" y="{y:.3f}" font-size="{font:.3f}" text-anchor="middle" dominant-baseline="middle">{k}</text>')
