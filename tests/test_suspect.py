@@ -57,6 +57,12 @@ def test_a_badly_measured_ring_is_named_and_the_heads_verdict_is_unchanged(healt
     verdict = next(s for s in report_sections(result, DEFAULT_CATALOG) if s.key == "verdict")
     label = f"A{suspect.a_deg:g} B{suspect.b_deg:g}"
     assert verdict.lines[0].startswith(f"Remeasure {label}") and label in verdict.lines[-1]
+    # The line gives the test's own figures, in its one unit (a mean square over noise's), beside the MAE ratio.
+    assert (
+        f"{suspect.ratio:.1f}x its floor out of sample (its mean square {suspect.excess:.0f}x what noise gives it, "
+        f"while the rings predicting it stay within {max(suspect.neighbours_excess, 1.0):.1f}x theirs)"
+    ) in verdict.lines[0]
+    assert suspect.excess > 3.0 and suspect.excess > 4.0 * max(suspect.neighbours_excess, 1.0)  # what the test decided on
     # The error map: every measured ring at its own place, the suspect one as its own verdict.
     figures = diagnosis_figures(result, healthy.orientations)
     verdict = figures["diagnosis: ring verdict (within-noise test)"].values

@@ -14,18 +14,21 @@ from ph_explorer.diagnosis.touch_outliers import OUTLIER_SHARE, OUTLIER_Z, Touch
 def suspect_text(ring: SuspectRing) -> str:
     """'Remeasure A45 B40 (left out of the fit and the claims): ...' (diagnosis.suspect)."""
     label = orientation_label(ring.a_deg, ring.b_deg)
+    # The test's own figures, in its one unit (a mean square over what noise gives it, 1 is noise),
+    # beside the MAE over the floor that the record and the other ring lines give.
+    standing = (
+        f"{ring.ratio:.1f}x its floor out of sample (its mean square {ring.excess:.0f}x what noise gives it, "
+        f"while {'the rings predicting it and the other check rings' if ring.check_ring else 'the rings predicting it'} "
+        f"stay within {max(ring.neighbours_excess, 1.0):.1f}x theirs)"
+    )
     if ring.check_ring:
         return (
-            f"Remeasure {label} (a check ring, kept in every test): {ring.ratio:.1f}x its floor out of sample while the rings "
-            f"predicting it and the other check rings stay within {max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring "
-            "measured badly, or an error at this orientation alone; if it repeats, measure rings between it and its neighbours."
+            f"Remeasure {label} (a check ring, kept in every test): {standing}: a ring measured badly, or an error at this "
+            "orientation alone; if it repeats, measure rings between it and its neighbours."
         )
     where = f"Remeasure {label} (left out of the fit and the claims): "
     if ring.reason == "fails alone":
-        return where + (
-            f"{ring.ratio:.1f}x its floor out of sample while the rings predicting it stay within "
-            f"{max(ring.neighbours_excess, 1.0) ** 0.5:.1f}x theirs: a ring measured badly, or an error at this orientation alone."
-        )
+        return where + f"{standing}: a ring measured badly, or an error at this orientation alone."
     return where + f"its repetitions disagree beyond noise (scatter test p = {ring.p_scatter:.2g}, level {SUSPECT_LEVEL:g} over the rings)."
 
 
