@@ -23,17 +23,31 @@ def fourier_basis(n_points: int, k_max: int) -> NDArray[np.float64]:
     return cols
 
 
-def remove_size_and_centre(radial_um: ArrayLike, axis: int = -1) -> NDArray[np.float64]:
+IN_PLACE_BLOCK_BYTES = 32 * 2**20  # what the fit in place holds at once beside the array it overwrites
+
+
+def remove_size_and_centre(radial_um: ArrayLike, axis: int = -1, in_place: bool = False) -> NDArray[np.float64]:
     """What the least-squares circle fit leaves of radial deviations of equally spaced points.
 
     For radial deviations that are small against the radius (um against mm), the LS circle fit is
     linear in them and removes exactly harmonics 0 (size) and 1 (centre): this projects them out
     along the points' axis, the last (-1) or the one before (-2: basis columns last, as effects give them).
+    in_place (axis -2, a writable float64 array of 3 axes or more): overwrites it, a block of
+    orientations at a time, instead of making an array as large (a dense campaign's scan library).
     """
     r = np.asarray(radial_um, dtype=float)
     n = r.shape[axis]
     basis = fourier_basis(n, 1)
     norms = np.array([n, n / 2, n / 2])  # the columns are orthogonal for equally spaced points
+    if in_place:
+        if r is not radial_um or not r.flags.writeable or r.ndim < 3 or axis not in (-2, r.ndim - 2):
+            raise ValueError("in place needs a writable float64 array of 3 axes or more, its points the axis before the last")
+        # The same products as below, ring by ring (the stacked matmul works ring by ring too).
+        step = max(1, IN_PLACE_BLOCK_BYTES // max(1, r[:1].nbytes))
+        for start in range(0, r.shape[0], step):
+            block = r[start : start + step]
+            block -= basis @ (np.matmul(basis.T, block) / norms[:, None])
+        return r
     if axis in (-1, r.ndim - 1):
         out = r @ basis / norms @ basis.T
     elif axis in (-2, r.ndim - 2):  # no transposed copy of a large stack of columns

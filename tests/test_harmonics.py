@@ -93,6 +93,17 @@ def test_remove_size_and_centre_matches_the_exact_fit_for_small_deviations() -> 
     np.testing.assert_allclose(remove_size_and_centre(radial_um), exact, atol=1e-3)
 
 
+def test_the_circle_fit_in_place_gives_the_copys_values_in_the_array_given() -> None:
+    # A scan library's columns (n_o, n_rep, n_pt, c) are fitted in place, a block of rings at a time.
+    columns = np.random.default_rng(1).normal(size=(7, 3, 64, 5))
+    copy = remove_size_and_centre(columns, axis=-2)
+    given = columns.copy()
+    assert remove_size_and_centre(given, axis=-2, in_place=True) is given
+    np.testing.assert_array_equal(given, copy)
+    with pytest.raises(ValueError):
+        remove_size_and_centre(np.broadcast_to(columns[:, :1], columns.shape), axis=-2, in_place=True)  # read-only
+
+
 def test_degenerate_point_sets_give_nan() -> None:
     t = np.arange(8.0)
     out = fit_circles(np.stack([t, np.cos(t)]), np.stack([2 * t, np.sin(t)]))

@@ -84,7 +84,7 @@ class FittedBases:
             made = effect.scan_library(self.touches)
             if made is None:
                 return None
-            library = fitted_columns(made[0], self.touches), made[1]
+            library = fitted_columns(made[0], self.touches, overwrite=True), made[1]  # made for it: fitted in place
             if self._reserve(library[0].nbytes):
                 library[0].flags.writeable = False  # a search makes its design from a copy (a fold's rings), never this
                 self._libraries[key] = library

@@ -55,9 +55,11 @@ RINGS_BROUGHT_WITHIN = 2
 SHARE_BROUGHT_WITHIN = 0.25
 # Significant scan values of one effect tried for materiality, most explained first.
 MAX_MATERIAL_TRIALS = 8
-# Scan values fitted at once when their columns change between repetitions: as many as hold this
-# many bytes of such columns (explained_beyond copies them once more), at least one.
-SCAN_CHUNK_WITHIN_BYTES = 64 * 2**20
+# Scan values fitted at once: as many as hold this many bytes of their columns (explained_beyond
+# copies them once more), at least one; a ring's mean only, or the columns that change between
+# repetitions (n_rep times larger). Two scans run at a time: a dense campaign's 40 harmonic orders
+# held at once took 600 MB each.
+SCAN_CHUNK_BYTES = 64 * 2**20
 # A ring's out-of-sample residual and columns hold its neighbours' touches (through the
 # interpolator), so delete-one-ring fits are not independent and the jackknife understates the
 # spread. The factor that brings 95 % of fitted parameters within U on calibration heads of their
@@ -237,11 +239,12 @@ class CandidateSearch:
             explained = least_squares.explained_by_library(fixed, design, indices, self.targets)
             del design
             return self._scanned(effect, fixed, every, explained, total_all, base)
-        # Every scanned value at once (least_squares.explained_beyond), grouped by column count; a
-        # few at a time where the columns change between repetitions (n_rep times larger), each
-        # few made only when scored, so that a dense campaign never holds every scan value's.
+        # The scanned values a few at a time (least_squares.explained_beyond, SCAN_CHUNK_BYTES of
+        # columns), grouped by column count, each few made only when scored, so that a dense
+        # campaign never holds every scan value's.
         first = self.design([effect.with_settings(**every[0])])
-        chunk = len(every) if first.within is None else max(1, min(len(every), SCAN_CHUNK_WITHIN_BYTES // max(first.within.nbytes, 1)))
+        held = first.mean.nbytes if first.within is None else first.within.nbytes
+        chunk = max(1, min(len(every), SCAN_CHUNK_BYTES // max(held, 1)))
         grid: list[dict[str, Any]] = []
         parts = []
         for start in range(0, len(every), chunk):

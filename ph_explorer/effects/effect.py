@@ -370,9 +370,10 @@ def joint_angle_deg(touches: Touches, axis: str) -> NDArray[np.float64]:
 
 def full_shape(array: NDArray[np.float64], touches: Touches) -> NDArray[np.float64]:
     """Broadcast an (n_o, 1, n_pt[, k]) array over the repetitions: a read-only view when it is the
-    same in every repetition (no copy n_rep times the size), else the array itself."""
+    same in every repetition (no copy n_rep times the size), else the array itself (writable: a
+    scan library's columns are fitted in place)."""
     target = touches.shape + array.shape[3:]
-    return np.broadcast_to(array, target)
+    return array if array.shape == target else np.broadcast_to(array, target)
 
 
 def effect_label(effect: Effect) -> str:

@@ -108,17 +108,21 @@ class Drift(Effect):
         if not all(value > 0 for value in [*taus, *periods]):
             raise InputError("drift: tau_s and cycle_period_s must be positive", column="tau_s")
         t = touches.times_s
-        histories = np.empty(t.shape + (1 + len(taus) + 2 * len(periods),))
-        histories[..., 0] = t / SECONDS_PER_HOUR
-        for i, tau in enumerate(taus):
-            histories[..., 1 + i] = 1.0 - np.exp(-t / tau)
-        for j, period in enumerate(periods):
-            histories[..., 1 + len(taus) + 2 * j] = np.sin(2 * np.pi * t / period)
-            histories[..., 2 + len(taus) + 2 * j] = np.cos(2 * np.pi * t / period)
         levers = touches.memo("drift_levers", lambda: _drift_levers(touches))  # the same at every scanned setting
-        # In one array: the columns are as large as the campaign.
-        cols = (levers[..., :, None] * histories[..., None, :]).reshape(t.shape + (2 * histories.shape[-1],))
-        return full_shape(cols, touches)
+
+        def histories():  # one at a time: the columns are as large as the campaign, the histories need not be
+            yield t / SECONDS_PER_HOUR
+            for tau in taus:
+                yield 1.0 - np.exp(-t / tau)
+            for period in periods:
+                yield np.sin(2 * np.pi * t / period)
+                yield np.cos(2 * np.pi * t / period)
+
+        count = 1 + len(taus) + 2 * len(periods)
+        cols = np.empty(t.shape + (2, count))  # each lever times each history
+        for k, history in enumerate(histories()):
+            np.multiply(levers, history[..., None], out=cols[..., k])
+        return full_shape(cols.reshape(t.shape + (2 * count,)), touches)
 
     def coefficients(self) -> NDArray[np.float64]:
         p = self.params
@@ -184,7 +188,10 @@ class RingForm(Effect):
         cols[:, 0::2] = np.cos(theta)
         cols[:, 1::2] = np.sin(theta)
         names = [f"ring_{trig}{k:g}theta" for k in n for trig in ("cos", "sin")]
-        return np.ascontiguousarray(np.broadcast_to(cols, touches.shape + cols.shape[-1:])), names
+        # The same at every ring and repetition: made once per ring, a view over the repetitions
+        # (a dense campaign's full array was 260 MB).
+        per_ring = np.ascontiguousarray(np.broadcast_to(cols, touches.shape[:1] + (1,) + cols.shape))
+        return full_shape(per_ring, touches), names
 
     def coefficients(self) -> NDArray[np.float64]:
         n = self._orders()

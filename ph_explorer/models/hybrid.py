@@ -49,8 +49,10 @@ def fitted_basis(effect: Effect, touches: Touches) -> tuple[NDArray, list[str]]:
     return fitted_columns(columns, touches), list(names)
 
 
-def fitted_columns(columns: NDArray[np.float64], touches: Touches) -> NDArray[np.float64]:
-    """Basis columns (n_o, n_rep, n_pt, n_cols) after each repetition's circle fit (fitted_basis)."""
+def fitted_columns(columns: NDArray[np.float64], touches: Touches, overwrite: bool = False) -> NDArray[np.float64]:
+    """Basis columns (n_o, n_rep, n_pt, n_cols) after each repetition's circle fit (fitted_basis);
+    overwrite: the caller gives the columns up, and a writable float64 array is fitted in place."""
+    given = columns
     columns = np.asarray(columns, dtype=float)
     # A view broadcast over the repetitions (full_shape) is the same in every one by construction;
     # columns that change with time (drift) differ already between the first two.
@@ -59,14 +61,15 @@ def fitted_columns(columns: NDArray[np.float64], touches: Touches) -> NDArray[np
         or (np.array_equal(columns[:, 1], columns[:, 0]) and np.array_equal(columns, np.broadcast_to(columns[:, :1], columns.shape)))
     ):
         columns = columns[:, :1]
-    fitted = remove_size_and_centre(columns, axis=-2)  # the circle fit acts along the points
     # A column the fit removes entirely (harmonics 0 and 1 at every ring: a stylus's sag, a
     # constant offset) leaves rounding noise ~1e-16 of its size; a least squares would fit that
     # noise with absurd coefficients. It is zero in the deviations: make it exactly zero.
     before = np.sqrt(np.einsum("orpc,orpc->c", columns, columns))
+    in_place = overwrite and columns is given and columns.flags.writeable
+    fitted = remove_size_and_centre(columns, axis=-2, in_place=in_place)  # the circle fit acts along the points
     after = np.sqrt(np.einsum("orpc,orpc->c", fitted, fitted))
     absorbed = after <= ABSORBED_RTOL * before
-    fitted[..., absorbed] = 0.0  # in place: fitted is remove_size_and_centre's new array
+    fitted[..., absorbed] = 0.0  # in place: a new array, or the columns given up
     shape = touches.shape + fitted.shape[3:]
     return fitted if fitted.shape == shape else np.broadcast_to(fitted, shape)  # a new array, or a view of one
 
