@@ -1,8 +1,8 @@
 """Issue 58's explorer line: measure until you know, in a real headless Chromium at 1440x900.
 
 The teacher loads head_4 (a hidden A-axis error), opens "Measure until you know (the twin)" on the
-Physics tab and starts from six rings: the twin measures the first plan (6 designed rings and 4
-check rings), the campaign of those rings is shown and diagnosed, and the next plan is listed with
+Physics tab and measures the first plan: the twin measures its 12 rings (6 designed, 2 at A0 = 0
+and 4 check rings), the campaign of those rings is shown and diagnosed, and the next plan is listed with
 the rings and minutes so far. Measure next, twice: the campaign grows, each diagnosis's check-ring
 error is drawn against the rings measured. A screenshot of each step goes to
 planning_<n>_<step>.png in PH_EXPLORER_LOOP_SHOTS (docs: the site's).
@@ -48,11 +48,11 @@ def measure_until_known(page, session, shots: Path) -> None:
     scenario_loaded(page, session, SCENARIO)
     assert session.dataset.campaign.n_orientations > 100  # the scenario's full campaign, before
 
-    # 1. Start from six rings: the twin measures the first plan; the campaign of its 12 rings is diagnosed.
+    # 1. Measure the first plan: the twin measures the first plan; the campaign of its 12 rings is diagnosed.
     page.get_by_role("tab", name="Physics").click()
     page.get_by_text("Measure until you know (the twin)").click()
-    start = page.get_by_role("button", name="Start from six rings")
-    in_view(start, "Start from six rings")
+    start = page.get_by_role("button", name="Measure the first plan")
+    in_view(start, "Measure the first plan")
     start.click()
     assert wait_for(lambda: len(session.loop.adaptive_points) == 1, timeout=900)
     session.wait(timeout=300)
@@ -60,7 +60,7 @@ def measure_until_known(page, session, shots: Path) -> None:
     status = session.physics.adaptive_status.content
     assert "12 rings, " in status and "minutes at the machine" in status and "Verdict" in session.physics.verdict.content, status
     # The folder's top at the panel's top: its buttons, the rings and minutes so far and the plan in view.
-    # (the status line, not a test's "better on 6 of 12 rings, p = ..." in the verdict above it)
+    # (the status line, not a test's "better on 6 of the 12 rings where ..., p = ..." in the verdict above it)
     so_far = page.get_by_text(re.compile(r"12 rings, \d+ minutes at the machine")).first
     # The diagnosis's lines above the folder may still be arriving (a loaded machine): scroll until they stand.
     assert wait_for(lambda: scrolled(start, to_top=True) and within_viewport(so_far), timeout=60)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -101,7 +102,7 @@ def test_inspect_without_a_file_is_a_usage_error() -> None:
 @pytest.mark.parametrize(
     ("args", "words"),
     [
-        (("serve", "--port", "abc"), "'--port': 'abc' is not a valid int"),
+        (("serve", "--port", "abc"), "option --port: 'abc' is not a valid int (ph-explorer serve --help"),
         (("diagnose", "--modle", "x"), "No such option: --modle"),
         (("diagnose",), "Missing option '--data'"),
         (("frobnicate",), "No such command 'frobnicate'"),
@@ -205,3 +206,22 @@ def test_an_unknown_scenario_names_the_option_and_a_missing_folder_makes_none(tm
         "campaign" if command == "simulate" else "report"
     )
     assert not (tmp_path / "no_such").exists() and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("train", "--data", "{csv}", "--out", "{missing}/model"),
+        ("merge", "{csv}", "{csv2}", "--out", "{missing}/all.csv"),
+        ("design", "--start", "--out", "{missing}/plan.csv"),
+        ("design", "--data", "{csv}", "--decide", "--out", "{missing}/rings.csv"),
+        ("diagnose", "--data", "{csv}", "--save", "{missing}/study.json"),
+    ],
+)
+def test_every_output_in_a_missing_folder_is_refused_before_any_work(tmp_path: Path, args: tuple[str, ...]) -> None:
+    csv = _campaign(tmp_path)
+    values = {"csv": csv, "csv2": csv.with_name("copy.csv"), "missing": tmp_path / "no_such"}
+    shutil.copy(csv, values["csv2"])
+    result = run(*(arg.format(**values) for arg in args))
+    assert result.returncode == 2 and result.stderr.strip().startswith(f"{tmp_path / 'no_such'}, option --")
+    assert "no such folder" in result.stderr and not (tmp_path / "no_such").exists()

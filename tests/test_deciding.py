@@ -187,6 +187,9 @@ def test_design_decide_names_the_rings_that_decide_head_6_and_writes_them_for_a_
     says so; ten do, and are written for a CMM."""
     campaign = tmp_path / "head_6.csv"
     assert run_cli("simulate", "--scenario", "head_6", "--out", campaign).returncode == 0
+    said = run_cli("design", "--data", campaign, "--decide", "--out", tmp_path / "six.csv")  # no ring: no file, and it says so
+    assert said.returncode == 0 and said.stdout.rstrip().endswith(f"No ring to measure: {tmp_path / 'six.csv'} not written.")
+    assert not (tmp_path / "six.csv").exists()
     result = run_cli("design", "--data", campaign, "--decide", "--json")
     assert result.returncode == 0, result.stderr
     expected = json.loads(result.stdout)["expected"]["a_axis_cyclic vs a_axis_radial_motion"]

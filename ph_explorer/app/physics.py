@@ -219,7 +219,7 @@ class PhysicsLoop:
         """The twin measures the next plan's rings after the last; the merged campaign is diagnosed again."""
         p, ds, plan = self.panel, self.current(), self.next_plan
         if plan is None or self.adaptive_twin is None or self.adaptive_last is None:
-            p.adaptive_status.content = "_Nothing to measure: Start from six rings first._"
+            p.adaptive_status.content = "_Nothing to measure: Measure the first plan first._"
             return
         if plan.stop:  # the stop and its reason are shown already
             return

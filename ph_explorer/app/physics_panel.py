@@ -182,10 +182,10 @@ class PhysicsPanel:
             self.evidence_items: dict[str, tuple[str, str, dict]] = {}  # dropdown label -> (title, caption, evidence)
             self.evidence_text = gui.add_markdown("")
         # Measure until you know (planning.adaptive): a teaching scenario's twin measures an adaptive
-        # campaign of the same head from six rings, each plan's rings after a diagnosis, until it stops.
+        # campaign of the same head from its first plan, each plan's rings after a diagnosis, until it stops.
         with gui.add_folder("Measure until you know (the twin)", expand_by_default=False, visible=False) as self.adaptive_folder:
             self.adaptive_start = gui.add_button(
-                "Start from six rings",
+                "Measure the first plan",
                 hint="the twin measures the first rings of this head (6 designed, 2 at A0 = 0, 4 check rings), then diagnoses",
             )
             self.adaptive_next = gui.add_button(

@@ -14,6 +14,7 @@ from typing import Any
 from ph_explorer.effects import DEFAULT_CATALOG
 from ph_explorer.errors import InputError
 from ph_explorer.geometry import DEFAULT_GEOMETRY, Geometry
+from ph_explorer.io import checked_output_file
 from ph_explorer.planning.deciding import DECIDE_BUDGET
 from ph_explorer.planning.plans import Answer
 
@@ -106,6 +107,8 @@ def decide_command(
     (planning.deciding)."""
     if data is None:
         raise InputError("needs the campaign whose diagnosis is to be decided: give --data FILE.csv", option="--decide")
+    if out is not None:
+        out = checked_output_file(out, "--out", "the rings", "rings.csv")
     from ph_explorer.diagnosis import diagnose
     from ph_explorer.figures.decision_text import decision_words
     from ph_explorer.io.rings import rings_csv_text
@@ -124,7 +127,7 @@ def decide_command(
         previous.rings_added_on(file_sha256(Path(data)), str(data), campaign.scenario.get("merges", []))
     result = diagnose(campaign, catalog=catalog, start=start)
     decision = rings_that_decide(campaign, result, catalog, budget)
-    if out is not None:
+    if out is not None and decision.rings:
         atomic_write([(Path(out), rings_csv_text(decision.rings))])
     report = {"data": Path(data).name, "verdict": result.verdict, "budget": budget, **decision.as_dict()}
     if json_output:
@@ -132,8 +135,7 @@ def decide_command(
         return 0
     words = decision_words(decision, budget).lines()
     lines = [f"{Path(data).name}: verdict {result.verdict}; " + words[0], *words[1:]]
-    if out is not None and decision.rings:
-        lines[-1] += f"; written to {out}"
+    lines = with_out(lines, out, bool(decision.rings))
     print("\n".join(lines))
     return 0
 
@@ -153,6 +155,8 @@ def plan_command(
     for value, option in ((budget, "--budget-minutes"), (tolerance, "--tolerance-um"), (sigma, "--sigma-um")):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise InputError(f"must be a positive number, got {value:g}", option=option)
+    if out is not None:
+        out = checked_output_file(out, "--out", "the rings", "rings.csv")
     from ph_explorer.io.rings import rings_csv_text
     from ph_explorer.io.writer import atomic_write
     from ph_explorer.planning import adaptive
@@ -185,8 +189,7 @@ def plan_command(
         print(json.dumps(report, allow_nan=False))
         return 0
     lines = plan.lines()
-    if out is not None and plan.rings:
-        lines[-1] += f"; written to {out}"
+    lines = with_out(lines, out, bool(plan.rings))
     print("\n".join(lines))
     return 0
 
@@ -223,3 +226,12 @@ def _named_entry(entry: object) -> bool:
         return False
     untold = entry.get("untold")
     return isinstance(untold, list) and all(isinstance(u, str) for u in untold)
+
+
+def with_out(lines: list[str], out: Path | None, any_ring: bool) -> list[str]:
+    """The lines with what became of --out: the rings written to it, or no file when there is no ring."""
+    if out is None:
+        return lines
+    if any_ring:
+        return [*lines[:-1], f"{lines[-1]}; written to {out}"]
+    return [*lines, f"No ring to measure: {out} not written."]

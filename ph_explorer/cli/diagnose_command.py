@@ -51,6 +51,9 @@ def diagnose_command(
         checked_output_file(save, "--save", "the study", "study.json")
     if export_shapes is not None:
         checked_output_file(export_shapes, "--export-shapes", "the shapes file", "shapes.toml")
+    if model is not None and not Path(model).is_dir():  # said before the progress bar, which would leave a blank line
+        what = "is a file: give the folder train --out wrote" if Path(model).exists() else "model folder not found"
+        raise InputError(what, file=str(model), option="--model")
     ids = parse_add(add, catalog)
     if effects is not None and not json_output:
         read = [effect_id for effect_id in catalog if effect_id not in DEFAULT_CATALOG]

@@ -117,7 +117,12 @@ def effects_text(report: dict[str, Any]) -> str:
             f"repetitions, {design['points']} points; mean-curve noise {floor}.",
             f"Stacked bases at the default settings: {design['columns']} columns, rank {design['rank_after_fit']} after the "
             f"circle fit, {design['rank_out_of_sample']} after the data model's out-of-sample smoother.",
-            "Figures at each effect's default settings, [range over its scan]; visible (settings visible / scanned).",
+            *textwrap.wrap(
+                "Figures at each effect's default settings, [range over its scan]; visible (settings visible / scanned); "
+                "absorbed by fit: the share of its term the circle fits remove; learnable: the share of what they leave that "
+                "the lattice interpolates out of sample (docs/twin.md).",
+                118,
+            ),
             f"Confounded: {design['confounding']}.",
             "",
         ]

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from ph_explorer.errors import InputError
-from ph_explorer.io import file_sha256, read_campaign, write_campaign
+from ph_explorer.io import checked_output_file, file_sha256, read_campaign, write_campaign
 from ph_explorer.io.merge import merged_campaign
 
 
@@ -18,6 +18,7 @@ def merge_command(
     resolved = {p.resolve() for p in (base, new)}
     if out.resolve() in resolved:
         raise InputError("must name a new file: the merge never writes over its inputs", option="--out")
+    out = checked_output_file(out, "--out", "the merged campaign", "all.csv")
     merged, record = merged_campaign(read_campaign(base, geometry), read_campaign(new, geometry), replace, file_sha256(base))
     write_campaign(merged, out)
     summary = {

@@ -17,6 +17,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from ph_explorer.campaign import Campaign, orientation_match
 from ph_explorer.cli.evaluate_command import format_report
 from ph_explorer.errors import InputError
+from ph_explorer.io import checked_output_file
 from ph_explorer.models.lattice_need import read_lattice_campaign
 
 if TYPE_CHECKING:  # torch-bound: imported for real only when the command runs
@@ -45,6 +46,8 @@ def train_command(
     parts = (part,) if part not in (None, "trilinear", "network") else ()  # the two are always trained
     if Path(out).exists() and not Path(out).is_dir():
         raise InputError("must be a folder (it exists as a file)", file=str(out), option="--out")
+    if not Path(out).is_dir():  # made, in a folder that exists: as every command's output, no folders on the way
+        checked_output_file(Path(out), "--out", "the model folder", "head_3_models")
     campaign = read_lattice_campaign(data, geometry)
     mask = parse_holdout(holdout, campaign) if holdout else campaign.holdout_mask()
     if mask.all():

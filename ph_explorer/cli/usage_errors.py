@@ -22,7 +22,12 @@ def run_console(app: typer.Typer) -> None:
             raise SystemExit(2) from None
         where = error.ctx.command_path if error.ctx is not None else "ph-explorer"
         message = " ".join(error.format_message().split())
-        typer.echo(f"{where}: {message} ({where} --help lists the options)", err=True)
+        names = getattr(getattr(error, "param", None), "opts", None)
+        if type(error) is click_errors.BadParameter and names:  # a value of the wrong type: worded as every bad option is
+            message = f"option {max(names, key=len)}: {' '.join(error.message.split()).rstrip('.')}"
+        else:
+            message = f"{where}: {message}"
+        typer.echo(f"{message} ({where} --help lists the options)", err=True)
         raise SystemExit(2) from None
     except click_errors.ClickException as error:
         typer.echo(f"ph-explorer: {' '.join(error.format_message().split())}", err=True)

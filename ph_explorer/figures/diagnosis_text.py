@@ -359,10 +359,14 @@ def told_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> 
 
 
 def test_text(test: PairTest) -> str:
-    """'better on 10 of 12 rings, p = 0.002 (0.004 without the top ring)': diagnosis.telling_apart in words."""
+    """'better on 10 of the 12 rings where they differ, p = 0.002 (0.004 without the top ring)':
+    diagnosis.telling_apart in words (the rings where the two predict alike are no units)."""
     if test.rings == 0:
         return "their predictions differ on no ring"
-    return f"better on {test.rings_better} of {test.rings} rings, p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
+    return (
+        f"better on {test.rings_better} of the {test.rings} rings where their predictions differ, "
+        f"p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
+    )
 
 
 def percent(share: float) -> str:

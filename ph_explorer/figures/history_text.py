@@ -56,9 +56,7 @@ def nested_lines(nested: NestedAfter) -> list[str]:
 def gain_text(nested: NestedAfter) -> str:
     """The nested gain's test over rings: whether the fall in error replicates on rings that took no part in choosing."""
     gain = nested.gain
-    test = (
-        f"sign-flip p = {gain.p_value:.3g}, {gain.p_without_top:.3g} without the top ring; {gain.rings_gaining} of {gain.rings} rings gain"
-    )
+    test = f"sign-flip p = {gain.p_value:.3g}, {gain.p_without_top:.3g} without the top ring; {gain.rings_gaining} of the {gain.rings} rings whose error the claims change gain"
     # A record of the training rings alone was written before the test was a claim's condition.
     withdrawn = "no effect the search chose is claimed" if nested.check_rings else "the check rings above carry the claims"
     verdict = "replicated" if nested.gain_holds else f"not replicated: {withdrawn}"
