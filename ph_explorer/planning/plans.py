@@ -81,19 +81,13 @@ class Plan:
         so_far = f" after {self.measured_rings} rings ({self.spent_minutes:.0f} min)" if self.measured_rings else ""
         if self.stop:
             return [f"stop{so_far}: {self.reason}"]
-        count = "1 ring" if len(self.rings) == 1 else f"{len(self.rings)} rings"
-        head = f"measure {count}{so_far}, {self.repetitions} repetitions each, in this order: {self.reason}"
+        head = f"measure {len(self.rings)} rings{so_far}, {self.repetitions} repetitions each, in this order: {self.reason}"
         rings = [
             f"{k:>3}. {orientation_label(r.a_deg, r.b_deg):<12} {'check' if r.check else 'fit  '}  {r.reason}"
             for k, r in enumerate(self.rings, start=1)
         ]
         budget = "" if self.budget_minutes is None else f" of a budget of {self.budget_minutes:g}"
-        # Planned minutes (the twin's cadence); the next plan's "so far" is the campaign's own clock.
-        return [
-            head,
-            *rings,
-            f"about {self.minutes:.0f} minutes at the machine (about {self.spent_minutes + self.minutes:.0f}{budget} in all)",
-        ]
+        return [head, *rings, f"about {self.minutes:.0f} minutes at the machine ({self.spent_minutes + self.minutes:.0f}{budget} in all)"]
 
 
 @dataclass(frozen=True)
