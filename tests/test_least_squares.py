@@ -33,24 +33,6 @@ def test_every_scanned_design_explains_at_once_what_each_explains_beyond_the_fix
     assert np.allclose(alone, [least_squares.fit(d, targets)[1] for d in designs[:3]])
 
 
-def test_a_design_explains_the_same_whichever_designs_share_its_call():
-    """Each design's nearly redundant directions are dropped at its own scale, as fit() of it alone
-    drops them: a scan fitted a few settings at a time gives what it gives fitted all at once."""
-    rng = np.random.default_rng(5)
-    n_o, n_rep, n_pt = 10, 3, 16
-    targets = Design(rng.normal(size=(n_o, n_rep, n_pt, 4)), None)
-    small = rng.normal(size=(n_o, 1, n_pt, 1))
-    # Two columns 1e-4 apart: an eigenvalue ~1e-8 of the design's own scale squared, kept by its own
-    # scale (above 1e-12 of it) but not by a 1e4 times larger design's (below 1e-12 of 1e8).
-    nearly = np.concatenate([small, small + 1e-4 * rng.normal(size=small.shape)], axis=-1)
-    quiet = Design(np.broadcast_to(nearly, (n_o, n_rep, n_pt, 2)), None)
-    loud = Design(np.broadcast_to(1e4 * rng.normal(size=(n_o, 1, n_pt, 2)), (n_o, n_rep, n_pt, 2)), None)
-    together = least_squares.explained_beyond(None, [quiet, loud], targets)
-    apart = np.concatenate([least_squares.explained_beyond(None, [d], targets) for d in (quiet, loud)])
-    np.testing.assert_allclose(together, apart, rtol=1e-9)
-    np.testing.assert_allclose(together[0], least_squares.fit(quiet, targets)[1], rtol=1e-9)
-
-
 @pytest.mark.parametrize("within", [False, True])
 @pytest.mark.parametrize("with_fixed", [False, True])
 def test_designs_gathered_from_one_library_explain_what_each_design_explains(within, with_fixed):

@@ -359,14 +359,11 @@ def told_text(effect: str, partner: Partner, catalog: Catalog | None = None) -> 
 
 
 def test_text(test: PairTest) -> str:
-    """'better on 10 of the 12 rings where they differ, p = 0.002 (0.004 without the top ring)':
-    diagnosis.telling_apart in words (the rings where the two predict alike are no units)."""
+    """'better on 10 of the 12 rings where their predictions differ, p = 0.002 (...)': diagnosis.telling_apart in words."""
     if test.rings == 0:
         return "their predictions differ on no ring"
-    return (
-        f"better on {test.rings_better} of the {test.rings} rings where their predictions differ, "
-        f"p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
-    )
+    where = f"of the {test.rings} rings where their predictions differ"
+    return f"better on {test.rings_better} {where}, p = {test.p_value:.3g} ({test.p_without_top:.3g} without the top ring)"
 
 
 def percent(share: float) -> str:

@@ -181,11 +181,10 @@ def _largest_magnitude(x: NDArray[np.float64]) -> float:
     return float(max(x.max(), -x.min())) if x.size else 0.0
 
 
-def _kept(values: NDArray[np.float64], scale: float | NDArray[np.float64], n_rows: int) -> NDArray[np.bool_]:
+def _kept(values: NDArray[np.float64], scale: float, n_rows: int) -> NDArray[np.bool_]:
     """The eigen-directions solve() keeps: eigenvalues above 1e-12 of the columns' scale squared
-    times the rows (below it the smoother already predicts them: nothing out of sample); scale:
-    one, or one per design of a stack (S,) for eigenvalues (S, c)."""
-    return values > 1e-12 * np.maximum(np.asarray(scale, dtype=float) ** 2 * n_rows, 1e-300)[..., None]
+    times the rows (below it the smoother already predicts them: nothing out of sample)."""
+    return values > 1e-12 * max(scale**2 * n_rows, 1e-300)
 
 
 def solve(gram: NDArray[np.float64], dot: NDArray[np.float64], scale: float, n_rows: int, ridge: float = 0.0) -> tuple[NDArray, NDArray]:
@@ -262,9 +261,7 @@ def explained_beyond(fixed: Design | None, designs: list[Design], targets: Desig
         cross = n_rep * _each_times(means, f_mean)  # (S, c, f): X_s' F
         if f_within is not None and changing:
             cross = cross + _each_times(w_all, f_within)
-    # Each design's own scale, as fit() of it beside fixed takes: the figure is the design's alone,
-    # whichever designs share the call (a scan fits its settings a few at a time).
-    return _explained(u, gram, cross, fixed, targets, np.array([d.scale for d in designs]), _rows(designs[0]))
+    return _explained(u, gram, cross, fixed, targets, max(d.scale for d in designs), _rows(designs[0]))
 
 
 def explained_by_library(fixed: Design | None, library: Design, indices: list[NDArray[np.intp]], targets: Design) -> NDArray[np.float64]:
@@ -284,17 +281,16 @@ def _explained(
     cross: NDArray[np.float64] | None,
     fixed: Design | None,
     targets: Design,
-    scale: float | NDArray[np.float64],
+    scale: float,
     rows: int,
 ) -> NDArray[np.float64]:
-    """(S, k) from each design's products X'y (S, c, k), X'X (S, c, c) and X'F (S, c, f); scale:
-    the designs', one for all or one each (S,)."""
+    """(S, k) from each design's products X'y (S, c, k), X'X (S, c, c) and X'F (S, c, f)."""
     if cross is not None and fixed is not None:
         a_inverse = _pseudo_inverse(fixed.gram(), fixed.scale, rows)
         v = fixed.dot(targets)  # (f, k)
         u = u - cross @ (a_inverse @ v)
         gram = gram - cross @ a_inverse @ np.swapaxes(cross, 1, 2)
-        scale = np.maximum(scale, fixed.scale)
+        scale = max(scale, fixed.scale)
     values, vectors = np.linalg.eigh(gram)  # (S, c), (S, c, c)
     keep = _kept(values, scale, rows)
     projected = np.swapaxes(vectors, 1, 2) @ u  # (S, c, k)
